@@ -1,0 +1,41 @@
+# pedicle_drilling: the two commands of the README (`make run`, `make test`) and helpers.
+# Every target installs the missing Debian packages first, then builds with catkin in Release.
+SHELL := /bin/bash
+# Debian's ROS Python modules are only visible to /usr/bin/python3: put /usr/bin first so that
+# a pyenv (or any other) python3 on PATH cannot break catkin, rostest or our scripts.
+export PATH := /usr/bin:/bin:/usr/sbin:/sbin:$(PATH)
+export PYTHONNOUSERSITE := 1
+
+WS := $(CURDIR)/catkin_ws
+JOBS ?= 2
+CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
+	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON -j$(JOBS)
+
+.PHONY: all deps build test run bench lint format clean
+
+all: build
+
+deps:
+	./scripts/install_deps.sh
+
+build: deps
+	$(CATKIN_MAKE)
+
+test: build
+	$(CATKIN_MAKE) tests
+	xvfb-run -a -s "-screen 0 1280x1024x24" ./scripts/run_tests.sh
+
+run: build
+	./scripts/run_main.sh
+
+bench: build
+	./scripts/run_bench.sh
+
+lint: deps
+	catkin_lint -W2 --strict $(CURDIR) --ignore missing_directory
+
+format:
+	clang-format -i $$(git ls-files '*.cpp' '*.hpp')
+
+clean:
+	rm -rf $(WS)/build $(WS)/devel $(WS)/src/CMakeLists.txt

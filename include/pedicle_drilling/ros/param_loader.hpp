@@ -1,0 +1,96 @@
+/**
+ * @file param_loader.hpp
+ * @brief Loading of validated nodelet parameters: a bad value is a clear error naming the
+ *        parameter (never a silent default); a missing one takes the documented default.
+ */
+#pragma once
+
+#include <ros/node_handle.h>
+
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+
+namespace pedicle_drilling {
+
+/** @brief Thrown when a parameter has the wrong type or is out of range. */
+class ParameterError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+/** @brief Reads private parameters of one node handle and checks types and ranges. */
+class ParamLoader {
+ public:
+  explicit ParamLoader(const ros::NodeHandle& private_nh) : nh_(private_nh) {}
+
+  /** @brief A double in [min, max] (inclusive unless open_min/open_max). */
+  double getDouble(const std::string& name, double default_value, double min, double max,
+                   bool open_min = false, bool open_max = false) const {
+    double value = default_value;
+    if (nh_.hasParam(name)) {
+      XmlRpc::XmlRpcValue raw;
+      nh_.getParam(name, raw);
+      if (raw.getType() == XmlRpc::XmlRpcValue::TypeDouble) {
+        value = static_cast<double>(raw);
+      } else if (raw.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+        value = static_cast<int>(raw);
+      } else {
+        fail(name, "must be a number");
+      }
+    }
+    const bool below = open_min ? !(value > min) : !(value >= min);
+    const bool above = open_max ? !(value < max) : !(value <= max);
+    if (!std::isfinite(value) || below || above) {
+      std::ostringstream rule;
+      rule << "= " << value << " is out of range " << (open_min ? "(" : "[") << min << ", " << max
+           << (open_max ? ")" : "]");
+      fail(name, rule.str());
+    }
+    return value;
+  }
+
+  /** @brief An integer in [min, max]. */
+  int getInt(const std::string& name, int default_value, int min, int max) const {
+    int value = default_value;
+    if (nh_.hasParam(name)) {
+      XmlRpc::XmlRpcValue raw;
+      nh_.getParam(name, raw);
+      if (raw.getType() != XmlRpc::XmlRpcValue::TypeInt) fail(name, "must be an integer");
+      value = static_cast<int>(raw);
+    }
+    if (value < min || value > max) {
+      std::ostringstream rule;
+      rule << "= " << value << " is out of range [" << min << ", " << max << "]";
+      fail(name, rule.str());
+    }
+    return value;
+  }
+
+  /** @brief A boolean. */
+  bool getBool(const std::string& name, bool default_value) const {
+    bool value = default_value;
+    if (nh_.hasParam(name) && !nh_.getParam(name, value)) fail(name, "must be true or false");
+    return value;
+  }
+
+  /** @brief A string; non-empty unless allow_empty. */
+  std::string getString(const std::string& name, const std::string& default_value,
+                        bool allow_empty = false) const {
+    std::string value = default_value;
+    if (nh_.hasParam(name) && !nh_.getParam(name, value)) fail(name, "must be a string");
+    if (!allow_empty && value.empty()) fail(name, "must not be empty");
+    return value;
+  }
+
+  /** @brief Throws ParameterError naming the fully resolved parameter. */
+  [[noreturn]] void fail(const std::string& name, const std::string& what) const {
+    throw ParameterError("parameter '" + nh_.resolveName(name) + "' " + what);
+  }
+
+ private:
+  ros::NodeHandle nh_;
+};
+
+}  // namespace pedicle_drilling

@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages pedicle_drilling needs, only those that are missing.
+# Runs as root, or through sudo when not root.
+set -euo pipefail
+PACKAGES=(
+  build-essential cmake pkg-config
+  catkin python3-catkin-pkg catkin-lint
+  ros-core-dev ros-message-generation ros-message-runtime rosbash
+  libroscpp-dev libnodeletlib-dev libnodeletlib-tools python3-nodelet
+  libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev python3-tf2-ros
+  libgeometry-msgs-dev libsensor-msgs-dev libtrajectory-msgs-dev libdiagnostic-msgs-dev
+  libstd-msgs-dev ros-std-srvs libstd-srvs-dev libvisualization-msgs-dev
+  librosbag-dev python3-rosbag python3-rospy python3-rostopic python3-rosservice
+  librostest-dev python3-rostest python3-roslaunch
+  librviz-dev rviz
+  libkdl-parser-dev liborocos-kdl-dev liburdfdom-dev liburdf-dev
+  libeigen3-dev libceres-dev libbullet-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  python3-numpy python3-yaml python3-pywt python3-matplotlib python3-pytest
+  xvfb xauth x11-utils imagemagick libgl1-mesa-dri mesa-utils
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  if ! dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed"; then
+    missing+=("$p")
+  fi
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install_deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+echo "install_deps: installing ${#missing[@]} missing packages: ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+echo "install_deps: done"

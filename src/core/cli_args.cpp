@@ -1,0 +1,111 @@
+#include "pedicle_drilling/core/cli_args.hpp"
+
+#include <cmath>
+#include <sstream>
+
+namespace pedicle_drilling::core {
+
+CliArgs::CliArgs(int argc, char** argv, const std::set<std::string>& value_options,
+                 const std::set<std::string>& flag_options) {
+  for (int i = 1; i < argc; ++i) {
+    std::string arg = argv[i];
+    if (arg.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + arg + "'");
+    std::string key = arg.substr(2);
+    std::string value;
+    bool has_inline_value = false;
+    const auto eq = key.find('=');
+    if (eq != std::string::npos) {
+      value = key.substr(eq + 1);
+      key = key.substr(0, eq);
+      has_inline_value = true;
+    }
+    if (flag_options.count(key)) {
+      if (has_inline_value) throw UsageError("option '--" + key + "' takes no value");
+      flags_.insert(key);
+    } else if (value_options.count(key)) {
+      if (!has_inline_value) {
+        if (i + 1 >= argc) throw UsageError("option '--" + key + "' needs a value");
+        value = argv[++i];
+      }
+      values_.emplace(key, value);
+    } else {
+      throw UsageError("unknown option '--" + key + "'");
+    }
+  }
+}
+
+std::string CliArgs::get(const std::string& key, const std::string& fallback) const {
+  const auto it = values_.find(key);
+  return it == values_.end() ? fallback : it->second;
+}
+
+std::vector<std::string> CliArgs::getAll(const std::string& key) const {
+  std::vector<std::string> out;
+  const auto range = values_.equal_range(key);
+  for (auto it = range.first; it != range.second; ++it) out.push_back(it->second);
+  return out;
+}
+
+double CliArgs::getDouble(const std::string& key, double fallback) const {
+  if (!has(key)) return fallback;
+  const std::string text = get(key, "");
+  try {
+    size_t used = 0;
+    const double value = std::stod(text, &used);
+    if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(text);
+    return value;
+  } catch (const std::exception&) {
+    throw UsageError("option '--" + key + "' = '" + text + "' is not a finite number");
+  }
+}
+
+long CliArgs::getInt(const std::string& key, long fallback) const {
+  if (!has(key)) return fallback;
+  const std::string text = get(key, "");
+  try {
+    size_t used = 0;
+    const long value = std::stol(text, &used);
+    if (used != text.size()) throw std::invalid_argument(text);
+    return value;
+  } catch (const std::exception&) {
+    throw UsageError("option '--" + key + "' = '" + text + "' is not an integer");
+  }
+}
+
+std::vector<int> parseIntList(const std::string& text, const std::string& what) {
+  std::vector<int> out;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    try {
+      size_t used = 0;
+      const int value = std::stoi(item, &used);
+      if (used != item.size()) throw std::invalid_argument(item);
+      out.push_back(value);
+    } catch (const std::exception&) {
+      throw UsageError(what + " = '" + text + "' is not a comma-separated list of integers");
+    }
+  }
+  if (out.empty()) throw UsageError(what + " is empty");
+  return out;
+}
+
+std::vector<double> parseDoubleList(const std::string& text, const std::string& what) {
+  std::vector<double> out;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    try {
+      size_t used = 0;
+      const double value = std::stod(item, &used);
+      if (used != item.size() || !std::isfinite(value)) throw std::invalid_argument(item);
+      out.push_back(value);
+    } catch (const std::exception&) {
+      throw UsageError(what + " = '" + text + "' is not a comma-separated list of numbers");
+    }
+  }
+  if (out.empty()) throw UsageError(what + " is empty");
+  return out;
+}
+
+}  // namespace pedicle_drilling::core

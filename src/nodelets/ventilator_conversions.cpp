@@ -1,0 +1,82 @@
+#include "pedicle_drilling/ros/ventilator_conversions.hpp"
+
+#include <stdexcept>
+
+namespace pedicle_drilling {
+namespace {
+
+core::ExpiratorySpec parseSpec(const std::string& text, const std::string& field) {
+  if (text == "peak_ratio") return core::ExpiratorySpec::kPeakRatio;
+  if (text == "time_constant") return core::ExpiratorySpec::kTimeConstant;
+  throw std::invalid_argument("'" + field + "' = '" + text +
+                              "' is not one of: peak_ratio, time_constant");
+}
+
+core::InspiratoryWaveform parseWaveformOrThrow(const std::string& text, const std::string& field) {
+  core::InspiratoryWaveform waveform;
+  if (core::parseWaveform(text, &waveform)) return waveform;
+  std::string names;
+  for (const auto& name : core::waveformNames()) names += (names.empty() ? "" : ", ") + name;
+  throw std::invalid_argument("'" + field + "' = '" + text + "' is not one of: " + names);
+}
+
+}  // namespace
+
+core::VentilatorSettings loadVentilatorSettings(const ParamLoader& params) {
+  core::VentilatorSettings s;
+  s.tv_max_ml = params.getDouble("tv_max_ml", s.tv_max_ml, 0.0, 3000.0, true);
+  s.rate_bpm = params.getDouble("rate_bpm", s.rate_bpm, 0.0, 60.0, true);
+  const std::string ie = params.getString("ie_ratio", "1:2");
+  if (!core::parseIeRatio(ie, &s.ie_inspiratory, &s.ie_expiratory)) {
+    params.fail("ie_ratio", "= '" + ie + "' is not of the form a:b with positive a and b");
+  }
+  const std::string waveform = params.getString("waveform", "square");
+  try {
+    s.waveform = parseWaveformOrThrow(waveform, "waveform");
+    s.expiratory_spec = parseSpec(params.getString("expiratory_spec", "peak_ratio"),
+                                  "expiratory_spec");
+  } catch (const std::invalid_argument& e) {
+    throw ParameterError(std::string("parameter ") + e.what());
+  }
+  s.pause_fraction = params.getDouble("pause_fraction", s.pause_fraction, 0.0, 0.5);
+  s.peak_flow_ratio = params.getDouble("peak_flow_ratio", s.peak_flow_ratio, 0.2, 10.0);
+  s.expiratory_tau_s = params.getDouble("expiratory_tau_s", s.expiratory_tau_s, 0.0, 10.0, true);
+  s.ramp_start_fraction =
+      params.getDouble("ramp_start_fraction", s.ramp_start_fraction, 0.0, 1.0, false, true);
+  s.exponential_shape =
+      params.getDouble("exponential_shape", s.exponential_shape, 0.0, 10.0, true);
+  return s;
+}
+
+VentilatorSettings toMsg(const core::VentilatorSettings& s) {
+  VentilatorSettings msg;
+  msg.tv_max_ml = s.tv_max_ml;
+  msg.rate_bpm = s.rate_bpm;
+  msg.ie_inspiratory = s.ie_inspiratory;
+  msg.ie_expiratory = s.ie_expiratory;
+  msg.waveform = core::waveformName(s.waveform);
+  msg.pause_fraction = s.pause_fraction;
+  msg.expiratory_spec =
+      s.expiratory_spec == core::ExpiratorySpec::kPeakRatio ? "peak_ratio" : "time_constant";
+  msg.peak_flow_ratio = s.peak_flow_ratio;
+  msg.expiratory_tau_s = s.expiratory_tau_s;
+  return msg;
+}
+
+core::VentilatorSettings fromMsg(const VentilatorSettings& msg) {
+  core::VentilatorSettings s;
+  s.tv_max_ml = msg.tv_max_ml;
+  s.rate_bpm = msg.rate_bpm;
+  s.ie_inspiratory = msg.ie_inspiratory;
+  s.ie_expiratory = msg.ie_expiratory;
+  s.waveform = parseWaveformOrThrow(msg.waveform, "waveform");
+  s.pause_fraction = msg.pause_fraction;
+  s.expiratory_spec = parseSpec(msg.expiratory_spec.empty() ? "peak_ratio" : msg.expiratory_spec,
+                                "expiratory_spec");
+  s.peak_flow_ratio = msg.peak_flow_ratio;
+  s.expiratory_tau_s = msg.expiratory_tau_s;
+  s.validate();
+  return s;
+}
+
+}  // namespace pedicle_drilling

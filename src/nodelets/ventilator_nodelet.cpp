@@ -1,0 +1,95 @@
+/**
+ * @file ventilator_nodelet.cpp
+ * @brief pedicle_drilling/Ventilator: publishes the tidal volume and flow of a volume-controlled
+ *        ventilator at a fixed rate on ROS time (sim or wall). New settings arrive through the
+ *        ~set_settings service and take effect at the start of the next breath.
+ */
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+
+#include <memory>
+#include <mutex>
+
+#include "pedicle_drilling/SetVentilatorSettings.h"
+#include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/ros/ventilator_conversions.hpp"
+
+namespace pedicle_drilling {
+
+/** @brief Nodelet wrapper of core::BreathScheduler. */
+class VentilatorNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle nh = getNodeHandle();
+    ros::NodeHandle pnh = getPrivateNodeHandle();
+    double rate_hz = 0.0;
+    try {
+      const ParamLoader params(pnh);
+      const core::VentilatorSettings settings = loadVentilatorSettings(params);
+      rate_hz = params.getDouble("publish_rate_hz", 64.0, 0.0, 1000.0, true);
+      frame_id_ = params.getString("frame_id", "ventilator");
+      scheduler_ = std::make_unique<core::BreathScheduler>(settings, ros::Time::now().toSec());
+    } catch (const std::exception& e) {
+      // Safe state: nothing is published, the error names the parameter.
+      NODELET_FATAL("Ventilator not started: %s", e.what());
+      return;
+    }
+    tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 100);
+    settings_pub_ = pnh.advertise<VentilatorSettings>("settings", 1, true);
+    settings_pub_.publish(toMsg(scheduler_->model().settings()));
+    set_settings_srv_ =
+        pnh.advertiseService("set_settings", &VentilatorNodelet::onSetSettings, this);
+    timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz), &VentilatorNodelet::onTimer, this);
+    NODELET_INFO("Ventilator: %.0f ml, %.1f /min, %s, publishing at %.1f Hz",
+                 scheduler_->model().settings().tv_max_ml, scheduler_->model().settings().rate_bpm,
+                 core::waveformName(scheduler_->model().settings().waveform).c_str(), rate_hz);
+  }
+
+  void onTimer(const ros::TimerEvent& event) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const ros::Time stamp = event.current_expected;
+    const long before = scheduler_->breathIndex();
+    const bool pending = scheduler_->hasPendingSettings();
+    const core::VentilatorSample sample = scheduler_->sample(stamp.toSec());
+    if (pending && !scheduler_->hasPendingSettings() && scheduler_->breathIndex() != before) {
+      settings_pub_.publish(toMsg(scheduler_->model().settings()));
+    }
+    TidalVolume msg;
+    msg.header.stamp = stamp;
+    msg.header.frame_id = frame_id_;
+    msg.volume_ml = sample.volume_ml;
+    msg.flow_ml_s = sample.flow_ml_s;
+    msg.breath_index = static_cast<uint32_t>(scheduler_->breathIndex());
+    msg.time_in_breath_s = stamp.toSec() - scheduler_->breathStart();
+    tidal_volume_pub_.publish(msg);
+  }
+
+  bool onSetSettings(SetVentilatorSettings::Request& request,
+                     SetVentilatorSettings::Response& response) {
+    try {
+      const core::VentilatorSettings settings = fromMsg(request.settings);
+      std::lock_guard<std::mutex> lock(mutex_);
+      scheduler_->requestSettings(settings);
+      response.success = true;
+      response.message = "settings accepted; they take effect at the next breath";
+    } catch (const std::exception& e) {
+      response.success = false;
+      response.message = std::string("settings rejected, previous settings kept: ") + e.what();
+      NODELET_WARN("Ventilator: %s", response.message.c_str());
+    }
+    return true;
+  }
+
+  std::mutex mutex_;
+  std::unique_ptr<core::BreathScheduler> scheduler_;
+  std::string frame_id_;
+  ros::Publisher tidal_volume_pub_;
+  ros::Publisher settings_pub_;
+  ros::ServiceServer set_settings_srv_;
+  ros::Timer timer_;
+};
+
+}  // namespace pedicle_drilling
+
+PLUGINLIB_EXPORT_CLASS(pedicle_drilling::VentilatorNodelet, nodelet::Nodelet)
