@@ -17,7 +17,7 @@ PACKAGES=(
   libeigen3-dev libceres-dev libbullet-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-numpy python3-yaml python3-pywt python3-matplotlib python3-pytest
-  xvfb xauth x11-utils imagemagick libgl1-mesa-dri mesa-utils
+  xvfb xauth x11-utils imagemagick liburdfdom-tools libgl1-mesa-dri mesa-utils
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -3,8 +3,11 @@
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
+set +u
 # shellcheck disable=SC1091
 source "${ROOT}/catkin_ws/devel/setup.bash"
+set -u
 BIN="${ROOT}/catkin_ws/devel/lib/pedicle_drilling"
 status=0
 for bench in "${BIN}"/bench_*; do

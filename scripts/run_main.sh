@@ -4,8 +4,11 @@
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
+set +u
 # shellcheck disable=SC1091
 source "${ROOT}/catkin_ws/devel/setup.bash"
+set -u
 OUT="${PEDICLE_DRILLING_OUT:-${ROOT}/results}"
 mkdir -p "${OUT}"
 rosrun pedicle_drilling tidal_volume --tv-max 500 --rate 12 --ie 1:2 --waveform square \

@@ -8,8 +8,11 @@ set -u
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 WS="${ROOT}/catkin_ws"
+# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
+set +u
 # shellcheck disable=SC1091
 source "${WS}/devel/setup.bash"
+set -u
 RESULTS="${WS}/build/test_results"
 export PEDICLE_DRILLING_ARTIFACTS="${WS}/build/test_artifacts"
 export PEDICLE_DRILLING_BIN_DIR="${WS}/devel/lib/pedicle_drilling"

@@ -13,6 +13,7 @@
 
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -32,7 +33,7 @@ class VentilatorNodelet : public nodelet::Nodelet {
       scheduler_ = std::make_unique<core::BreathScheduler>(settings, ros::Time::now().toSec());
     } catch (const std::exception& e) {
       // Safe state: nothing is published, the error names the parameter.
-      NODELET_FATAL("Ventilator not started: %s", e.what());
+      startup_status_.fail(nh, getName(), e.what());
       return;
     }
     tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 100);
@@ -82,6 +83,7 @@ class VentilatorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
+  StartupStatus startup_status_;
   std::unique_ptr<core::BreathScheduler> scheduler_;
   std::string frame_id_;
   ros::Publisher tidal_volume_pub_;

@@ -7,7 +7,7 @@ import unittest
 
 import rospy
 import rostest
-import rosgraph.masterapi
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Log
 import roslib.message
 
@@ -26,6 +26,12 @@ class BadParameterTest(unittest.TestCase):
                 with lock:
                     errors.append(msg.msg)
 
+        def on_diagnostics(msg):
+            with lock:
+                errors.extend(s.message for s in msg.status if s.level >= DiagnosticStatus.ERROR)
+
+        # The startup failure is latched on /diagnostics, so subscribing late still sees it.
+        rospy.Subscriber('/diagnostics', DiagnosticArray, on_diagnostics, queue_size=100)
         rospy.Subscriber('/rosout_agg', Log, on_log, queue_size=100)
         rospy.Subscriber('/rosout', Log, on_log, queue_size=100)
         rospy.Subscriber(topic, topic_type, lambda m: published.append(m), queue_size=10)

@@ -1,0 +1,58 @@
+"""Tier 3: every shipped launch, YAML, rviz and URDF file loads."""
+import glob
+import os
+import subprocess
+import xml.etree.ElementTree as ET
+
+import pytest
+import yaml
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+
+
+def files(pattern):
+    found = sorted(glob.glob(os.path.join(ROOT, pattern), recursive=True))
+    return [f for f in found if '/catkin_ws/' not in f]
+
+
+@pytest.mark.parametrize('path', files('launch_scripts/*.launch') + files('test/rostest/*.test'))
+def test_launch_file_parses_with_roslaunch(path):
+    # `roslaunch --nodes` resolves every include, $(find) and arg and lists the nodes.
+    out = subprocess.run(['roslaunch', '--nodes', path], capture_output=True, text=True,
+                         timeout=60)
+    assert out.returncode == 0, out.stderr + out.stdout
+
+
+@pytest.mark.parametrize('path', files('config/**/*.yaml') + files('test/config/*.yaml'))
+def test_yaml_loads(path):
+    with open(path) as handle:
+        data = yaml.safe_load(handle)
+    assert isinstance(data, dict) and data
+
+
+@pytest.mark.parametrize('path', files('rviz/*.rviz'))
+def test_rviz_config_loads(path):
+    with open(path) as handle:
+        data = yaml.safe_load(handle)
+    manager = data['Visualization Manager']
+    assert manager['Global Options']['Fixed Frame']
+    for display in manager['Displays']:
+        assert display['Class'] and display['Name']
+
+
+@pytest.mark.parametrize('path', files('urdf/*.urdf'))
+def test_urdf_is_wellformed_xml_with_links(path):
+    root = ET.parse(path).getroot()
+    assert root.tag == 'robot'
+    assert root.findall('link')
+    if subprocess.run(['which', 'check_urdf'], capture_output=True).returncode == 0:
+        out = subprocess.run(['check_urdf', path], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 0, out.stdout + out.stderr
+
+
+def test_nodelet_plugins_declared_and_exported():
+    tree = ET.parse(os.path.join(ROOT, 'nodelet_plugins.xml'))
+    names = [c.get('name') for c in tree.getroot().iter('class')]
+    assert names and all(n.startswith('pedicle_drilling/') for n in names)
+    package = ET.parse(os.path.join(ROOT, 'package.xml')).getroot()
+    assert package.find('export/nodelet').get('plugin') == '${prefix}/nodelet_plugins.xml'
