@@ -19,6 +19,7 @@ deps:
 	./scripts/install_deps.sh
 
 build: deps
+	./scripts/link_workspace.sh
 	$(CATKIN_MAKE)
 
 test: build
