@@ -23,7 +23,7 @@ build: deps
 	$(CATKIN_MAKE)
 
 test: build
-	$(CATKIN_MAKE) tests
+	cd $(WS)/build && $(MAKE) -j$(JOBS) tests
 	xvfb-run -a -s "-screen 0 1280x1024x24" ./scripts/run_tests.sh
 
 run: build

@@ -1,9 +1,10 @@
 #!/usr/bin/env bash
 # Runs every test tier and prints one summary line "N passed, N failed".
-#   1. gtest suites of the core (test/gtest), through catkin
-#   2. rostest scenarios (test/rostest/*.test), through catkin, rviz offscreen included
+#   1. gtest suites of the core (test/gtest -> devel/lib/pedicle_drilling/test_*)
+#   2. rostest scenarios (test/rostest/*.test), one at a time, the rviz offscreen check included
 #   3. python tests (test/python), pytest
 # Needs a DISPLAY for the rviz scenario: `make test` runs this under xvfb-run.
+# Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
 set -u
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -13,21 +14,59 @@ set +u
 # shellcheck disable=SC1091
 source "${WS}/devel/setup.bash"
 set -u
-RESULTS="${WS}/build/test_results"
+FILTER="${TEST_FILTER:-}"
+RESULTS="${WS}/build/test_results/pedicle_drilling"
 export PEDICLE_DRILLING_ARTIFACTS="${WS}/build/test_artifacts"
 export PEDICLE_DRILLING_BIN_DIR="${WS}/devel/lib/pedicle_drilling"
 export ROS_LOG_DIR="${WS}/build/ros_log"
 rm -rf "${RESULTS}" "${PEDICLE_DRILLING_ARTIFACTS}"
-mkdir -p "${RESULTS}/pedicle_drilling" "${PEDICLE_DRILLING_ARTIFACTS}"
+mkdir -p "${RESULTS}" "${PEDICLE_DRILLING_ARTIFACTS}"
+LOGS="${WS}/build/test_logs"
+mkdir -p "${LOGS}"
 
-echo "== gtest and rostest suites"
-# -j1: rostests share fixed ports and the two cores; run them one at a time.
-(cd "${WS}/build" && make -j1 run_tests 2>&1) | grep -E "^\[( RUN|  FAILED|  PASSED|==========|       OK)|^\[ROSTEST\]|^\[Testcase|FAILURE|ERROR|Error|error:" || true
+echo "== gtest suites"
+for binary in "${PEDICLE_DRILLING_BIN_DIR}"/test_*; do
+  [ -x "${binary}" ] || continue
+  name="$(basename "${binary}")"
+  [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
+  start=$(date +%s)
+  if timeout 600 "${binary}" --gtest_output="xml:${RESULTS}/gtest-${name}.xml" \
+      > "${LOGS}/${name}.log" 2>&1; then
+    echo "  ok     ${name} ($(( $(date +%s) - start )) s)"
+  else
+    echo "  FAILED ${name} ($(( $(date +%s) - start )) s), log: ${LOGS}/${name}.log"
+    grep -E "Failure|FAILED|Expected|Which is|error" "${LOGS}/${name}.log" | head -n 20
+    if [ ! -s "${RESULTS}/gtest-${name}.xml" ]; then  # crashed before writing its results
+      printf '<testsuite name="%s" tests="1" failures="1"><testcase classname="%s" name="crashed"><failure message="no result file"/></testcase></testsuite>\n' \
+        "${name}" "${name}" > "${RESULTS}/gtest-${name}.xml"
+    fi
+  fi
+done
+
+echo "== rostest scenarios"
+for scenario in "${ROOT}"/test/rostest/*.test; do
+  name="$(basename "${scenario}" .test)"
+  [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
+  start=$(date +%s)
+  timeout 900 rostest --results-filename "rostest_${name}.xml" --results-base-dir "${WS}/build/test_results" \
+    pedicle_drilling "${name}.test" > "${LOGS}/rostest_${name}.log" 2>&1
+  status=$?
+  if [ ${status} -eq 0 ]; then
+    echo "  ok     ${name} ($(( $(date +%s) - start )) s)"
+  else
+    echo "  FAILED ${name} ($(( $(date +%s) - start )) s), log: ${LOGS}/rostest_${name}.log"
+    grep -E "FAIL|Error|error|Traceback|assert|not true" "${LOGS}/rostest_${name}.log" | head -n 20
+    if ! ls "${RESULTS}"/*"${name}"*.xml >/dev/null 2>&1; then
+      printf '<testsuite name="%s" tests="1" failures="1"><testcase classname="rostest" name="%s"><failure message="rostest exit %s"/></testcase></testsuite>\n' \
+        "${name}" "${name}" "${status}" > "${RESULTS}/rostest-${name}-crash.xml"
+    fi
+  fi
+done
 
 echo "== python tests"
 if ls "${ROOT}"/test/python/test_*.py >/dev/null 2>&1; then
-  /usr/bin/python3 -m pytest -q -p no:cacheprovider "${ROOT}/test/python" \
-    --junitxml="${RESULTS}/pedicle_drilling/pytest-python.xml" 2>&1 | tail -n 25
+  /usr/bin/python3 -m pytest -q -p no:cacheprovider ${FILTER:+-k "${FILTER}"} "${ROOT}/test/python" \
+    --junitxml="${RESULTS}/pytest-python.xml" 2>&1 | tail -n 25
 fi
 
 echo "== summary"
