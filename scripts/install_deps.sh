@@ -11,6 +11,8 @@ PACKAGES=(
   libgeometry-msgs-dev libsensor-msgs-dev libtrajectory-msgs-dev libdiagnostic-msgs-dev
   libstd-msgs-dev ros-std-srvs libstd-srvs-dev libvisualization-msgs-dev
   librosbag-dev python3-rosbag python3-rospy python3-rostopic python3-rosservice
+  python3-diagnostic-msgs python3-geometry-msgs python3-sensor-msgs python3-trajectory-msgs
+  python3-std-srvs python3-tf2-msgs python3-visualization-msgs
   librostest-dev python3-rostest python3-roslaunch
   librviz-dev rviz
   libkdl-parser-dev liborocos-kdl-dev liburdfdom-dev liburdf-dev
