@@ -1,0 +1,184 @@
+// recognize: offline run of the drilling-state recognizer over a raw force recording.
+//
+//   recognize --input force.csv [--json] [--param name=value ...]
+//
+// force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
+// key points and the stop. Exit codes: 0 ok, 2 bad input or parameters.
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/state_recognizer.hpp"
+
+namespace {
+
+using pedicle_drilling::core::KeyPoint;
+using pedicle_drilling::core::RecognizerOutput;
+using pedicle_drilling::core::RecognizerParams;
+using pedicle_drilling::core::StateRecognizer;
+
+const char kUsage[] =
+    "usage: recognize --input force.csv [--json] [--param name=value ...]\n"
+    "  parameters: pre_average window k_ratio f_th gain h_g c1 c2 c3 cancellous_confirm\n"
+    "              inner_confirm stop_delay normalize_feature\n";
+
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string trim(const std::string& s) {
+  const char* ws = " \t\r\n";
+  const auto b = s.find_first_not_of(ws);
+  if (b == std::string::npos) return "";
+  const auto e = s.find_last_not_of(ws);
+  return s.substr(b, e - b + 1);
+}
+
+double parseField(const std::string& text, const std::string& what, std::size_t line) {
+  const std::string f = trim(text);
+  char* end = nullptr;
+  const double v = std::strtod(f.c_str(), &end);
+  if (f.empty() || end == f.c_str() || *end != '\0') {
+    throw InputError("line " + std::to_string(line) + ": cannot parse " + what + " '" + f + "'");
+  }
+  if (!std::isfinite(v)) {
+    throw InputError("line " + std::to_string(line) + ": " + what + " is not finite (" + f + ")");
+  }
+  return v;
+}
+
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof(buf), "%.9g", v);
+  return buf;
+}
+
+struct Sample {
+  double t;
+  double f;
+};
+
+std::vector<Sample> readCsv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("cannot open input file '" + path + "'");
+  std::string line;
+  if (!std::getline(in, line)) throw InputError("input file '" + path + "' is empty");
+  std::string header = trim(line);
+  if (header.size() >= 3 && header.compare(0, 3, "\xEF\xBB\xBF") == 0) header = header.substr(3);
+  std::string compact;
+  for (char c : header) {
+    if (c != ' ' && c != '\t') compact += c;
+  }
+  if (compact != "t,force") {
+    throw InputError("bad header '" + header + "' (expected 't,force')");
+  }
+  std::vector<Sample> out;
+  std::size_t lineno = 1;
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (trim(line).empty()) continue;
+    const auto comma = line.find(',');
+    if (comma == std::string::npos || line.find(',', comma + 1) != std::string::npos) {
+      throw InputError("line " + std::to_string(lineno) + ": expected 2 fields 't,force'");
+    }
+    Sample s;
+    s.t = parseField(line.substr(0, comma), "time", lineno);
+    s.f = parseField(line.substr(comma + 1), "force", lineno);
+    if (!out.empty() && !(s.t > out.back().t)) {
+      throw InputError("line " + std::to_string(lineno) + ": time is not increasing (" +
+                       num(s.t) + " after " + num(out.back().t) + ")");
+    }
+    out.push_back(s);
+  }
+  if (out.empty()) throw InputError("input file '" + path + "' has no samples");
+  return out;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string input;
+  bool json = false;
+  RecognizerParams params;
+  try {
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      if (a == "--input" && i + 1 < argc) {
+        input = argv[++i];
+      } else if (a == "--json") {
+        json = true;
+      } else if (a == "--param" && i + 1 < argc) {
+        const std::string kv = argv[++i];
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos || eq == 0) {
+          throw std::invalid_argument("--param '" + kv + "': expected name=value");
+        }
+        params.set(kv.substr(0, eq), kv.substr(eq + 1));
+      } else if (a == "--help" || a == "-h") {
+        std::cout << kUsage;
+        return 0;
+      } else {
+        throw std::invalid_argument("unknown or incomplete argument '" + a + "'");
+      }
+    }
+    if (input.empty()) throw std::invalid_argument("missing --input");
+    params.validate();
+  } catch (const std::invalid_argument& e) {
+    std::cerr << "recognize: bad parameter: " << e.what() << "\n" << kUsage;
+    return 2;
+  }
+
+  std::vector<Sample> samples;
+  try {
+    samples = readCsv(input);
+  } catch (const InputError& e) {
+    std::cerr << "recognize: bad input: " << e.what() << "\n";
+    return 2;
+  }
+
+  StateRecognizer rec(params);
+  for (const Sample& s : samples) rec.push(s.t, s.f);
+  const RecognizerOutput& o = rec.output();
+
+  if (json) {
+    std::ostringstream os;
+    os << "{\"key_points\":[";
+    for (int j = 0; j < o.num_key_points; ++j) {
+      const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
+      os << (j ? "," : "") << "{\"index\":" << kp.index << ",\"t\":" << num(kp.t) << "}";
+    }
+    os << "],\"stop\":";
+    if (o.stop) {
+      os << "{\"index\":" << o.stop_index << ",\"t\":" << num(o.stop_t) << "}";
+    } else {
+      os << "null";
+    }
+    os << "}\n";
+    std::cout << os.str();
+  } else {
+    std::cout << "samples " << samples.size() << "\n";
+    std::cout << "final_state " << pedicle_drilling::core::toString(o.state) << "\n";
+    if (o.params_ready) {
+      std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min)
+                << "\n";
+    }
+    for (int j = 0; j < o.num_key_points; ++j) {
+      const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
+      std::cout << "key_point " << kp.id << " index " << kp.index << " t " << num(kp.t)
+                << " recognized_index " << kp.recognized_index << " recognized_t "
+                << num(kp.recognized_t) << "\n";
+    }
+    if (o.stop) {
+      std::cout << "stop index " << o.stop_index << " t " << num(o.stop_t) << "\n";
+    } else {
+      std::cout << "stop none\n";
+    }
+  }
+  return 0;
+}

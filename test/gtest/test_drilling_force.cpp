@@ -1,0 +1,274 @@
+/**
+ * @file test_drilling_force.cpp
+ * @brief Drilling-force law: stationary peak calibration over seeds, speed dependence, loss of
+ *        contact and material removal, ground truth, determinism.
+ */
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+#include "pedicle_drilling/core/drilling_force.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+constexpr double kDt = 1e-3;       // 1 kHz
+constexpr double kFeed = 0.5e-3;   // 0.5 mm/s (paper Sec. V-A)
+constexpr double kPi = 3.14159265358979323846;
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+struct LayerForces {
+  double outer_peak = 0.0;
+  double inner_peak = 0.0;
+  double cancellous_median = 0.0;
+};
+
+// Stationary drilling at constant feed; peaks of the 50-sample block mean (paper Sec. V-E
+// pre-averaging), attributed to layers by the tip position.
+LayerForces drillStationary(std::uint64_t seed, double rpm) {
+  DrillingProcess p(sample(seed));
+  const BoneSpecimen& b = p.specimen();
+  const double cone = p.tipConeLength();
+  LayerForces out;
+  std::vector<double> canc;
+  double acc = 0.0;
+  int cnt = 0;
+  const int steps = static_cast<int>((b.innerCorticalEnd() + 2e-3) / kFeed / kDt);
+  for (int k = 0; k < steps; ++k) {
+    const double tip = -0.5e-3 + kFeed * k * kDt;
+    acc += p.step(kDt, tip, rpm).thrust_N;
+    if (++cnt < 50) continue;
+    const double m = acc / 50.0;
+    acc = 0.0;
+    cnt = 0;
+    if (tip < b.outerCorticalEnd() + cone) {
+      out.outer_peak = std::max(out.outer_peak, m);
+    } else if (tip < b.innerCorticalStart()) {
+      canc.push_back(m);
+    } else if (tip < b.innerCorticalEnd() + cone) {
+      out.inner_peak = std::max(out.inner_peak, m);
+    }
+  }
+  out.cancellous_median = median(canc);
+  return out;
+}
+
+TEST(DrillingForce, StationaryPeaksCalibratedOver20Seeds) {
+  std::vector<double> outer;
+  std::vector<double> inner;
+  std::vector<double> canc;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const LayerForces f = drillStationary(seed, 12000.0);
+    outer.push_back(f.outer_peak);
+    inner.push_back(f.inner_peak);
+    canc.push_back(f.cancellous_median);
+    // Two cortical peaks clearly above the cancellous level in every specimen.
+    EXPECT_GT(f.outer_peak, 1.8 * f.cancellous_median) << "seed " << seed;
+    EXPECT_GT(f.inner_peak, 1.8 * f.cancellous_median) << "seed " << seed;
+  }
+  const double mo = median(outer);
+  const double mi = median(inner);
+  const double mc = median(canc);
+  RecordProperty("median_outer_N", std::to_string(mo));
+  RecordProperty("median_inner_N", std::to_string(mi));
+  RecordProperty("median_cancellous_N", std::to_string(mc));
+  EXPECT_GE(mo, 2.5);
+  EXPECT_LE(mo, 4.0);
+  EXPECT_GE(mi, 2.2);
+  EXPECT_LE(mi, 3.8);
+  EXPECT_GE(mc, 0.4);
+  EXPECT_LE(mc, 1.2);
+  EXPECT_LT(mc, 0.5 * std::min(mo, mi));
+}
+
+TEST(DrillingForce, HigherSpindleSpeedGivesLowerPeaks) {
+  std::vector<double> o12, o16, o20, i12, i16, i20;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const LayerForces a = drillStationary(seed, 12000.0);
+    const LayerForces b = drillStationary(seed, 16000.0);
+    const LayerForces c = drillStationary(seed, 20000.0);
+    EXPECT_LT(b.outer_peak, a.outer_peak);
+    EXPECT_LT(c.outer_peak, b.outer_peak);
+    EXPECT_LT(b.inner_peak, a.inner_peak);
+    EXPECT_LT(c.inner_peak, b.inner_peak);
+    o12.push_back(a.outer_peak);
+    o16.push_back(b.outer_peak);
+    o20.push_back(c.outer_peak);
+    i12.push_back(a.inner_peak);
+    i16.push_back(b.inner_peak);
+    i20.push_back(c.inner_peak);
+  }
+  EXPECT_LT(median(o16), median(o12));
+  EXPECT_LT(median(o20), median(o16));
+  EXPECT_LT(median(i16), median(i12));
+  EXPECT_LT(median(i20), median(i16));
+}
+
+TEST(DrillingForce, ConicalTipGivesGradualRiseOverConeLength) {
+  DrillingProcess p(BoneSpecimen::uniform(3e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8));
+  const double cone = p.tipConeLength();
+  EXPECT_NEAR(cone, 1.25e-3 / std::tan(59.0 * kPi / 180.0), 1e-12);  // 0.751 mm
+  const double steady = p.steadyThrust(0.9, 2.5e-6, 12000.0);
+  double prev = 0.0;
+  double at_half = 0.0;
+  for (int k = 1; k <= static_cast<int>(2.0e-3 / kFeed / kDt); ++k) {
+    const double tip = kFeed * k * kDt;
+    const ForceSample f = p.step(kDt, tip, 12000.0);
+    EXPECT_TRUE(f.contact);
+    EXPECT_NEAR(f.feed_per_rev_m, 2.5e-6, 1e-15);
+    if (tip < cone) {
+      EXPECT_GE(f.thrust_N, prev - 1e-9);  // monotone rise while engaging
+    }
+    if (std::abs(tip - 0.5 * cone) < 0.5 * kFeed * kDt) {
+      at_half = f.thrust_N;
+    }
+    prev = f.thrust_N;
+  }
+  EXPECT_NEAR(at_half, 0.5 * steady, 0.05 * steady);  // half the lip length engaged
+  EXPECT_NEAR(prev, steady, 1e-3 * steady);           // full engagement
+}
+
+TEST(DrillingForce, ThrustFollowsFeedPerRevolutionPowerLaw) {
+  const DrillParameters par;
+  DrillingProcess slow(BoneSpecimen::uniform(5e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8));
+  DrillingProcess fast(BoneSpecimen::uniform(5e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8));
+  double fs = 0.0;
+  double ff = 0.0;
+  for (int k = 1; k <= 3000; ++k) fs = slow.step(kDt, 0.5e-3 * k * kDt, 12000.0).thrust_N;
+  for (int k = 1; k <= 750; ++k) ff = fast.step(kDt, 2.0e-3 * k * kDt, 12000.0).thrust_N;
+  EXPECT_NEAR(ff / fs, std::pow(4.0, par.feed_exponent), 1e-3);
+}
+
+TEST(DrillingForce, LossOfContactWhenBoneMovesAwayAndRecontact) {
+  DrillingProcess p(BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8));
+  double tip = 0.0;
+  for (int k = 0; k < 2000; ++k) {  // drill 1 mm into the outer cortex
+    tip += kFeed * kDt;
+    p.step(kDt, tip, 12000.0);
+  }
+  const double deepest = p.maxDepthCut();
+  EXPECT_NEAR(deepest, 1e-3, 1e-9);
+  EXPECT_GT(p.lastThrust(), 1.0);
+  // Bone moves away at 3 mm/s while the drill keeps feeding: relative tip retracts.
+  for (int k = 0; k < 200; ++k) {
+    tip += (kFeed - 3e-3) * kDt;
+    const ForceSample f = p.step(kDt, tip, 12000.0);
+    EXPECT_FALSE(f.contact);
+    EXPECT_EQ(f.thrust_N, 0.0);
+    EXPECT_EQ(p.maxDepthCut(), deepest);  // no material removed
+  }
+  // Bone comes back at 3 mm/s: still no contact until the tip reaches the old hole bottom.
+  bool recontact = false;
+  for (int k = 0; k < 400 && !recontact; ++k) {
+    const double before = tip;
+    tip += (kFeed + 3e-3) * kDt;
+    const ForceSample f = p.step(kDt, tip, 12000.0);
+    if (tip <= deepest) {
+      EXPECT_FALSE(f.contact);
+      EXPECT_EQ(f.thrust_N, 0.0);
+    } else {
+      recontact = true;
+      EXPECT_TRUE(f.contact);
+      // Feed per revolution from the actual advance beyond the hole bottom this step.
+      EXPECT_NEAR(f.feed_per_rev_m, (tip - std::max(before, deepest)) / (kDt * 200.0), 1e-12);
+    }
+  }
+  ASSERT_TRUE(recontact);
+  // Continued fast approach: feed per revolution 3.5 mm/s / 200 rev/s = 17.5 um.
+  tip += 3.5e-3 * kDt;
+  const ForceSample f = p.step(kDt, tip, 12000.0);
+  EXPECT_NEAR(f.feed_per_rev_m, 17.5e-6, 1e-12);
+  EXPECT_GT(f.thrust_N, 0.0);
+}
+
+TEST(DrillingForce, GroundTruthResidualAndBreakthrough) {
+  DrillingProcess p(BoneSpecimen::uniform(2e-3, 4e-3, 2.11e-3, 0.9, 0.25, 0.8));
+  const double end = p.specimen().innerCorticalEnd();
+  double tip = -0.2e-3;
+  while (tip < 7.0e-3) {
+    tip += kFeed * kDt;
+    p.step(kDt, tip, 12000.0);
+  }
+  EXPECT_NEAR(p.removedDepth(Material::kOuterCortical), 2e-3, 1e-12);
+  EXPECT_NEAR(p.removedDepth(Material::kCancellous), 4e-3, 1e-12);
+  EXPECT_NEAR(p.removedDepth(Material::kInnerCortical), p.maxDepthCut() - 6e-3, 1e-12);
+  EXPECT_NEAR(p.residualInnerCorticalThickness(), end - p.maxDepthCut(), 1e-12);
+  EXPECT_NEAR(p.residualInnerCorticalThickness(), 1.11e-3, 1e-6);
+  EXPECT_EQ(p.currentLayer(), Material::kInnerCortical);
+  EXPECT_FALSE(p.breakthrough());
+  // Retracting does not change the ground truth.
+  p.step(kDt, 5e-3, 12000.0);
+  EXPECT_NEAR(p.residualInnerCorticalThickness(), 1.11e-3, 1e-6);
+  while (tip < end + 1.5e-3) {
+    tip += kFeed * kDt;
+    p.step(kDt, tip, 12000.0);
+  }
+  EXPECT_TRUE(p.breakthrough());
+  EXPECT_EQ(p.residualInnerCorticalThickness(), 0.0);
+  EXPECT_NEAR(p.removedDepth(Material::kInnerCortical), 2.11e-3, 1e-12);
+  // Past the canal wall by more than the cone length: nothing left to cut.
+  tip += kFeed * kDt;
+  const ForceSample f = p.step(kDt, tip, 12000.0);
+  EXPECT_FALSE(f.contact);
+  EXPECT_EQ(f.thrust_N, 0.0);
+  EXPECT_EQ(f.material, Material::kCanal);
+  p.reset();
+  EXPECT_EQ(p.maxDepthCut(), 0.0);
+}
+
+TEST(DrillingForce, DeterministicPerSeed) {
+  auto run = [](std::uint64_t seed) {
+    DrillingProcess p(sample(seed));
+    std::vector<double> out;
+    for (int k = 0; k < 12000; ++k) {
+      out.push_back(p.step(kDt, kFeed * k * kDt, 12000.0).thrust_N);
+    }
+    return out;
+  };
+  EXPECT_EQ(run(7), run(7));
+  EXPECT_NE(run(7), run(8));
+}
+
+TEST(DrillingForce, BreathingMotionMakesThrustIntermittentAndVariable) {
+  // Uncompensated AP breathing (about 5 mm peak-to-peak, 12 /min) along the drill axis: the
+  // relative feed per revolution varies strongly and contact is intermittent. This is only a
+  // consequence of the force law; no target value is imposed.
+  DrillingProcess p(sample(3));
+  int contact_steps = 0;
+  int steps_in_bone = 0;
+  double feed_min = 1e9;
+  double feed_max = 0.0;
+  double cortical_min = 1e9;
+  double cortical_max = 0.0;
+  for (int k = 0; k < 40000 && !p.breakthrough(); ++k) {
+    const double t = k * kDt;
+    const double tip = -0.5e-3 + kFeed * t + 2.5e-3 * std::sin(2.0 * kPi * t / 5.0);
+    const ForceSample f = p.step(kDt, tip, 12000.0);
+    if (p.maxDepthCut() <= 0.0) continue;
+    ++steps_in_bone;
+    if (!f.contact) continue;
+    ++contact_steps;
+    feed_min = std::min(feed_min, f.feed_per_rev_m);
+    feed_max = std::max(feed_max, f.feed_per_rev_m);
+    if (f.engaged_fraction > 0.7) {  // full cortical engagement
+      cortical_min = std::min(cortical_min, f.thrust_N);
+      cortical_max = std::max(cortical_max, f.thrust_N);
+    }
+  }
+  ASSERT_TRUE(p.breakthrough());
+  ASSERT_GT(steps_in_bone, 0);
+  EXPECT_LT(contact_steps, steps_in_bone / 2);  // contact lost for most of each cycle
+  EXPECT_GT(feed_max, 4.0 * 2.5e-6);            // relative feed far above the nominal 2.5 um
+  EXPECT_LT(feed_min, 2.5e-6);                  // ... and far below it near turning points
+  EXPECT_GT(cortical_max, 1.5 * cortical_min);  // cortical thrust varies strongly
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,139 @@
+/**
+ * @file test_force_sensor.cpp
+ * @brief Noise level, bias/tare, quantisation, spindle vibration and determinism of the
+ *        6-axis force sensor model.
+ */
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "pedicle_drilling/core/force_sensor.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+ForceSensorParams quietParams() {
+  ForceSensorParams p;
+  p.spindle_vibration_axial_n = 0.0;
+  p.spindle_vibration_lateral_n = 0.0;
+  p.force_drift_n_per_sqrt_s = 0.0;
+  p.torque_drift_nm_per_sqrt_s = 0.0;
+  return p;
+}
+
+TEST(ForceSensor, WhiteNoiseLevelAfterTare) {
+  ForceSensor s(11, quietParams());
+  s.tare();
+  const int n = 20000;
+  double sum = 0.0;
+  double sum2 = 0.0;
+  for (int k = 0; k < n; ++k) {
+    const double v = s.measureAxial(2.0, 12000.0) - 2.0;
+    sum += v;
+    sum2 += v * v;
+  }
+  const double mean = sum / n;
+  const double sd = std::sqrt(sum2 / n - mean * mean);
+  EXPECT_NEAR(mean, 0.0, 5.0 * 0.03 / std::sqrt(n) + 1.0 / 320.0);
+  // Quantisation adds step^2/12 of variance: sqrt(0.03^2 + (1/320)^2/12) = 0.03001.
+  EXPECT_NEAR(sd, 0.03, 0.002);
+  EXPECT_DOUBLE_EQ(s.time(), n / 1000.0);
+}
+
+TEST(ForceSensor, UntaredBiasIsConstantAndTareRemovesIt) {
+  ForceSensor s(5, quietParams());
+  const Wrench b = s.bias();
+  EXPECT_GT(b.head<3>().norm(), 0.0);
+  double sum = 0.0;
+  for (int k = 0; k < 5000; ++k) sum += s.measureAxial(0.0, 0.0);
+  EXPECT_NEAR(sum / 5000, b[2], 0.003);
+  s.tare();
+  EXPECT_NEAR(s.bias().norm(), 0.0, 1e-15);
+}
+
+TEST(ForceSensor, OutputsAreQuantised) {
+  ForceSensor s(1);
+  for (int k = 0; k < 100; ++k) {
+    const Wrench w = s.measure(Wrench::Constant(0.123456), 12000.0);
+    for (int i = 0; i < 3; ++i) {
+      const double q = w[i] * 320.0;
+      EXPECT_NEAR(q, std::round(q), 1e-6);
+    }
+  }
+}
+
+TEST(ForceSensor, SpindleVibrationAtSpindleFrequency) {
+  ForceSensorParams p = quietParams();
+  p.force_noise_sd_n = 0.0;
+  p.quantize = false;
+  p.spindle_vibration_axial_n = 0.05;
+  ForceSensor s(3, p);
+  s.tare();
+  const int n = 1000;  // 1 s at 1 kHz
+  std::vector<double> v(n);
+  for (int k = 0; k < n; ++k) v[k] = s.measureAxial(0.0, 12000.0);
+  // Single-bin DFT at 200 Hz (12000 rpm) and at 150 Hz.
+  auto amp = [&](double f) {
+    double re = 0.0;
+    double im = 0.0;
+    for (int k = 0; k < n; ++k) {
+      re += v[k] * std::cos(2.0 * kPi * f * k / 1000.0);
+      im += v[k] * std::sin(2.0 * kPi * f * k / 1000.0);
+    }
+    return 2.0 * std::sqrt(re * re + im * im) / n;
+  };
+  EXPECT_NEAR(amp(200.0), 0.05, 1e-3);
+  EXPECT_LT(amp(150.0), 1e-3);
+  // The paper's 50-sample pre-averaging removes it (10 full periods per block at 12000 rpm).
+  double block = 0.0;
+  for (int k = 0; k < 50; ++k) block += v[k];
+  EXPECT_NEAR(block / 50.0, 0.0, 1e-9);
+}
+
+TEST(ForceSensor, VibrationOnlyInContactOption) {
+  ForceSensorParams p = quietParams();
+  p.force_noise_sd_n = 0.0;
+  p.quantize = false;
+  p.vibration_only_in_contact = true;
+  ForceSensor s(3, p);
+  s.tare();
+  for (int k = 0; k < 20; ++k) EXPECT_NEAR(s.measureAxial(1.0, 12000.0, false), 1.0, 1e-15);
+}
+
+TEST(ForceSensor, DeterministicPerSeed) {
+  ForceSensor a(99);
+  ForceSensor b(99);
+  ForceSensor c(100);
+  bool differs = false;
+  for (int k = 0; k < 200; ++k) {
+    const Wrench wa = a.measure(Wrench::Zero(), 12000.0);
+    const Wrench wb = b.measure(Wrench::Zero(), 12000.0);
+    const Wrench wc = c.measure(Wrench::Zero(), 12000.0);
+    EXPECT_EQ(wa, wb);
+    differs = differs || (wa != wc);
+  }
+  EXPECT_TRUE(differs);
+}
+
+TEST(ForceSensor, DriftIsARandomWalk) {
+  ForceSensorParams p = quietParams();
+  p.force_drift_n_per_sqrt_s = 1e-3;
+  p.force_noise_sd_n = 0.0;
+  p.quantize = false;
+  // Over 25 s the bias SD grows to 1e-3 * 5 = 0.005 N; check the spread over seeds.
+  double sum2 = 0.0;
+  const int seeds = 40;
+  for (int seed = 0; seed < seeds; ++seed) {
+    ForceSensor s(seed, p);
+    s.tare();
+    for (int k = 0; k < 25000; ++k) s.measureAxial(0.0, 0.0);
+    sum2 += s.bias()[2] * s.bias()[2];
+  }
+  EXPECT_NEAR(std::sqrt(sum2 / seeds), 0.005, 0.002);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,346 @@
+// Tests of the displacement models (Eq. 6-9), the stiffness groups, and the model YAML file.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+#include <dirent.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "pedicle_drilling/core/motion_model.hpp"
+#include "pedicle_drilling/core/motion_model_io.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+TEST(MotionModel, LinearPredictIgnoresRate) {
+  AxisModel m;
+  m.kind = ModelKind::kLinear;
+  m.q1 = 0.01;
+  m.q2 = 5.0;  // must be ignored by the linear model
+  m.q0 = -0.5;
+  EXPECT_DOUBLE_EQ(m.predict(400.0, 300.0), 0.01 * 400.0 - 0.5);
+}
+
+TEST(MotionModel, HysteresisPredictUsesRate) {
+  AxisModel m;
+  m.kind = ModelKind::kHysteresis;
+  m.q1 = 0.01;
+  m.q2 = -0.002;
+  m.q0 = 0.3;
+  EXPECT_DOUBLE_EQ(m.predict(250.0, 400.0), 2.5 - 0.8 + 0.3);
+  EXPECT_NEAR(m.lagSeconds(), 0.2, 1e-15);
+}
+
+TEST(MotionModel, MotionModelPredictPerAxis) {
+  MotionModel mm;
+  mm.axis(Axis::kSI).q1 = 0.004;
+  mm.axis(Axis::kSI).q0 = 1.0;
+  mm.axis(Axis::kLR).q1 = -0.002;
+  EXPECT_DOUBLE_EQ(mm.predict(Axis::kSI, 100.0, 0.0), 1.4);
+  EXPECT_DOUBLE_EQ(mm.predict(Axis::kLR, 100.0, 0.0), -0.2);
+  EXPECT_DOUBLE_EQ(mm.predict(Axis::kAP, 100.0, 0.0), 0.0);
+}
+
+TEST(MotionModel, CoefficientOrderAndSize) {
+  AxisModel lin;
+  lin.setCoefficients({2.0, 3.0});
+  EXPECT_EQ(lin.q1, 2.0);
+  EXPECT_EQ(lin.q0, 3.0);
+  EXPECT_EQ(lin.q2, 0.0);
+  EXPECT_THROW(lin.setCoefficients({1.0, 2.0, 3.0}), std::invalid_argument);
+  AxisModel hys;
+  hys.kind = ModelKind::kHysteresis;
+  hys.setCoefficients({2.0, 4.0, 3.0});
+  EXPECT_EQ(hys.q1, 2.0);
+  EXPECT_EQ(hys.q2, 4.0);
+  EXPECT_EQ(hys.q0, 3.0);
+  EXPECT_EQ(hys.coefficients(), (std::vector<double>{2.0, 4.0, 3.0}));
+  EXPECT_THROW(hys.setCoefficients({1.0}), std::invalid_argument);
+  EXPECT_EQ(numCoefficients(ModelKind::kLinear), 2);
+  EXPECT_EQ(numCoefficients(ModelKind::kHysteresis), 3);
+}
+
+TEST(MotionModel, NamesParse) {
+  ModelKind k = ModelKind::kLinear;
+  EXPECT_TRUE(parseModelKind("hysteresis", &k));
+  EXPECT_EQ(k, ModelKind::kHysteresis);
+  EXPECT_TRUE(parseModelKind("linear", &k));
+  EXPECT_EQ(k, ModelKind::kLinear);
+  EXPECT_FALSE(parseModelKind("quadratic", &k));
+  EXPECT_EQ(modelKindName(ModelKind::kHysteresis), "hysteresis");
+  Axis a = Axis::kAP;
+  EXPECT_TRUE(parseAxis("LR", &a));
+  EXPECT_EQ(a, Axis::kLR);
+  EXPECT_FALSE(parseAxis("xy", &a));
+  EXPECT_EQ(axisName(Axis::kSI), "si");
+}
+
+TEST(SpineGeometry, DefaultsAreTableOneWithEqualDiscs) {
+  const SpineGeometry g;
+  EXPECT_DOUBLE_EQ(g.centrum_length_mm, 23.10);
+  EXPECT_NEAR(g.disc_length_mm, 5.49, 1e-12);  // (5.31 + 5.67) / 2
+  EXPECT_NEAR(g.totalDiscLengthMm(), 10.98, 1e-12);
+}
+
+TEST(SpineGeometry, BeamFactorEqualsEq7AtXEqualsM) {
+  // Evaluate Eq. 7 literally (per unit q/EI) at x = m with the paper's c1 and c2 = 0.
+  const SpineGeometry g;
+  const double l = g.centrum_length_mm;
+  const double m = g.disc_length_mm;
+  const double x = m;
+  const double c1 = m * m * m / 3.0 + l * m * m / 4.0;
+  const double v = std::pow(x, 4) / 24.0 - (l + 2.0 * m) / 12.0 * std::pow(x, 3) + c1 * x;
+  EXPECT_NEAR(g.apBeamFactorMm4(), v, 1e-9 * v);
+  EXPECT_GT(v, 0.0);
+}
+
+TEST(Stiffness, ApRecoversBendingGroupFromForwardModel) {
+  // Forward model Eq. 8 with assumed physical values, in N and mm.
+  const SpineGeometry g;
+  const double ei = 2.5e5;           // N mm^2
+  const double v0 = 3.0e6;           // mm^3 (3 L)
+  const double p0 = 0.101325;        // N/mm^2 (1 atm)
+  const double bw = 250.0;           // mm
+  const double m = g.disc_length_mm;
+  const double l = g.centrum_length_mm;
+  const double q1_mm_per_mm3 = (5.0 * std::pow(m, 4) / (24.0 * ei) +
+                                l * std::pow(m, 3) / (6.0 * ei)) * p0 * bw / v0;
+  const double q1_mm_per_ml = q1_mm_per_mm3 * 1000.0;
+  const double expected = ei * v0 / (p0 * bw);
+  EXPECT_NEAR(apEquivalentBendingStiffness(q1_mm_per_ml, g), expected, 1e-12 * expected);
+  EXPECT_THROW(apEquivalentBendingStiffness(0.0, g), std::invalid_argument);
+}
+
+TEST(Stiffness, SiRecoversAxialGroupsFromForwardModel) {
+  const SpineGeometry g;
+  const double e = 0.0758;     // N/mm^2, 75.8 kPa disc modulus (paper Sec. III-B)
+  const double a = 1500.0;     // mm^2
+  const double v0 = 3.0e6;     // mm^3
+  const double p0 = 0.101325;  // N/mm^2
+  const double s = 4.0e4;      // mm^2
+  const double big_l = 2.0 * g.disc_length_mm;
+  const double q1_mm_per_ml = 2.0 * p0 * s * big_l / (e * a * v0) * 1000.0;
+  const double group = e * a * v0 / (2.0 * p0 * s * big_l);
+  EXPECT_NEAR(siEquivalentAxialStiffness(q1_mm_per_ml), group, 1e-12 * group);
+  const double rigidity = e * a * v0 / (p0 * s);
+  EXPECT_NEAR(siAxialRigidityGroup(q1_mm_per_ml, g), rigidity, 1e-12 * rigidity);
+  EXPECT_THROW(siEquivalentAxialStiffness(0.0), std::invalid_argument);
+}
+
+// ------------------------------------------------------------------------------ model YAML
+
+PatientModel sampleModel() {
+  PatientModel pm;
+  pm.patient_id = "vol \"7\" # odd\\id";
+  AxisModelRecord& ap = pm.axes[0];
+  ap.model.kind = ModelKind::kLinear;
+  ap.model.q1 = 0.1;
+  ap.model.q0 = -1.0 / 3.0;
+  ap.r2 = 0.9712345678901234;
+  ap.rmse = 0.123;
+  ap.wavelet = "coif4";
+  ap.level = 6;
+  ap.kept_levels = {3, 4, 5};
+  AxisModelRecord& si = pm.axes[1];
+  si.model.kind = ModelKind::kHysteresis;
+  si.model.q1 = 4.123456789012345e-3;
+  si.model.q2 = -7.5e-4;
+  si.model.q0 = 1e-300;
+  si.r2 = 0.5;
+  si.wavelet = "bior2.8";
+  si.level = 5;
+  si.kept_levels = {2, 3};
+  AxisModelRecord& lr = pm.axes[2];
+  lr.model.kind = ModelKind::kLinear;
+  lr.model.q1 = -2e-3;
+  lr.model.q0 = 12345.678;
+  lr.r2 = -0.25;
+  lr.wavelet = "none";
+  lr.level = 0;
+  lr.kept_levels = {};
+  pm.meta = {{"breaths_per_min", "20"}, {"note", "lag 0.15 s: truth"}};
+  return pm;
+}
+
+void expectSameModel(const PatientModel& a, const PatientModel& b) {
+  EXPECT_EQ(a.patient_id, b.patient_id);
+  for (int i = 0; i < 3; ++i) {
+    SCOPED_TRACE("axis " + std::to_string(i));
+    EXPECT_EQ(a.axes[i].model.kind, b.axes[i].model.kind);
+    EXPECT_EQ(a.axes[i].model.q1, b.axes[i].model.q1);  // exact: 17 digits
+    EXPECT_EQ(a.axes[i].model.q2, b.axes[i].model.q2);
+    EXPECT_EQ(a.axes[i].model.q0, b.axes[i].model.q0);
+    EXPECT_EQ(a.axes[i].r2, b.axes[i].r2);
+    EXPECT_EQ(a.axes[i].rmse, b.axes[i].rmse);
+    EXPECT_EQ(a.axes[i].wavelet, b.axes[i].wavelet);
+    EXPECT_EQ(a.axes[i].level, b.axes[i].level);
+    EXPECT_EQ(a.axes[i].kept_levels, b.axes[i].kept_levels);
+  }
+  EXPECT_EQ(a.meta, b.meta);
+}
+
+std::string makeTempDir() {
+  char tmpl[] = "/tmp/pd_motion_model_XXXXXX";
+  const char* d = mkdtemp(tmpl);
+  EXPECT_NE(d, nullptr);
+  return d ? std::string(d) : std::string("/tmp");
+}
+
+std::vector<std::string> listDir(const std::string& dir) {
+  std::vector<std::string> names;
+  DIR* d = opendir(dir.c_str());
+  if (!d) return names;
+  while (dirent* e = readdir(d)) {
+    const std::string n = e->d_name;
+    if (n != "." && n != "..") names.push_back(n);
+  }
+  closedir(d);
+  return names;
+}
+
+bool exists(const std::string& path) {
+  struct stat st;
+  return stat(path.c_str(), &st) == 0;
+}
+
+TEST(ModelYaml, StringRoundTripIsExact) {
+  const PatientModel pm = sampleModel();
+  const std::string text = modelToYaml(pm);
+  expectSameModel(pm, modelFromYaml(text));
+  // The motion model carries kinds and coefficients.
+  const MotionModel mm = modelFromYaml(text).motionModel();
+  EXPECT_EQ(mm.axis(Axis::kSI).kind, ModelKind::kHysteresis);
+  EXPECT_EQ(mm.axis(Axis::kSI).q2, -7.5e-4);
+}
+
+TEST(ModelYaml, FileRoundTripAndOverwriteLeaveNoTemporaries) {
+  const std::string dir = makeTempDir();
+  const std::string path = dir + "/model.yaml";
+  PatientModel pm = sampleModel();
+  writeModelYaml(pm, path);
+  expectSameModel(pm, readModelYaml(path));
+  pm.axes[0].model.q1 = 0.25;
+  writeModelYaml(pm, path);  // overwrite
+  expectSameModel(pm, readModelYaml(path));
+  EXPECT_EQ(listDir(dir), std::vector<std::string>{"model.yaml"});
+  std::remove(path.c_str());
+  rmdir(dir.c_str());
+}
+
+TEST(ModelYaml, ReadsHandWrittenFileWithComments) {
+  const std::string text =
+      "# comment\n"
+      "patient_id: p1   # trailing comment\n"
+      "axes:\n"
+      "  ap:\n"
+      "    model: hysteresis\n"
+      "    q1: 0.01\n"
+      "    q2: -0.0015\n"
+      "    q0: 0.3\n"
+      "    r2: 0.97\n"
+      "    wavelet: coif4\n"
+      "    level: 6\n"
+      "    kept_levels: [3,4, 5]\n"
+      "  si:\n"
+      "    model: linear\n"
+      "    q1: 0.004\n"
+      "    q0: -0.2\n"
+      "    r2: 0.94\n"
+      "    wavelet: \"bior2.8\"\n"
+      "    level: 6\n"
+      "    kept_levels: [3, 4, 5]\n"
+      "  lr:\n"
+      "    model: linear\n"
+      "    q1: 0.002\n"
+      "    q0: 0.1\n"
+      "    r2: 0.8\n"
+      "    wavelet: coif5\n"
+      "    level: 6\n"
+      "    kept_levels: []\n";
+  const PatientModel pm = modelFromYaml(text);
+  EXPECT_EQ(pm.patient_id, "p1");
+  EXPECT_EQ(pm.axes[0].model.kind, ModelKind::kHysteresis);
+  EXPECT_DOUBLE_EQ(pm.axes[0].model.q2, -0.0015);
+  EXPECT_EQ(pm.axes[0].kept_levels, (std::vector<int>{3, 4, 5}));
+  EXPECT_EQ(pm.axes[1].wavelet, "bior2.8");
+  EXPECT_EQ(pm.axes[1].model.q2, 0.0);
+  EXPECT_TRUE(pm.axes[2].kept_levels.empty());
+}
+
+void expectYamlError(const std::string& text, const std::string& fragment) {
+  try {
+    modelFromYaml(text, "m.yaml");
+    ADD_FAILURE() << "no error; expected one mentioning '" << fragment << "'";
+  } catch (const ModelFileError& e) {
+    EXPECT_NE(std::string(e.what()).find(fragment), std::string::npos) << e.what();
+  }
+}
+
+std::string replaceFirst(std::string s, const std::string& from, const std::string& to) {
+  const size_t p = s.find(from);
+  EXPECT_NE(p, std::string::npos) << from;
+  if (p != std::string::npos) s.replace(p, from.size(), to);
+  return s;
+}
+
+TEST(ModelYaml, ReaderRejectsBadFiles) {
+  const std::string good = modelToYaml(sampleModel());
+  ASSERT_NO_THROW(modelFromYaml(good));
+  expectYamlError(replaceFirst(good, "    r2: 0.5\n", ""), "axes.si.r2");
+  expectYamlError(replaceFirst(good, "model: hysteresis", "model: cubic"), "cubic");
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: abc"), "axes.ap.q1");
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: nan"), "axes.ap.q1");
+  expectYamlError(replaceFirst(good, "    level: 6", "\tlevel: 6"), "tab");
+  expectYamlError(replaceFirst(good, "    level: 6", "     level: 6"), "indentation");
+  expectYamlError(replaceFirst(good, "kept_levels: [3, 4, 5]", "kept_levels: 3"), "kept_levels");
+  expectYamlError(good + "patient_id: \"again\"\n", "duplicate");
+  expectYamlError("", "patient_id");
+  EXPECT_THROW(readModelYaml("/nonexistent/dir/model.yaml"), ModelFileError);
+}
+
+TEST(ModelYaml, AtomicWriteIntoMissingDirectoryLeavesNothing) {
+  const std::string path = "/tmp/pd_no_such_dir_for_sure_9731/model.yaml";
+  EXPECT_THROW(writeModelYaml(sampleModel(), path), ModelFileError);
+  EXPECT_FALSE(exists(path));
+}
+
+TEST(ModelYaml, FailedRenameRemovesTemporaryAndKeepsDestination) {
+  // The destination is a non-empty directory: the temporary is written, rename() fails, and
+  // the writer must clean up; this failure path works even when running as root.
+  const std::string dir = makeTempDir();
+  const std::string dest = dir + "/model.yaml";
+  ASSERT_EQ(mkdir(dest.c_str(), 0755), 0);
+  const std::string inside = dest + "/keep";
+  { std::ofstream(inside) << "x"; }
+  EXPECT_THROW(writeModelYaml(sampleModel(), dest), ModelFileError);
+  EXPECT_EQ(listDir(dir), std::vector<std::string>{"model.yaml"});
+  EXPECT_TRUE(exists(inside));
+  std::remove(inside.c_str());
+  rmdir(dest.c_str());
+  rmdir(dir.c_str());
+}
+
+TEST(ModelYaml, AtomicWriteIntoReadOnlyDirectoryLeavesOldFile) {
+  if (geteuid() == 0) GTEST_SKIP() << "root ignores directory permissions";
+  const std::string dir = makeTempDir();
+  const std::string path = dir + "/model.yaml";
+  PatientModel old = sampleModel();
+  writeModelYaml(old, path);
+  ASSERT_EQ(chmod(dir.c_str(), 0555), 0);
+  PatientModel changed = old;
+  changed.axes[0].model.q1 = 99.0;
+  EXPECT_THROW(writeModelYaml(changed, path), ModelFileError);
+  chmod(dir.c_str(), 0755);
+  expectSameModel(old, readModelYaml(path));
+  EXPECT_EQ(listDir(dir), std::vector<std::string>{"model.yaml"});
+  std::remove(path.c_str());
+  rmdir(dir.c_str());
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

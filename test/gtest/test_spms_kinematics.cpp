@@ -1,0 +1,164 @@
+/**
+ * @file test_spms_kinematics.cpp
+ * @brief IK/FK round trip over the workspace, dependent coordinates, unreachable poses,
+ *        lead-screw model of the SPMS 3-PRS platform.
+ */
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "pedicle_drilling/core/spms_kinematics.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+
+// Max joint-position error (m) between two full poses (covers all 6 coordinates).
+double jointError(const SpmsKinematics& k, const PlatformFullPose& a, const PlatformFullPose& b) {
+  double e = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    e = std::max(e, (k.platformJoint(i, a) - k.platformJoint(i, b)).norm());
+  }
+  return e;
+}
+
+TEST(SpmsKinematics, HomePoseIsSymmetric) {
+  SpmsKinematics k;
+  const SpmsIkResult r = k.inverseHeave(0.0);
+  ASSERT_TRUE(r.reachable) << r.reason;
+  for (int i = 0; i < 3; ++i) EXPECT_NEAR(r.sliders[i], k.geometry().home_slider_m, 1e-12);
+  EXPECT_NEAR(r.pose.x_m, 0.0, 1e-12);
+  EXPECT_NEAR(r.pose.y_m, 0.0, 1e-12);
+  EXPECT_NEAR(r.pose.yaw_rad, 0.0, 1e-12);
+}
+
+TEST(SpmsKinematics, PureHeaveMovesAllSlidersEqually) {
+  SpmsKinematics k;  // vertical rails: slider displacement equals heave
+  for (double z : {-6e-3, -2.5e-3, 0.0, 2.5e-3, 6e-3}) {
+    const SpmsIkResult r = k.inverseHeave(z);
+    ASSERT_TRUE(r.reachable) << r.reason;
+    for (int i = 0; i < 3; ++i) EXPECT_NEAR(r.sliders[i] - k.geometry().home_slider_m, z, 1e-12);
+  }
+}
+
+TEST(SpmsKinematics, RoundTripOverWorkspaceGridWithin1um) {
+  for (double incl : {0.0, 15.0}) {
+    SpmsGeometry g;
+    g.rail_inclination_deg = incl;
+    SpmsKinematics k(g);
+    double max_err = 0.0;
+    int n = 0;
+    for (double z = -6e-3; z <= 6e-3 + 1e-12; z += 1.5e-3) {
+      for (double roll = -3.0; roll <= 3.0 + 1e-9; roll += 1.0) {
+        for (double pitch = -3.0; pitch <= 3.0 + 1e-9; pitch += 1.0) {
+          PlatformPose p;
+          p.z_m = z;
+          p.roll_rad = roll * kDeg;
+          p.pitch_rad = pitch * kDeg;
+          const SpmsIkResult ik = k.inverse(p);
+          ASSERT_TRUE(ik.reachable) << ik.reason;
+          const SpmsFkResult fk = k.forward(ik.sliders);
+          ASSERT_TRUE(fk.ok) << fk.reason;
+          EXPECT_NEAR(fk.pose.z_m, z, 1e-6);
+          EXPECT_NEAR(fk.pose.roll_rad, p.roll_rad, 1e-6);
+          EXPECT_NEAR(fk.pose.pitch_rad, p.pitch_rad, 1e-6);
+          const double e = jointError(k, fk.pose, ik.pose);
+          EXPECT_LT(e, 1e-6);
+          max_err = std::max(max_err, e);
+          ++n;
+        }
+      }
+    }
+    EXPECT_EQ(n, 9 * 7 * 7);
+    RecordProperty(incl == 0.0 ? "max_err_m_vertical" : "max_err_m_inclined",
+                   std::to_string(max_err));
+    EXPECT_LT(max_err, 1e-9);  // Newton converges far below the 1 um requirement
+  }
+}
+
+TEST(SpmsKinematics, ParasiticMotionsAreSmallAndConsistent) {
+  SpmsKinematics k;
+  PlatformPose p;
+  p.roll_rad = 3.0 * kDeg;
+  p.pitch_rad = -3.0 * kDeg;
+  const SpmsIkResult r = k.inverse(p);
+  ASSERT_TRUE(r.reachable) << r.reason;
+  // Each spherical joint stays in the vertical radial plane of its leg.
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d pj = k.platformJoint(i, r.pose);
+    const Eigen::Vector3d b = k.sliderPoint(i, 0.0);
+    const Eigen::Vector3d t = Eigen::Vector3d::UnitZ().cross(b.normalized());
+    EXPECT_NEAR(t.dot(pj), 0.0, 1e-12);
+  }
+  // Second-order small: |x|,|y| << 1 mm, |yaw| << 0.1 deg for 3 deg tilts.
+  EXPECT_LT(std::abs(r.pose.x_m), 1e-3);
+  EXPECT_LT(std::abs(r.pose.y_m), 1e-3);
+  EXPECT_LT(std::abs(r.pose.yaw_rad), 0.1 * kDeg);
+  EXPECT_GT(std::abs(r.pose.x_m) + std::abs(r.pose.y_m), 0.0);  // but not identically zero
+  // Pure heave has no parasitic motion at all.
+  const SpmsIkResult h = k.inverseHeave(4e-3);
+  EXPECT_NEAR(h.pose.x_m, 0.0, 1e-12);
+  EXPECT_NEAR(h.pose.y_m, 0.0, 1e-12);
+  EXPECT_NEAR(h.pose.yaw_rad, 0.0, 1e-12);
+}
+
+TEST(SpmsKinematics, UnreachablePosesReportReason) {
+  SpmsKinematics k;
+  // Beyond the slider stroke (+/-100 mm around home).
+  SpmsIkResult r = k.inverseHeave(0.150);
+  EXPECT_FALSE(r.reachable);
+  EXPECT_NE(r.reason.find("stroke"), std::string::npos) << r.reason;
+  r = k.inverseHeave(-0.150);
+  EXPECT_FALSE(r.reachable);
+  EXPECT_NE(r.reason.find("stroke"), std::string::npos) << r.reason;
+  // Large tilt: spherical-joint limit or stroke.
+  PlatformPose p;
+  p.roll_rad = 40.0 * kDeg;
+  r = k.inverse(p);
+  EXPECT_FALSE(r.reachable);
+  EXPECT_FALSE(r.reason.empty());
+  std::string reason;
+  EXPECT_FALSE(k.isReachable(p, &reason));
+  EXPECT_EQ(reason, r.reason);
+  // Rod cannot reach: a tiny rod relative to the radial offset.
+  SpmsGeometry g;
+  g.rod_length_m = 0.06;  // radial gap at home is 50 mm
+  SpmsKinematics small(g);
+  PlatformPose tilt;
+  tilt.roll_rad = 25.0 * kDeg;
+  const SpmsIkResult rr = small.inverse(tilt);
+  EXPECT_FALSE(rr.reachable);
+  EXPECT_FALSE(rr.reason.empty());
+}
+
+TEST(SpmsKinematics, ForwardRejectsSlidersOutOfStroke) {
+  SpmsKinematics k;
+  const SpmsFkResult fk = k.forward(Eigen::Vector3d(0.15, 0.15, 0.30));
+  EXPECT_FALSE(fk.ok);
+  EXPECT_NE(fk.reason.find("stroke"), std::string::npos);
+}
+
+TEST(SpmsKinematics, BreathingTrajectoryTracksWithinWorkspace) {
+  // AP breathing displacement of about 5 mm (paper Sec. V-B) as heave; all reachable.
+  SpmsKinematics k;
+  for (int j = 0; j <= 100; ++j) {
+    const double z = 2.5e-3 * std::sin(2.0 * 3.14159265358979323846 * j / 100.0);
+    EXPECT_TRUE(k.inverseHeave(z).reachable);
+  }
+}
+
+TEST(LeadScrew, AngleSliderRoundTrip) {
+  LeadScrew ls;  // 5 mm lead, 1:1 belt
+  EXPECT_NEAR(ls.sliderFromMotorAngle(2.0 * 3.14159265358979323846), 0.005, 1e-15);
+  LeadScrew geared;
+  geared.belt_reduction = 2.0;
+  geared.zero_offset_m = 0.1;
+  EXPECT_NEAR(geared.sliderFromMotorAngle(2.0 * 3.14159265358979323846), 0.1025, 1e-15);
+  for (double s : {0.05, 0.1, 0.1234, 0.25}) {
+    EXPECT_NEAR(geared.sliderFromMotorAngle(geared.motorAngleFromSlider(s)), s, 1e-15);
+  }
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

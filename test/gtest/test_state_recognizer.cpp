@@ -1,0 +1,455 @@
+// Tests of the force-based drilling-state recognizer (doc/state_machine.md).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/state_recognizer.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+constexpr double kRate = 1000.0;  // raw force samples per second in the synthetic profiles
+
+double lerp(double a, double b, double u) { return a + (b - a) * u; }
+
+// Piecewise profile: air, outer cortical hump, cancellous plateau with fluctuation, inner
+// cortical hump (optional), breakthrough. Times in s, forces in N.
+struct Profile {
+  double f_out = 3.0;
+  double f_in = 3.0;
+  double f_canc = 0.7;
+  bool inner = true;
+  double noise = 0.3;      // raw Gaussian noise sigma [N]
+  double canc_ripple = 0.15;
+  unsigned seed = 1;
+
+  // Inner layer time window (contact .. end of breakthrough drop).
+  static constexpr double kInnerStart = 16.0;
+  static constexpr double kInnerPeakEnd = 19.5;
+  static constexpr double kInnerEnd = 20.5;
+  static constexpr double kEnd = 23.0;
+
+  double clean(double t) const {
+    if (t < 2.0) return 0.0;
+    if (t < 4.0) return lerp(0.0, f_out, (t - 2.0) / 2.0);
+    if (t < 5.0) return f_out;
+    if (t < 6.0) return lerp(f_out, f_canc, t - 5.0);
+    const double canc = f_canc + canc_ripple * std::sin(2.0 * M_PI * 0.7 * t);
+    if (!inner || t < kInnerStart) return canc;
+    if (t < 18.0) return lerp(canc, f_in, (t - kInnerStart) / 2.0);
+    if (t < kInnerPeakEnd) return f_in;
+    if (t < kInnerEnd) return lerp(f_in, 0.1, t - kInnerPeakEnd);
+    return 0.1;
+  }
+
+  std::vector<double> samples() const {
+    std::mt19937 rng(seed);
+    std::normal_distribution<double> n(0.0, noise);
+    std::vector<double> out;
+    const int count = static_cast<int>(kEnd * kRate);
+    out.reserve(static_cast<std::size_t>(count));
+    for (int i = 0; i < count; ++i) out.push_back(clean(i / kRate) + n(rng));
+    return out;
+  }
+};
+
+struct RunResult {
+  RecognizerOutput out;
+  std::vector<DrillingState> states;  // distinct consecutive states visited
+};
+
+RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = RecognizerParams()) {
+  StateRecognizer rec(p);
+  RunResult r;
+  r.states.push_back(DrillingState::kIdle);
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const RecognizerOutput& o = rec.push(static_cast<double>(i) / kRate, f[i]);
+    if (o.state != r.states.back()) r.states.push_back(o.state);
+  }
+  r.out = rec.output();
+  return r;
+}
+
+// Direct-drive helper: pre_average = window = 1 so each pushed value is fbar itself.
+RecognizerParams directParams() {
+  RecognizerParams p;
+  p.pre_average = 1;
+  p.window = 1;
+  return p;
+}
+
+TEST(StateRecognizerFeature, Eq14And15) {
+  RecognizerParams p;
+  // Literal Eq. 14: A = D f*^3, f* = (fbar - f_min) / D; Eq. 15 gain above H_g.
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, -1.0, 0.0, 3.0), 0.0);
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 0.9, 0.0, 3.0), 3.0 * 0.027);  // 0.081 < H_g
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 2.4, 0.0, 3.0), 1.2 * 3.0 * 0.512);
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 5.0, 0.0, 3.0), 1.2 * 3.0);  // saturated at D
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 1.5, 0.5, 2.0), 2.0 * 0.125);  // offset f_min
+  p.normalize_feature = true;
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 2.4, 0.0, 3.0), 0.512 * 1.2);
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 1.5, 0.0, 3.0), 0.125);
+}
+
+TEST(StateRecognizerFilter, PreAverageAndMovingAverageIndices) {
+  RecognizerParams p;  // 50 x 10
+  StateRecognizer rec(p);
+  // 10 blocks of 50 raw samples are needed: raw index 499 gives the first fbar.
+  for (int i = 0; i < 499; ++i) {
+    EXPECT_FALSE(rec.push(i * 1e-3, 1.0).filter_ready) << i;
+  }
+  const RecognizerOutput& o2 = rec.push(0.499, 1.0);
+  EXPECT_TRUE(o2.filter_ready);
+  EXPECT_TRUE(o2.new_average);
+  EXPECT_DOUBLE_EQ(o2.averaged_force, 1.0);
+  EXPECT_FALSE(rec.push(0.500, 1.0).new_average);
+}
+
+TEST(StateRecognizerFilter, MovingAverageValue) {
+  RecognizerParams p;
+  p.pre_average = 2;
+  p.window = 3;
+  StateRecognizer rec(p);
+  const double raw[] = {1, 3, 5, 7, 0, 2, 10, 20};  // blocks: 2, 6, 1, 15
+  std::vector<double> fbar;
+  for (int i = 0; i < 8; ++i) {
+    const RecognizerOutput& o = rec.push(i, raw[i]);
+    if (o.new_average && o.filter_ready) fbar.push_back(o.averaged_force);
+  }
+  ASSERT_EQ(fbar.size(), 2u);
+  EXPECT_DOUBLE_EQ(fbar[0], 3.0);
+  EXPECT_DOUBLE_EQ(fbar[1], 22.0 / 3.0);
+}
+
+TEST(StateRecognizerTransitions, IdleToOuterCorticalNeedsFth) {
+  StateRecognizer rec(directParams());
+  EXPECT_EQ(rec.push(0, 0.5).state, DrillingState::kIdle);
+  EXPECT_EQ(rec.push(1, 1.0).state, DrillingState::kIdle);  // F_max must exceed F_th strictly
+  EXPECT_EQ(rec.push(2, 1.01).state, DrillingState::kOuterCortical);
+  EXPECT_FALSE(rec.output().params_ready);
+  EXPECT_EQ(rec.output().last_key_point, 0);
+}
+
+TEST(StateRecognizerTransitions, Algorithm2FixesKAndD) {
+  StateRecognizer rec(directParams());
+  const double f[] = {0.2, 0.1, 2.0, 3.0, 1.6, 1.4};
+  for (int i = 0; i < 5; ++i) {
+    rec.push(i, f[i]);
+    EXPECT_FALSE(rec.output().params_ready) << i;  // 1.6 >= K * 3.0
+  }
+  const RecognizerOutput& o = rec.push(5, f[5]);  // 1.4 < 1.5: end of layer 1
+  EXPECT_TRUE(o.params_ready);
+  EXPECT_EQ(o.k, 5u);
+  EXPECT_DOUBLE_EQ(o.d, 3.0 - 0.1);
+  EXPECT_DOUBLE_EQ(o.f_min, 0.1);
+  EXPECT_EQ(o.state, DrillingState::kOuterPunctured);
+  ASSERT_EQ(o.num_key_points, 2);
+  EXPECT_EQ(o.key_points[0].id, 1);
+  // KP1: first sample whose A* >= C1: fbar = 2.0 -> f* = 1.9/2.9, A = 2.9 f*^3 = 0.815 -> A* 0.98.
+  EXPECT_EQ(o.key_points[0].index, 2u);
+  EXPECT_EQ(o.key_points[0].recognized_index, 5u);
+  EXPECT_EQ(o.key_points[1].id, 2);
+  EXPECT_EQ(o.key_points[1].index, 5u);
+}
+
+TEST(StateRecognizerTransitions, NoKeyPoint2WhileFmaxBelowFth) {
+  StateRecognizer rec(directParams());
+  // Drops by more than K but F_max never exceeds F_th: soft tissue, not bone.
+  for (double f : {0.2, 0.9, 0.3, 0.0, 0.95, 0.1}) rec.push(0, f);
+  EXPECT_EQ(rec.output().state, DrillingState::kIdle);
+  EXPECT_EQ(rec.output().num_key_points, 0);
+}
+
+TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
+  RecognizerParams p = directParams();
+  p.cancellous_confirm = 3;
+  StateRecognizer rec(p);
+  int i = 0;
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 at i = 2 (A* = 0.111 < C1)
+  ASSERT_EQ(rec.output().last_key_point, 2);
+  rec.push(i++, 1.0);  // run 1 (the KP2 sample itself does not count)
+  rec.push(i++, 1.0);  // run 2
+  rec.push(i++, 2.5);  // A* = 2.08 > C1: rebound resets the dwell
+  EXPECT_EQ(rec.output().state, DrillingState::kOuterPunctured);
+  rec.push(i++, 0.7);  // i = 6, run 1
+  rec.push(i++, 0.7);
+  EXPECT_EQ(rec.output().state, DrillingState::kOuterPunctured);
+  const RecognizerOutput& o = rec.push(i++, 0.7);  // i = 8, run 3: confirmed
+  EXPECT_EQ(o.state, DrillingState::kCancellous);
+  EXPECT_EQ(o.last_key_point, 3);
+  EXPECT_EQ(o.key_points[2].index, 8u);
+  EXPECT_EQ(o.key_points[2].recognized_index, 8u);
+  EXPECT_FALSE(o.stop);
+}
+
+// Drive to the cancellous state with direct parameters; returns next time index.
+int toCancellous(StateRecognizer& rec) {
+  int i = 0;
+  for (double f : {0.0, 3.0, 1.0, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7}) rec.push(i++, f);
+  EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
+  return i;
+}
+
+TEST(StateRecognizerTransitions, InnerCorticalNeedsConfirmationAboveC2) {
+  StateRecognizer rec(directParams());  // inner_confirm = 2, stop_delay = 0
+  int i = toCancellous(rec);
+  // A* for fbar = 1.7 (D = 3): 3 (0.567)^3 = 0.546 -> 0.655 < C2; for 1.8: 0.583*1.2 = 0.700 ~
+  rec.push(i++, 1.7);
+  EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
+  rec.push(i++, 2.4);  // single spike above C2
+  rec.push(i++, 0.7);
+  EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
+  EXPECT_FALSE(rec.output().stop);
+  const int first = i;
+  rec.push(i++, 2.0);
+  EXPECT_FALSE(rec.output().stop);
+  const RecognizerOutput& o = rec.push(i++, 2.2);
+  EXPECT_EQ(o.state, DrillingState::kInnerCortical);
+  EXPECT_EQ(o.last_key_point, 4);
+  EXPECT_EQ(o.key_points[3].index, static_cast<std::size_t>(first));
+  EXPECT_TRUE(o.stop);
+  EXPECT_EQ(o.stop_index, static_cast<std::size_t>(first + 1));
+  EXPECT_DOUBLE_EQ(o.stop_t, first + 1.0);
+}
+
+TEST(StateRecognizerTransitions, StopDelayCountsAveragedSamples) {
+  RecognizerParams p = directParams();
+  p.stop_delay = 3;
+  StateRecognizer rec(p);
+  int i = toCancellous(rec);
+  rec.push(i++, 2.5);
+  rec.push(i++, 2.6);  // KP4 confirmed at i-1
+  const int kp4 = i - 1;
+  EXPECT_EQ(rec.output().last_key_point, 4);
+  EXPECT_FALSE(rec.output().stop);
+  rec.push(i++, 2.7);
+  rec.push(i++, 2.8);
+  EXPECT_FALSE(rec.output().stop);
+  rec.push(i++, 2.9);
+  EXPECT_TRUE(rec.output().stop);
+  EXPECT_EQ(rec.output().stop_index, static_cast<std::size_t>(kp4 + 3));
+}
+
+TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
+  RecognizerParams p = directParams();
+  p.stop_delay = 100;  // so that the KP5 fail-safe is what stops
+  StateRecognizer rec(p);
+  int i = toCancellous(rec);
+  rec.push(i++, 2.5);
+  rec.push(i++, 2.8);
+  const int peak = i;
+  rec.push(i++, 3.0);  // A* = 3.6 (saturated, gained)
+  rec.push(i++, 2.9);  // A* = 3.25 >= 0.7 * 3.6 = 2.52
+  EXPECT_EQ(rec.output().last_key_point, 4);
+  EXPECT_FALSE(rec.output().stop);
+  rec.push(i++, 2.6);  // A* = 2.35 < 2.52: puncturing starts
+  EXPECT_EQ(rec.output().last_key_point, 5);
+  EXPECT_EQ(rec.output().key_points[4].index, static_cast<std::size_t>(peak));
+  EXPECT_TRUE(rec.output().stop);  // fail-safe stop at KP5
+  EXPECT_EQ(rec.output().stop_index, static_cast<std::size_t>(i - 1));
+  EXPECT_EQ(rec.output().state, DrillingState::kInnerCortical);
+  rec.push(i++, 1.6);  // A* = 0.50*... = 0.455 >= C1 still
+  EXPECT_EQ(rec.output().state, DrillingState::kInnerCortical);
+  rec.push(i++, 0.5);
+  EXPECT_EQ(rec.output().state, DrillingState::kBreakthrough);
+  EXPECT_EQ(rec.output().last_key_point, 6);
+  EXPECT_EQ(rec.output().key_points[5].index, static_cast<std::size_t>(i - 1));
+  // Nothing more happens afterwards.
+  for (int j = 0; j < 20; ++j) rec.push(i++, j % 2 ? 3.0 : 0.0);
+  EXPECT_EQ(rec.output().num_key_points, 6);
+  EXPECT_EQ(rec.output().state, DrillingState::kBreakthrough);
+}
+
+TEST(StateRecognizerProfile, TwoLayersAllKeyPointsAndStopInInnerLayer) {
+  Profile prof;
+  const RunResult r = runProfile(prof.samples());
+  const RecognizerOutput& o = r.out;
+  ASSERT_EQ(o.num_key_points, 6);
+  for (int j = 0; j < 6; ++j) {
+    EXPECT_EQ(o.key_points[j].id, j + 1);
+    if (j > 0) {
+      EXPECT_GT(o.key_points[j].index, o.key_points[j - 1].index);
+    }
+  }
+  const auto t = [&](int id) { return o.key_points[id - 1].t; };
+  EXPECT_GT(t(1), 2.0);
+  EXPECT_LT(t(1), 4.5);
+  EXPECT_GT(t(2), 5.0);
+  EXPECT_LT(t(2), 6.5);
+  EXPECT_LT(t(3), 8.0);
+  EXPECT_GT(t(4), Profile::kInnerStart);
+  EXPECT_LT(t(4), 18.5);
+  EXPECT_GT(t(5), 17.5);
+  EXPECT_LT(t(5), Profile::kInnerEnd);
+  EXPECT_GT(t(6), Profile::kInnerPeakEnd);
+  EXPECT_LT(t(6), 21.5);
+  EXPECT_NEAR(o.d, 3.0, 0.15);
+  ASSERT_TRUE(o.stop);
+  // Stop inside the inner layer, before its force starts to fall, and between KP4 and KP6.
+  EXPECT_GT(o.stop_t, Profile::kInnerStart);
+  EXPECT_LT(o.stop_t, Profile::kInnerPeakEnd);
+  EXPECT_GE(o.stop_index, o.key_points[3].index);
+  EXPECT_LT(o.stop_index, o.key_points[5].index);
+  const std::vector<DrillingState> expected = {
+      DrillingState::kIdle,       DrillingState::kOuterCortical, DrillingState::kOuterPunctured,
+      DrillingState::kCancellous, DrillingState::kInnerCortical, DrillingState::kBreakthrough};
+  EXPECT_EQ(r.states, expected);
+}
+
+TEST(StateRecognizerProfile, OneLayerOnlyNeverStops) {
+  Profile prof;
+  prof.inner = false;
+  const RunResult r = runProfile(prof.samples());
+  EXPECT_FALSE(r.out.stop);
+  EXPECT_EQ(r.out.last_key_point, 3);
+  EXPECT_EQ(r.out.state, DrillingState::kCancellous);
+}
+
+TEST(StateRecognizerProfile, NoContactStaysIdle) {
+  Profile prof;
+  prof.f_out = 0.0;
+  prof.f_canc = 0.0;
+  prof.canc_ripple = 0.0;
+  prof.inner = false;
+  const RunResult r = runProfile(prof.samples());
+  EXPECT_EQ(r.out.state, DrillingState::kIdle);
+  EXPECT_EQ(r.out.num_key_points, 0);
+  EXPECT_FALSE(r.out.stop);
+}
+
+TEST(StateRecognizerProfile, NoiseRobustnessOverSeeds) {
+  for (unsigned seed = 1; seed <= 20; ++seed) {
+    Profile prof;
+    prof.seed = seed;
+    prof.noise = 1.0;  // raw sigma 1 N, i.e. a third of the cortical peak
+    prof.canc_ripple = 0.3;
+    const RunResult r = runProfile(prof.samples());
+    ASSERT_EQ(r.out.num_key_points, 6) << "seed " << seed;
+    ASSERT_TRUE(r.out.stop) << "seed " << seed;
+    EXPECT_GT(r.out.stop_t, Profile::kInnerStart) << "seed " << seed;
+    EXPECT_LT(r.out.stop_t, Profile::kInnerPeakEnd) << "seed " << seed;
+    Profile one = prof;
+    one.inner = false;
+    EXPECT_FALSE(runProfile(one.samples()).out.stop) << "seed " << seed;
+  }
+}
+
+TEST(StateRecognizerProfile, WeakerInnerLayerStillStops) {
+  // Fig. 17 stationary case: F_out = 3.6 N, F_in = 3.0 N.
+  Profile prof;
+  prof.f_out = 3.6;
+  prof.f_in = 3.0;
+  const RunResult r = runProfile(prof.samples());
+  ASSERT_TRUE(r.out.stop);
+  EXPECT_GT(r.out.stop_t, Profile::kInnerStart);
+  EXPECT_LT(r.out.stop_t, Profile::kInnerPeakEnd);
+}
+
+TEST(StateRecognizerProfile, NormalisedFeatureMissesWeakerInnerLayer) {
+  // Documents why A is NOT normalised by D by default: with A in [0, 1] the same C2 = 0.7
+  // requires the inner peak to reach 0.84 of the outer one, and 3.0 / 3.6 = 0.83 does not.
+  Profile prof;
+  prof.f_out = 3.6;
+  prof.f_in = 3.0;
+  prof.noise = 0.0;
+  prof.canc_ripple = 0.0;
+  RecognizerParams p;
+  p.normalize_feature = true;
+  const RunResult r = runProfile(prof.samples(), p);
+  EXPECT_FALSE(r.out.stop);
+  EXPECT_EQ(r.out.last_key_point, 3);
+}
+
+TEST(StateRecognizerProfile, ResetForgetsEverything) {
+  Profile prof;
+  const std::vector<double> f = prof.samples();
+  StateRecognizer rec;
+  for (std::size_t i = 0; i < f.size(); ++i) rec.push(i / kRate, f[i]);
+  ASSERT_TRUE(rec.output().stop);
+  rec.reset();
+  EXPECT_FALSE(rec.output().stop);
+  EXPECT_EQ(rec.output().num_key_points, 0);
+  EXPECT_EQ(rec.output().state, DrillingState::kIdle);
+  for (std::size_t i = 0; i < f.size(); ++i) rec.push(i / kRate, f[i]);
+  EXPECT_EQ(rec.output().num_key_points, 6);
+}
+
+TEST(StateRecognizerInput, NonFiniteThrows) {
+  StateRecognizer rec;
+  EXPECT_THROW(rec.push(0.0, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  EXPECT_THROW(rec.push(std::numeric_limits<double>::infinity(), 1.0), std::invalid_argument);
+}
+
+void expectInvalid(const RecognizerParams& p, const std::string& name) {
+  try {
+    p.validate();
+    ADD_FAILURE() << "validate() accepted bad " << name;
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind(name + ":", 0), 0u) << e.what();
+  }
+  EXPECT_THROW(StateRecognizer rec(p), std::invalid_argument);
+}
+
+TEST(RecognizerParamsTest, DefaultsAreValidAndFromPaper) {
+  RecognizerParams p;
+  EXPECT_NO_THROW(p.validate());
+  EXPECT_EQ(p.pre_average, 50);
+  EXPECT_EQ(p.window, 10);
+  EXPECT_DOUBLE_EQ(p.gain, 1.2);
+  EXPECT_DOUBLE_EQ(p.h_g, 0.5);
+  EXPECT_DOUBLE_EQ(p.c1, 0.4);
+  EXPECT_DOUBLE_EQ(p.c2, 0.7);
+  EXPECT_DOUBLE_EQ(p.c3, 0.7);
+}
+
+TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  const auto bad = [](const std::string& name, auto mutate) {
+    RecognizerParams p;
+    mutate(p);
+    expectInvalid(p, name);
+  };
+  bad("pre_average", [](RecognizerParams& p) { p.pre_average = 0; });
+  bad("window", [](RecognizerParams& p) { p.window = 0; });
+  bad("k_ratio", [](RecognizerParams& p) { p.k_ratio = 1.0; });
+  bad("k_ratio", [](RecognizerParams& p) { p.k_ratio = 0.0; });
+  bad("k_ratio", [nan](RecognizerParams& p) { p.k_ratio = nan; });
+  bad("f_th", [](RecognizerParams& p) { p.f_th = 0.0; });
+  bad("f_th", [nan](RecognizerParams& p) { p.f_th = nan; });
+  bad("gain", [](RecognizerParams& p) { p.gain = 0.9; });
+  bad("h_g", [](RecognizerParams& p) { p.h_g = -0.1; });
+  bad("c1", [](RecognizerParams& p) { p.c1 = 0.0; });
+  bad("c2", [](RecognizerParams& p) { p.c2 = 0.3; });
+  bad("c3", [](RecognizerParams& p) { p.c3 = 1.0; });
+  bad("c3", [](RecognizerParams& p) { p.c3 = std::numeric_limits<double>::infinity(); });
+  bad("cancellous_confirm", [](RecognizerParams& p) { p.cancellous_confirm = 0; });
+  bad("inner_confirm", [](RecognizerParams& p) { p.inner_confirm = 0; });
+  bad("stop_delay", [](RecognizerParams& p) { p.stop_delay = -1; });
+}
+
+TEST(RecognizerParamsTest, SetByName) {
+  RecognizerParams p;
+  p.set("k_ratio", "0.6");
+  p.set("window", "12");
+  p.set("normalize_feature", "true");
+  EXPECT_DOUBLE_EQ(p.k_ratio, 0.6);
+  EXPECT_EQ(p.window, 12);
+  EXPECT_TRUE(p.normalize_feature);
+  EXPECT_THROW(p.set("bogus", "1"), std::invalid_argument);
+  EXPECT_THROW(p.set("window", "1.5"), std::invalid_argument);
+  EXPECT_THROW(p.set("c1", "abc"), std::invalid_argument);
+  try {
+    p.set("c2", "");
+    ADD_FAILURE();
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("c2"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core
