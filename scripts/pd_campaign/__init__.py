@@ -1,0 +1,1 @@
+"""Experiment campaign of pedicle_drilling: design, trial execution, statistics and report."""

@@ -1,0 +1,303 @@
+"""`rosrun pedicle_drilling campaign` and `rosrun pedicle_drilling campaign_merge`."""
+import argparse
+import json
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+import yaml
+
+from . import plots, report
+from .design import CASES, build_design, parse_shard, shard
+
+PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
+DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
+
+# Scenario keys: name -> (type, min, max). Documented in the README ("Scenario files").
+SCENARIO_KEYS = {
+    'cases': (list, None, None),
+    'rpms': (list, 1000.0, 60000.0),
+    'trials': (int, 1, 10000),
+    'seed': (int, 0, 2 ** 62),
+    'feed_rate_mm_s': (float, 0.05, 5.0),
+    'max_duration_s': (float, 5.0, 600.0),
+    'identification_window_s': (float, 5.0, 300.0),
+    'simulator': (dict, None, None),
+}
+
+
+class UsageError(Exception):
+    pass
+
+
+def load_scenario(path):
+    """Reads and validates a scenario YAML; errors name the key."""
+    try:
+        with open(path) as handle:
+            data = yaml.safe_load(handle) or {}
+    except (OSError, yaml.YAMLError) as error:
+        raise UsageError('--scenario %s: cannot read: %s' % (path, error))
+    if not isinstance(data, dict):
+        raise UsageError('--scenario %s: not a mapping' % path)
+    for key, value in data.items():
+        if key not in SCENARIO_KEYS:
+            raise UsageError('--scenario %s: unknown key %r (known: %s)'
+                             % (path, key, ', '.join(sorted(SCENARIO_KEYS))))
+        kind, low, high = SCENARIO_KEYS[key]
+        if kind is float and isinstance(value, int):
+            value = float(value)
+            data[key] = value
+        if not isinstance(value, kind) or isinstance(value, bool):
+            raise UsageError('--scenario %s: %r must be a %s' % (path, key, kind.__name__))
+        if kind in (int, float) and not low <= value <= high:
+            raise UsageError('--scenario %s: %r = %s out of range [%s, %s]'
+                             % (path, key, value, low, high))
+        if key == 'rpms':
+            for rpm in value:
+                if not isinstance(rpm, (int, float)) or not low <= rpm <= high:
+                    raise UsageError('--scenario %s: rpm %r out of range [%s, %s]'
+                                     % (path, rpm, low, high))
+        if key == 'cases':
+            for case in value:
+                if case not in CASES:
+                    raise UsageError('--scenario %s: unknown case %r' % (path, case))
+    return data
+
+
+def parse_args(argv):
+    parser = argparse.ArgumentParser(
+        prog='campaign', description='Reproduce the paper\'s drilling experiments on the '
+        'simulator: Table III, Fig. 15-18, with Wilson 95 %% intervals.')
+    parser.add_argument('--case', default=None,
+                        help='stationary | uncompensated | compensated | all (default: scenario)')
+    parser.add_argument('--rpm', default=None, help='comma-separated spindle speeds')
+    parser.add_argument('--trials', type=int, default=None, help='trials per case and speed')
+    parser.add_argument('--seed', type=int, default=None)
+    parser.add_argument('--scenario', default=DEFAULT_SCENARIO)
+    parser.add_argument('--jobs', type=int, default=2, help='parallel workers (ROS masters)')
+    parser.add_argument('--out', default='campaign_out')
+    parser.add_argument('--shard', default=None, help='K/N: run the K-th of N slices')
+    parser.add_argument('--bags', action='store_true', help='keep a rosbag per trial')
+    parser.add_argument('--base-port', type=int, default=11400)
+    args = parser.parse_args(argv)
+    scenario = load_scenario(args.scenario)
+    if args.case is None:
+        cases = list(scenario.get('cases', CASES))
+    elif args.case == 'all':
+        cases = list(CASES)
+    elif args.case in CASES:
+        cases = [args.case]
+    else:
+        raise UsageError('--case %r is not one of: %s, all' % (args.case, ', '.join(CASES)))
+    if args.rpm is None:
+        rpms = [float(r) for r in scenario.get('rpms', [12000])]
+    else:
+        try:
+            rpms = [float(r) for r in args.rpm.split(',')]
+        except ValueError:
+            raise UsageError('--rpm %r is not a comma-separated list of numbers' % args.rpm)
+        if any(not 1000.0 <= r <= 60000.0 for r in rpms):
+            raise UsageError('--rpm values must be in [1000, 60000]')
+    trials = args.trials if args.trials is not None else scenario.get('trials', 20)
+    if trials < 1:
+        raise UsageError('--trials must be >= 1')
+    if args.jobs < 1 or args.jobs > 64:
+        raise UsageError('--jobs must be in 1..64')
+    seed = args.seed if args.seed is not None else scenario.get('seed', 1)
+    shard_spec = None
+    if args.shard:
+        try:
+            shard_spec = parse_shard(args.shard)
+        except ValueError as error:
+            raise UsageError(str(error))
+    return args, scenario, cases, rpms, trials, seed, shard_spec
+
+
+class Progress:
+    """A one-line progress bar with ETA on stderr."""
+
+    def __init__(self, total):
+        self.total = total
+        self.done = 0
+        self.failed = 0
+        self.start = time.time()
+
+    def update(self, row):
+        self.done += 1
+        if row.get('error'):
+            self.failed += 1
+        elapsed = time.time() - self.start
+        eta = elapsed / self.done * (self.total - self.done) if self.done else 0
+        width = 30
+        filled = int(width * self.done / max(1, self.total))
+        sys.stderr.write('\r[%s%s] %d/%d trials (%d errors)  elapsed %s  ETA %s   ' % (
+            '#' * filled, '.' * (width - filled), self.done, self.total, self.failed,
+            _clock(elapsed), _clock(eta)))
+        sys.stderr.flush()
+
+
+def _clock(seconds):
+    seconds = int(seconds)
+    return '%d:%02d' % (seconds // 60, seconds % 60)
+
+
+def write_outputs(rows, meta, out_dir, notes=''):
+    """trials.csv, summary.json, report.md and figures from the finished rows."""
+    report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
+    summary = report.summarise(rows)
+    report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'))
+    figures = []
+    for title, name in (
+            ('Table III', plots.table3(summary, out_dir)),
+            ('Fig. 15', plots.fig15(summary, out_dir)),
+            ('Fig. 16', plots.fig16(rows, out_dir)),
+            ('Fig. 17', plots.fig17(rows, out_dir, os.path.join(out_dir, 'traces'))),
+            ('Fig. 18', plots.fig18(rows, out_dir))):
+        if name:
+            figures.append((title, name))
+    table2 = os.path.join(out_dir, 'table2.md')
+    if os.path.exists(table2):
+        with open(table2) as handle:
+            notes = notes + '\n\n## Table II (identification on the five virtual volunteers)\n\n' \
+                + handle.read()
+    report.write_report_md(summary, meta, figures, os.path.join(out_dir, 'report.md'), notes)
+    return summary
+
+
+def run_campaign(argv=None):
+    try:
+        args, scenario, cases, rpms, trials, seed, shard_spec = parse_args(argv)
+    except UsageError as error:
+        sys.stderr.write('campaign: %s\n' % error)
+        return 2
+    design = build_design(cases, rpms, trials, seed)
+    selected = shard(design, *shard_spec) if shard_spec else design
+    out_dir = os.path.abspath(args.out)
+    os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
+    # The report's meta data describe the design only, so that merged shards report the same.
+    meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
+            'design_size': len(design)}
+    with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
+        json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
+                   'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
+    jobs = min(args.jobs, len(selected))
+    slices = [selected[i::jobs] for i in range(jobs)]
+    sys.stderr.write('campaign: %d trials (%s), %d worker(s), output %s\n'
+                     % (len(selected), 'shard ' + args.shard if args.shard else 'full design',
+                        jobs, out_dir))
+    rows = []
+    lock = threading.Lock()
+    progress = Progress(len(selected))
+    workers = []
+    for k, part in enumerate(slices):
+        trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
+        with open(trial_file, 'w') as handle:
+            json.dump(part, handle)
+        command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
+                   '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
+                   '--trials', trial_file, '--out', out_dir,
+                   '--feed-rate', str(scenario.get('feed_rate_mm_s', 0.5)),
+                   '--max-duration', str(scenario.get('max_duration_s', 60.0)),
+                   '--identification-window-s',
+                   str(scenario.get('identification_window_s', 30.0)),
+                   '--default-model', DEFAULT_MODEL]
+        if args.bags:
+            command.append('--bags')
+        if args.scenario:
+            command += ['--scenario', os.path.abspath(args.scenario)]
+        env = dict(os.environ)
+        env['PYTHONPATH'] = os.path.join(PACKAGE_ROOT, 'scripts') + os.pathsep + \
+            env.get('PYTHONPATH', '')
+        workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, env=env, text=True,
+                                        start_new_session=True))
+
+    def collect(worker):
+        for line in worker.stdout:
+            line = line.strip()
+            if not line.startswith('{'):
+                continue
+            row = report.normalise_row({k: ('' if v is None else v)
+                                        for k, v in json.loads(line).items()})
+            with lock:
+                rows.append(row)
+                progress.update(row)
+                report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
+
+    readers = [threading.Thread(target=collect, args=(w,), daemon=True) for w in workers]
+    for reader in readers:
+        reader.start()
+    interrupted = False
+    try:
+        for worker in workers:
+            worker.wait()
+    except KeyboardInterrupt:
+        interrupted = True
+        sys.stderr.write('\ncampaign: interrupted; stopping workers, keeping finished trials\n')
+        for worker in workers:
+            try:
+                os.killpg(worker.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        for worker in workers:
+            try:
+                worker.wait(timeout=30)
+            except subprocess.TimeoutExpired:
+                os.killpg(worker.pid, signal.SIGKILL)
+    for reader in readers:
+        reader.join(timeout=5)
+    sys.stderr.write('\n')
+    with lock:
+        finished = list(rows)
+    write_outputs(finished, meta, out_dir)
+    sys.stderr.write('campaign: %d/%d trials finished; report %s\n'
+                     % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))
+    if interrupted:
+        return 130
+    return 0 if len(finished) == len(selected) else 1
+
+
+def run_merge(argv=None):
+    parser = argparse.ArgumentParser(
+        prog='campaign_merge', description='Merge shard outputs of one campaign design into one '
+        'report, identical to a single run with the same design.')
+    parser.add_argument('dirs', nargs='+')
+    parser.add_argument('--out', required=True)
+    args = parser.parse_args(argv)
+    rows = {}
+    metas = []
+    out_dir = os.path.abspath(args.out)
+    os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
+    for directory in args.dirs:
+        try:
+            with open(os.path.join(directory, 'design.json')) as handle:
+                metas.append(json.load(handle)['meta'])
+            shard_rows = report.read_trials_csv(os.path.join(directory, 'trials.csv'))
+        except (OSError, ValueError, KeyError) as error:
+            sys.stderr.write('campaign_merge: %s: %s\n' % (directory, error))
+            return 2
+        for row in shard_rows:
+            if row['trial_id'] in rows:
+                sys.stderr.write('campaign_merge: trial %s appears twice\n' % row['trial_id'])
+                return 2
+            rows[row['trial_id']] = row
+        traces = os.path.join(directory, 'traces')
+        if os.path.isdir(traces):
+            for name in os.listdir(traces):
+                with open(os.path.join(traces, name)) as src, \
+                        open(os.path.join(out_dir, 'traces', name), 'w') as dst:
+                    dst.write(src.read())
+    keys = ('cases', 'rpms', 'trials', 'seed')
+    if any(tuple(m[k] for k in keys) != tuple(metas[0][k] for k in keys) for m in metas):
+        sys.stderr.write('campaign_merge: the directories come from different designs\n')
+        return 2
+    meta = dict(metas[0])
+    write_outputs(list(rows.values()), meta, out_dir)
+    expected = meta.get('design_size')
+    sys.stderr.write('campaign_merge: %d trials%s -> %s\n' % (
+        len(rows), '' if expected is None else ' of %d' % expected, out_dir))
+    return 0

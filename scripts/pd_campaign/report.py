@@ -1,0 +1,174 @@
+"""Outputs of a campaign: trials.csv, summary.json, report.md and the PNG figures.
+
+Everything here is computed from the trial rows (and per-trial traces) alone, so a merge of
+shard directories produces the same report as a single run with the same design."""
+import csv
+import json
+import math
+import os
+
+from . import stats
+from .design import CASES
+
+TRIAL_COLUMNS = [
+    'trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
+    'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_cortical_mm',
+    'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s', 'wall_s',
+    'error',
+]
+
+PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}
+
+
+def _number(value):
+    if value in (None, ''):
+        return None
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        return None
+    return None if math.isnan(number) else number
+
+
+def normalise_row(row):
+    """Types of a trials.csv row (strings from csv) as the report uses them."""
+    out = dict(row)
+    out['rpm'] = float(row['rpm'])
+    out['index'] = int(row['index'])
+    out['seed'] = int(row['seed'])
+    out['success'] = str(row['success']).lower() in ('1', 'true')
+    out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
+    for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_cortical_mm',
+                'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s',
+                'wall_s'):
+        out[key] = _number(row.get(key))
+    return out
+
+
+def sort_key(row):
+    return (row['rpm'], row['index'], CASES.index(row['case']) if row['case'] in CASES else 9)
+
+
+def _format(value):
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, float):
+        return '' if math.isnan(value) else '%.6g' % value
+    return '' if value is None else str(value)
+
+
+def write_trials_csv(rows, path):
+    rows = sorted(rows, key=sort_key)
+    tmp = path + '.tmp'
+    with open(tmp, 'w', newline='') as handle:
+        writer = csv.DictWriter(handle, fieldnames=TRIAL_COLUMNS, extrasaction='ignore')
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
+    os.replace(tmp, path)
+
+
+def read_trials_csv(path):
+    with open(path, newline='') as handle:
+        reader = csv.DictReader(handle)
+        missing = [c for c in ('trial_id', 'case', 'rpm', 'index', 'seed', 'success')
+                   if c not in (reader.fieldnames or [])]
+        if missing:
+            raise ValueError('%s: missing columns %s' % (path, ', '.join(missing)))
+        return [normalise_row(r) for r in reader]
+
+
+def summarise(rows):
+    """Per case and rpm: trials, successes, success rate with its Wilson 95 % interval, medians."""
+    groups = {}
+    for row in rows:
+        groups.setdefault((row['case'], row['rpm']), []).append(row)
+    summary = []
+    for (case, rpm), group in sorted(groups.items(),
+                                     key=lambda kv: (kv[0][1], CASES.index(kv[0][0])
+                                                     if kv[0][0] in CASES else 9)):
+        valid = [r for r in group if not r.get('error')]
+        successes = sum(1 for r in valid if r['success'])
+        low, high = stats.wilson_interval(successes, len(valid))
+        summary.append({
+            'case': case,
+            'rpm': rpm,
+            'trials': len(valid),
+            'errors': len(group) - len(valid),
+            'successes': successes,
+            'success_rate': successes / len(valid) if valid else None,
+            'wilson95': [low, high],
+            'median_f_out_n': stats.median([r['f_out_n'] for r in valid]),
+            'median_f_in_n': stats.median([r['f_in_n'] for r in valid]),
+            'median_residual_mm_successful': stats.median(
+                [r['residual_mm'] for r in valid if r['success']]),
+            'median_tracking_rms_mm': stats.median([r['tracking_rms_mm'] for r in valid]),
+            'stop_reasons': _count(r.get('stop_reason') or 'none' for r in valid),
+        })
+    return summary
+
+
+def _count(items):
+    counts = {}
+    for item in items:
+        counts[item] = counts.get(item, 0) + 1
+    return dict(sorted(counts.items()))
+
+
+def write_summary_json(summary, meta, path):
+    tmp = path + '.tmp'
+    with open(tmp, 'w') as handle:
+        json.dump({'meta': meta, 'groups': summary}, handle, indent=2, sort_keys=True)
+        handle.write('\n')
+    os.replace(tmp, path)
+
+
+def _pct(x):
+    return '-' if x is None else '%.0f %%' % (100 * x)
+
+
+def _num(x, fmt='%.2f'):
+    return '-' if x is None else fmt % x
+
+
+def markdown_table(summary):
+    lines = ['| case | rpm | successes | rate | Wilson 95 % | median F_out [N] | median F_in [N] '
+             '| median residual (successes) [mm] | median tracking RMS [mm] | stop reasons |',
+             '|---|---|---|---|---|---|---|---|---|---|']
+    for g in summary:
+        lines.append('| %s | %.0f | %d/%d | %s | %s-%s | %s | %s | %s | %s | %s |' % (
+            g['case'], g['rpm'], g['successes'], g['trials'], _pct(g['success_rate']),
+            _pct(g['wilson95'][0]), _pct(g['wilson95'][1]), _num(g['median_f_out_n']),
+            _num(g['median_f_in_n']), _num(g['median_residual_mm_successful']),
+            _num(g['median_tracking_rms_mm']),
+            ', '.join('%s %d' % kv for kv in g['stop_reasons'].items())))
+    return '\n'.join(lines)
+
+
+def write_report_md(summary, meta, figures, path, notes=''):
+    lines = ['# Campaign report', '',
+             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
+             % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
+                meta['trials'], meta['seed']),
+             'Success: the recognizer stopped the drill with a residual inner cortical thickness '
+             'in (0, 2 mm] (paper Sec. V-E).', '',
+             '## Results (Table III, Fig. 15, Fig. 16)', '', markdown_table(summary), '',
+             '## Paper, 12000 rpm (Table III)', '',
+             '| case | paper | this campaign |', '|---|---|---|']
+    for case in meta['cases']:
+        ours = [g for g in summary if g['case'] == case and g['rpm'] == 12000.0]
+        paper = PAPER_TABLE_III.get(case)
+        lines.append('| %s | %s | %s |' % (
+            case, '%d/%d' % paper if paper else '-',
+            '%d/%d' % (ours[0]['successes'], ours[0]['trials']) if ours else '-'))
+    lines.append('')
+    if notes:
+        lines += ['## Discussion', '', notes.strip(), '']
+    if figures:
+        lines += ['## Figures', '']
+        for title, name in figures:
+            lines += ['### %s' % title, '', '![%s](%s)' % (title, name), '']
+    tmp = path + '.tmp'
+    with open(tmp, 'w') as handle:
+        handle.write('\n'.join(lines) + '\n')
+    os.replace(tmp, path)

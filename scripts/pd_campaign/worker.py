@@ -1,0 +1,253 @@
+"""A campaign worker: its own ROS master on its own port, the full nodelet pipeline in sim time,
+and a sequence of trials. Prints one JSON line per finished trial on stdout (the parent collects
+them), so nothing finished is lost if the campaign is interrupted.
+
+Run by `campaign`; not meant to be started by hand (but can be, for debugging):
+  /usr/bin/python3 -m pd_campaign.worker --port 11411 --trials trials.json --out DIR
+"""
+import argparse
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+PIPELINE_SERVICES = {
+    'reset': '/simulator/reset',
+    'recognizer_reset': '/state_recognizer/reset',
+    'safety_reset': '/safety_monitor/reset',
+    'identify': '/motion_identification/identify',
+    'start_trial': '/compensation_planner/start_trial',
+}
+
+
+class TrialRecorder:
+    """Collects what one trial needs from the topics (all sim-time stamps)."""
+
+    def __init__(self):
+        self.clear()
+
+    def clear(self):
+        self.states = []          # (t, averaged_force, feature, state_name, last_key_point)
+        self.key_points = []      # (id, t)
+        self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact)
+        self.last_truth = None
+        self.stops = []           # (t, source, reason, retreat)
+        self.status = []          # (wall, status)
+        self._last_kp = 0
+
+    def on_state(self, msg):
+        t = msg.header.stamp.to_sec()
+        self.states.append((t, msg.averaged_force, msg.feature, msg.state_name,
+                            msg.last_key_point))
+        if msg.last_key_point > self._last_kp:
+            for kp in range(self._last_kp + 1, msg.last_key_point + 1):
+                self.key_points.append((kp, t))
+            self._last_kp = msg.last_key_point
+
+    def on_truth(self, msg):
+        self.last_truth = msg
+        self.truth.append((msg.header.stamp.to_sec(), msg.specimen_layer, msg.max_depth_cut_m,
+                           msg.residual_inner_cortical_m, msg.breakthrough, msg.relative_ap_m,
+                           msg.contact))
+
+    def on_stop(self, msg):
+        self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
+
+    def on_status(self, msg):
+        self.status.append((time.time(), msg.data))
+
+
+def tracking_error(truth, t_start, t_end):
+    """RMS and max (mm) of the relative AP tip-bone motion about its best line (removes the feed)
+    over [t_start, t_end]; None when too few samples."""
+    sel = [(t, rel) for (t, _, _, _, _, rel, _) in truth if t_start <= t <= t_end]
+    if len(sel) < 10:
+        return None, None
+    t = np.array([s[0] for s in sel])
+    rel = np.array([s[1] for s in sel]) * 1e3
+    slope, intercept = np.polyfit(t, rel, 1)
+    residual = rel - (slope * t + intercept)
+    return float(np.sqrt(np.mean(residual ** 2))), float(np.max(np.abs(residual)))
+
+
+def peak_forces(states, truth):
+    """F_out: peak averaged thrust before the tip enters the inner cortical layer; F_in: peak
+    after it (the averaged force of the cancellous layer between is lower than both)."""
+    inner_start = next((t for (t, layer, *_rest) in truth if layer == 'inner_cortical'), None)
+    out = [f for (t, f, *_r) in states if inner_start is None or t < inner_start]
+    inn = [f for (t, f, *_r) in states if inner_start is not None and t >= inner_start]
+    return (max(out) if out else None), (max(inn) if inn else None)
+
+
+def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
+    wall_start = time.time()
+    row = dict(trial)
+    recorder.clear()
+    moving = trial['case'] != 'stationary'
+    reply = srv['reset'](seed=trial['seed'], moving_bone=moving,
+                         scenario_yaml=args.scenario or '')
+    if not reply.success:
+        raise RuntimeError('simulator reset failed: %s' % reply.message)
+    row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
+    srv['recognizer_reset']()
+    srv['safety_reset']()
+    model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
+    if moving:
+        # Record breathing for the identification window (sim time), then identify.
+        _wait_sim(rospy, recorder, args.identification_window_s)
+        ident = srv['identify'](model='linear', method='ceres', output_path=model_path)
+        if not ident.success:
+            raise RuntimeError('identification failed: %s' % ident.message)
+        ap = [a for a in ident.model.axes if a.axis == 'AP']
+        row['identification_r2_ap'] = ap[0].r2 if ap else None
+    else:
+        model_path = args.default_model
+    rospy.set_param('/compensation_planner/patient_model_path', model_path)
+    reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
+                               feed_rate_mm_s=args.feed_rate, max_duration_s=args.max_duration)
+    if not reply.success:
+        raise RuntimeError('start_trial failed: %s' % reply.message)
+    deadline = time.time() + args.trial_timeout
+    while time.time() < deadline:
+        if recorder.status and recorder.status[-1][1] == 'done':
+            break
+        time.sleep(0.02)
+    else:
+        raise RuntimeError('trial did not finish within %.0f s wall' % args.trial_timeout)
+    truth = recorder.last_truth
+    stop = recorder.stops[0] if recorder.stops else None
+    row['stop_source'] = stop[1] if stop else 'none'
+    row['stop_reason'] = stop[2] if stop else 'max_duration'
+    row['breakthrough'] = bool(truth.breakthrough) if truth else False
+    row['residual_mm'] = truth.residual_inner_cortical_m * 1e3 if truth else None
+    row['max_depth_mm'] = truth.max_depth_cut_m * 1e3 if truth else None
+    recognizer_stop = stop is not None and not stop[3]
+    row['success'] = bool(recognizer_stop and truth is not None and not truth.breakthrough
+                          and 0.0 < truth.residual_inner_cortical_m <= 2.0e-3)
+    row['f_out_n'], row['f_in_n'] = peak_forces(recorder.states, recorder.truth)
+    t0 = recorder.states[0][0] if recorder.states else 0.0
+    t1 = stop[0] if stop else (recorder.truth[-1][0] if recorder.truth else 0.0)
+    row['tracking_rms_mm'], row['tracking_max_mm'] = tracking_error(recorder.truth, t0, t1)
+    row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
+        else None
+    row['wall_s'] = time.time() - wall_start
+    with open(os.path.join(trace_dir, trial['trial_id'] + '.json'), 'w') as handle:
+        json.dump({'t': [s[0] for s in recorder.states], 'force': [s[1] for s in recorder.states],
+                   'feature': [s[2] for s in recorder.states],
+                   'key_points': [{'id': k, 't': t} for k, t in recorder.key_points],
+                   'stop_t': stop[0] if stop else None}, handle)
+    return row
+
+
+def _wait_sim(rospy, recorder, seconds):
+    """Waits until `seconds` of sim time have passed, judged from ground-truth stamps."""
+    start = recorder.last_truth.header.stamp.to_sec() if recorder.last_truth else None
+    deadline = time.time() + 10 + seconds
+    while time.time() < deadline:
+        if recorder.last_truth is not None:
+            now = recorder.last_truth.header.stamp.to_sec()
+            if start is None:
+                start = now
+            elif now - start >= seconds:
+                return
+        time.sleep(0.01)
+    raise RuntimeError('sim time did not advance %.0f s' % seconds)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser()
+    parser.add_argument('--port', type=int, required=True)
+    parser.add_argument('--trials', required=True)
+    parser.add_argument('--out', required=True)
+    parser.add_argument('--scenario', default='')
+    parser.add_argument('--bags', action='store_true')
+    parser.add_argument('--feed-rate', type=float, default=0.5)
+    parser.add_argument('--max-duration', type=float, default=60.0)
+    parser.add_argument('--trial-timeout', type=float, default=120.0)
+    parser.add_argument('--identification-window-s', type=float, default=30.0)
+    parser.add_argument('--default-model', required=True)
+    parser.add_argument('--launch', default='campaign_pipeline.launch')
+    args = parser.parse_args(argv)
+    with open(args.trials) as handle:
+        trials = json.load(handle)
+    os.environ['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % args.port
+    os.environ['ROS_HOSTNAME'] = '127.0.0.1'
+    log_dir = os.path.join(args.out, 'logs', 'worker-%d' % args.port)
+    os.makedirs(log_dir, exist_ok=True)
+    os.environ['ROS_LOG_DIR'] = log_dir
+    trace_dir = os.path.join(args.out, 'traces')
+    os.makedirs(trace_dir, exist_ok=True)
+    os.makedirs(os.path.join(args.out, 'models'), exist_ok=True)
+    children = []
+
+    def shutdown(*_):
+        for child in reversed(children):
+            if child.poll() is None:
+                try:
+                    os.killpg(child.pid, signal.SIGINT)
+                except ProcessLookupError:
+                    pass
+        for child in reversed(children):
+            try:
+                child.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(child.pid, signal.SIGKILL)
+
+    signal.signal(signal.SIGTERM, lambda *_: (shutdown(), sys.exit(143)))
+    devnull = open(os.path.join(log_dir, 'children.log'), 'w')
+    try:
+        children.append(subprocess.Popen(['roscore', '-p', str(args.port)], stdout=devnull,
+                                         stderr=subprocess.STDOUT, start_new_session=True))
+        import rosgraph
+        for _ in range(200):
+            if rosgraph.is_master_online():
+                break
+            time.sleep(0.1)
+        else:
+            raise RuntimeError('roscore on port %d did not start' % args.port)
+        import rospy  # after ROS_MASTER_URI is set
+        from std_msgs.msg import String
+        from std_srvs.srv import Trigger
+        from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand
+        from pedicle_drilling.srv import IdentifyMotion, ResetSimulation, StartTrial
+        # The worker runs on wall time: it is initialised before /use_sim_time is set, so it
+        # does not have to follow a /clock that runs many times faster than real time.
+        rospy.init_node('campaign_worker_%d' % args.port, disable_signals=True)
+        rospy.set_param('/use_sim_time', True)
+        children.append(subprocess.Popen(
+            ['roslaunch', 'pedicle_drilling', args.launch,
+             'patient_model:=%s' % args.default_model],
+            stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
+        types = {'reset': ResetSimulation, 'recognizer_reset': Trigger, 'safety_reset': Trigger,
+                 'identify': IdentifyMotion, 'start_trial': StartTrial}
+        srv = {}
+        for key, name in PIPELINE_SERVICES.items():
+            rospy.wait_for_service(name, timeout=60.0)
+            srv[key] = rospy.ServiceProxy(name, types[key])
+        recorder = TrialRecorder()
+        rospy.Subscriber('/drilling_state', DrillingState, recorder.on_state, queue_size=10000)
+        rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,
+                         queue_size=10000)
+        rospy.Subscriber('/drill/stop', StopCommand, recorder.on_stop, queue_size=100)
+        rospy.Subscriber('/compensation/status', String, recorder.on_status, queue_size=100)
+        for trial in trials:
+            try:
+                row = run_trial(rospy, srv, None, recorder, trial, args, trace_dir)
+            except Exception as error:  # recorded, the campaign goes on
+                row = dict(trial)
+                row['success'] = False
+                row['error'] = str(error).replace('\n', ' ')[:300]
+            sys.stdout.write(json.dumps(row) + '\n')
+            sys.stdout.flush()
+    finally:
+        shutdown()
+        devnull.close()
+
+
+if __name__ == '__main__':
+    main()

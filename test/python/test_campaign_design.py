@@ -1,0 +1,123 @@
+"""Campaign design, statistics and report (no ROS graph needed)."""
+import csv
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'scripts'))
+
+from pd_campaign import design, report, stats  # noqa: E402
+
+
+def test_wilson_interval_known_values():
+    # 19/20: 0.7639-0.9911 and 0/10: 0-0.2775, worked by hand from Wilson (1927) with z = 1.96.
+    low, high = stats.wilson_interval(19, 20)
+    assert low == pytest.approx(0.7639, abs=1e-3)
+    assert high == pytest.approx(0.9911, abs=1e-3)
+    low, high = stats.wilson_interval(0, 10)
+    assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-3)
+    assert stats.wilson_interval(0, 0) == (0.0, 1.0)
+
+
+def test_seeds_are_paired_across_cases_and_stable():
+    d = design.build_design(design.CASES, [12000, 16000], 3, 7)
+    assert len(d) == 18
+    by_key = {}
+    for trial in d:
+        by_key.setdefault((trial['rpm'], trial['index']), set()).add(trial['seed'])
+    assert all(len(seeds) == 1 for seeds in by_key.values())
+    assert len({next(iter(s)) for s in by_key.values()}) == 6
+    assert design.trial_seed(7, 12000, 0) == design.trial_seed(7, 12000, 0)
+    assert design.trial_seed(7, 12000, 0) != design.trial_seed(8, 12000, 0)
+
+
+def test_shards_partition_the_design():
+    d = design.build_design(design.CASES, [12000], 5, 1)
+    parts = [design.shard(d, k, 4) for k in range(1, 5)]
+    ids = [t['trial_id'] for p in parts for t in p]
+    assert sorted(ids) == sorted(t['trial_id'] for t in d)
+    assert len(set(ids)) == len(ids)
+    with pytest.raises(ValueError):
+        design.parse_shard('5/4')
+    with pytest.raises(ValueError):
+        design.parse_shard('x')
+
+
+def _rows(d):
+    rows = []
+    for i, trial in enumerate(d):
+        row = dict(trial)
+        row.update(success=(i % 3 != 1), residual_mm=0.5 + 0.1 * (i % 7), f_out_n=3.0 + 0.01 * i,
+                   f_in_n=2.8, stop_reason='key_point_4', stop_source='state_recognizer',
+                   tracking_rms_mm=0.1, error='')
+        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+    return rows
+
+
+def test_merged_shards_give_the_same_report(tmp_path):
+    d = design.build_design(design.CASES, [12000, 16000], 4, 3)
+    rows = _rows(d)
+    from pd_campaign import cli
+    meta = {'cases': list(design.CASES), 'rpms': [12000.0, 16000.0], 'trials': 4, 'seed': 3,
+            'design_size': len(d)}
+    single = tmp_path / 'single'
+    single.mkdir()
+    cli.write_outputs(rows, meta, str(single))
+    shard_dirs = []
+    for k in (1, 2):
+        part_ids = {t['trial_id'] for t in design.shard(d, k, 2)}
+        shard_dir = tmp_path / ('shard%d' % k)
+        shard_dir.mkdir()
+        cli.write_outputs([r for r in rows if r['trial_id'] in part_ids], meta, str(shard_dir))
+        (shard_dir / 'design.json').write_text(json.dumps({'meta': meta}))
+        shard_dirs.append(str(shard_dir))
+    merged = tmp_path / 'merged'
+    assert cli.run_merge(shard_dirs + ['--out', str(merged)]) == 0
+    for name in ('trials.csv', 'summary.json', 'report.md'):
+        assert (merged / name).read_text() == (single / name).read_text(), name
+
+
+def test_summary_counts_and_schema(tmp_path):
+    d = design.build_design(['stationary'], [12000], 6, 1)
+    rows = _rows(d)
+    summary = report.summarise(rows)
+    assert len(summary) == 1
+    group = summary[0]
+    assert group['trials'] == 6 and group['successes'] == sum(r['success'] for r in rows)
+    low, high = group['wilson95']
+    assert 0 <= low <= group['success_rate'] <= high <= 1
+    path = tmp_path / 'trials.csv'
+    report.write_trials_csv(rows, str(path))
+    with open(path) as handle:
+        header = next(csv.reader(handle))
+    assert header == report.TRIAL_COLUMNS
+    assert len(report.read_trials_csv(str(path))) == 6
+
+
+@pytest.mark.parametrize('args, named', [
+    (['--case', 'sideways'], '--case'),
+    (['--rpm', 'fast'], '--rpm'),
+    (['--rpm', '500'], '--rpm'),
+    (['--trials', '0'], '--trials'),
+    (['--jobs', '0'], '--jobs'),
+    (['--shard', '3/2'], '--shard'),
+    (['--scenario', '/nonexistent.yaml'], '--scenario'),
+])
+def test_campaign_bad_arguments_exit_2(args, named):
+    out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign')] + args,
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stderr
+    assert named in out.stderr
+
+
+def test_scenario_unknown_key_is_an_error(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('trials: 3\nspeed_of_light: 3e8\n')
+    out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
+                          '--scenario', str(bad)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2
+    assert 'speed_of_light' in out.stderr
