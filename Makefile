@@ -33,7 +33,8 @@ bench: build
 	./scripts/run_bench.sh
 
 lint: deps
-	catkin_lint -W2 --strict $(CURDIR) --ignore missing_directory
+	./scripts/link_workspace.sh
+	catkin_lint -W1 $(WS)/src/pedicle_drilling
 
 format:
 	clang-format -i $$(git ls-files '*.cpp' '*.hpp')
