@@ -8,13 +8,16 @@ ROOT="$(cd "$(dirname "$0")/.." && pwd)"
 PKG="${ROOT}/catkin_ws/src/pedicle_drilling"
 if [ -L "${PKG}" ]; then rm -f "${PKG}"; fi
 mkdir -p "${PKG}"
-# Remove stale links, then link every current top-level entry.
-find "${PKG}" -maxdepth 1 -type l -exec rm -f {} +
+# Remove links whose target is gone, then add a link for every new top-level entry. Existing
+# links are left alone, so a build never removes a file from under a running test.
+for link in "${PKG}"/* "${PKG}"/.clang-format; do
+  if [ -L "${link}" ] && [ ! -e "${link}" ]; then rm -f "${link}"; fi
+done
 for entry in "${ROOT}"/* "${ROOT}"/.clang-format; do
   name="$(basename "${entry}")"
   case "${name}" in
     catkin_ws|results|out) continue ;;
   esac
   [ -e "${entry}" ] || continue
-  ln -s "../../../${name}" "${PKG}/${name}"
+  [ -L "${PKG}/${name}" ] || ln -s "../../../${name}" "${PKG}/${name}"
 done
