@@ -1,0 +1,256 @@
+/**
+ * @file drilling_simulation.hpp
+ * @brief The whole simulated workcell without ROS: RSSSII arm (BulletArm), SPMS platform
+ *        (SpmsKinematics with rate-limited lead-screw sliders), virtual patient driven by an
+ *        internal ventilator, bone specimen, drilling-force process and force sensor.
+ *
+ * Multi-rate stepping (see doc/simulator_physics.md, section 5):
+ *  - physics step dt = 1 ms: ventilator -> patient AP displacement -> SPMS IK -> slider motion
+ *    (rate limited) -> SPMS FK -> bone pose; drill-tip position (interpolated from the arm, see
+ *    below) -> tip depth = bone top z - tip z (drill axis vertical) -> DrillingProcess -> thrust
+ *    -> ForceSensor (one 1 kHz sample per physics step).
+ *  - arm block = N physics steps (N = physics rate / arm rate, default 4: 250 Hz). At the start
+ *    of a block the arm is advanced by N dt in one Bullet sub-step, with the latest thrust applied
+ *    at the tip (zero-order hold) and the servo reference ramping over the block to the
+ *    commanded trajectory. Inside the block the tip position used by the drilling physics is
+ *    interpolated linearly between the arm states at the block start and end, so the thrust
+ *    deflects the tip (finite joint stiffness) and the deflection reduces the depth.
+ *
+ * Time: the simulation has its own clock, time() [s], starting at 0 and never going back
+ * (reset() starts a new trial but does not rewind time). Trajectory times are absolute sim times.
+ *
+ * No ROS headers; C++17, Eigen, Bullet and urdfdom only.
+ */
+#ifndef PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP
+#define PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "pedicle_drilling/core/bone_specimen.hpp"
+#include "pedicle_drilling/core/bullet_arm.hpp"
+#include "pedicle_drilling/core/drilling_force.hpp"
+#include "pedicle_drilling/core/force_sensor.hpp"
+#include "pedicle_drilling/core/spms_kinematics.hpp"
+#include "pedicle_drilling/core/ventilator.hpp"
+
+namespace pedicle_drilling::core {
+
+/** @brief The virtual patient: how tidal volume moves the vertebra (and the SPMS) in AP. */
+struct VirtualPatient {
+  int volunteer_id = 1;             ///< virtual volunteer whose truth model is used (1..5)
+  double q1_ap_mm_per_ml = 0.01;    ///< AP slope [mm/ml] (5 mm peak-to-peak at 500 ml)
+  double lag_s = 0.08;              ///< hysteresis lag of displacement behind volume [s]
+  double drift_mm = 0.15;           ///< amplitude of the slow AP drift [mm]
+  double drift_period_s = 60.0;     ///< period of the slow AP drift [s]
+  double drift_phase_rad = 0.0;     ///< phase of the slow AP drift [rad]
+  /** @brief True AP displacement [mm] for a lagged tidal volume [ml] at time t [s]. */
+  double apDisplacementMm(double lagged_tv_ml, double t) const;
+};
+
+/**
+ * @brief Draws a virtual patient from a seed: the truth model (q1_AP, lag, drift) of virtual
+ *        volunteer 1 + seed % 5 (virtual_volunteer.hpp), drift period and phase from the seed.
+ */
+VirtualPatient drawVirtualPatient(std::uint64_t seed);
+
+/** @brief Parameters of the simulated workcell. Defaults and sources: simulator_physics.md. */
+struct DrillingSimulationParams {
+  std::string base_link = "world";      ///< root of the arm chain and of every pose
+  std::string tip_link = "drill_tip";   ///< end of the arm chain (drill point)
+  double physics_rate_hz = 1000.0;      ///< drilling physics and force-sensor rate
+  double arm_rate_hz = 250.0;           ///< Bullet arm rate; physics_rate / arm_rate integer
+  BulletArmParams arm;                  ///< servo model (substep is set from arm_rate_hz)
+  /// Home joint positions (joints not listed stay at 0); arm returns here on reset().
+  std::map<std::string, double> home_pose = {
+      {"rsssii_joint1", 0.0}, {"rsssii_joint2", 0.2},  {"rsssii_joint3", 1.2},
+      {"rsssii_joint4", 0.0}, {"rsssii_joint5", 1.741593}, {"rsssii_joint6", 0.0},
+      {"feed_joint", 0.0},    {"spindle_joint", 0.0}};
+  /// SPMS geometry. Defaults match urdf/workcell.urdf (checked against the URDF at startup).
+  SpmsGeometry spms = urdfSpmsGeometry();
+  double spms_slider_joint_offset_m = 0.05;  ///< URDF slider joint value = s - this offset
+  double slider_max_speed_m_s = 0.05;        ///< lead-screw slider speed limit (URDF: 50 mm/s)
+  double spindle_max_rpm = 21000.0;          ///< URDF spindle_joint limit 2200 rad/s
+  double spindle_accel_rpm_s = 40000.0;      ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
+  double bone_half_x_m = 0.02;   ///< bone footprint half size along the bone frame x [m]
+  double bone_half_y_m = 0.015;  ///< bone footprint half size along the bone frame y [m]
+  bool moving_bone = true;           ///< initial trial: bone follows the patient (reset() sets)
+  VentilatorSettings ventilator;     ///< internal ventilator driving the patient
+  SpecimenDistribution specimen;     ///< specimen distribution for reset(seed)
+  DrillParameters drill;             ///< drill and force-law constants
+  ForceSensorParams sensor;          ///< force/torque sensor model
+  double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
+  /** @brief SPMS geometry that matches urdf/workcell.urdf. */
+  static SpmsGeometry urdfSpmsGeometry();
+};
+
+/** @brief One point of a joint trajectory (absolute sim time). */
+struct TrajectoryPoint {
+  double time_s = 0.0;             ///< absolute simulation time of the point [s]
+  std::vector<double> positions;   ///< one per joint name
+  std::vector<double> velocities;  ///< empty (linear interpolation) or one per joint (cubic)
+};
+
+/** @brief A joint trajectory command: names plus time-ordered points. */
+struct TrajectoryCommand {
+  std::vector<std::string> joint_names;  ///< subset of the commandable joints
+  std::vector<TrajectoryPoint> points;   ///< strictly increasing times
+};
+
+/** @brief Output of one physics step. */
+struct SimulationStep {
+  double time_s = 0.0;           ///< simulation time at the end of the step
+  Wrench measured_wrench = Wrench::Zero();  ///< force-sensor sample (sensor frame)
+  ForceSample force;             ///< true drilling output of the step
+  double tip_depth_m = 0.0;      ///< tip depth below the bone top surface (negative: above)
+  bool layer_changed = false;    ///< the layer at the deepest cut changed in this step
+};
+
+/** @brief Ground truth of the simulated trial (what no sensor sees). */
+struct SimulationGroundTruth {
+  std::uint64_t seed = 0;            ///< seed of the current specimen / patient
+  Material layer = Material::kAir;   ///< material at the deepest cut (air before any cut)
+  double tip_depth_m = 0.0;          ///< current tip depth below the bone top surface [m]
+  double max_depth_cut_m = 0.0;      ///< deepest point cut [m]
+  double outer_cortical_end_m = 0.0;    ///< depth of the outer-cortical / cancellous boundary
+  double inner_cortical_start_m = 0.0;  ///< depth of the cancellous / inner-cortical boundary
+  double inner_cortical_end_m = 0.0;    ///< depth of the canal wall
+  double residual_inner_cortical_m = 0.0;  ///< inner cortex left below the deepest cut
+  bool breakthrough = false;         ///< the tip passed the canal wall
+  double thrust_n = 0.0;             ///< true thrust [N]
+  bool contact = false;              ///< lips cutting
+  double feed_per_rev_m = 0.0;       ///< actual feed per revolution [m]
+  Eigen::Vector3d bone_displacement_m = Eigen::Vector3d::Zero();  ///< (LR, SI, AP) from home
+  double tidal_volume_ml = 0.0;      ///< patient tidal volume (unlagged) [ml]
+  double relative_ap_m = 0.0;        ///< AP motion of tip relative to bone since reset() [m]
+};
+
+/** @brief A parent -> child transform of the URDF tree. */
+struct FrameTransform {
+  std::string parent;             ///< parent frame (URDF link)
+  std::string child;              ///< child frame (URDF link)
+  Eigen::Isometry3d transform;    ///< child pose in the parent frame
+};
+
+/**
+ * @brief The simulated workcell. Not thread-safe: callers serialise access.
+ */
+class DrillingSimulation {
+ public:
+  /**
+   * @brief Builds everything from URDF XML text and draws specimen / patient from `seed`.
+   * @throws std::runtime_error for an unusable URDF (parse error, missing chain or SPMS links,
+   *         SPMS geometry not matching params.spms) or std::invalid_argument for bad params.
+   */
+  DrillingSimulation(const std::string& urdf_xml, const DrillingSimulationParams& params,
+                     std::uint64_t seed = 1);
+  ~DrillingSimulation();
+  DrillingSimulation(const DrillingSimulation&) = delete;
+  DrillingSimulation& operator=(const DrillingSimulation&) = delete;
+
+  /**
+   * @brief New trial: specimen sample(seed), patient drawVirtualPatient(seed), new tared
+   *        sensor, drilling state cleared, arm teleported to the home pose (targets too), spindle
+   *        stopped, trajectory cleared. Time and the ventilator keep running; the platform moves
+   *        (rate limited) to its new target.
+   */
+  void reset(std::uint64_t seed, bool moving_bone);
+
+  /** @brief Advances one physics step (1 / physics_rate_hz). */
+  SimulationStep stepOnce();
+  /** @brief Advances by at least `dt` seconds (whole physics steps); returns steps run. */
+  int step(double dt);
+
+  /**
+   * @brief Replaces the remaining trajectory (JointTrajectoryController semantics): the new
+   *        one starts from the current reference position and velocity at time(). Points at or
+   *        before time() are dropped. Unknown or duplicate names, NaN/inf, size mismatches, non-
+   *        increasing times or no point in the future reject the whole command (kRejected, the
+   *        old trajectory continues). Out-of-limit positions are clamped (kClamped).
+   */
+  TargetResult commandTrajectory(const TrajectoryCommand& command);
+  /** @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. */
+  TargetResult commandSpindle(double rpm);
+  /** @brief Queues new ventilator settings (take effect at the next breath); throws if bad. */
+  void requestVentilatorSettings(const VentilatorSettings& settings);
+
+  /** @brief Simulation time [s]. */
+  double time() const;
+  /** @brief Physics step [s]. */
+  double physicsDt() const;
+  /** @brief Names of the commandable joints (rsssii_joint1..6, feed_joint). */
+  const std::vector<std::string>& commandableJoints() const;
+  /** @brief All simulated arm joints (commandable ones plus spindle_joint), base to tip. */
+  const std::vector<std::string>& armJointNames() const;
+  /** @brief Arm joint positions / velocities (order of armJointNames()). */
+  Eigen::VectorXd armJointPositions() const;
+  /** @brief Arm joint velocities (order of armJointNames()). */
+  Eigen::VectorXd armJointVelocities() const;
+  /** @brief Arm joint efforts of the last Bullet step. */
+  Eigen::VectorXd armJointEfforts() const;
+  /** @brief SPMS joint names (slider1..3_joint, rod1..3_joint) and their URDF values. */
+  std::vector<std::pair<std::string, double>> spmsJointStates() const;
+  /** @brief Actual slider positions along the rails [m] (SpmsKinematics convention). */
+  Eigen::Vector3d sliderPositions() const;
+  /** @brief Slider targets from the IK of the desired heave [m]. */
+  Eigen::Vector3d sliderTargets() const;
+  /** @brief Platform pose from the FK of the actual sliders. */
+  const PlatformFullPose& platformPose() const;
+  /** @brief Desired platform heave (patient AP displacement) [m]. */
+  double desiredHeave() const;
+  /** @brief Pose of the drill tip in the base frame (last arm state). */
+  Eigen::Isometry3d tipPose() const;
+  /** @brief Tip position used by the drilling physics in the last step (interpolated). */
+  Eigen::Vector3d physicsTipPosition() const;
+  /** @brief Pose of any URDF link in the base frame (world). @throws std::out_of_range. */
+  Eigen::Isometry3d linkPose(const std::string& link) const;
+  /** @brief World z of the bone top surface (bone frame origin). */
+  double boneTopZ() const;
+  /** @brief Spindle speed actually running [rpm] (rate limited). */
+  double spindleRpm() const;
+  /** @brief Ground truth now. */
+  SimulationGroundTruth groundTruth() const;
+  /** @brief Current drilling process (specimen, depth cut, ...). */
+  const DrillingProcess& process() const;
+  /** @brief Current patient. */
+  const VirtualPatient& patient() const;
+  /** @brief Internal ventilator sample of the last step (unlagged). */
+  const VentilatorSample& ventilatorSample() const;
+  /** @brief Whether the bone follows the patient. */
+  bool movingBone() const;
+  /** @brief Seed of the current trial. */
+  std::uint64_t seed() const;
+
+  /**
+   * @brief Tracker measurement of tracker_marker in the tracker_camera frame, with isotropic
+   *        Gaussian position noise (tracker_noise_rms_mm 3-D RMS); orientation exact.
+   */
+  Eigen::Isometry3d measureMarkerPose();
+
+  /**
+   * @brief Transforms of the URDF tree. `fixed` true: the constant transforms of fixed joints
+   *        (publish once, tf_static); false: every moving joint (arm from Bullet link poses,
+   *        sliders / rods / floating platform from the SPMS state).
+   */
+  std::vector<FrameTransform> frameTransforms(bool fixed) const;
+
+  /** @brief The arm (for tests and benchmarks). */
+  const BulletArm& arm() const;
+  /** @brief The parameters in use. */
+  const DrillingSimulationParams& params() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP

@@ -1,0 +1,702 @@
+/**
+ * @file drilling_simulation.cpp
+ * @brief Simulated workcell orchestration (see drilling_simulation.hpp).
+ */
+#include "pedicle_drilling/core/drilling_simulation.hpp"
+
+#include <urdf_model/model.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "pedicle_drilling/core/virtual_volunteer.hpp"
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Eigen::Isometry3d toIsometry(const urdf::Pose& p) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  t.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z)
+                   .normalized()
+                   .toRotationMatrix();
+  return t;
+}
+
+Eigen::Isometry3d jointMotion(const urdf::Joint& joint, double q) {
+  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d axis(joint.axis.x, joint.axis.y, joint.axis.z);
+  if (joint.type == urdf::Joint::PRISMATIC) {
+    m.translation() = q * axis;
+  } else if (joint.type == urdf::Joint::REVOLUTE || joint.type == urdf::Joint::CONTINUOUS) {
+    m.linear() = Eigen::AngleAxisd(q, axis.normalized()).toRotationMatrix();
+  }
+  return m;
+}
+
+// Cubic Hermite interpolation on [0, h] at s.
+double hermite(double p0, double v0, double p1, double v1, double h, double s,
+               double* velocity) {
+  const double u = s / h;
+  const double u2 = u * u, u3 = u2 * u;
+  const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u;
+  const double h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
+  if (velocity) {
+    const double d00 = 6 * u2 - 6 * u, d10 = 3 * u2 - 4 * u + 1;
+    const double d01 = -6 * u2 + 6 * u, d11 = 3 * u2 - 2 * u;
+    *velocity = (d00 * p0 + d01 * p1) / h + d10 * v0 + d11 * v1;
+  }
+  return h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1;
+}
+
+// Knot of the active trajectory: absolute time, position and velocity per commandable joint.
+struct Knot {
+  double t = 0.0;
+  Eigen::VectorXd q;
+  Eigen::VectorXd v;
+  bool cubic = false;  // segment ending at this knot uses velocities
+};
+
+}  // namespace
+
+double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t) const {
+  return q1_ap_mm_per_ml * lagged_tv_ml +
+         drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad);
+}
+
+VirtualPatient drawVirtualPatient(std::uint64_t seed) {
+  VirtualPatient p;
+  p.volunteer_id = 1 + static_cast<int>(seed % 5);
+  const VolunteerParams v = defaultVolunteer(p.volunteer_id);
+  const AxisModel& ap = v.truth.axis(Axis::kAP);
+  p.q1_ap_mm_per_ml = ap.q1;
+  p.lag_s = ap.lagSeconds();
+  p.drift_mm = v.drift_mm[0];
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  const double u1 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  p.drift_period_s = 40.0 + 50.0 * u1;  // 40-90 s, as the volunteers' slow drift
+  p.drift_phase_rad = 2.0 * kPi * u2;
+  return p;
+}
+
+SpmsGeometry DrillingSimulationParams::urdfSpmsGeometry() {
+  SpmsGeometry g;
+  g.base_radius_m = 0.10;      // lead screws at 0.12 m, rod pivot 0.02 m inboard
+  g.platform_radius_m = 0.04;  // spherical joints on the platform
+  g.rod_length_m = 0.12;
+  g.rail_inclination_deg = 0.0;
+  g.slider_min_m = 0.05;   // slider joint 0 (+0.05 m offset)
+  g.slider_max_m = 0.25;   // slider joint 0.20
+  g.home_slider_m = 0.15;  // slider joint 0.10 (nominal)
+  g.leg_azimuth_offset_deg = 90.0;
+  g.max_spherical_tilt_deg = 45.0;  // rods sit at 30 deg to the normal at home
+  return g;
+}
+
+// ------------------------------------------------------------------------------------------
+
+struct DrillingSimulation::Impl {
+  DrillingSimulationParams params;
+  urdf::ModelInterfaceSharedPtr model;
+  std::unique_ptr<BulletArm> arm;
+  SpmsKinematics spms;
+  BreathScheduler ventilator;
+  BreathScheduler lagged_ventilator;  // same settings, sampled at t - lag (patient hysteresis)
+  VirtualPatient patient;
+  std::unique_ptr<DrillingProcess> process;
+  std::unique_ptr<ForceSensor> sensor;
+  std::mt19937_64 tracker_rng;
+
+  int steps_per_arm_block = 4;
+  double dt = 1e-3;
+  std::uint64_t step_index = 0;
+  double time = 0.0;
+  std::uint64_t seed = 1;
+  bool moving_bone = true;
+
+  std::vector<std::string> arm_joints;
+  std::vector<std::string> commandable;
+  std::vector<int> commandable_index;  // index in arm joints
+  Eigen::VectorXd home;                // all arm joints
+
+  // Trajectory (commandable joints only).
+  std::vector<Knot> knots;  // empty: hold
+  Eigen::VectorXd hold_q;
+
+  // Spindle.
+  double spindle_cmd_rpm = 0.0;
+  double spindle_rpm = 0.0;
+
+  // SPMS state.
+  Eigen::Isometry3d spms_base_world = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d platform_home_in_base = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d bone_in_platform = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d marker_in_platform = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d camera_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d sliders;
+  Eigen::Vector3d slider_targets;
+  PlatformFullPose platform;
+  double desired_heave = 0.0;
+  Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d bone_home_world = Eigen::Vector3d::Zero();
+
+  // Arm block interpolation.
+  Eigen::Vector3d tip_block_start = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tip_block_end = Eigen::Vector3d::Zero();
+  Eigen::Vector3d physics_tip = Eigen::Vector3d::Zero();
+  Eigen::Vector3d drill_axis = -Eigen::Vector3d::UnitZ();
+
+  // Drilling.
+  ForceSample last_force;
+  double tip_depth = 0.0;
+  double relative_ap0 = 0.0;
+  VentilatorSample vent_now;
+
+  Impl(const DrillingSimulationParams& p)
+      : params(p),
+        spms(p.spms),
+        ventilator(p.ventilator, 0.0),
+        lagged_ventilator(p.ventilator, 0.0) {}
+
+  static Eigen::Isometry3d fixedChainPose(const urdf::ModelInterface& m, const std::string& root,
+                                          const std::string& link) {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    urdf::LinkConstSharedPtr l = m.getLink(link);
+    if (!l) throw std::runtime_error("DrillingSimulation: URDF has no link '" + link + "'");
+    while (l->name != root) {
+      if (!l->parent_joint) {
+        throw std::runtime_error("DrillingSimulation: URDF link '" + link +
+                                 "' does not descend from '" + root + "'");
+      }
+      t = toIsometry(l->parent_joint->parent_to_joint_origin_transform) * t;
+      l = m.getLink(l->parent_joint->parent_link_name);
+      if (!l) throw std::runtime_error("DrillingSimulation: broken URDF tree above " + link);
+    }
+    return t;
+  }
+
+  void checkSpmsAgainstUrdf() {
+    // The closed chains are not in the URDF; the kinematic model must match its nominal pose.
+    spms_base_world = fixedChainPose(*model, params.base_link, "spms_base");
+    urdf::JointConstSharedPtr pj = model->getJoint("spms_platform_joint");
+    if (!pj) throw std::runtime_error("DrillingSimulation: URDF has no spms_platform_joint");
+    platform_home_in_base = toIsometry(pj->parent_to_joint_origin_transform);
+    bone_in_platform = fixedChainPose(*model, "spms_platform", "bone");
+    marker_in_platform = fixedChainPose(*model, "spms_platform", "tracker_marker");
+    camera_world = fixedChainPose(*model, params.base_link, "tracker_camera");
+    const double urdf_home = platform_home_in_base.translation().z();
+    if (std::abs(urdf_home - spms.homeHeight()) > 1e-5) {
+      std::ostringstream os;
+      os << "DrillingSimulation: SPMS geometry gives a home platform height of "
+         << spms.homeHeight() << " m but the URDF's spms_platform_joint is at " << urdf_home
+         << " m";
+      throw std::runtime_error(os.str());
+    }
+    for (int i = 1; i <= 3; ++i) {
+      for (const std::string& j : {"slider" + std::to_string(i) + "_joint",
+                                   "rod" + std::to_string(i) + "_joint"}) {
+        if (!model->getJoint(j)) {
+          throw std::runtime_error("DrillingSimulation: URDF has no SPMS joint '" + j + "'");
+        }
+      }
+    }
+  }
+
+  void updatePlatform() {
+    const double t_lag = std::max(0.0, time - patient.lag_s);
+    // Earlier times than the last call are clamped by the scheduler (lag change on reset).
+    const double tv_lag = lagged_ventilator.sample(t_lag).volume_ml;
+    desired_heave = moving_bone ? 1e-3 * patient.apDisplacementMm(tv_lag, time) : 0.0;
+    const SpmsIkResult ik = spms.inverseHeave(desired_heave);
+    if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
+    const double max_step = params.slider_max_speed_m_s * dt;
+    for (int i = 0; i < 3; ++i) {
+      const double e = slider_targets[i] - sliders[i];
+      sliders[i] += std::clamp(e, -max_step, max_step);
+    }
+    PlatformPose guess;
+    guess.z_m = platform.z_m;
+    guess.roll_rad = platform.roll_rad;
+    guess.pitch_rad = platform.pitch_rad;
+    const SpmsFkResult fk = spms.forward(sliders, guess);
+    if (fk.ok) platform = fk.pose;
+    bone_world = spms_base_world * platformInBase() * bone_in_platform;
+  }
+
+  // Layer at the deepest cut; air before the first cut.
+  Material cutLayer() const {
+    return process->maxDepthCut() > 0.0 ? process->currentLayer() : Material::kAir;
+  }
+
+  Eigen::Isometry3d platformInBase() const {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    t.linear() = platform.rotation();
+    t.translation() = platform.position(spms.homeHeight());
+    return t;
+  }
+
+  // Trajectory reference (position, velocity) of the commandable joints at time t.
+  void reference(double t, Eigen::VectorXd* q, Eigen::VectorXd* v) const {
+    const int n = static_cast<int>(commandable.size());
+    if (knots.empty()) {
+      *q = hold_q;
+      *v = Eigen::VectorXd::Zero(n);
+      return;
+    }
+    if (t <= knots.front().t) {
+      *q = knots.front().q;
+      *v = knots.front().v;
+      return;
+    }
+    if (t >= knots.back().t) {
+      *q = knots.back().q;
+      *v = Eigen::VectorXd::Zero(n);
+      return;
+    }
+    size_t k = 1;
+    while (knots[k].t < t) ++k;
+    const Knot& a = knots[k - 1];
+    const Knot& b = knots[k];
+    const double h = b.t - a.t;
+    const double s = t - a.t;
+    q->resize(n);
+    v->resize(n);
+    for (int j = 0; j < n; ++j) {
+      if (b.cubic) {
+        double vel = 0.0;
+        (*q)[j] = hermite(a.q[j], a.v[j], b.q[j], b.v[j], h, s, &vel);
+        (*v)[j] = vel;
+      } else {
+        (*q)[j] = a.q[j] + (b.q[j] - a.q[j]) * s / h;
+        (*v)[j] = (b.q[j] - a.q[j]) / h;
+      }
+    }
+  }
+
+  void advanceArmBlock() {
+    const double block = steps_per_arm_block * dt;
+    Eigen::VectorXd q0, v0, q1, v1;
+    reference(time, &q0, &v0);
+    reference(time + block, &q1, &v1);
+    if (!knots.empty() && time + block >= knots.back().t) {
+      hold_q = knots.back().q;
+      knots.clear();
+    }
+    std::map<std::string, double> pos, vel;
+    for (size_t j = 0; j < commandable.size(); ++j) {
+      pos[commandable[j]] = q0[j];
+      vel[commandable[j]] = (q1[j] - q0[j]) / block;  // the servo reference ramps to q1
+    }
+    arm->setJointPositionTargets(pos);
+    arm->setJointVelocityTargets(vel);
+    // Thrust on the tip, opposite to the feed (zero-order hold over the block).
+    const Eigen::Matrix3d r = arm->tipPose().linear();
+    arm->applyTipForce(-last_force.thrust_N * r.col(2));
+    tip_block_start = arm->tipPose().translation();
+    arm->step(block);
+    const Eigen::Isometry3d tip = arm->tipPose();
+    tip_block_end = tip.translation();
+    drill_axis = tip.linear().col(2);
+  }
+
+  void resetTrial(std::uint64_t new_seed, bool moving) {
+    seed = new_seed;
+    moving_bone = moving;
+    patient = drawVirtualPatient(seed);
+    process = std::make_unique<DrillingProcess>(sample(seed, params.specimen), params.drill);
+    sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, params.sensor);
+    sensor->tare();  // standard practice before drilling
+    tracker_rng.seed(seed * 40503ULL + 3ULL);
+    arm->applyTipForce(Eigen::Vector3d::Zero());
+    const TargetResult r = arm->resetJointState(home);
+    if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
+    knots.clear();
+    hold_q.resize(static_cast<int>(commandable.size()));
+    for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
+    spindle_cmd_rpm = 0.0;
+    spindle_rpm = 0.0;
+    arm->setJointVelocityTargets(std::map<std::string, double>{{"spindle_joint", 0.0}});
+    last_force = ForceSample{};
+    tip_block_start = tip_block_end = physics_tip = arm->tipPose().translation();
+    drill_axis = arm->tipPose().linear().col(2);
+    tip_depth = bone_world.translation().z() - physics_tip.z();
+    relative_ap0 = physics_tip.z() - bone_world.translation().z();
+  }
+};
+
+DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
+                                       const DrillingSimulationParams& params,
+                                       std::uint64_t seed)
+    : impl_(std::make_unique<Impl>(params)) {
+  Impl& s = *impl_;
+  if (!(params.physics_rate_hz > 0.0) || !(params.arm_rate_hz > 0.0) ||
+      !(params.arm_rate_hz <= params.physics_rate_hz)) {
+    throw std::invalid_argument(
+        "DrillingSimulation: need 0 < arm_rate_hz <= physics_rate_hz");
+  }
+  const double ratio = params.physics_rate_hz / params.arm_rate_hz;
+  s.steps_per_arm_block = static_cast<int>(std::lround(ratio));
+  if (std::abs(ratio - s.steps_per_arm_block) > 1e-9) {
+    throw std::invalid_argument(
+        "DrillingSimulation: physics_rate_hz / arm_rate_hz must be an integer");
+  }
+  if (!(params.slider_max_speed_m_s > 0.0) || !(params.spindle_accel_rpm_s > 0.0) ||
+      !(params.spindle_max_rpm > 0.0) || !(params.tracker_noise_rms_mm >= 0.0)) {
+    throw std::invalid_argument("DrillingSimulation: speeds and noise must be positive");
+  }
+  s.dt = 1.0 / params.physics_rate_hz;
+  s.model = urdf::parseURDF(urdf_xml);
+  if (!s.model) {
+    throw std::runtime_error(
+        "DrillingSimulation: urdfdom could not parse the URDF (malformed XML or invalid robot "
+        "description)");
+  }
+  BulletArmParams arm_params = params.arm;
+  arm_params.substep = 1.0 / params.arm_rate_hz;
+  s.arm = std::make_unique<BulletArm>(urdf_xml, params.base_link, params.tip_link, arm_params);
+  s.arm_joints = s.arm->jointNames();
+  for (int k = 0; k < s.arm->numJoints(); ++k) {
+    if (s.arm->jointInfo()[k].type != ArmJointType::kContinuous) {
+      s.commandable.push_back(s.arm_joints[k]);
+      s.commandable_index.push_back(k);
+    }
+  }
+  if (std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint") ==
+      s.arm_joints.end()) {
+    throw std::runtime_error("DrillingSimulation: the arm chain has no spindle_joint");
+  }
+  s.home = Eigen::VectorXd::Zero(s.arm->numJoints());
+  for (const auto& kv : params.home_pose) {
+    auto it = std::find(s.arm_joints.begin(), s.arm_joints.end(), kv.first);
+    if (it == s.arm_joints.end()) {
+      throw std::invalid_argument("DrillingSimulation: home pose names unknown joint '" +
+                                  kv.first + "'");
+    }
+    s.home[it - s.arm_joints.begin()] = kv.second;
+  }
+  s.checkSpmsAgainstUrdf();
+  s.sliders = Eigen::Vector3d::Constant(params.spms.home_slider_m);
+  s.slider_targets = s.sliders;
+  s.updatePlatform();  // home pose at t = 0 (platform not moving yet)
+  {
+    Eigen::Isometry3d home = Eigen::Isometry3d::Identity();
+    home.translation() = PlatformFullPose().position(s.spms.homeHeight());
+    s.bone_home_world = (s.spms_base_world * home * s.bone_in_platform).translation();
+  }
+  s.vent_now = s.ventilator.sample(0.0);
+  s.resetTrial(seed, params.moving_bone);
+  s.updatePlatform();
+}
+
+DrillingSimulation::~DrillingSimulation() = default;
+
+void DrillingSimulation::reset(std::uint64_t seed, bool moving_bone) {
+  impl_->resetTrial(seed, moving_bone);
+}
+
+SimulationStep DrillingSimulation::stepOnce() {
+  Impl& s = *impl_;
+  const int phase = static_cast<int>(s.step_index % s.steps_per_arm_block);
+  if (phase == 0) {
+    // Spindle run-up (rate limited) and the arm block.
+    const double block = s.steps_per_arm_block * s.dt;
+    const double max_change = s.params.spindle_accel_rpm_s * block;
+    s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
+    s.arm->setJointVelocityTargets(
+        std::map<std::string, double>{{"spindle_joint", s.spindle_rpm * 2.0 * kPi / 60.0}});
+    s.advanceArmBlock();
+  }
+  ++s.step_index;
+  s.time = static_cast<double>(s.step_index) * s.dt;
+  const double frac = static_cast<double>(phase + 1) / s.steps_per_arm_block;
+  s.physics_tip = s.tip_block_start + frac * (s.tip_block_end - s.tip_block_start);
+
+  s.vent_now = s.ventilator.sample(s.time);
+  s.updatePlatform();
+
+  // Tip depth along the (vertical) drill axis below the bone top surface; beside the bone's
+  // footprint there is no bone under the tip.
+  const Eigen::Vector3d tip_in_bone = s.bone_world.inverse() * s.physics_tip;
+  s.tip_depth = s.bone_world.translation().z() - s.physics_tip.z();
+  const bool over_bone = std::abs(tip_in_bone.x()) <= s.params.bone_half_x_m &&
+                         std::abs(tip_in_bone.y()) <= s.params.bone_half_y_m;
+  const Material before = s.cutLayer();
+  s.last_force = s.process->step(s.dt, over_bone ? s.tip_depth : -1.0, s.spindle_rpm);
+
+  SimulationStep out;
+  out.time_s = s.time;
+  out.force = s.last_force;
+  out.tip_depth_m = s.tip_depth;
+  out.layer_changed = s.cutLayer() != before;
+  Wrench truth = Wrench::Zero();
+  truth[2] = s.last_force.thrust_N;
+  out.measured_wrench = s.sensor->measure(truth, s.spindle_rpm, s.last_force.contact);
+  return out;
+}
+
+int DrillingSimulation::step(double dt) {
+  if (!std::isfinite(dt) || dt <= 0.0) return 0;
+  const double end = impl_->time + dt - 1e-9;
+  int n = 0;
+  while (impl_->time < end) {
+    stepOnce();
+    ++n;
+  }
+  return n;
+}
+
+TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& command) {
+  Impl& s = *impl_;
+  const int n = static_cast<int>(s.commandable.size());
+  if (command.joint_names.empty()) return {TargetStatus::kRejected, "no joint names"};
+  if (command.points.empty()) return {TargetStatus::kRejected, "no trajectory points"};
+  std::vector<int> map;
+  std::set<std::string> seen;
+  for (const std::string& name : command.joint_names) {
+    auto it = std::find(s.commandable.begin(), s.commandable.end(), name);
+    if (it == s.commandable.end()) {
+      return {TargetStatus::kRejected,
+              "unknown or non-commandable joint '" + name +
+                  "' (spindle_joint is commanded through the spindle speed)"};
+    }
+    if (!seen.insert(name).second) {
+      return {TargetStatus::kRejected, "joint '" + name + "' appears twice"};
+    }
+    map.push_back(static_cast<int>(it - s.commandable.begin()));
+  }
+  const size_t m = command.joint_names.size();
+  double last_t = -std::numeric_limits<double>::infinity();
+  for (size_t p = 0; p < command.points.size(); ++p) {
+    const TrajectoryPoint& pt = command.points[p];
+    std::ostringstream where;
+    where << "point " << p;
+    if (!std::isfinite(pt.time_s)) return {TargetStatus::kRejected, where.str() + ": bad time"};
+    if (pt.time_s <= last_t) {
+      return {TargetStatus::kRejected, where.str() + ": times must strictly increase"};
+    }
+    last_t = pt.time_s;
+    if (pt.positions.size() != m) {
+      return {TargetStatus::kRejected, where.str() + ": positions size differs from names"};
+    }
+    if (!pt.velocities.empty() && pt.velocities.size() != m) {
+      return {TargetStatus::kRejected, where.str() + ": velocities size differs from names"};
+    }
+    for (double x : pt.positions) {
+      if (!std::isfinite(x)) return {TargetStatus::kRejected, where.str() + ": NaN/inf position"};
+    }
+    for (double x : pt.velocities) {
+      if (!std::isfinite(x)) return {TargetStatus::kRejected, where.str() + ": NaN/inf velocity"};
+    }
+  }
+  if (last_t <= s.time) {
+    return {TargetStatus::kRejected, "every point lies in the past (last at " +
+                                         std::to_string(last_t) + " s, now " +
+                                         std::to_string(s.time) + " s)"};
+  }
+  // Start knot: the current reference (replaces the remaining trajectory).
+  Knot start;
+  start.t = s.time;
+  s.reference(s.time, &start.q, &start.v);
+  std::vector<Knot> knots{start};
+  TargetResult result;
+  Eigen::VectorXd prev_q = start.q;
+  for (const TrajectoryPoint& pt : command.points) {
+    if (pt.time_s <= s.time) continue;
+    Knot k;
+    k.t = pt.time_s;
+    k.q = prev_q;  // joints not named keep their reference
+    k.v = Eigen::VectorXd::Zero(n);
+    k.cubic = !pt.velocities.empty();
+    for (size_t j = 0; j < m; ++j) {
+      const int c = map[j];
+      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[c]];
+      double q = pt.positions[j];
+      if (q < info.lower || q > info.upper) {
+        std::ostringstream os;
+        os << "joint '" << info.name << "' target " << q << " clamped to [" << info.lower
+           << ", " << info.upper << "]";
+        result.status = TargetStatus::kClamped;
+        if (!result.message.empty()) result.message += "; ";
+        result.message += os.str();
+        q = std::clamp(q, info.lower, info.upper);
+      }
+      k.q[c] = q;
+      if (k.cubic) k.v[c] = pt.velocities[j];
+    }
+    prev_q = k.q;
+    knots.push_back(k);
+  }
+  // A cubic segment needs the start velocity; a linear first segment ignores it.
+  s.knots = std::move(knots);
+  return result;
+}
+
+TargetResult DrillingSimulation::commandSpindle(double rpm) {
+  if (!std::isfinite(rpm)) return {TargetStatus::kRejected, "spindle speed is NaN/inf"};
+  if (rpm < 0.0) return {TargetStatus::kRejected, "spindle speed must be >= 0 rpm"};
+  TargetResult r;
+  if (rpm > impl_->params.spindle_max_rpm) {
+    r.status = TargetStatus::kClamped;
+    r.message = "spindle speed " + std::to_string(rpm) + " rpm clamped to " +
+                std::to_string(impl_->params.spindle_max_rpm);
+    rpm = impl_->params.spindle_max_rpm;
+  }
+  impl_->spindle_cmd_rpm = rpm;
+  return r;
+}
+
+void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
+  impl_->ventilator.requestSettings(settings);
+  impl_->lagged_ventilator.requestSettings(settings);
+}
+
+double DrillingSimulation::time() const { return impl_->time; }
+double DrillingSimulation::physicsDt() const { return impl_->dt; }
+const std::vector<std::string>& DrillingSimulation::commandableJoints() const {
+  return impl_->commandable;
+}
+const std::vector<std::string>& DrillingSimulation::armJointNames() const {
+  return impl_->arm_joints;
+}
+Eigen::VectorXd DrillingSimulation::armJointPositions() const {
+  return impl_->arm->jointPositions();
+}
+Eigen::VectorXd DrillingSimulation::armJointVelocities() const {
+  return impl_->arm->jointVelocities();
+}
+Eigen::VectorXd DrillingSimulation::armJointEfforts() const { return impl_->arm->jointEfforts(); }
+
+std::vector<std::pair<std::string, double>> DrillingSimulation::spmsJointStates() const {
+  const Impl& s = *impl_;
+  std::vector<std::pair<std::string, double>> out;
+  for (int i = 0; i < 3; ++i) {
+    out.emplace_back("slider" + std::to_string(i + 1) + "_joint",
+                     s.sliders[i] - s.params.spms_slider_joint_offset_m);
+  }
+  for (int i = 0; i < 3; ++i) {
+    // Rod angle in the leg's radial plane: 0 = vertical, negative = leaning inwards.
+    const Eigen::Vector3d d =
+        s.spms.platformJoint(i, s.platform) - s.spms.sliderPoint(i, s.sliders[i]);
+    const double th = (s.params.spms.leg_azimuth_offset_deg + 120.0 * i) * kPi / 180.0;
+    const Eigen::Vector3d er(std::cos(th), std::sin(th), 0.0);
+    out.emplace_back("rod" + std::to_string(i + 1) + "_joint", std::atan2(d.dot(er), d.z()));
+  }
+  return out;
+}
+
+Eigen::Vector3d DrillingSimulation::sliderPositions() const { return impl_->sliders; }
+Eigen::Vector3d DrillingSimulation::sliderTargets() const { return impl_->slider_targets; }
+const PlatformFullPose& DrillingSimulation::platformPose() const { return impl_->platform; }
+double DrillingSimulation::desiredHeave() const { return impl_->desired_heave; }
+Eigen::Isometry3d DrillingSimulation::tipPose() const { return impl_->arm->tipPose(); }
+Eigen::Vector3d DrillingSimulation::physicsTipPosition() const { return impl_->physics_tip; }
+double DrillingSimulation::boneTopZ() const { return impl_->bone_world.translation().z(); }
+double DrillingSimulation::spindleRpm() const { return impl_->spindle_rpm; }
+const DrillingProcess& DrillingSimulation::process() const { return *impl_->process; }
+const VirtualPatient& DrillingSimulation::patient() const { return impl_->patient; }
+const VentilatorSample& DrillingSimulation::ventilatorSample() const { return impl_->vent_now; }
+bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
+std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
+const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }
+const DrillingSimulationParams& DrillingSimulation::params() const { return impl_->params; }
+
+Eigen::Isometry3d DrillingSimulation::linkPose(const std::string& link) const {
+  const Impl& s = *impl_;
+  if (s.arm->hasLink(link)) return s.arm->linkPose(link);
+  if (link == s.params.base_link) return Eigen::Isometry3d::Identity();
+  // Walk up the URDF until an arm link, the base, or the floating platform joint.
+  urdf::LinkConstSharedPtr l = s.model->getLink(link);
+  if (!l) throw std::out_of_range("DrillingSimulation: no link '" + link + "'");
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  const std::map<std::string, double> spms_q = [&] {
+    std::map<std::string, double> q;
+    for (const auto& kv : spmsJointStates()) q[kv.first] = kv.second;
+    return q;
+  }();
+  while (true) {
+    if (s.arm->hasLink(l->name)) return s.arm->linkPose(l->name) * t;
+    if (l->name == s.params.base_link) return t;
+    if (!l->parent_joint) throw std::out_of_range("DrillingSimulation: link '" + link + "'");
+    const urdf::Joint& j = *l->parent_joint;
+    if (j.name == "spms_platform_joint") {
+      t = s.platformInBase() * t;
+    } else {
+      auto it = spms_q.find(j.name);
+      const double q = it == spms_q.end() ? 0.0 : it->second;
+      t = toIsometry(j.parent_to_joint_origin_transform) * jointMotion(j, q) * t;
+    }
+    l = s.model->getLink(j.parent_link_name);
+  }
+}
+
+SimulationGroundTruth DrillingSimulation::groundTruth() const {
+  const Impl& s = *impl_;
+  SimulationGroundTruth g;
+  const DrillingProcess& p = *s.process;
+  g.seed = s.seed;
+  g.layer = s.cutLayer();
+  g.tip_depth_m = s.tip_depth;
+  g.max_depth_cut_m = p.maxDepthCut();
+  g.outer_cortical_end_m = p.specimen().outerCorticalEnd();
+  g.inner_cortical_start_m = p.specimen().innerCorticalStart();
+  g.inner_cortical_end_m = p.specimen().innerCorticalEnd();
+  g.residual_inner_cortical_m = p.residualInnerCorticalThickness();
+  g.breakthrough = p.breakthrough();
+  g.thrust_n = s.last_force.thrust_N;
+  g.contact = s.last_force.contact;
+  g.feed_per_rev_m = s.last_force.feed_per_rev_m;
+  const Eigen::Vector3d d = s.bone_world.translation() - s.bone_home_world;
+  g.bone_displacement_m = Eigen::Vector3d(d.y(), d.x(), d.z());  // LR = y, SI = x, AP = z
+  g.tidal_volume_ml = s.vent_now.volume_ml;
+  g.relative_ap_m = (s.physics_tip.z() - s.bone_world.translation().z()) - s.relative_ap0;
+  return g;
+}
+
+Eigen::Isometry3d DrillingSimulation::measureMarkerPose() {
+  Impl& s = *impl_;
+  const Eigen::Isometry3d marker_world =
+      s.spms_base_world * s.platformInBase() * s.marker_in_platform;
+  Eigen::Isometry3d m = s.camera_world.inverse() * marker_world;
+  std::normal_distribution<double> n(0.0, 1e-3 * s.params.tracker_noise_rms_mm / std::sqrt(3.0));
+  m.translation() += Eigen::Vector3d(n(s.tracker_rng), n(s.tracker_rng), n(s.tracker_rng));
+  return m;
+}
+
+std::vector<FrameTransform> DrillingSimulation::frameTransforms(bool fixed) const {
+  const Impl& s = *impl_;
+  std::vector<FrameTransform> out;
+  std::map<std::string, double> spms_q;
+  for (const auto& kv : spmsJointStates()) spms_q[kv.first] = kv.second;
+  for (const auto& kv : s.model->joints_) {
+    const urdf::Joint& j = *kv.second;
+    const bool is_fixed = j.type == urdf::Joint::FIXED;
+    if (is_fixed != fixed) continue;
+    FrameTransform f;
+    f.parent = j.parent_link_name;
+    f.child = j.child_link_name;
+    const Eigen::Isometry3d origin = toIsometry(j.parent_to_joint_origin_transform);
+    if (is_fixed) {
+      f.transform = origin;
+    } else if (s.arm->hasLink(f.parent) && s.arm->hasLink(f.child)) {
+      f.transform = s.arm->linkPose(f.parent).inverse() * s.arm->linkPose(f.child);
+    } else if (j.name == "spms_platform_joint") {
+      f.transform = s.platformInBase();
+    } else {
+      auto it = spms_q.find(j.name);
+      f.transform = origin * jointMotion(j, it == spms_q.end() ? 0.0 : it->second);
+    }
+    out.push_back(f);
+  }
+  return out;
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,380 @@
+/**
+ * @file test_drilling_simulation.cpp
+ * @brief The simulated workcell without ROS: stationary drilling through the arm's feed joint
+ *        (two cortical peaks, ground-truth depth, arm deflection), the SPMS platform following
+ *        its rate-limited sliders, the virtual patient, and the command interface.
+ */
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/drilling_simulation.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string workcell() {
+  return readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/workcell.urdf");
+}
+
+const std::vector<std::string> kJoints = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3",
+                                          "rsssii_joint4", "rsssii_joint5", "rsssii_joint6",
+                                          "feed_joint"};
+// config/drilling_pose.yaml
+const std::vector<double> kDrillingPose = {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0, 0.0};
+
+void moveToDrillingPose(DrillingSimulation* sim, double duration) {
+  TrajectoryCommand c;
+  c.joint_names = kJoints;
+  c.points.push_back({sim->time() + duration, kDrillingPose, {}});
+  ASSERT_EQ(sim->commandTrajectory(c).status, TargetStatus::kAccepted);
+  sim->step(duration + 0.5);
+}
+
+struct TrialRecord {
+  std::vector<double> block_mean;         // 50-sample means of the measured force z
+  std::vector<Material> block_layer;      // layer at the deepest cut at the block end
+  double outer_peak = 0.0, inner_peak = 0.0, cancellous_mean = 0.0;
+  double max_deflection = 0.0;            // commanded minus actual depth while cutting [m]
+  double gap = 0.0;                       // tip above the bone when the feed starts [m]
+};
+
+// Drills a stationary specimen at 0.5 mm/s, 12000 rpm, by commanding the feed joint.
+TrialRecord drillStationary(DrillingSimulation* sim, double feed_m) {
+  TrialRecord r;
+  sim->commandSpindle(12000.0);
+  moveToDrillingPose(sim, 1.0);
+  r.gap = -sim->groundTruth().tip_depth_m;
+  const double t0 = sim->time();
+  TrajectoryCommand feed;
+  feed.joint_names = {"feed_joint"};
+  feed.points.push_back({t0 + feed_m / 0.5e-3, {feed_m}, {}});
+  EXPECT_TRUE(sim->commandTrajectory(feed).ok());
+  double sum = 0.0;
+  int n = 0;
+  double canc_sum = 0.0;
+  int canc_n = 0;
+  const int steps = static_cast<int>((feed_m / 0.5e-3 + 1.0) / sim->physicsDt());
+  for (int i = 0; i < steps; ++i) {
+    const SimulationStep s = sim->stepOnce();
+    sum += s.measured_wrench[2];
+    if (++n == 50) {
+      const Material layer = sim->process().currentLayer();
+      r.block_mean.push_back(sum / n);
+      r.block_layer.push_back(layer);
+      if (layer == Material::kOuterCortical) r.outer_peak = std::max(r.outer_peak, sum / n);
+      if (layer == Material::kInnerCortical) r.inner_peak = std::max(r.inner_peak, sum / n);
+      const double d = sim->groundTruth().max_depth_cut_m;
+      const auto& sp = sim->process().specimen();
+      // Cancellous level well away from both boundaries (tip cone 0.75 mm).
+      if (d > sp.outerCorticalEnd() + 1.0e-3 && d < sp.innerCorticalStart() - 0.2e-3) {
+        canc_sum += sum / n;
+        ++canc_n;
+      }
+      sum = 0.0;
+      n = 0;
+    }
+    if (s.force.contact) {
+      const double commanded = std::min(feed_m, 0.5e-3 * (s.time_s - t0)) - r.gap;
+      r.max_deflection = std::max(r.max_deflection, commanded - s.tip_depth_m);
+    }
+  }
+  r.cancellous_mean = canc_n > 0 ? canc_sum / canc_n : std::nan("");
+  return r;
+}
+
+TEST(DrillingSimulation, StartsAtHomeAndReachesTheDrillingPoseThroughTrajectories) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  sim.reset(1, false);
+  // Home: tool above and behind the bone, well clear of it.
+  EXPECT_LT(sim.groundTruth().tip_depth_m, -0.1);
+  EXPECT_EQ(sim.groundTruth().layer, Material::kAir);
+  moveToDrillingPose(&sim, 1.0);
+  const Eigen::Isometry3d tip = sim.tipPose();
+  // config/drilling_pose.yaml: 5 mm above the bone top centre, axis down.
+  EXPECT_NEAR(sim.groundTruth().tip_depth_m, -5e-3, 0.1e-3);
+  EXPECT_NEAR(tip.translation().x(), 0.6, 0.2e-3);
+  EXPECT_NEAR(tip.translation().y(), 0.0, 0.2e-3);
+  EXPECT_LT(tip.linear().col(2).z(), -0.9999);
+}
+
+TEST(DrillingSimulation, StationaryDrillingShowsTwoCorticalPeaksAndGroundTruthDepth) {
+  for (std::uint64_t seed : {1u, 7u, 12u}) {
+    SCOPED_TRACE(seed);
+    DrillingSimulation sim(workcell(), DrillingSimulationParams(), seed);
+    sim.reset(seed, false);
+    const double feed = 16e-3;
+    const TrialRecord r = drillStationary(&sim, feed);
+    std::cout << "[ trial ] seed " << seed << ": outer peak " << r.outer_peak
+              << " N, inner peak " << r.inner_peak << " N, cancellous " << r.cancellous_mean
+              << " N, max deflection " << r.max_deflection * 1e3 << " mm" << std::endl;
+    // Paper Fig. 16 stationary medians 3.16 / 2.88 N (calibration.md ranges).
+    EXPECT_GE(r.outer_peak, 2.5);
+    EXPECT_LE(r.outer_peak, 4.0);
+    EXPECT_GE(r.inner_peak, 2.2);
+    EXPECT_LE(r.inner_peak, 3.8);
+    EXPECT_LT(r.cancellous_mean, 0.6 * std::min(r.outer_peak, r.inner_peak));
+    // In the air gap before contact: only sensor noise.
+    EXPECT_LT(std::abs(r.block_mean.front()), 0.1);
+    // Ground truth: the tip went through (16 mm feed, 5 mm gap, ~8 mm of bone).
+    const SimulationGroundTruth gt = sim.groundTruth();
+    EXPECT_TRUE(gt.breakthrough);
+    EXPECT_EQ(gt.layer, Material::kCanal);
+    EXPECT_NEAR(gt.max_depth_cut_m, feed - r.gap, 0.05e-3);
+    EXPECT_NEAR(gt.tip_depth_m, feed - r.gap, 0.05e-3);
+    EXPECT_DOUBLE_EQ(gt.residual_inner_cortical_m, 0.0);
+    // Finite arm stiffness: thrust pushes the tip back (0.12 mm at 3 N, bullet_arm.hpp).
+    EXPECT_GT(r.max_deflection, 0.04e-3);
+    EXPECT_LT(r.max_deflection, 0.3e-3);
+  }
+}
+
+TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 5);
+  sim.reset(5, false);
+  sim.commandSpindle(12000.0);
+  moveToDrillingPose(&sim, 1.0);
+  const double gap = -sim.groundTruth().tip_depth_m;
+  const auto& sp = sim.process().specimen();
+  const double target = sp.innerCorticalStart() + 0.5 * sp.innerCorticalThickness();
+  TrajectoryCommand feed;
+  feed.joint_names = {"feed_joint"};
+  feed.points.push_back({sim.time() + (target + gap) / 0.5e-3, {target + gap}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(feed).ok());
+  sim.step((target + gap) / 0.5e-3 + 0.5);
+  const SimulationGroundTruth gt = sim.groundTruth();
+  EXPECT_EQ(gt.layer, Material::kInnerCortical);
+  EXPECT_FALSE(gt.breakthrough);
+  // Deflection under the cutting thrust keeps the cut slightly short of the commanded depth.
+  EXPECT_LT(gt.max_depth_cut_m, target);
+  EXPECT_GT(gt.max_depth_cut_m, target - 0.3e-3);
+  EXPECT_NEAR(gt.residual_inner_cortical_m, sp.innerCorticalEnd() - gt.max_depth_cut_m, 1e-12);
+  // The reset between trials returns the arm home and clears the drilling state.
+  sim.reset(6, false);
+  EXPECT_DOUBLE_EQ(sim.groundTruth().max_depth_cut_m, 0.0);
+  EXPECT_LT(sim.groundTruth().tip_depth_m, -0.1);
+  EXPECT_EQ(sim.seed(), 6u);
+}
+
+TEST(DrillingSimulation, HigherSpindleSpeedLowersTheForce) {
+  double peak[2] = {0, 0};
+  const double rpm[2] = {12000.0, 20000.0};
+  for (int k = 0; k < 2; ++k) {
+    DrillingSimulation sim(workcell(), DrillingSimulationParams(), 3);
+    sim.reset(3, false);
+    sim.commandSpindle(rpm[k]);
+    moveToDrillingPose(&sim, 1.0);
+    TrajectoryCommand feed;
+    feed.joint_names = {"feed_joint"};
+    feed.points.push_back({sim.time() + 16.0, {8e-3}, {}});
+    ASSERT_TRUE(sim.commandTrajectory(feed).ok());
+    for (int i = 0; i < 16000; ++i) peak[k] = std::max(peak[k], sim.stepOnce().force.thrust_N);
+  }
+  EXPECT_LT(peak[1], 0.85 * peak[0]);
+}
+
+TEST(DrillingSimulation, MovingPlatformFollowsTheRateLimitedSliders) {
+  DrillingSimulationParams params;
+  DrillingSimulation sim(workcell(), params, 2);
+  sim.reset(2, true);
+  const SpmsKinematics spms(params.spms);
+  const double home_top = sim.boneTopZ() - sim.platformPose().z_m;
+  double zmin = 1e9, zmax = -1e9;
+  Eigen::Vector3d prev = sim.sliderPositions();
+  for (int i = 0; i < 15000; ++i) {
+    sim.stepOnce();
+    const Eigen::Vector3d s = sim.sliderPositions();
+    // Sliders never jump (lead-screw speed limit), the platform is the FK of the sliders.
+    EXPECT_LE((s - prev).cwiseAbs().maxCoeff(), params.slider_max_speed_m_s * 1e-3 + 1e-12);
+    prev = s;
+    const SpmsFkResult fk = spms.forward(s);
+    ASSERT_TRUE(fk.ok);
+    EXPECT_NEAR(sim.platformPose().z_m, fk.pose.z_m, 1e-9);
+    EXPECT_NEAR(sim.boneTopZ(), home_top + fk.pose.z_m, 1e-9);
+    // Breathing is slow: the platform tracks the patient's displacement.
+    // (after the first 20 ms: the drift offset at t = 0 is a step for the sliders).
+    if (i > 20) {
+      EXPECT_NEAR(sim.platformPose().z_m, sim.desiredHeave(), 0.05e-3);
+    }
+    zmin = std::min(zmin, sim.platformPose().z_m);
+    zmax = std::max(zmax, sim.platformPose().z_m);
+  }
+  // AP peak to peak = q1 * 500 ml (4.2-5.4 mm for the virtual volunteers) +- drift.
+  const double expected = sim.patient().q1_ap_mm_per_ml * 500.0 * 1e-3;
+  EXPECT_NEAR(zmax - zmin, expected, 2.0 * sim.patient().drift_mm * 1e-3 + 0.1e-3);
+  EXPECT_GT(zmax - zmin, 3.5e-3);
+  // Ground truth reports the same AP displacement.
+  EXPECT_NEAR(sim.groundTruth().bone_displacement_m.z(), sim.platformPose().z_m, 1e-9);
+
+  // A slow lead screw cannot follow: the platform lags, it is never teleported.
+  params.slider_max_speed_m_s = 1e-3;
+  DrillingSimulation slow(workcell(), params, 2);
+  double max_lag = 0.0;
+  for (int i = 0; i < 5000; ++i) {
+    const double z0 = slow.platformPose().z_m;
+    slow.stepOnce();
+    EXPECT_LE(std::abs(slow.platformPose().z_m - z0), 1e-6 + 1e-12);
+    max_lag = std::max(max_lag, std::abs(slow.desiredHeave() - slow.platformPose().z_m));
+  }
+  EXPECT_GT(max_lag, 0.5e-3);
+
+  // moving_bone = false: the platform returns to home and stays.
+  sim.reset(2, false);
+  sim.step(1.0);
+  for (int i = 0; i < 2000; ++i) {
+    sim.stepOnce();
+    EXPECT_NEAR(sim.platformPose().z_m, 0.0, 1e-12);
+  }
+}
+
+TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 4);
+  sim.reset(4, true);
+  sim.step(1.3);
+  std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent;
+  for (bool fixed : {true, false}) {
+    for (const FrameTransform& f : sim.frameTransforms(fixed)) {
+      ASSERT_TRUE(f.transform.matrix().allFinite()) << f.child;
+      parent[f.child] = {f.parent, f.transform};
+    }
+  }
+  for (const std::string l :
+       {"rsssii_link3", "ft_sensor", "drill_tip", "spms_platform", "bone", "tracker_marker",
+        "tracker_camera", "slider2", "rod3"}) {
+    ASSERT_TRUE(parent.count(l)) << l;
+    // Compose up to world and compare with the simulation's own link pose.
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    std::string c = l;
+    while (c != "world") {
+      ASSERT_TRUE(parent.count(c)) << c;
+      t = parent[c].second * t;
+      c = parent[c].first;
+    }
+    // Bullet stores link poses in single precision.
+    EXPECT_LT((t.matrix() - sim.linkPose(l).matrix()).norm(), 1e-6) << l;
+  }
+  EXPECT_NEAR(sim.linkPose("bone").translation().z(), sim.boneTopZ(), 1e-6);
+  // Each rod end meets its spherical joint on the platform (closed chains consistent).
+  for (int i = 1; i <= 3; ++i) {
+    const Eigen::Vector3d rod_end =
+        sim.linkPose("rod" + std::to_string(i)) * Eigen::Vector3d(0, 0, 0.12);
+    const double th = (90.0 + 120.0 * (i - 1)) * M_PI / 180.0;
+    const Eigen::Vector3d sph = sim.linkPose("spms_platform") *
+                                Eigen::Vector3d(0.04 * std::cos(th), 0.04 * std::sin(th), 0);
+    EXPECT_LT((rod_end - sph).norm(), 1e-6) << i;
+  }
+  // Tracker measurement: marker in the camera frame with ~0.25 mm RMS noise.
+  const Eigen::Isometry3d truth = sim.linkPose("tracker_camera").inverse() *
+                                  sim.linkPose("tracker_marker");
+  double sq = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    sq += (sim.measureMarkerPose().translation() - truth.translation()).squaredNorm();
+  }
+  EXPECT_NEAR(std::sqrt(sq / 2000) * 1e3, 0.25, 0.02);
+}
+
+TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  sim.step(0.2);
+  const Eigen::VectorXd q0 = sim.armJointPositions();
+  TrajectoryCommand nan;
+  nan.joint_names = kJoints;
+  std::vector<double> p = kDrillingPose;
+  p[1] = std::numeric_limits<double>::quiet_NaN();
+  nan.points.push_back({sim.time() + 1.0, p, {}});
+  EXPECT_EQ(sim.commandTrajectory(nan).status, TargetStatus::kRejected);
+  TrajectoryCommand unknown;
+  unknown.joint_names = {"rsssii_joint1", "elbow"};
+  unknown.points.push_back({sim.time() + 1.0, {0.1, 0.2}, {}});
+  const TargetResult r = sim.commandTrajectory(unknown);
+  EXPECT_EQ(r.status, TargetStatus::kRejected);
+  EXPECT_NE(r.message.find("elbow"), std::string::npos);
+  TrajectoryCommand past;
+  past.joint_names = {"feed_joint"};
+  past.points.push_back({sim.time() - 0.1, {0.01}, {}});
+  EXPECT_EQ(sim.commandTrajectory(past).status, TargetStatus::kRejected);
+  TrajectoryCommand size;
+  size.joint_names = {"feed_joint"};
+  size.points.push_back({sim.time() + 1.0, {0.01, 0.02}, {}});
+  EXPECT_EQ(sim.commandTrajectory(size).status, TargetStatus::kRejected);
+  EXPECT_EQ(sim.commandSpindle(std::nan("")).status, TargetStatus::kRejected);
+  EXPECT_EQ(sim.commandSpindle(-5.0).status, TargetStatus::kRejected);
+  sim.step(1.5);
+  EXPECT_LT((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 1e-5);
+  EXPECT_DOUBLE_EQ(sim.spindleRpm(), 0.0);
+
+  // Out of limit: clamped (feed travel 0..60 mm), spindle clamped to 21000 rpm.
+  TrajectoryCommand far;
+  far.joint_names = {"feed_joint"};
+  far.points.push_back({sim.time() + 1.0, {0.5}, {}});
+  const TargetResult c = sim.commandTrajectory(far);
+  EXPECT_EQ(c.status, TargetStatus::kClamped);
+  EXPECT_NE(c.message.find("feed_joint"), std::string::npos);
+  EXPECT_EQ(sim.commandSpindle(1e6).status, TargetStatus::kClamped);
+  sim.step(1.5);
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.06, 1e-4);
+  EXPECT_NEAR(sim.spindleRpm(), 21000.0, 1e-6);
+}
+
+TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFollowed) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  TrajectoryCommand a;
+  a.joint_names = {"feed_joint"};
+  a.points.push_back({sim.time() + 2.0, {0.04}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(a).ok());
+  sim.step(1.0);  // halfway: 20 mm
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.02, 0.2e-3);
+  TrajectoryCommand b;
+  b.joint_names = {"feed_joint"};
+  b.points.push_back({sim.time() + 1.0, {0.01}, {0.0}});
+  ASSERT_TRUE(sim.commandTrajectory(b).ok());
+  sim.step(2.0);  // the first goal (40 mm) is abandoned
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.01, 0.05e-3);
+}
+
+TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
+  try {
+    DrillingSimulation sim("<robot name='x'><link name='a'></robot", DrillingSimulationParams());
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("could not parse"), std::string::npos) << e.what();
+  }
+  // The arm alone (no SPMS) is not a workcell.
+  const std::string arm_only =
+      readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/rsssii.urdf");
+  try {
+    DrillingSimulation sim(arm_only, DrillingSimulationParams());
+    FAIL() << "no exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("spms"), std::string::npos) << e.what();
+  }
+}
+
+TEST(VirtualPatient, DrawnFromTheVirtualVolunteerTruth) {
+  for (std::uint64_t seed = 0; seed < 10; ++seed) {
+    const VirtualPatient p = drawVirtualPatient(seed);
+    EXPECT_EQ(p.volunteer_id, 1 + static_cast<int>(seed % 5));
+    EXPECT_GT(p.q1_ap_mm_per_ml * 500.0, 4.0);  // about 5 mm peak to peak at 500 ml
+    EXPECT_LT(p.q1_ap_mm_per_ml * 500.0, 6.0);
+    EXPECT_GE(p.lag_s, 0.05);
+    EXPECT_LE(p.lag_s, 0.15);
+  }
+  EXPECT_NE(drawVirtualPatient(1).drift_phase_rad, drawVirtualPatient(6).drift_phase_rad);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core
