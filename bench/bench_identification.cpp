@@ -1,8 +1,10 @@
 // bench_identification: identification speed, Ceres vs the paper's PSO, on the same data.
 //
 // Data: default virtual volunteers 1..5, 30 s, all three axes, raw (not de-noised) 8 Hz
-// samples, linear model (the paper's model) and hysteresis model. Every fit is repeated so
-// that each timing is a median over repetitions (Ceres 21, PSO 3; steady_clock). Prints
+// samples, linear model (the paper's model) and hysteresis model.
+// Ceres fits all samples as one residual block from a Gauss-Newton first step (see
+// CeresFitOptions); PSO runs at the paper's settings, 24 particles x 2000 iterations. Every fit
+// is repeated so that each timing is a median over repetitions (Ceres 21, PSO 3; steady_clock). Prints
 //   BENCH identify_speedup_ceres_over_pso <ratio> x
 //   BENCH identify_ceres_time <ms> ms      (median per axis fit, linear model)
 //   BENCH identify_pso_time <ms> ms        (median per axis fit, linear model)

@@ -133,18 +133,15 @@ FitResult fitCeres(ModelKind kind, const AxisSamples& samples, const CeresFitOpt
   const auto start = std::chrono::steady_clock::now();
   std::vector<double> q(static_cast<size_t>(numCoefficients(kind)), 0.0);
   ceres::Problem problem;
-  for (size_t i = 0; i < samples.d.size(); ++i) {
-    ceres::CostFunction* cost =
-        kind == ModelKind::kLinear
-            ? LinearDisplacementResidual::Create(samples.tv[i], samples.d[i])
-            : HysteresisDisplacementResidual::Create(samples.tv[i], samples.dtv_dt[i],
-                                                     samples.d[i]);
-    problem.AddResidualBlock(cost, nullptr, q.data());
-  }
+  problem.AddResidualBlock(kind == ModelKind::kLinear
+                               ? DisplacementBatchResidual<2>::Create(samples)
+                               : DisplacementBatchResidual<3>::Create(samples),
+                           nullptr, q.data());
   ceres::Solver::Options solver_options;
   solver_options.linear_solver_type = ceres::DENSE_QR;
   solver_options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
   solver_options.max_num_iterations = options.max_iterations;
+  solver_options.initial_trust_region_radius = options.initial_trust_region_radius;
   solver_options.function_tolerance = options.function_tolerance;
   solver_options.gradient_tolerance = options.gradient_tolerance;
   solver_options.parameter_tolerance = options.parameter_tolerance;

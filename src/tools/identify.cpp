@@ -2,34 +2,25 @@
 //
 //   identify --input rec.csv --output model.yaml [--method ceres|pso] [--model linear|hysteresis]
 //            [--level 6] [--keep 3,4,5] [--wavelets all|NAME,NAME,...] [--delta-tv 5]
-//            [--patient-id ID] [--seed 1] [--no-denoise] [--denoise-tv]
+//            [--patient-id ID] [--seed 1] [--no-denoise] [--denoise-tv] [--fit-csv PATH]
 //
-// Pipeline per axis (AP, SI, LR):
-//  1. read the 8 Hz CSV `t,tv,ap,si,lr` (virtual_volunteer.hpp documents the format and its
-//     validation: missing column, NaN/inf, non-increasing time, fewer than two breaths);
-//  2. de-noise the displacement with the DWT (Eq. 1, s_de = d3 + d4 + d5 by default) choosing
-//     the basis among the candidates by RMSE-DMM (Fig. 6) -- denoising.hpp;
-//  3. s_de contains no approximation and so has (almost) zero mean: the mean of the raw
-//     displacement is added back, d_fit = s_de + mean(d), so that the intercept q0 is in the
-//     tracker frame like the raw data (the slope is unaffected: the model has an intercept);
-//  4. fit d_fit against Tv (and dTv/dt from central differences for the hysteresis model) with
-//     Ceres (default) or the paper's PSO. R^2 (Eq. 16) is reported against d_fit, the de-noised
-//     signal the model is fitted to (as in the paper), and also against the raw displacement.
-//  5. write the model YAML atomically (motion_model_io.hpp).
-//
-// --denoise-tv (not in the paper, off by default): also pass Tv through the same wavelet and
-// kept levels (plus its mean). Eq. 1 removes the sub-0.125 Hz part of the displacement
-// (breath-to-breath depth changes, a6/d6) but not of Tv, which biases the fitted slope low;
-// on the default virtual volunteers the AP/SI slope error was -1 % to -7 % with displacement-
-// only de-noising and within +-3 % with both signals filtered alike.
+// The pipeline (validation, DWT de-noising with RMSE-DMM basis choice, Ceres or PSO fit) is
+// core::identifyPatient() (motion_pipeline.hpp), shared with the MotionIdentification nodelet.
+// --denoise-tv (not in the paper, off by default) also filters Tv; see motion_pipeline.hpp.
+// --fit-csv PATH writes, per sample, t,tv and for each axis the raw displacement, the fitted
+// (de-noised) displacement, the model prediction and the Tv it was fitted against (the raw tv,
+// or the de-noised one with --denoise-tv): t,tv,ap_raw,ap_fit,ap_model,ap_tv,si_raw,...
 //
 // Exit status: 0 success; 2 bad arguments or bad input (message names the problem, no model
 // file is written); 1 the model file could not be written.
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <string>
 #include <vector>
@@ -37,6 +28,7 @@
 #include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/denoising.hpp"
 #include "pedicle_drilling/core/identification.hpp"
+#include "pedicle_drilling/core/motion_pipeline.hpp"
 #include "pedicle_drilling/core/motion_model_io.hpp"
 #include "pedicle_drilling/core/pso.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
@@ -54,7 +46,7 @@ const char kUsage[] =
     "Usage: identify --input rec.csv --output model.yaml [--method ceres|pso]\n"
     "                [--model linear|hysteresis] [--level 6] [--keep 3,4,5]\n"
     "                [--wavelets all|NAME,...] [--delta-tv 5] [--patient-id ID] [--seed 1]\n"
-    "                [--no-denoise] [--denoise-tv]\n"
+    "                [--no-denoise] [--denoise-tv] [--fit-csv PATH]\n"
     "\n"
     "Identifies d = q1*Tv + q0 (linear) or d = q1*Tv + q2*dTv/dt + q0 (hysteresis) per axis\n"
     "from an 8 Hz CSV with columns t,tv,ap,si,lr (s, ml, mm) after DWT de-noising.\n"
@@ -67,6 +59,7 @@ const char kUsage[] =
     "  --seed        PSO seed (default 1)\n"
     "  --no-denoise  fit the raw displacement\n"
     "  --denoise-tv  filter Tv with the same wavelet and levels (not in the paper)\n"
+    "  --fit-csv     also write the raw, de-noised and model displacement per sample\n"
     "Exit status: 0 ok, 2 bad arguments or input (no model written), 1 write failure.\n";
 
 std::vector<std::string> splitList(const std::string& text) {
@@ -90,12 +83,6 @@ std::string baseName(const std::string& path) {
   return b;
 }
 
-double mean(const std::vector<double>& x) {
-  double s = 0.0;
-  for (double v : x) s += v;
-  return s / static_cast<double>(x.size());
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -108,35 +95,30 @@ int main(int argc, char** argv) {
   }
 
   // ---------------------------------------------------------------- arguments
-  std::string input, output, patient_id;
-  pd::ModelKind kind = pd::ModelKind::kLinear;
-  bool use_pso = false;
-  bool denoise = true;
-  bool denoise_tv = false;
-  pd::DenoiseOptions dopts;
-  std::uint64_t seed = 1;
+  std::string input, output, patient_id, fit_csv;
+  pd::PipelineOptions opts;
   try {
     const CliArgs args(argc, argv,
                        {"input", "output", "method", "model", "level", "keep", "wavelets",
-                        "delta-tv", "patient-id", "seed"},
+                        "delta-tv", "patient-id", "seed", "fit-csv"},
                        {"no-denoise", "denoise-tv"});
     if (!args.has("input")) throw UsageError("missing required option --input");
     if (!args.has("output")) throw UsageError("missing required option --output");
     input = args.get("input", "");
     output = args.get("output", "");
+    fit_csv = args.get("fit-csv", "");
     const std::string method = args.get("method", "ceres");
-    if (method == "pso") {
-      use_pso = true;
-    } else if (method != "ceres") {
+    if (!pd::parseMethod(method, &opts.method)) {
       throw UsageError("unknown method '" + method + "' (expected ceres or pso)");
     }
     const std::string model = args.get("model", "linear");
-    if (!pd::parseModelKind(model, &kind)) {
+    if (!pd::parseModelKind(model, &opts.kind)) {
       throw UsageError("unknown model '" + model + "' (expected linear or hysteresis)");
     }
-    denoise = !args.flag("no-denoise");
-    denoise_tv = args.flag("denoise-tv");
-    if (denoise_tv && !denoise) throw UsageError("--denoise-tv needs de-noising on");
+    opts.denoise = !args.flag("no-denoise");
+    opts.denoise_tv = args.flag("denoise-tv");
+    if (opts.denoise_tv && !opts.denoise) throw UsageError("--denoise-tv needs de-noising on");
+    pd::DenoiseOptions& dopts = opts.denoise_options;
     const long level = args.getInt("level", 6);
     if (level < 1 || level > 16) throw UsageError("--level must be in 1..16");
     dopts.level = static_cast<int>(level);
@@ -152,7 +134,7 @@ int main(int argc, char** argv) {
       dopts.candidates = splitList(wavelets);
       for (const std::string& w : dopts.candidates) {
         if (pd::findWavelet(w) == nullptr) {
-          throw UsageError("unknown wavelet '" + w + "'");
+          throw UsageError("--wavelets: unknown wavelet '" + w + "'");
         }
       }
     }
@@ -160,66 +142,27 @@ int main(int argc, char** argv) {
     if (!(dopts.delta_tv >= 0.0)) throw UsageError("--delta-tv must be >= 0");
     const long s = args.getInt("seed", 1);
     if (s < 0) throw UsageError("--seed must be >= 0");
-    seed = static_cast<std::uint64_t>(s);
+    opts.pso.seed = static_cast<std::uint64_t>(s);
     patient_id = args.get("patient-id", baseName(input));
+    opts.validate();
   } catch (const std::exception& e) {
     std::cerr << "identify: " << e.what() << "\n" << kUsage;
     return kBadInput;
   }
 
   // ---------------------------------------------------------------- data and fits
-  pd::PatientModel result;
-  result.patient_id = patient_id;
+  pd::PipelineResult result;
+  pd::PairedSamples rec;
   try {
-    const pd::PairedSamples rec = pd::readRecordingCsv(input);
-    const std::vector<double> dtv = pd::timeDerivative(rec.t, rec.tv);
+    rec = pd::readRecordingCsv(input);
+    result = pd::identifyPatient(rec, opts, patient_id, input);
     std::printf("identify: %s, %zu samples, %d breaths, method %s, model %s\n", input.c_str(),
-                rec.t.size(), pd::countBreaths(rec.tv), use_pso ? "pso" : "ceres",
-                pd::modelKindName(kind).c_str());
-    for (pd::Axis axis : pd::kAllAxes) {
-      const std::vector<double>& raw = rec.axis(axis);
-      pd::AxisModelRecord& out = result.axes[static_cast<int>(axis)];
-      pd::AxisSamples samples;
-      samples.tv = rec.tv;
-      samples.dtv_dt = dtv;
-      if (denoise) {
-        const pd::DenoiseResult dr = pd::selectAndDenoise(raw, rec.tv, dopts);
-        const double offset = mean(raw);  // s_de has no DC: add the raw mean back
-        samples.d = dr.denoised;
-        for (double& v : samples.d) v += offset;
-        out.wavelet = dr.wavelet;
-        out.level = dopts.level;
-        out.kept_levels = dopts.kept_levels;
-        if (denoise_tv) {
-          const double tv_mean = mean(rec.tv);
-          samples.tv = pd::denoise(rec.tv, dr.wavelet, dopts.level, dopts.kept_levels);
-          for (double& v : samples.tv) v += tv_mean;
-          samples.dtv_dt = pd::timeDerivative(rec.t, samples.tv);
-        }
-      } else {
-        samples.d = raw;
-        out.wavelet = "none";
-        out.level = 0;
-        out.kept_levels.clear();
-      }
-      pd::FitResult fit;
-      if (use_pso) {
-        pd::PsoOptions po;
-        po.seed = seed;
-        fit = pd::fitPso(kind, samples, po);
-      } else {
-        fit = pd::fitCeres(kind, samples);
-      }
-      out.model = fit.model;
-      out.r2 = fit.r2;
-      out.rmse = fit.rmse;
-      const double r2_raw = pd::rSquared(raw, pd::predictAll(fit.model, samples));
-      std::printf(
-          "  %s: wavelet %-8s q1 %.6g mm/ml  q2 %.6g mm*s/ml  q0 %.6g mm  R2 %.4f "
-          "(raw %.4f)  RMSE %.4f mm  %d it  %.3f ms\n",
-          pd::axisName(axis).c_str(), out.wavelet.c_str(), fit.model.q1, fit.model.q2,
-          fit.model.q0, fit.r2, r2_raw, fit.rmse, fit.iterations, fit.time_s * 1e3);
+                result.samples, result.breaths, pd::methodName(opts.method).c_str(),
+                pd::modelKindName(opts.kind).c_str());
+    for (const pd::AxisReport& axis : result.axes) {
+      std::printf("  %s\n", pd::formatAxisReport(axis).c_str());
     }
+    std::fflush(stdout);
   } catch (const std::exception& e) {
     std::cerr << "identify: " << e.what() << "\n";
     return kBadInput;
@@ -227,11 +170,38 @@ int main(int argc, char** argv) {
 
   // ---------------------------------------------------------------- output
   try {
-    pd::writeModelYaml(result, output);
+    pd::writeModelYaml(result.model, output);
   } catch (const std::exception& e) {
     std::cerr << "identify: " << e.what() << "\n";
     return kWriteFailed;
   }
   std::printf("identify: wrote %s\n", output.c_str());
+  if (!fit_csv.empty()) {
+    std::ofstream out(fit_csv);
+    out << std::setprecision(17) << "t,tv";
+    for (const pd::AxisReport& a : result.axes) {
+      const std::string n = pd::axisName(a.axis);
+      out << ',' << n << "_raw," << n << "_fit," << n << "_model," << n << "_tv";
+    }
+    out << '\n';
+    std::array<std::vector<double>, 3> predicted;
+    for (int k = 0; k < 3; ++k) {
+      predicted[k] = pd::predictAll(result.axes[k].fit.model, result.axes[k].samples);
+    }
+    for (size_t i = 0; i < rec.t.size(); ++i) {
+      out << rec.t[i] << ',' << rec.tv[i];
+      for (int k = 0; k < 3; ++k) {
+        out << ',' << result.axes[k].raw[i] << ',' << result.axes[k].samples.d[i] << ','
+            << predicted[k][i] << ',' << result.axes[k].samples.tv[i];
+      }
+      out << '\n';
+    }
+    out.close();
+    if (!out) {
+      std::cerr << "identify: cannot write " << fit_csv << "\n";
+      return kWriteFailed;
+    }
+    std::printf("identify: wrote %s\n", fit_csv.c_str());
+  }
   return 0;
 }

@@ -86,6 +86,43 @@ struct AxisSamples {
   std::vector<double> d;       ///< displacement, mm
 };
 
+/**
+ * @brief All residuals of one axis in one functor (one residual block): r_i = d_i - prediction
+ *        of the linear (P = 2, q = {q1, q0}) or hysteresis (P = 3, q = {q1, q2, q0}) model.
+ *
+ * fitCeres() uses this rather than one LinearDisplacementResidual block per sample: same
+ * residuals and Jacobian, but Ceres' per-block bookkeeping (evaluation, Jacobian assembly) is
+ * paid once instead of once per sample, about 5x less time on 240 samples.
+ * The samples are referenced, not copied: they must outlive the cost function.
+ */
+template <int P>
+struct DisplacementBatchResidual {
+  static_assert(P == 2 || P == 3, "2 (linear) or 3 (hysteresis) coefficients");
+  /** @brief References the samples (dtv_dt used only for P = 3). */
+  explicit DisplacementBatchResidual(const AxisSamples& samples) : s_(&samples) {}
+
+  /** @brief r[i] = d_i - (q1 Tv_i [+ q2 dTv/dt_i] + q0) for every sample i. */
+  template <typename T>
+  bool operator()(const T* q, T* r) const {
+    const size_t n = s_->d.size();
+    for (size_t i = 0; i < n; ++i) {
+      T prediction = q[0] * T(s_->tv[i]) + q[P - 1];
+      if constexpr (P == 3) prediction += q[1] * T(s_->dtv_dt[i]);
+      r[i] = T(s_->d[i]) - prediction;
+    }
+    return true;
+  }
+
+  /** @brief AutoDiff cost function with one residual per sample; caller / Problem owns it. */
+  static ceres::CostFunction* Create(const AxisSamples& samples) {
+    return new ceres::AutoDiffCostFunction<DisplacementBatchResidual, ceres::DYNAMIC, P>(
+        new DisplacementBatchResidual(samples), static_cast<int>(samples.d.size()));
+  }
+
+ private:
+  const AxisSamples* s_;
+};
+
 /** @brief Outcome of identifying one axis. */
 struct FitResult {
   AxisModel model;         ///< identified kind and coefficients
@@ -97,9 +134,17 @@ struct FitResult {
   bool converged = false;  ///< solver reported convergence
 };
 
-/** @brief Options for fitCeres(). Defaults: tolerances far below double round-off of R^2. */
+/**
+ * @brief Options for fitCeres(). Defaults: tolerances far below double round-off of R^2.
+ *
+ * Both models are linear in their coefficients, so a Gauss-Newton step from any start is the
+ * exact minimiser. A very large initial trust region (1e16) makes Levenberg-Marquardt's first
+ * step that Gauss-Newton step (damping 1 / radius ~ 0); the second iteration then only
+ * confirms convergence. Ceres' default (1e4) spends 10-20 iterations growing the region.
+ */
 struct CeresFitOptions {
   int max_iterations = 100;            ///< Levenberg-Marquardt iterations
+  double initial_trust_region_radius = 1e16;  ///< see struct doc
   double function_tolerance = 1e-16;   ///< relative cost change
   double gradient_tolerance = 1e-16;   ///< max-norm of the projected gradient
   double parameter_tolerance = 1e-16;  ///< relative step size
@@ -135,8 +180,9 @@ void checkSamples(ModelKind kind, const AxisSamples& samples);
 FitResult fitOls(ModelKind kind, const AxisSamples& samples);
 
 /**
- * @brief Ceres identification: one AutoDiff residual block per sample, Levenberg-Marquardt with
- *        a dense QR linear solver, started from zero coefficients.
+ * @brief Ceres identification: one AutoDiff residual block holding every sample
+ *        (DisplacementBatchResidual), Levenberg-Marquardt with a dense QR linear solver, started
+ *        from zero coefficients.
  */
 FitResult fitCeres(ModelKind kind, const AxisSamples& samples,
                    const CeresFitOptions& options = CeresFitOptions());

@@ -1,0 +1,180 @@
+#!/usr/bin/python3
+"""Table II of the paper for the five default virtual volunteers, plus a Fig. 14-style plot.
+
+    rosrun pedicle_drilling table2.py [--out DIR] [--method ceres|pso] [--paper-denoising]
+                                      [--plot-volunteer 1]
+
+Runs `generate_volunteers` (ids 1..5, 30 s), then `identify` on each volunteer's 8 Hz CSV with
+the linear (paper) and the hysteresis model. By default Tv is de-noised like the displacement
+(`identify --denoise-tv`, see motion_pipeline.hpp: without it the AP/SI slopes are biased low by
+up to ~7 %); --paper-denoising uses the paper's displacement-only de-noising. Writes in DIR:
+  table2.md   R^2 per axis per volunteer (linear | hysteresis) with the mean, and the recovered
+              vs true slopes q1 of AP and SI (linear model) with the relative error
+  table2.csv  volunteer,model,axis,wavelet,q1,q2,q0,r2,rmse,q1_true,q2_true,q1_rel_err
+  table2_fig14.png  de-noised displacement and both model fits per axis for one volunteer
+  data/       the volunteers' CSV and truth files; models/ the identified model YAML files
+The Markdown table is also printed. Exit status 0, 1 when a tool fails.
+"""
+import argparse
+import csv
+import os
+import subprocess
+import sys
+
+import yaml
+
+IDS = [1, 2, 3, 4, 5]
+MODELS = ['linear', 'hysteresis']
+AXES = ['ap', 'si', 'lr']
+CSV_FIELDS = ['volunteer', 'model', 'axis', 'wavelet', 'q1', 'q2', 'q0', 'r2', 'rmse',
+              'q1_true', 'q2_true', 'q1_rel_err']
+
+
+def tool(name):
+    """Path of a built tool: $PEDICLE_DRILLING_BIN_DIR, the devel space, or rosrun."""
+    candidates = [os.environ.get('PEDICLE_DRILLING_BIN_DIR', ''),
+                  os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', 'catkin_ws',
+                               'devel', 'lib', 'pedicle_drilling')]
+    for d in candidates:
+        if d and os.access(os.path.join(d, name), os.X_OK):
+            return [os.path.join(d, name)]
+    return ['rosrun', 'pedicle_drilling', name]
+
+
+def run(cmd):
+    out = subprocess.run(cmd, capture_output=True, text=True)
+    if out.returncode != 0:
+        sys.stderr.write('table2: %s failed (%d):\n%s' % (' '.join(cmd), out.returncode,
+                                                          out.stderr))
+        sys.exit(1)
+    return out.stdout
+
+
+def load_axes(path):
+    with open(path) as f:
+        return yaml.safe_load(f)['axes']
+
+
+def plot(fit_csvs, vid, png):
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    data = {m: np.genfromtxt(p, delimiter=',', names=True) for m, p in fit_csvs.items()}
+    lin, hys = data['linear'], data['hysteresis']
+    fig, axs = plt.subplots(3, 2, figsize=(12, 9), gridspec_kw={'width_ratios': [2.2, 1]})
+    names = {'ap': 'AP', 'si': 'SI', 'lr': 'LR'}
+    for row, axis in enumerate(AXES):
+        ax = axs[row][0]
+        ax.plot(lin['t'], lin[axis + '_raw'], color='0.75', lw=0.8, label='recorded')
+        ax.plot(lin['t'], lin[axis + '_fit'], color='C0', lw=1.4, label='de-noised')
+        ax.plot(lin['t'], lin[axis + '_model'], 'C3--', lw=1.2, label='linear model')
+        ax.plot(hys['t'], hys[axis + '_model'], 'C2:', lw=1.4, label='hysteresis model')
+        ax.set_ylabel('%s displacement (mm)' % names[axis])
+        if row == 0:
+            ax.legend(loc='upper right', ncol=4, fontsize=8)
+        ax2 = axs[row][1]
+        tv = lin[axis + '_tv']  # the Tv the model was fitted against
+        ax2.plot(tv, lin[axis + '_fit'], '-', color='C0', lw=0.8, label='de-noised')
+        order = np.argsort(tv)
+        ax2.plot(tv[order], lin[axis + '_model'][order], 'C3-', lw=1.6, label='linear model')
+        if row == 0:
+            ax2.legend(loc='upper left', fontsize=8)
+        ax2.set_xlabel('tidal volume (ml)' if row == 2 else '')
+        ax2.set_ylabel('mm')
+    axs[2][0].set_xlabel('time (s)')
+    fig.suptitle('Virtual volunteer %d: de-noised displacement and identified models '
+                 '(cf. paper Fig. 14)' % vid)
+    fig.tight_layout()
+    fig.savefig(png, dpi=90)
+    plt.close(fig)
+
+
+def main(argv):
+    parser = argparse.ArgumentParser(description='Table II for the virtual volunteers')
+    parser.add_argument('--out', default='table2_out')
+    parser.add_argument('--method', default='ceres', choices=['ceres', 'pso'])
+    parser.add_argument('--paper-denoising', action='store_true')
+    parser.add_argument('--plot-volunteer', type=int, default=1, choices=IDS)
+    args = parser.parse_args(argv)
+
+    data_dir = os.path.join(args.out, 'data')
+    model_dir = os.path.join(args.out, 'models')
+    os.makedirs(model_dir, exist_ok=True)
+    run(tool('generate_volunteers') + ['--out', data_dir, '--ids', ','.join(map(str, IDS))])
+
+    rows, fit_csvs = [], {}
+    results = {}  # (vid, model) -> axes
+    truths = {}
+    for vid in IDS:
+        stem = os.path.join(data_dir, 'volunteer_%d' % vid)
+        truths[vid] = load_axes(stem + '_truth.yaml')
+        for model in MODELS:
+            out_yaml = os.path.join(model_dir, 'volunteer_%d_%s.yaml' % (vid, model))
+            cmd = tool('identify') + ['--input', stem + '.csv', '--output', out_yaml,
+                                      '--model', model, '--method', args.method,
+                                      '--patient-id', 'volunteer_%d' % vid]
+            if not args.paper_denoising:
+                cmd.append('--denoise-tv')
+            if vid == args.plot_volunteer:
+                fit_csvs[model] = os.path.join(model_dir, 'volunteer_%d_%s_fit.csv' % (vid, model))
+                cmd += ['--fit-csv', fit_csvs[model]]
+            run(cmd)
+            axes = load_axes(out_yaml)
+            results[(vid, model)] = axes
+            for axis in AXES:
+                a, t = axes[axis], truths[vid][axis]
+                rows.append({'volunteer': vid, 'model': model, 'axis': axis,
+                             'wavelet': a['wavelet'], 'q1': a['q1'], 'q2': a['q2'],
+                             'q0': a['q0'], 'r2': a['r2'], 'rmse': a['rmse'],
+                             'q1_true': t['q1'], 'q2_true': t['q2'],
+                             'q1_rel_err': a['q1'] / t['q1'] - 1.0})
+
+    with open(os.path.join(args.out, 'table2.csv'), 'w', newline='') as f:
+        w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
+        w.writeheader()
+        for r in rows:
+            w.writerow({k: ('%.10g' % v if isinstance(v, float) else v) for k, v in r.items()})
+
+    den = 'Tv and displacement de-noised' if not args.paper_denoising else \
+        'displacement de-noised (paper)'
+    md = ['### Table II (virtual volunteers, %s, %s)' % (args.method, den), '',
+          '| volunteer | R² AP linear | R² AP hysteresis | R² SI linear | R² SI hysteresis '
+          '| R² LR linear | R² LR hysteresis |',
+          '|---|---|---|---|---|---|---|']
+    sums = [0.0] * 6
+    for vid in IDS:
+        cells = []
+        for axis in AXES:
+            for model in MODELS:
+                cells.append(results[(vid, model)][axis]['r2'])
+        sums = [s + c / len(IDS) for s, c in zip(sums, cells)]
+        md.append('| %d | %s |' % (vid, ' | '.join('%.4f' % c for c in cells)))
+    md.append('| **mean** | %s |' % ' | '.join('**%.4f**' % c for c in sums))
+    md += ['', 'Recovered vs true slopes q1 (mm/ml, linear model; the truth is the generator\'s '
+           'hysteresis model q1):', '',
+           '| volunteer | AP q1 | AP true | AP error | SI q1 | SI true | SI error '
+           '| LR q1 | LR true | LR error |',
+           '|---|---|---|---|---|---|---|---|---|---|']
+    for vid in IDS:
+        cells = []
+        for axis in AXES:
+            q1 = results[(vid, 'linear')][axis]['q1']
+            q1t = truths[vid][axis]['q1']
+            cells += ['%.6f' % q1, '%.6f' % q1t, '%+.1f %%' % (100.0 * (q1 / q1t - 1.0))]
+        md.append('| %d | %s |' % (vid, ' | '.join(cells)))
+    text = '\n'.join(md) + '\n'
+    with open(os.path.join(args.out, 'table2.md'), 'w') as f:
+        f.write(text)
+    print(text)
+
+    png = os.path.join(args.out, 'table2_fig14.png')
+    plot(fit_csvs, args.plot_volunteer, png)
+    print('table2: wrote %s, %s, %s' % (os.path.join(args.out, 'table2.md'),
+                                        os.path.join(args.out, 'table2.csv'), png))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main(sys.argv[1:]))
