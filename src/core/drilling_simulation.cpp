@@ -604,6 +604,8 @@ double DrillingSimulation::spindleRpm() const { return impl_->spindle_rpm; }
 const DrillingProcess& DrillingSimulation::process() const { return *impl_->process; }
 const VirtualPatient& DrillingSimulation::patient() const { return impl_->patient; }
 const VentilatorSample& DrillingSimulation::ventilatorSample() const { return impl_->vent_now; }
+
+const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
 bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
 std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
 const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }

@@ -17,6 +17,7 @@
  * tracker frame (it includes the marker's rest position); the slopes do not depend on it.
  */
 #include <geometry_msgs/PoseStamped.h>
+#include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
@@ -84,6 +85,10 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     try {
       const ParamLoader params(pnh);
       tracker_frame_ = params.getString("tracker_frame", "tracker_camera");
+      // Optional frame whose axes are the patient's (e.g. `world` on the simulator, a registered
+      // patient frame on hardware): marker positions are expressed in it before the axis
+      // mapping, so an oblique camera does not mix AP, SI and LR.
+      patient_frame_ = params.getString("patient_frame", "", true);
       marker_frame_ = params.getString("marker_frame", "tracker_marker");
       marker_rate_hz = params.getDouble("marker_rate_hz", 8.0, 0.0, 1000.0, true);
       tf_delay_s_ = params.getDouble("tf_delay_s", 0.25, 0.0, 10.0);
@@ -148,12 +153,14 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     model_pub_ = nh.advertise<MotionModel>("motion_model", 1, true);
     tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume,
                            this);
+    if (!use_pose_topic_ || !patient_frame_.empty()) {
+      tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(std::max(60.0, 2 * window_s_)));
+      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh, true);
+    }
     if (use_pose_topic_) {
       pose_sub_ = nh.subscribe("tracker/marker_pose", 1000,
                                &MotionIdentificationNodelet::onMarkerPose, this);
     } else {
-      tf_buffer_ = std::make_unique<tf2_ros::Buffer>(ros::Duration(std::max(60.0, 2 * window_s_)));
-      tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh, true);
       timer_ = nh.createTimer(ros::Duration(1.0 / marker_rate_hz),
                               &MotionIdentificationNodelet::onTimer, this);
     }
@@ -205,7 +212,19 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(5.0, "MotionIdentification: %s", last_marker_error_.c_str());
       return;
     }
-    const geometry_msgs::Point& p = msg->pose.position;
+    geometry_msgs::Point p = msg->pose.position;
+    if (!patient_frame_.empty()) {
+      try {  // the camera is fixed: its latest transform applies
+        const geometry_msgs::TransformStamped tf =
+            tf_buffer_->lookupTransform(patient_frame_, tracker_frame_, ros::Time(0));
+        tf2::doTransform(msg->pose.position, p, tf);
+      } catch (const tf2::TransformException& e) {
+        ++rejected_frame_;
+        last_marker_error_ = e.what();
+        NODELET_WARN_THROTTLE(5.0, "MotionIdentification: %s", e.what());
+        return;
+      }
+    }
     addMarker(msg->header.stamp.toSec(), p.x, p.y, p.z);
   }
 
@@ -217,7 +236,8 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     const ros::Time when(when_s);
     geometry_msgs::TransformStamped tf;
     try {
-      tf = tf_buffer_->lookupTransform(tracker_frame_, marker_frame_, when);
+      tf = tf_buffer_->lookupTransform(patient_frame_.empty() ? tracker_frame_ : patient_frame_,
+                                       marker_frame_, when);
     } catch (const tf2::TransformException& e) {
       std::lock_guard<std::mutex> lock(mutex_);
       last_marker_error_ = e.what();
@@ -320,7 +340,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     }
     MotionModel msg;
     msg.header.stamp = ros::Time::now();
-    msg.header.frame_id = tracker_frame_;
+    msg.header.frame_id = patient_frame_.empty() ? tracker_frame_ : patient_frame_;
     msg.patient_id = patient_id_;
     msg.method = core::methodName(options.method);
     msg.yaml_path = path;
@@ -361,6 +381,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
   std::mutex mutex_;
   StartupStatus startup_status_;
   std::string tracker_frame_;
+  std::string patient_frame_;
   std::string marker_frame_;
   double tf_delay_s_ = 0.25;
   bool use_pose_topic_ = false;

@@ -36,6 +36,8 @@
 
 #include "pedicle_drilling/GroundTruth.h"
 #include "pedicle_drilling/ResetSimulation.h"
+#include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
@@ -94,6 +96,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
           1000.0, params.getDouble("ground_truth_rate_hz", 100.0, 0.0, 1000.0, true));
       tracker_period_ =
           periodSteps(1000.0, params.getDouble("tracker_rate_hz", 8.0, 0.0, 1000.0, true));
+      // The simulated ventilator is the device that drives the patient: it publishes what the
+      // Ventilator nodelet publishes on hardware-free setups (0 disables it).
+      const double tv_rate = params.getDouble("tidal_volume_rate_hz", 64.0, 0.0, 1000.0);
+      tidal_volume_period_ = tv_rate > 0.0 ? periodSteps(1000.0, tv_rate) : 0;
 
       std::ifstream in(urdf_path);
       if (!in) {
@@ -123,6 +129,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
     wrench_pub_ = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 2000);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
     ground_truth_pub_ = nh.advertise<GroundTruth>("simulator/ground_truth", 200);
+    if (tidal_volume_period_ > 0) {
+      tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 200);
+      ventilator_settings_pub_ = nh.advertise<VentilatorSettings>("ventilator/settings", 1, true);
+      ventilator_settings_pub_.publish(toMsg(sim_->ventilator().model().settings()));
+    }
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     static_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
     trajectory_sub_ = nh.subscribe("arm_controller/command", 10,
@@ -174,6 +185,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         if (n % tf_period_ == 0) publishTf(t);
         if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);
         if (n % tracker_period_ == 0) publishMarker(t);
+        if (tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0) publishTidalVolume(t);
       }
       if (publish_clock_ && n % clock_period_steps_ == 0) {
         rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
@@ -204,6 +216,26 @@ class SimulatorNodelet : public nodelet::Nodelet {
     w->wrench.torque.y = step.measured_wrench[4];
     w->wrench.torque.z = step.measured_wrench[5];
     wrench_pub_.publish(w);
+  }
+
+  void publishTidalVolume(double t) {
+    const core::BreathScheduler& ventilator = sim_->ventilator();
+    TidalVolumePtr m = boost::make_shared<TidalVolume>();
+    m->header.stamp = stampOf(t);
+    m->header.frame_id = "ventilator";
+    m->volume_ml = sim_->ventilatorSample().volume_ml;
+    m->flow_ml_s = sim_->ventilatorSample().flow_ml_s;
+    m->breath_index = static_cast<uint32_t>(ventilator.breathIndex());
+    m->time_in_breath_s = std::max(0.0, sim_->ventilatorSample().t - ventilator.breathStart());
+    tidal_volume_pub_.publish(m);
+    if (ventilator.breathIndex() != last_breath_index_) {
+      last_breath_index_ = ventilator.breathIndex();
+      const VentilatorSettings settings = toMsg(ventilator.model().settings());
+      if (settings != last_settings_msg_) {
+        ventilator_settings_pub_.publish(settings);
+        last_settings_msg_ = settings;
+      }
+    }
   }
 
   void publishJointStates(double t) {
@@ -347,6 +379,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
   int tf_period_ = 10;
   int ground_truth_period_ = 10;
   int tracker_period_ = 125;
+  int tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
+  long last_breath_index_ = -1;
+  VentilatorSettings last_settings_msg_;
+  ros::Publisher tidal_volume_pub_;
+  ros::Publisher ventilator_settings_pub_;
   ros::Publisher clock_pub_;
   ros::Publisher joint_state_pub_;
   ros::Publisher wrench_pub_;

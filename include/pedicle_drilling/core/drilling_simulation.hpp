@@ -223,6 +223,8 @@ class DrillingSimulation {
   const VirtualPatient& patient() const;
   /** @brief Internal ventilator sample of the last step (unlagged). */
   const VentilatorSample& ventilatorSample() const;
+  /** @brief The internal ventilator (breath index and start, current settings). */
+  const BreathScheduler& ventilator() const;
   /** @brief Whether the bone follows the patient. */
   bool movingBone() const;
   /** @brief Seed of the current trial. */

@@ -1,0 +1,256 @@
+// Tests of the Algorithm 1 compensation planner (core, no ROS).
+#include "pedicle_drilling/core/compensation_planner.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace pd = pedicle_drilling::core;
+
+namespace {
+
+pd::MotionModel apModel() {
+  pd::MotionModel m;
+  m.axis(pd::Axis::kAP).q1 = 0.01;   // 5 mm over 500 ml
+  m.axis(pd::Axis::kAP).q0 = 0.4;
+  m.axis(pd::Axis::kSI).q1 = 0.004;  // 2 mm
+  m.axis(pd::Axis::kLR).q1 = 0.002;  // 1 mm
+  return m;
+}
+
+pd::CompensationPlanner readyPlanner(const pd::CompensationParams& p, double breath_start = 0.3) {
+  pd::CompensationPlanner planner(p, apModel());
+  planner.predictor().setVentilator(pd::VentilatorSettings());
+  planner.predictor().setBreathStart(breath_start);
+  return planner;
+}
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
+TEST(CompensationPlanner, ModeNamesRoundTrip) {
+  for (auto m : {pd::CompensationMode::kStationary, pd::CompensationMode::kUncompensated,
+                 pd::CompensationMode::kCompensated}) {
+    pd::CompensationMode parsed;
+    ASSERT_TRUE(pd::parseCompensationMode(pd::toString(m), &parsed));
+    EXPECT_EQ(parsed, m);
+  }
+  pd::CompensationMode parsed;
+  EXPECT_FALSE(pd::parseCompensationMode("on", &parsed));
+}
+
+TEST(CompensationPlanner, InvalidParametersNameTheField) {
+  auto expectField = [](pd::CompensationParams p, const std::string& field) {
+    try {
+      p.validate();
+      FAIL() << "accepted bad " << field;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(field, 0), 0u) << e.what();
+    }
+  };
+  pd::CompensationParams p;
+  p.latency_s = -0.1;
+  expectField(p, "latency_s");
+  p = pd::CompensationParams();
+  p.feed_rate_m_s = std::nan("");
+  expectField(p, "feed_rate_m_s");
+  p = pd::CompensationParams();
+  p.drill_axis = Eigen::Vector3d(0, 0, 2);
+  expectField(p, "drill_axis");
+  p = pd::CompensationParams();
+  p.points_per_segment = 0;
+  expectField(p, "points_per_segment");
+}
+
+TEST(CompensationPlanner, PredictionFollowsVentilatorPhaseAndModel) {
+  pd::CompensationParams p;
+  const double start = 0.3;
+  pd::CompensationPlanner planner = readyPlanner(p, start);
+  const pd::VentilatorModel vent{pd::VentilatorSettings()};
+  for (double tau : {0.0, 0.8, 1.6, 2.5, 4.9}) {
+    for (int cycle : {-2, 0, 3}) {
+      const double t = start + cycle * vent.period() + tau;
+      const Eigen::Vector3d d = planner.predictor().displacement(t);
+      const double tv = vent.volumeInCycle(tau);
+      // AP only (default): world +z, mm -> m; SI/LR not predicted.
+      EXPECT_NEAR(d.z(), 1e-3 * (0.01 * tv + 0.4), 1e-12) << "t " << t;
+      EXPECT_NEAR(d.x(), 0.0, 1e-15);
+      EXPECT_NEAR(d.y(), 0.0, 1e-15);
+    }
+  }
+  p.predict_axis = {{true, true, true}};
+  pd::CompensationPlanner all = readyPlanner(p, start);
+  const double t = start + 1.0;
+  const double tv = vent.volumeInCycle(1.0);
+  EXPECT_NEAR(all.predictor().displacement(t).y(), 1e-3 * 0.004 * tv, 1e-12);
+  EXPECT_NEAR(all.predictor().displacement(t).x(), 1e-3 * 0.002 * tv, 1e-12);
+}
+
+TEST(CompensationPlanner, ModesNeedThePredictionExceptStationary) {
+  pd::CompensationPlanner planner(pd::CompensationParams(), apModel());
+  EXPECT_THROW(planner.start(pd::CompensationMode::kCompensated, 1.0), std::logic_error);
+  EXPECT_THROW(planner.start(pd::CompensationMode::kUncompensated, 1.0), std::logic_error);
+  EXPECT_NO_THROW(planner.start(pd::CompensationMode::kStationary, 1.0));
+  EXPECT_EQ(planner.boneDisplacementSinceStart(3.0), Eigen::Vector3d::Zero());
+  EXPECT_NEAR(planner.referenceFeed(3.0), 0.5e-3 * 2.0, 1e-15);
+}
+
+TEST(CompensationPlanner, CompensatedFeedIncludesPredictedDisplacementUncompensatedDoesNot) {
+  pd::CompensationParams p;
+  const double t_reg = 2.0;
+  pd::CompensationPlanner comp = readyPlanner(p);
+  pd::CompensationPlanner unc = readyPlanner(p);
+  comp.start(pd::CompensationMode::kCompensated, t_reg);
+  unc.start(pd::CompensationMode::kUncompensated, t_reg);
+  double max_comp = 0.0;
+  for (double t = t_reg; t < t_reg + 10.0; t += 0.01) {
+    const double feed = p.feed_rate_m_s * (t - t_reg);
+    const Eigen::Vector3d bone = comp.boneDisplacementSinceStart(t);
+    // Bone moves +z (towards the drill), the drill axis is -z: the feed must retract.
+    EXPECT_NEAR(comp.referenceFeed(t), feed + bone.dot(Eigen::Vector3d(0, 0, -1)), 1e-12);
+    EXPECT_NEAR(unc.referenceFeed(t), feed, 1e-15);
+    // The monitor's prediction does not depend on the mode (the bone moves in both).
+    EXPECT_NEAR((unc.boneDisplacementSinceStart(t) - bone).norm(), 0.0, 1e-15);
+    max_comp = std::max(max_comp, std::abs(comp.referenceFeed(t) - feed));
+  }
+  EXPECT_GT(max_comp, 4e-3);  // the compensation spans the breathing amplitude (5 mm)
+}
+
+TEST(CompensationPlanner, SegmentsAreContinuousTrapezoidsOfThePeriod) {
+  pd::CompensationParams p;
+  pd::CompensationPlanner planner = readyPlanner(p);
+  planner.start(pd::CompensationMode::kCompensated, 1.0);
+  for (int k = 0; k < 80; ++k) {
+    const pd::PlannedSegment s = planner.segment(k);
+    const pd::PlannedSegment next = planner.segment(k + 1);
+    EXPECT_NEAR(s.t1 - s.t0, 0.125, 1e-12);
+    EXPECT_NEAR(s.t1, next.t0, 1e-12);
+    EXPECT_NEAR(s.feed_end_m, next.feed_start_m, 1e-15);
+    EXPECT_NEAR(s.feed_start_m, planner.referenceFeed(s.t0), 1e-15);
+    ASSERT_EQ(s.points.size(), 5u);
+    EXPECT_NEAR(s.points.back().t, s.t1, 1e-12);
+    EXPECT_NEAR(s.points.back().feed_m, s.feed_end_m, 1e-15);
+    EXPECT_EQ(s.points.back().feed_velocity_m_s, 0.0);
+    // Points lie between the segment ends (monotonic trapezoid).
+    const double lo = std::min(s.feed_start_m, s.feed_end_m) - 1e-15;
+    const double hi = std::max(s.feed_start_m, s.feed_end_m) + 1e-15;
+    double prev = s.feed_start_m;
+    for (const auto& pt : s.points) {
+      EXPECT_GE(pt.feed_m, lo);
+      EXPECT_LE(pt.feed_m, hi);
+      EXPECT_GE((pt.feed_m - prev) * (s.feed_end_m - s.feed_start_m), -1e-18);
+      prev = pt.feed_m;
+      EXPECT_NEAR(pt.lateral_m.norm(), 0.0, 1e-15);  // AP only, along the axis
+    }
+  }
+}
+
+TEST(CompensationPlanner, LateralPartOnlyWhenRequested) {
+  pd::CompensationParams p;
+  p.predict_axis = {{true, true, true}};
+  pd::CompensationPlanner off = readyPlanner(p);
+  p.compensate_lateral = true;
+  pd::CompensationPlanner on = readyPlanner(p);
+  off.start(pd::CompensationMode::kCompensated, 1.0);
+  on.start(pd::CompensationMode::kCompensated, 1.0);
+  const double t = 2.5;
+  const Eigen::Vector3d y = on.boneDisplacementSinceStart(t);
+  ASSERT_GT(std::hypot(y.x(), y.y()), 1e-4);
+  const Eigen::Vector3d r_on = on.reference(t);
+  const Eigen::Vector3d r_off = off.reference(t);
+  EXPECT_NEAR(r_on.x(), y.x(), 1e-12);
+  EXPECT_NEAR(r_on.y(), y.y(), 1e-12);
+  EXPECT_NEAR(r_off.x(), 0.0, 1e-15);
+  EXPECT_NEAR(r_off.y(), 0.0, 1e-15);
+  EXPECT_NEAR(r_on.z(), r_off.z(), 1e-15);
+}
+
+// Latency study: a controller that executes the segmented command with a pure delay L. The
+// tracking error is the tip's compensation (execution minus the delayed feed) minus the bone
+// displacement along the drill axis, with a perfect patient model. Prints the table used in the
+// README and checks that commanding the prediction for now + L removes most of the lag error.
+TEST(CompensationPlanner, LatencyParameterCancelsControllerDelay) {
+  auto trackingError = [](double controller_delay, double latency, double* max_err) {
+    pd::CompensationParams p;
+    p.latency_s = latency;
+    pd::CompensationPlanner planner = readyPlanner(p);
+    const double t_reg = 1.0;
+    planner.start(pd::CompensationMode::kCompensated, t_reg);
+    double sum = 0.0;
+    int n = 0;
+    *max_err = 0.0;
+    for (double t = t_reg + 1.0; t < t_reg + 31.0; t += 0.002) {
+      const double executed = planner.segmentedReference(t - controller_delay).dot(planner.axis());
+      const double feed = p.feed_rate_m_s * (t - controller_delay - t_reg);
+      const double bone = planner.boneDisplacementSinceStart(t).dot(planner.axis());
+      const double e = (executed - feed) - bone;
+      sum += e * e;
+      ++n;
+      *max_err = std::max(*max_err, std::abs(e));
+    }
+    return std::sqrt(sum / n);
+  };
+  std::printf("controller delay [ms] | latency_s [ms] | RMS [mm] | max [mm]\n");
+  for (double delay : {0.0, 0.05, 0.1, 0.2}) {
+    double max0 = 0.0;
+    double max_l = 0.0;
+    const double rms0 = trackingError(delay, 0.0, &max0);
+    const double rms_l = trackingError(delay, delay, &max_l);
+    std::printf("%5.0f | %5.0f | %.4f | %.4f\n", delay * 1e3, 0.0, rms0 * 1e3, max0 * 1e3);
+    if (delay > 0.0) {
+      std::printf("%5.0f | %5.0f | %.4f | %.4f\n", delay * 1e3, delay * 1e3, rms_l * 1e3,
+                  max_l * 1e3);
+      EXPECT_LT(rms_l, 0.5 * rms0) << "delay " << delay;
+    }
+  }
+  double max_a = 0.0;
+  double max_b = 0.0;
+  // Without delay, the only error is the segmentation (chord + trapezoid lag), well inside H1.
+  EXPECT_LT(trackingError(0.0, 0.0, &max_a), trackingError(0.1, 0.0, &max_b));
+  EXPECT_LT(max_a, 1.2e-3);
+}
+
+TEST(ArmCompensation, BacksOffAlongTheDrillAxisAndMovesLaterally) {
+  const std::string urdf = readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) +
+                                    "/urdf/workcell.urdf");
+  const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(urdf, "world", "device_base");
+  ASSERT_EQ(arm.numJoints(), 6u);
+  Eigen::VectorXd q(6);
+  q << 0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0;  // config/drilling_pose.yaml
+  const pd::ArmCompensation comp(arm, q, 0.01);
+  EXPECT_NEAR((comp.drillAxis() - Eigen::Vector3d(0, 0, -1)).norm(), 0.0, 1e-4);
+  const Eigen::Isometry3d drilling = arm.forward(q);
+  const Eigen::Isometry3d home = arm.forward(comp.homeJoints());
+  EXPECT_NEAR((home.translation() - (drilling.translation() - 0.01 * comp.drillAxis())).norm(),
+              0.0, 1e-6);
+  EXPECT_NEAR(Eigen::AngleAxisd(home.linear().transpose() * drilling.linear()).angle(), 0.0,
+              1e-6);
+  const Eigen::Vector3d lateral(0.001, -0.002, 0.0);
+  const Eigen::VectorXd ql = comp.lateral(lateral, comp.homeJoints());
+  EXPECT_NEAR((arm.forward(ql).translation() - home.translation() - lateral).norm(), 0.0, 1e-6);
+}
+
+TEST(CompensationPlanner, HeldFeedStopsProgressButKeepsFollowingTheBone) {
+  pd::CompensationParams p;
+  pd::CompensationPlanner planner = readyPlanner(p);
+  planner.start(pd::CompensationMode::kCompensated, 1.0);
+  planner.holdFeed(4.0);
+  for (double t = 4.0; t < 12.0; t += 0.05) {
+    const double bone = planner.boneDisplacementSinceStart(t).dot(planner.axis());
+    EXPECT_NEAR(planner.referenceFeed(t), p.feed_rate_m_s * 3.0 + bone, 1e-12) << t;
+  }
+  pd::CompensationPlanner stationary(p, apModel());
+  stationary.start(pd::CompensationMode::kStationary, 1.0);
+  stationary.holdFeed(2.0);
+  EXPECT_NEAR(stationary.referenceFeed(9.0), p.feed_rate_m_s * 1.0, 1e-15);
+}

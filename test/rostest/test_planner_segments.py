@@ -1,0 +1,210 @@
+#!/usr/bin/python3
+"""Scenario check of the CompensationPlanner against the real Ventilator nodelet and a synthetic
+tracker: trial sequence, 125 ms trapezoidal segments, feed targets with (compensated) and without
+(uncompensated) the predicted AP displacement, the predicted marker pose, and the stops (hold, or
+retreat along the drill axis)."""
+import bisect
+import sys
+import threading
+import unittest
+
+import rospy
+import rostest
+import yaml
+from geometry_msgs.msg import PoseStamped
+from std_msgs.msg import Float64, String
+from trajectory_msgs.msg import JointTrajectory
+
+from pedicle_drilling.msg import StopCommand, TidalVolume
+from pedicle_drilling.srv import StartTrial
+
+FEED_HOME = 0.01       # config/compensation_planner.yaml feed_home_m
+FEED_RATE = 0.5e-3     # m/s
+PERIOD = 0.125
+
+
+class PlannerSegmentsTest(unittest.TestCase):
+    def setUp(self):
+        with open(rospy.get_param('~patient_model')) as handle:
+            self.q1_ap = yaml.safe_load(handle)['axes']['ap']['q1'] * 1e-3  # m/ml
+        self.lock = threading.Lock()
+        self.trajectories = []
+        self.status = []
+        self.spindle = []
+        self.predicted = []
+        self.tv_t = []
+        self.tv = []
+        self.marker_stamps = []
+        rospy.Subscriber('/arm_controller/command', JointTrajectory, self.keep(self.trajectories),
+                         queue_size=100)
+        rospy.Subscriber('/compensation/status', String, self.keep(self.status), queue_size=100)
+        rospy.Subscriber('/spindle/command', Float64, self.keep(self.spindle), queue_size=10)
+        rospy.Subscriber('/compensation/predicted_marker_pose', PoseStamped,
+                         self.keep(self.predicted), queue_size=100)
+        rospy.Subscriber('/tidal_volume', TidalVolume, self.on_tv, queue_size=1000)
+        self.marker_pub = rospy.Publisher('/tracker/marker_pose', PoseStamped, queue_size=10)
+        self.stop_pub = rospy.Publisher('/drill/stop', StopCommand, queue_size=10)
+        rospy.Timer(rospy.Duration(0.125), self.publish_marker)
+        rospy.wait_for_service('/compensation_planner/start_trial', 30.0)
+        self.start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
+
+    def keep(self, store):
+        def callback(msg):
+            with self.lock:
+                store.append(msg)
+        return callback
+
+    def on_tv(self, msg):
+        with self.lock:
+            self.tv_t.append(msg.header.stamp.to_sec())
+            self.tv.append(msg.volume_ml)
+
+    def tv_at(self, t):
+        with self.lock:
+            i = bisect.bisect_left(self.tv_t, t)
+            self.assertTrue(0 < i < len(self.tv_t), 'no tidal volume around %.3f' % t)
+            t0, t1 = self.tv_t[i - 1], self.tv_t[i]
+            v0, v1 = self.tv[i - 1], self.tv[i]
+        return v0 + (v1 - v0) * (t - t0) / (t1 - t0)
+
+    def publish_marker(self, event):
+        msg = PoseStamped()
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = 'world'
+        msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = 0.6, 0.0, 0.27
+        msg.pose.orientation.w = 1.0
+        self.marker_pub.publish(msg)
+        with self.lock:
+            self.marker_stamps.append(msg.header.stamp.to_sec())
+
+    def wait_status(self, wanted, timeout):
+        deadline = rospy.Time.now() + rospy.Duration(timeout)
+        while rospy.Time.now() < deadline:
+            with self.lock:
+                if self.status and self.status[-1].data == wanted:
+                    return
+            rospy.sleep(0.02)
+        with self.lock:
+            self.fail('status %r not reached; seen %r' % (wanted, [s.data for s in self.status]))
+
+    def run_trial(self, mode, drill_s, max_duration=0.0):
+        with self.lock:
+            first = len(self.trajectories)
+            first_status = len(self.status)
+        res = self.start(mode=mode, spindle_rpm=0.0, feed_rate_mm_s=0.0,
+                         max_duration_s=max_duration)
+        self.assertTrue(res.success, res.message)
+        self.wait_status('drilling', 10.0)
+        rospy.sleep(drill_s)
+        with self.lock:
+            trajs = self.trajectories[first:]
+            statuses = [s.data for s in self.status[first_status:]]
+        self.assertIn('moving_to_pose', statuses)
+        statuses = statuses[statuses.index('moving_to_pose'):]
+        self.assertEqual(statuses[:3], ['moving_to_pose', 'registering', 'drilling'])
+        move, segments = trajs[0], trajs[1:]
+        self.assertEqual(move.joint_names[-1], 'feed_joint')
+        self.assertEqual(len(move.joint_names), 7)
+        self.assertAlmostEqual(move.points[-1].positions[-1], FEED_HOME, places=9)
+        self.assertAlmostEqual(move.points[-1].time_from_start.to_sec(), 2.0, places=6)
+        self.assertGreater(len(segments), 10)
+        return segments
+
+    def check_segments(self, segments, compensated):
+        t_reg = segments[0].header.stamp.to_sec()
+        feed_index = segments[0].joint_names.index('feed_joint')
+        tv_reg = self.tv_at(t_reg)
+        max_comp = 0.0
+        checked = 0
+        for k, seg in enumerate(segments):
+            # Segments of 125 ms on a regular grid, 5 points, ending at rest.
+            self.assertAlmostEqual(seg.header.stamp.to_sec() - t_reg, k * PERIOD, delta=1e-6)
+            self.assertEqual(len(seg.points), 5)
+            self.assertAlmostEqual(seg.points[-1].time_from_start.to_sec(), PERIOD, delta=1e-6)
+            self.assertEqual(seg.points[-1].velocities[feed_index], 0.0)
+            t1 = seg.header.stamp.to_sec() + PERIOD
+            feed = seg.points[-1].positions[feed_index]
+            expected = FEED_HOME + FEED_RATE * (t1 - t_reg)
+            with self.lock:
+                known = bool(self.tv_t) and t1 < self.tv_t[-1]
+            if known:
+                if compensated:
+                    # Bone moves +z (AP, towards the drill), the drill axis is -z: the feed
+                    # retracts by the predicted displacement since the start.
+                    expected -= self.q1_ap * (self.tv_at(t1) - tv_reg)
+                self.assertAlmostEqual(feed, expected, delta=3e-5,
+                                       msg='segment %d (%s)' % (k, compensated))
+                checked += 1
+            max_comp = max(max_comp, abs(feed - FEED_HOME - FEED_RATE * (t1 - t_reg)))
+        self.assertGreater(checked, 10)
+        return max_comp
+
+    def test_compensated_then_uncompensated_then_stops(self):
+        # Compensated: the feed follows the predicted displacement (about 5 mm peak to peak).
+        segments = self.run_trial('compensated', 5.0, max_duration=6.0)
+        max_comp = self.check_segments(segments, compensated=True)
+        self.assertGreater(max_comp, 2e-3)
+        # The predicted marker pose follows the same prediction at the tracker's stamps.
+        with self.lock:
+            predicted = list(self.predicted)
+        self.assertGreater(len(predicted), 20)
+        a, b = predicted[2], predicted[-2]
+        dz = b.pose.position.z - a.pose.position.z
+        dz_expected = self.q1_ap * (self.tv_at(b.header.stamp.to_sec()) -
+                                    self.tv_at(a.header.stamp.to_sec()))
+        self.assertAlmostEqual(dz, dz_expected, delta=2e-5)
+        # Absolute check: the registration averaged the 4 marker samples before the first
+        # prediction (each moved back by the predicted motion); the synthetic marker does not
+        # move, so pred_z(t) = z_marker + q1 (Tv(t) - mean Tv(t_i)).
+        first = predicted[0].header.stamp.to_sec()
+        with self.lock:
+            before = [t for t in self.marker_stamps if t < first - 1e-6][-4:]
+        tv_reg = sum(self.tv_at(t) for t in before) / 4.0
+        for p in predicted[:10]:
+            expected = 0.27 + self.q1_ap * (self.tv_at(p.header.stamp.to_sec()) - tv_reg)
+            self.assertAlmostEqual(p.pose.position.z, expected, delta=3e-5)
+        self.assertGreater(max(p.pose.position.z for p in predicted) -
+                           min(p.pose.position.z for p in predicted), 2e-3)
+        # max_duration_s ends it: retract, then done; the spindle is switched off.
+        self.wait_status('done', 15.0)
+        with self.lock:
+            self.assertEqual(self.spindle[-1].data, 0.0)
+            self.assertIn(12000.0, [s.data for s in self.spindle])
+
+        # Uncompensated: feed only.
+        segments = self.run_trial('uncompensated', 3.0)
+        max_comp = self.check_segments(segments, compensated=False)
+        self.assertLess(max_comp, 1e-6)
+        # Safety stop: retreat along the drill axis (feed joint back by up to 25 mm, > 0).
+        with self.lock:
+            first = len(self.trajectories)
+        self.stop_pub.publish(StopCommand(source='test', reason='test retreat', retreat=True))
+        self.wait_status('retreating', 2.0)
+        self.wait_status('done', 15.0)
+        with self.lock:
+            after = self.trajectories[first:]
+            self.assertEqual(self.spindle[-1].data, 0.0)
+        feeds = [p.positions[-1] for t in after for p in t.points]
+        self.assertLess(feeds[-1], 1e-6)  # fully retracted (retreat clamped at the feed's end)
+        self.assertGreaterEqual(min(feeds), 0.0)
+        self.assertTrue(all(b <= a + 1e-9 for a, b in zip(feeds, feeds[1:])))
+
+        # Stationary trial, recognizer-type stop (no retreat): hold, then retract after the hold.
+        segments = self.run_trial('stationary', 2.0)
+        with self.lock:
+            first = len(self.trajectories)
+        self.stop_pub.publish(StopCommand(source='test', reason='key point 4', retreat=False))
+        self.wait_status('stopped', 2.0)
+        rospy.sleep(0.8)
+        with self.lock:
+            held = self.trajectories[first:]
+        feeds = [p.positions[-1] for t in held for p in t.points]
+        self.assertGreater(len(feeds), 4)
+        self.assertLess(max(feeds) - min(feeds), 1e-4)  # no more feed progress than 0.1 mm
+        self.wait_status('retreating', 3.0)
+        self.wait_status('done', 15.0)
+
+
+if __name__ == '__main__':
+    rospy.init_node('test_planner_segments')
+    rostest.rosrun('pedicle_drilling', 'planner_segments', PlannerSegmentsTest, sys.argv)

@@ -1,0 +1,169 @@
+#!/usr/bin/python3
+"""Scenario check for one SafetyMonitor trigger (private param ~trigger): nominal force, tracker
+and prediction streams first (no stop, OK diagnostics), then the trigger; the monitor must send
+exactly one StopCommand with retreat = true and the trigger's reason, report it as an ERROR on
+/diagnostics, and clear it on ~reset."""
+import math
+import random
+import sys
+import threading
+import unittest
+
+import rospy
+import rostest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from std_srvs.srv import Trigger
+
+from pedicle_drilling.msg import StopCommand
+
+# trigger -> reason name reported by the monitor
+REASONS = {
+    'force': 'force_exceeded',
+    'position': 'position_error',
+    'force_timeout': 'force_timeout',
+    'tracker_timeout': 'tracker_timeout',
+    'nan_force': 'nan_input',
+    'nan_tracker': 'nan_input',
+}
+MARKER = (0.60, 0.02, 0.30)
+
+
+class SafetyTriggerTest(unittest.TestCase):
+    def setUp(self):
+        self.lock = threading.Lock()
+        self.stops = []
+        self.diagnostics = []
+        self.triggered = False
+        self.force_n = 2.0
+        self.force_on = True
+        self.tracker_on = True
+        self.tracker_offset = 0.0
+        self.nan_force = False
+        self.nan_tracker = False
+        self.rng = random.Random(3)
+        rospy.Subscriber('/drill/stop', StopCommand, self.on_stop, queue_size=10)
+        rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=100)
+        self.wrench_pub = rospy.Publisher('/ft_sensor/wrench', WrenchStamped, queue_size=100)
+        self.tracker_pub = rospy.Publisher('/tracker/marker_pose', PoseStamped, queue_size=10)
+        self.pred_pub = rospy.Publisher('/compensation/predicted_marker_pose', PoseStamped,
+                                        queue_size=10)
+
+    def on_stop(self, msg):
+        with self.lock:
+            self.stops.append(msg)
+
+    def on_diag(self, msg):
+        with self.lock:
+            self.diagnostics.extend(s for s in msg.status if 'safety_monitor' in s.name)
+
+    def publish_force(self, event):
+        if not self.force_on:
+            return
+        msg = WrenchStamped()
+        msg.header.stamp = rospy.Time.now()
+        msg.header.frame_id = 'ft_sensor'
+        msg.wrench.force.z = self.force_n + self.rng.gauss(0.0, 0.03)
+        msg.wrench.force.x = float('nan') if self.nan_force else 0.1
+        self.wrench_pub.publish(msg)
+        self.last_force = msg.header.stamp
+
+    def publish_tracker(self, event):
+        if not self.tracker_on:
+            return
+        stamp = rospy.Time.now()
+        # A breathing marker (AP = z, 2.5 mm amplitude) and a prediction of the same motion.
+        z = 0.0025 * math.sin(2 * math.pi * stamp.to_sec() / 5.0)
+        pred = PoseStamped()
+        pred.header.stamp = stamp
+        pred.header.frame_id = 'tracker_camera'
+        pred.pose.position.x, pred.pose.position.y = MARKER[0], MARKER[1]
+        pred.pose.position.z = MARKER[2] + z
+        pred.pose.orientation.w = 1.0
+        tracked = PoseStamped()
+        tracked.header = pred.header
+        tracked.pose.orientation.w = 1.0
+        tracked.pose.position.x = MARKER[0] + self.rng.gauss(0.0, 0.0002)
+        tracked.pose.position.y = MARKER[1] + self.rng.gauss(0.0, 0.0002)
+        tracked.pose.position.z = MARKER[2] + z + self.tracker_offset + self.rng.gauss(0.0, 0.0002)
+        if self.nan_tracker:
+            tracked.pose.position.y = float('nan')
+        self.tracker_pub.publish(tracked)
+        self.last_tracker = stamp
+        self.pred_pub.publish(pred)
+
+    def test_trigger_stops_and_retreats_with_reason(self):
+        trigger = rospy.get_param('~trigger')
+        reason = REASONS[trigger]
+        deadline = rospy.Time.now() + rospy.Duration(20.0)
+        while rospy.Time.now() < deadline and (
+                self.wrench_pub.get_num_connections() == 0 or
+                self.tracker_pub.get_num_connections() == 0 or
+                self.pred_pub.get_num_connections() == 0):
+            rospy.sleep(0.1)
+        rospy.Timer(rospy.Duration(0.002), self.publish_force)
+        rospy.Timer(rospy.Duration(0.125), self.publish_tracker)
+        # Nominal phase: breathing motion predicted well, 2 N thrust: no stop, OK diagnostics.
+        rospy.sleep(3.0)
+        with self.lock:
+            self.assertEqual(self.stops, [], 'stop during the nominal phase: %r' %
+                             [s.reason for s in self.stops])
+            self.assertTrue(any(d.level == DiagnosticStatus.OK for d in self.diagnostics),
+                            'no OK diagnostic while fine')
+        # Trigger.
+        t_trigger = rospy.Time.now()
+        if trigger == 'force':
+            self.force_n = 12.0
+        elif trigger == 'position':
+            self.tracker_offset = 0.002
+        elif trigger == 'force_timeout':
+            self.force_on = False
+        elif trigger == 'tracker_timeout':
+            self.tracker_on = False
+        elif trigger == 'nan_force':
+            self.nan_force = True
+        elif trigger == 'nan_tracker':
+            self.nan_tracker = True
+        deadline = t_trigger + rospy.Duration(3.0)
+        while rospy.Time.now() < deadline:
+            with self.lock:
+                if self.stops:
+                    break
+            rospy.sleep(0.01)
+        with self.lock:
+            self.assertTrue(self.stops, 'no stop after the %s trigger' % trigger)
+            t_stop = rospy.Time.now()
+        rospy.sleep(1.0)  # the stop is latched: no second command
+        with self.lock:
+            stops = list(self.stops)
+            errors = [d for d in self.diagnostics if d.level == DiagnosticStatus.ERROR]
+        self.assertEqual(len(stops), 1, [s.reason for s in stops])
+        self.assertTrue(stops[0].retreat)
+        self.assertTrue(stops[0].reason.startswith(reason), stops[0].reason)
+        self.assertTrue(any(reason in d.message for d in errors),
+                        'no ERROR diagnostic naming %s: %r' % (reason, [d.message for d in errors]))
+        # A timeout must not fire before the stream has really been silent that long.
+        if trigger == 'force_timeout':
+            self.assertGreater((stops[0].header.stamp - self.last_force).to_sec(), 0.1)
+        if trigger == 'tracker_timeout':
+            self.assertGreater((stops[0].header.stamp - self.last_tracker).to_sec(), 0.5)
+        # Reset clears the latch and the diagnostics return to OK.
+        self.force_n = 2.0
+        self.force_on = self.tracker_on = True
+        self.tracker_offset = 0.0
+        self.nan_force = self.nan_tracker = False
+        rospy.wait_for_service('/safety_monitor/reset', 5.0)
+        self.assertTrue(rospy.ServiceProxy('/safety_monitor/reset', Trigger)().success)
+        with self.lock:
+            self.diagnostics = []
+            self.stops = []
+        rospy.sleep(2.5)
+        with self.lock:
+            self.assertEqual(self.stops, [])
+            self.assertTrue(self.diagnostics)
+            self.assertEqual(self.diagnostics[-1].level, DiagnosticStatus.OK)
+
+
+if __name__ == '__main__':
+    rospy.init_node('test_safety_trigger')
+    rostest.rosrun('pedicle_drilling', 'safety_trigger', SafetyTriggerTest, sys.argv)
