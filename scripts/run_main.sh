@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
-# The main job of `make run`. Until the experiment campaign exists, it reproduces the paper's
-# ventilator waveform (Sec. IV-A) and writes CSV and a plot to results/.
+# The main job of `make run`: the experiment campaign of the paper (Sec. V) on the simulator,
+#   1. the paper's design with the paper's linear model: 3 cases x 3 spindle speeds x 20 trials
+#   2. the compensated case again with the hysteresis-aware model (beyond the paper), 12000 rpm
+# Reports in results/campaign/report.md and results/campaign_hysteresis/report.md.
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/.." && pwd)"
@@ -10,9 +12,14 @@ set +u
 source "${ROOT}/catkin_ws/devel/setup.bash"
 set -u
 OUT="${PEDICLE_DRILLING_OUT:-${ROOT}/results}"
+JOBS="${JOBS:-2}"
 mkdir -p "${OUT}"
-rosrun pedicle_drilling tidal_volume --tv-max 500 --rate 12 --ie 1:2 --waveform square \
-  --fs 64 --duration 15 > "${OUT}/tidal_volume.csv"
-/usr/bin/python3 "${ROOT}/scripts/plot_tidal_volume.py" "${OUT}/tidal_volume.csv" \
-  "${OUT}/tidal_volume.png"
-echo "main job: wrote ${OUT}/tidal_volume.csv and ${OUT}/tidal_volume.png"
+start=$(date +%s)
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/campaign"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_hysteresis.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/campaign_hysteresis"
+echo "main job: done in $(( $(date +%s) - start )) s"
+echo "  ${OUT}/campaign/report.md"
+echo "  ${OUT}/campaign_hysteresis/report.md"
+sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

@@ -27,6 +27,8 @@ SCENARIO_KEYS = {
     'feed_rate_mm_s': (float, 0.05, 5.0),
     'max_duration_s': (float, 5.0, 600.0),
     'identification_window_s': (float, 5.0, 300.0),
+    'identification': (str, None, None),
+    'model': (str, None, None),
     'simulator': (dict, None, None),
 }
 
@@ -62,6 +64,15 @@ def load_scenario(path):
                 if not isinstance(rpm, (int, float)) or not low <= rpm <= high:
                     raise UsageError('--scenario %s: rpm %r out of range [%s, %s]'
                                      % (path, rpm, low, high))
+        if key == 'simulator' and value:
+            raise UsageError('--scenario %s: %r overrides are not supported by the simulator yet '
+                             '(its specimen and patient distributions are the documented '
+                             'defaults); leave it empty' % (path, key))
+        if key == 'identification' and value not in ('volunteers', 'online'):
+            raise UsageError('--scenario %s: identification %r is not volunteers or online'
+                             % (path, value))
+        if key == 'model' and value not in ('linear', 'hysteresis'):
+            raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
         if key == 'cases':
             for case in value:
                 if case not in CASES:
@@ -84,6 +95,9 @@ def parse_args(argv):
     parser.add_argument('--shard', default=None, help='K/N: run the K-th of N slices')
     parser.add_argument('--bags', action='store_true', help='keep a rosbag per trial')
     parser.add_argument('--base-port', type=int, default=11400)
+    parser.add_argument('--real-time-factor', type=float, default=5.0,
+                        help='sim seconds per wall second in each worker (the nodelets must '
+                        'keep up; see README)')
     args = parser.parse_args(argv)
     scenario = load_scenario(args.scenario)
     if args.case is None:
@@ -157,7 +171,8 @@ def write_outputs(rows, meta, out_dir, notes=''):
             ('Fig. 15', plots.fig15(summary, out_dir)),
             ('Fig. 16', plots.fig16(rows, out_dir)),
             ('Fig. 17', plots.fig17(rows, out_dir, os.path.join(out_dir, 'traces'))),
-            ('Fig. 18', plots.fig18(rows, out_dir))):
+            ('Fig. 18', plots.fig18(rows, out_dir)),
+            ('Table II', plots.table2(os.path.join(out_dir, 'table2.csv'), out_dir))):
         if name:
             figures.append((title, name))
     table2 = os.path.join(out_dir, 'table2.md')
@@ -185,6 +200,24 @@ def run_campaign(argv=None):
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
+    models_dir = ''
+    if scenario.get('identification', 'volunteers') == 'volunteers':
+        # Table II: identify the five virtual volunteers from their own 30 s recordings; the
+        # simulator's patients are these volunteers, and the trials use these models.
+        ident_dir = os.path.join(out_dir, 'identification')
+        sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
+        result = subprocess.run(['/usr/bin/python3', os.path.join(PACKAGE_ROOT, 'scripts',
+                                                                   'table2.py'),
+                                 '--out', ident_dir], capture_output=True, text=True)
+        if result.returncode != 0:
+            sys.stderr.write('campaign: Table II identification failed:\n%s\n'
+                             % (result.stderr or result.stdout))
+            return 1
+        for name in ('table2.md', 'table2.csv'):
+            with open(os.path.join(ident_dir, name)) as src, \
+                    open(os.path.join(out_dir, name), 'w') as dst:
+                dst.write(src.read())
+        models_dir = os.path.join(ident_dir, 'models')
     jobs = min(args.jobs, len(selected))
     slices = [selected[i::jobs] for i in range(jobs)]
     sys.stderr.write('campaign: %d trials (%s), %d worker(s), output %s\n'
@@ -205,11 +238,12 @@ def run_campaign(argv=None):
                    '--max-duration', str(scenario.get('max_duration_s', 60.0)),
                    '--identification-window-s',
                    str(scenario.get('identification_window_s', 30.0)),
-                   '--default-model', DEFAULT_MODEL]
+                   '--default-model', DEFAULT_MODEL,
+                   '--real-time-factor', str(args.real_time_factor),
+                   '--models-dir', models_dir,
+                   '--model', scenario.get('model', 'linear')]
         if args.bags:
             command.append('--bags')
-        if args.scenario:
-            command += ['--scenario', os.path.abspath(args.scenario)]
         env = dict(os.environ)
         env['PYTHONPATH'] = os.path.join(PACKAGE_ROOT, 'scripts') + os.pathsep + \
             env.get('PYTHONPATH', '')

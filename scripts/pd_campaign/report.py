@@ -12,7 +12,8 @@ from .design import CASES
 
 TRIAL_COLUMNS = [
     'trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
-    'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_cortical_mm',
+    'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
+    'inner_cortical_mm',
     'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s', 'wall_s',
     'error',
 ]
@@ -38,7 +39,8 @@ def normalise_row(row):
     out['seed'] = int(row['seed'])
     out['success'] = str(row['success']).lower() in ('1', 'true')
     out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
-    for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_cortical_mm',
+    for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
+                'inner_cortical_mm',
                 'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s',
                 'wall_s'):
         out[key] = _number(row.get(key))
@@ -150,8 +152,10 @@ def write_report_md(summary, meta, figures, path, notes=''):
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
                 meta['trials'], meta['seed']),
-             'Success: the recognizer stopped the drill with a residual inner cortical thickness '
-             'in (0, 2 mm] (paper Sec. V-E).', '',
+             'Success: the recognizer stopped the drill inside the inner cortical layer (entered, '
+             'not passed) with a residual thickness in (0, 2 mm] (paper Sec. V-C, V-E); the '
+             'residual is the distance from the deepest cut to the far side of the inner '
+             'cortical layer (simulator ground truth).', '',
              '## Results (Table III, Fig. 15, Fig. 16)', '', markdown_table(summary), '',
              '## Paper, 12000 rpm (Table III)', '',
              '| case | paper | this campaign |', '|---|---|---|']

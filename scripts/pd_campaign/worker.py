@@ -59,7 +59,12 @@ class TrialRecorder:
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
     def on_status(self, msg):
-        self.status.append((time.time(), msg.data))
+        # Sim time of the change, from the latest ground truth (status has no stamp).
+        sim_t = self.last_truth.header.stamp.to_sec() if self.last_truth else None
+        self.status.append((sim_t, msg.data))
+
+    def status_time(self, name):
+        return next((t for (t, s) in self.status if s == name), None)
 
 
 def tracking_error(truth, t_start, t_end):
@@ -89,18 +94,28 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row = dict(trial)
     recorder.clear()
     moving = trial['case'] != 'stationary'
-    reply = srv['reset'](seed=trial['seed'], moving_bone=moving,
-                         scenario_yaml=args.scenario or '')
+    reply = srv['reset'](seed=trial['seed'], moving_bone=moving, scenario_yaml='')
     if not reply.success:
         raise RuntimeError('simulator reset failed: %s' % reply.message)
     row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
     srv['recognizer_reset']()
     srv['safety_reset']()
+    # Messages of the previous trial may still be queued: let them drain, then forget them.
+    time.sleep(0.3)
+    recorder.clear()
     model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
-    if moving:
+    if moving and args.models_dir:
+        # The simulator's virtual patient for this seed is virtual volunteer 1 + seed % 5
+        # (drilling_simulation.cpp, drawVirtualPatient): use the model identified beforehand
+        # from that volunteer's own spontaneous-breathing recording, as in the paper.
+        model_path = os.path.join(args.models_dir, 'volunteer_%d_%s.yaml'
+                                  % (1 + trial['seed'] % 5, args.model))
+        if not os.path.exists(model_path):
+            raise RuntimeError('no identified model %s' % model_path)
+    elif moving:
         # Record breathing for the identification window (sim time), then identify.
         _wait_sim(rospy, recorder, args.identification_window_s)
-        ident = srv['identify'](model='linear', method='ceres', output_path=model_path)
+        ident = srv['identify'](model=args.model, method='ceres', output_path=model_path)
         if not ident.success:
             raise RuntimeError('identification failed: %s' % ident.message)
         ap = [a for a in ident.model.axes if a.axis == 'AP']
@@ -114,11 +129,18 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
         raise RuntimeError('start_trial failed: %s' % reply.message)
     deadline = time.time() + args.trial_timeout
     while time.time() < deadline:
-        if recorder.status and recorder.status[-1][1] == 'done':
+        if recorder.status and recorder.status[-1][1] in ('done', 'failed'):
             break
         time.sleep(0.02)
     else:
-        raise RuntimeError('trial did not finish within %.0f s wall' % args.trial_timeout)
+        raise RuntimeError('trial did not finish within %.0f s wall (status: %s)' % (
+            args.trial_timeout, recorder.status[-1][1] if recorder.status else 'none'))
+    if recorder.status[-1][1] == 'failed':
+        raise RuntimeError('the planner failed the trial (statuses: %s)'
+                           % ' '.join(s for _, s in recorder.status))
+    t_drill = recorder.status_time('drilling')
+    if t_drill is None:
+        raise RuntimeError('the trial never reached the drilling phase')
     truth = recorder.last_truth
     stop = recorder.stops[0] if recorder.stops else None
     row['stop_source'] = stop[1] if stop else 'none'
@@ -127,20 +149,26 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row['residual_mm'] = truth.residual_inner_cortical_m * 1e3 if truth else None
     row['max_depth_mm'] = truth.max_depth_cut_m * 1e3 if truth else None
     recognizer_stop = stop is not None and not stop[3]
+    row['inner_start_mm'] = truth.inner_cortical_start_m * 1e3 if truth else None
+    # Paper Sec. V-C/E: stopped by the recognizer inside the inner cortical layer (entered, not
+    # passed) with a residual thickness in (0, 2 mm].
     row['success'] = bool(recognizer_stop and truth is not None and not truth.breakthrough
+                          and truth.max_depth_cut_m > truth.inner_cortical_start_m
                           and 0.0 < truth.residual_inner_cortical_m <= 2.0e-3)
-    row['f_out_n'], row['f_in_n'] = peak_forces(recorder.states, recorder.truth)
-    t0 = recorder.states[0][0] if recorder.states else 0.0
-    t1 = stop[0] if stop else (recorder.truth[-1][0] if recorder.truth else 0.0)
-    row['tracking_rms_mm'], row['tracking_max_mm'] = tracking_error(recorder.truth, t0, t1)
+    states = [s for s in recorder.states if s[0] >= t_drill]
+    truth_rows = [r for r in recorder.truth if r[0] >= t_drill]
+    row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows)
+    t1 = stop[0] if stop else (recorder.truth[-1][0] if recorder.truth else t_drill)
+    row['tracking_rms_mm'], row['tracking_max_mm'] = tracking_error(truth_rows, t_drill, t1)
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
     row['wall_s'] = time.time() - wall_start
     with open(os.path.join(trace_dir, trial['trial_id'] + '.json'), 'w') as handle:
-        json.dump({'t': [s[0] for s in recorder.states], 'force': [s[1] for s in recorder.states],
-                   'feature': [s[2] for s in recorder.states],
-                   'key_points': [{'id': k, 't': t} for k, t in recorder.key_points],
-                   'stop_t': stop[0] if stop else None}, handle)
+        json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
+                   'feature': [s[2] for s in states],
+                   'key_points': [{'id': k, 't': t - t_drill} for k, t in recorder.key_points
+                                  if t >= t_drill],
+                   'stop_t': stop[0] - t_drill if stop else None}, handle)
     return row
 
 
@@ -171,7 +199,12 @@ def main(argv=None):
     parser.add_argument('--trial-timeout', type=float, default=120.0)
     parser.add_argument('--identification-window-s', type=float, default=30.0)
     parser.add_argument('--default-model', required=True)
+    parser.add_argument('--models-dir', default='',
+                        help='identified volunteer models (volunteer_<id>_<model>.yaml); '
+                        'empty: identify online on the simulator')
+    parser.add_argument('--model', default='linear')
     parser.add_argument('--launch', default='campaign_pipeline.launch')
+    parser.add_argument('--real-time-factor', type=float, default=20.0)
     args = parser.parse_args(argv)
     with open(args.trials) as handle:
         trials = json.load(handle)
@@ -221,7 +254,8 @@ def main(argv=None):
         rospy.set_param('/use_sim_time', True)
         children.append(subprocess.Popen(
             ['roslaunch', 'pedicle_drilling', args.launch,
-             'patient_model:=%s' % args.default_model],
+             'patient_model:=%s' % args.default_model,
+             'real_time_factor:=%g' % args.real_time_factor],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         types = {'reset': ResetSimulation, 'recognizer_reset': Trigger, 'safety_reset': Trigger,
                  'identify': IdentifyMotion, 'start_trial': StartTrial}

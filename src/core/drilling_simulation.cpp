@@ -498,9 +498,24 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
     }
   }
   if (last_t <= s.time) {
-    return {TargetStatus::kRejected, "every point lies in the past (last at " +
-                                         std::to_string(last_t) + " s, now " +
-                                         std::to_string(s.time) + " s)"};
+    // A streamed command that arrived after its own end (a late message, e.g. when sim time
+    // runs faster than the planner can follow): go to its final point over the duration of its
+    // last interval, instead of dropping it and leaving the joints on an outdated reference.
+    TrajectoryCommand late = command;
+    const double span = command.points.size() > 1
+                            ? last_t - command.points[command.points.size() - 2].time_s
+                            : 0.0;
+    late.points = {command.points.back()};
+    late.points.front().time_s = s.time + std::max(0.01, span);
+    late.points.front().velocities.clear();
+    TargetResult result = commandTrajectory(late);
+    if (result.status != TargetStatus::kRejected) {
+      result.status = TargetStatus::kClamped;
+      result.message = "every point lies in the past (last at " + std::to_string(last_t) +
+                       " s, now " + std::to_string(s.time) + " s): going to the final point" +
+                       (result.message.empty() ? "" : "; " + result.message);
+    }
+    return result;
   }
   // Start knot: the current reference (replaces the remaining trajectory).
   Knot start;

@@ -327,6 +327,18 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
                     " mode needs the ventilator: no ventilator/settings or tidal_volume received";
       return true;
     }
+    // The patient model is read again for every trial, so a new identification (a new
+    // ~patient_model_path, or a rewritten file) applies to the next trial.
+    std::string model_path;
+    if (getPrivateNodeHandle().getParam("patient_model_path", model_path)) {
+      try {
+        patient_ = core::readModelYaml(model_path);
+      } catch (const std::exception& e) {
+        res.message = "patient model file '" + model_path + "' (parameter '" +
+                      getPrivateNodeHandle().resolveName("patient_model_path") + "'): " + e.what();
+        return true;
+      }
+    }
     core::CompensationParams params = base_params_;
     params.feed_rate_m_s = feed_mm_s * 1e-3;
     try {

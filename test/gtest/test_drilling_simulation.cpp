@@ -290,7 +290,7 @@ TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
 TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
   sim.step(0.2);
-  const Eigen::VectorXd q0 = sim.armJointPositions();
+  Eigen::VectorXd q0 = sim.armJointPositions();
   TrajectoryCommand nan;
   nan.joint_names = kJoints;
   std::vector<double> p = kDrillingPose;
@@ -303,10 +303,6 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   const TargetResult r = sim.commandTrajectory(unknown);
   EXPECT_EQ(r.status, TargetStatus::kRejected);
   EXPECT_NE(r.message.find("elbow"), std::string::npos);
-  TrajectoryCommand past;
-  past.joint_names = {"feed_joint"};
-  past.points.push_back({sim.time() - 0.1, {0.01}, {}});
-  EXPECT_EQ(sim.commandTrajectory(past).status, TargetStatus::kRejected);
   TrajectoryCommand size;
   size.joint_names = {"feed_joint"};
   size.points.push_back({sim.time() + 1.0, {0.01, 0.02}, {}});
@@ -316,6 +312,20 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   sim.step(1.5);
   EXPECT_LT((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 1e-5);
   EXPECT_DOUBLE_EQ(sim.spindleRpm(), 0.0);
+
+  // A late command (all points in the past) goes to its final point, flagged, not dropped.
+  TrajectoryCommand past;
+  past.joint_names = {"feed_joint"};
+  past.points.push_back({sim.time() - 0.1, {0.01}, {}});
+  TrajectoryCommand late_nan = past;
+  late_nan.points[0].positions[0] = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_EQ(sim.commandTrajectory(late_nan).status, TargetStatus::kRejected);
+  const TargetResult late = sim.commandTrajectory(past);
+  EXPECT_EQ(late.status, TargetStatus::kClamped);
+  EXPECT_NE(late.message.find("past"), std::string::npos);
+  sim.step(0.5);  // the feed joint goes to the late command's final point (10 mm)
+  EXPECT_NEAR((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 0.01, 1e-4);
+  q0 = sim.armJointPositions();
 
   // Out of limit: clamped (feed travel 0..60 mm), spindle clamped to 21000 rpm.
   TrajectoryCommand far;
