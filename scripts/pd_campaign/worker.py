@@ -123,10 +123,47 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     else:
         model_path = args.default_model
     rospy.set_param('/compensation_planner/patient_model_path', model_path)
-    reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
-                               feed_rate_mm_s=args.feed_rate, max_duration_s=args.max_duration)
-    if not reply.success:
-        raise RuntimeError('start_trial failed: %s' % reply.message)
+    bag = start_bag(args, trial) if args.bags else None
+    try:
+        reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
+                                   feed_rate_mm_s=args.feed_rate,
+                                   max_duration_s=args.max_duration)
+        if not reply.success:
+            raise RuntimeError('start_trial failed: %s' % reply.message)
+        return finish_trial(recorder, row, trial, args, trace_dir, wall_start)
+    finally:
+        if bag is not None:
+            stop_bag(bag)
+
+
+# Topics kept in a trial's rosbag (--bags): enough to replay the trial in rviz
+# (rviz/drilling.rviz) and to re-run a recognizer on the raw force.
+BAG_TOPICS = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tracker/marker_pose',
+              '/tidal_volume', '/simulator/ground_truth', '/drilling_state', '/drill/stop',
+              '/compensation/status', '/compensation/predicted_marker_pose',
+              '/arm_controller/command', '/clock']
+
+
+def start_bag(args, trial):
+    bag_dir = os.path.join(args.out, 'bags')
+    os.makedirs(bag_dir, exist_ok=True)
+    process = subprocess.Popen(
+        ['rosbag', 'record', '--quiet', '-O', os.path.join(bag_dir, trial['trial_id'] + '.bag')]
+        + BAG_TOPICS, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True)
+    time.sleep(1.0)  # let the recorder subscribe before the trial starts
+    return process
+
+
+def stop_bag(process):
+    try:
+        os.killpg(process.pid, signal.SIGINT)  # rosbag closes the file cleanly on SIGINT
+        process.wait(timeout=30)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        os.killpg(process.pid, signal.SIGKILL)
+
+
+def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     deadline = time.time() + args.trial_timeout
     while time.time() < deadline:
         if recorder.status and recorder.status[-1][1] in ('done', 'failed'):

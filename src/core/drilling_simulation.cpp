@@ -159,6 +159,7 @@ struct DrillingSimulation::Impl {
   ForceSample last_force;
   double tip_depth = 0.0;
   double relative_ap0 = 0.0;
+  int trial_count = 0;
   VentilatorSample vent_now;
 
   Impl(const DrillingSimulationParams& p)
@@ -621,6 +622,13 @@ const VirtualPatient& DrillingSimulation::patient() const { return impl_->patien
 const VentilatorSample& DrillingSimulation::ventilatorSample() const { return impl_->vent_now; }
 
 const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
+
+void DrillingSimulation::startTrial() {
+  impl_->relative_ap0 = impl_->physics_tip.z() - impl_->bone_world.translation().z();
+  ++impl_->trial_count;
+}
+
+int DrillingSimulation::trialCount() const { return impl_->trial_count; }
 bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
 std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
 const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }

@@ -18,6 +18,7 @@
 #include <rosgraph_msgs/Clock.h>
 #include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64.h>
+#include <std_srvs/Trigger.h>
 #include <tf2_eigen/tf2_eigen.h>
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
@@ -140,6 +141,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                    &SimulatorNodelet::onTrajectory, this);
     spindle_sub_ = nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
     reset_srv_ = nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
+    start_trial_srv_ =
+        nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
     publishStaticTransforms();
     NODELET_INFO("Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
                  "factor %s, %s /clock",
@@ -305,6 +308,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
     marker_pub_.publish(m);
   }
 
+  /** @brief simulator/start_trial: ground truth measures the relative AP motion from now. */
+  bool onStartTrial(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sim_->startTrial();
+    response.success = true;
+    response.message = "trial " + std::to_string(sim_->trialCount()) + " started at t=" +
+                       std::to_string(sim_->time()) + " s";
+    return true;
+  }
+
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const double now = sim_->time();
@@ -394,6 +407,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   ros::Subscriber trajectory_sub_;
   ros::Subscriber spindle_sub_;
   ros::ServiceServer reset_srv_;
+  ros::ServiceServer start_trial_srv_;
 };
 
 }  // namespace pedicle_drilling

@@ -388,3 +388,20 @@ TEST(VirtualPatient, DrawnFromTheVirtualVolunteerTruth) {
 
 }  // namespace
 }  // namespace pedicle_drilling::core
+
+namespace pedicle_drilling::core {
+namespace {
+
+TEST(DrillingSimulationTrial, StartTrialZeroesRelativeApMotion) {
+  DrillingSimulationParams params;
+  DrillingSimulation sim(workcell(), params, 3);
+  sim.step(2.0);  // the bone breathes, the arm holds: relative AP motion builds up
+  const double before = sim.groundTruth().relative_ap_m;
+  EXPECT_GT(std::abs(before), 1e-4);
+  sim.startTrial();
+  EXPECT_EQ(sim.trialCount(), 1);
+  EXPECT_NEAR(sim.groundTruth().relative_ap_m, 0.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

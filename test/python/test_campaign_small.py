@@ -50,3 +50,20 @@ def test_small_campaign_outputs_are_consistent(tmp_path):
         with open(out / 'traces' / (row['trial_id'] + '.json')) as handle:
             trace = json.load(handle)
         assert len(trace['t']) == len(trace['force']) > 10
+
+
+def test_bags_keep_each_trial_for_replay(tmp_path):
+    out = tmp_path / 'bags_campaign'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'stationary', '--rpm', '12000',
+         '--trials', '1', '--jobs', '1', '--seed', '4', '--bags', '--out', str(out),
+         '--base-port', '12900'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    bag = out / 'bags' / 'stationary-12000-000.bag'
+    assert bag.exists()
+    import rosbag
+    with rosbag.Bag(str(bag)) as handle:
+        topics = handle.get_type_and_topic_info().topics
+    for topic in ('/ft_sensor/wrench', '/simulator/ground_truth', '/drilling_state', '/tf'):
+        assert topic in topics and topics[topic].message_count > 0, topic

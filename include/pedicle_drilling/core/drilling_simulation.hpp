@@ -129,7 +129,7 @@ struct SimulationGroundTruth {
   double feed_per_rev_m = 0.0;       ///< actual feed per revolution [m]
   Eigen::Vector3d bone_displacement_m = Eigen::Vector3d::Zero();  ///< (LR, SI, AP) from home
   double tidal_volume_ml = 0.0;      ///< patient tidal volume (unlagged) [ml]
-  double relative_ap_m = 0.0;        ///< AP motion of tip relative to bone since reset() [m]
+  double relative_ap_m = 0.0;        ///< AP motion of tip relative to bone since reset() or startTrial() [m]
 };
 
 /** @brief A parent -> child transform of the URDF tree. */
@@ -221,6 +221,13 @@ class DrillingSimulation {
   const DrillingProcess& process() const;
   /** @brief Current patient. */
   const VirtualPatient& patient() const;
+  /**
+   * @brief Marks the start of a trial without changing the world: ground truth's relative AP
+   *        motion is measured from now, and the trial counter increments.
+   */
+  void startTrial();
+  /** @brief Trials started since construction (reset() does not count). */
+  int trialCount() const;
   /** @brief Internal ventilator sample of the last step (unlagged). */
   const VentilatorSample& ventilatorSample() const;
   /** @brief The internal ventilator (breath index and start, current settings). */
