@@ -105,9 +105,38 @@ def summarise(rows):
             'median_residual_mm_successful': stats.median(
                 [r['residual_mm'] for r in valid if r['success']]),
             'median_tracking_rms_mm': stats.median([r['tracking_rms_mm'] for r in valid]),
-            'stop_reasons': _count(r.get('stop_reason') or 'none' for r in valid),
+            'stop_reasons': _count(stop_category(r) for r in valid),
+            'outcomes': _count(outcome(r) for r in valid),
+            'median_tracking_rms_mm_failures': stats.median(
+                [r['tracking_rms_mm'] for r in valid if not r['success']]),
         })
     return summary
+
+
+def stop_category(row):
+    """Who stopped the drill and why, without the per-trial details of the message."""
+    source = (row.get('stop_source') or '').rsplit('/', 1)[-1]
+    reason = row.get('stop_reason') or ''
+    if source == 'state_recognizer':
+        return 'recognizer'
+    if source == 'safety_monitor':
+        return 'safety: ' + reason.split(':', 1)[0]
+    return 'no stop (%s)' % (reason or 'max_duration')
+
+
+def outcome(row):
+    """Where the drill ended relative to the inner cortical layer (simulator ground truth)."""
+    if row['success']:
+        return 'success'
+    if row.get('breakthrough'):
+        return 'breakthrough'
+    depth, inner_start = row.get('max_depth_mm'), row.get('inner_start_mm')
+    if depth is not None and inner_start is not None and depth <= inner_start:
+        return 'stopped before the inner cortical layer'
+    residual = row.get('residual_mm')
+    if residual is not None and residual > 2.0:
+        return 'inside the inner layer, residual > 2 mm'
+    return 'other'
 
 
 def _count(items):
@@ -135,7 +164,7 @@ def _num(x, fmt='%.2f'):
 
 def markdown_table(summary):
     lines = ['| case | rpm | successes | rate | Wilson 95 % | median F_out [N] | median F_in [N] '
-             '| median residual (successes) [mm] | median tracking RMS [mm] | stop reasons |',
+             '| median residual (successes) [mm] | median tracking RMS [mm] | stops |',
              '|---|---|---|---|---|---|---|---|---|---|']
     for g in summary:
         lines.append('| %s | %.0f | %d/%d | %s | %s-%s | %s | %s | %s | %s | %s |' % (
@@ -144,6 +173,17 @@ def markdown_table(summary):
             _num(g['median_f_in_n']), _num(g['median_residual_mm_successful']),
             _num(g['median_tracking_rms_mm']),
             ', '.join('%s %d' % kv for kv in g['stop_reasons'].items())))
+    return '\n'.join(lines)
+
+
+def failure_table(summary):
+    """Why trials failed: where the drill ended, and the tracking of failures vs all."""
+    lines = ['| case | rpm | outcomes (ground truth) | median tracking RMS, failures [mm] |',
+             '|---|---|---|---|']
+    for g in summary:
+        lines.append('| %s | %.0f | %s | %s |' % (
+            g['case'], g['rpm'], ', '.join('%s %d' % kv for kv in g['outcomes'].items()),
+            _num(g['median_tracking_rms_mm_failures'])))
     return '\n'.join(lines)
 
 
@@ -165,9 +205,12 @@ def write_report_md(summary, meta, figures, path, notes=''):
         lines.append('| %s | %s | %s |' % (
             case, '%d/%d' % paper if paper else '-',
             '%d/%d' % (ours[0]['successes'], ours[0]['trials']) if ours else '-'))
-    lines.append('')
+    lines += ['', '## Why trials failed', '',
+              'Where the drill ended for every trial (simulator ground truth), and the tip-bone '
+              'AP tracking of the failed trials (RMS about the feed line while drilling).', '',
+              failure_table(summary), '']
     if notes:
-        lines += ['## Discussion', '', notes.strip(), '']
+        lines += [notes.strip(), '']
     if figures:
         lines += ['## Figures', '']
         for title, name in figures:
