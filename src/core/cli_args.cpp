@@ -1,6 +1,8 @@
 #include "pedicle_drilling/core/cli_args.hpp"
 
+#include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <sstream>
 
 namespace pedicle_drilling::core {
@@ -106,6 +108,47 @@ std::vector<double> parseDoubleList(const std::string& text, const std::string& 
   }
   if (out.empty()) throw UsageError(what + " is empty");
   return out;
+}
+
+std::vector<double> readNumberColumn(std::FILE* in) {
+  std::string data;
+  char buf[1 << 16];
+  std::size_t got = 0;
+  while ((got = std::fread(buf, 1, sizeof(buf), in)) > 0) {
+    data.append(buf, got);
+  }
+  std::vector<double> values;
+  std::size_t line_no = 1;
+  std::size_t i = 0;
+  const char* base = data.c_str();
+  while (i < data.size()) {
+    const char c = data[i];
+    if (c == '\n') {
+      ++line_no;
+      ++i;
+      continue;
+    }
+    if (std::isspace(static_cast<unsigned char>(c)) != 0) {
+      ++i;
+      continue;
+    }
+    std::size_t j = i;
+    while (j < data.size() && std::isspace(static_cast<unsigned char>(data[j])) == 0) {
+      ++j;
+    }
+    char* end = nullptr;
+    const double v = std::strtod(base + i, &end);
+    if (end != base + j || !std::isfinite(v)) {
+      throw UsageError("bad input value '" + data.substr(i, j - i) + "' on line " +
+                       std::to_string(line_no) + " (expected a finite number)");
+    }
+    values.push_back(v);
+    i = j;
+  }
+  if (values.empty()) {
+    throw UsageError("empty input (no numbers on stdin)");
+  }
+  return values;
 }
 
 }  // namespace pedicle_drilling::core

@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/denoising.hpp"
+#include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/dwt.hpp"
 #include "pedicle_drilling/core/wavelet.hpp"
 
@@ -44,10 +45,8 @@ const char kUsage[] =
     "\n"
     "Exit status: 0 on success, 2 on bad arguments or input.\n";
 
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using pedicle_drilling::core::readNumberColumn;
+using pedicle_drilling::core::UsageError;
 
 int parseInt(const std::string& text, const std::string& what) {
   if (text.empty()) {
@@ -88,46 +87,6 @@ std::vector<int> parseKeep(const std::string& text) {
   return levels;
 }
 
-std::vector<double> readColumn(std::FILE* in) {
-  std::string data;
-  char buf[1 << 16];
-  std::size_t got = 0;
-  while ((got = std::fread(buf, 1, sizeof(buf), in)) > 0) {
-    data.append(buf, got);
-  }
-  std::vector<double> values;
-  std::size_t line_no = 1;
-  std::size_t i = 0;
-  const char* base = data.c_str();
-  while (i < data.size()) {
-    const char c = data[i];
-    if (c == '\n') {
-      ++line_no;
-      ++i;
-      continue;
-    }
-    if (std::isspace(static_cast<unsigned char>(c)) != 0) {
-      ++i;
-      continue;
-    }
-    std::size_t j = i;
-    while (j < data.size() && std::isspace(static_cast<unsigned char>(data[j])) == 0) {
-      ++j;
-    }
-    char* end = nullptr;
-    const double v = std::strtod(base + i, &end);
-    if (end != base + j || !std::isfinite(v)) {
-      throw UsageError("bad input value '" + data.substr(i, j - i) + "' on line " +
-                       std::to_string(line_no) + " (expected a finite number)");
-    }
-    values.push_back(v);
-    i = j;
-  }
-  if (values.empty()) {
-    throw UsageError("empty input (no numbers on stdin)");
-  }
-  return values;
-}
 
 }  // namespace
 
@@ -207,7 +166,7 @@ int main(int argc, char** argv) {
     if (keep.empty() && !approx) {
       throw UsageError("bad --keep 'none' without --approx (nothing would be kept)");
     }
-    const std::vector<double> x = readColumn(stdin);
+    const std::vector<double> x = readNumberColumn(stdin);
     const std::vector<double> y =
         pedicle_drilling::core::denoise(x, *wavelet, level, keep, approx, mode);
     for (double v : y) {

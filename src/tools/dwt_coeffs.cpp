@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/dwt.hpp"
 #include "pedicle_drilling/core/wavelet.hpp"
 
@@ -33,10 +34,8 @@ const char kUsage[] =
     "  --mode M         symmetric (default) or periodization\n"
     "Exit status: 0 on success, 2 on bad arguments or input.\n";
 
-class UsageError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
+using pedicle_drilling::core::readNumberColumn;
+using pedicle_drilling::core::UsageError;
 
 int parseLevel(const std::string& text) {
   char* end = nullptr;
@@ -48,46 +47,6 @@ int parseLevel(const std::string& text) {
   return static_cast<int>(v);
 }
 
-std::vector<double> readColumn(std::FILE* in) {
-  std::string data;
-  char buf[1 << 16];
-  std::size_t got = 0;
-  while ((got = std::fread(buf, 1, sizeof(buf), in)) > 0) {
-    data.append(buf, got);
-  }
-  std::vector<double> values;
-  std::size_t line_no = 1;
-  std::size_t i = 0;
-  const char* base = data.c_str();
-  while (i < data.size()) {
-    const char c = data[i];
-    if (c == '\n') {
-      ++line_no;
-      ++i;
-      continue;
-    }
-    if (std::isspace(static_cast<unsigned char>(c)) != 0) {
-      ++i;
-      continue;
-    }
-    std::size_t j = i;
-    while (j < data.size() && std::isspace(static_cast<unsigned char>(data[j])) == 0) {
-      ++j;
-    }
-    char* end = nullptr;
-    const double v = std::strtod(base + i, &end);
-    if (end != base + j || !std::isfinite(v)) {
-      throw UsageError("bad input value '" + data.substr(i, j - i) + "' on line " +
-                       std::to_string(line_no) + " (expected a finite number)");
-    }
-    values.push_back(v);
-    i = j;
-  }
-  if (values.empty()) {
-    throw UsageError("empty input (no numbers on stdin)");
-  }
-  return values;
-}
 
 }  // namespace
 
@@ -129,7 +88,7 @@ int main(int argc, char** argv) {
     if (wavelet == nullptr) {
       throw UsageError("unknown wavelet '" + wavelet_name + "'");
     }
-    const std::vector<double> x = readColumn(stdin);
+    const std::vector<double> x = readNumberColumn(stdin);
     const pedicle_drilling::core::WaveletDecomposition dec =
         pedicle_drilling::core::wavedec(x, *wavelet, level, mode);
     for (const std::vector<double>& arr : dec.toPywtOrder()) {

@@ -6,6 +6,7 @@
  */
 #pragma once
 
+#include <cstdio>
 #include <map>
 #include <set>
 #include <stdexcept>
@@ -45,6 +46,12 @@ class CliArgs {
   std::multimap<std::string, std::string> values_;
   std::set<std::string> flags_;
 };
+
+/**
+ * @brief Reads whitespace-separated finite numbers (one column, one per line) until EOF.
+ *        UsageError naming the bad value and its line, or on empty input.
+ */
+std::vector<double> readNumberColumn(std::FILE* in);
 
 /** @brief Parses "3,4,5" into integers; UsageError naming @p what otherwise. */
 std::vector<int> parseIntList(const std::string& text, const std::string& what);
