@@ -1,0 +1,93 @@
+"""The recognize CLI over raw force samples: key points and stop, JSON schema, bad input."""
+import json
+import math
+import os
+import random
+import subprocess
+
+import pytest
+
+RATE_HZ = 1000.0
+
+
+def profile(layers, seed=1):
+    """Synthetic thrust at 1 kHz: air, then (duration s, level N) plateaus joined by 0.3 s
+    ramps, with seeded sensor noise; returns rows and the start/end time of each layer."""
+    rng = random.Random(seed)
+    rows, t, level, spans = [], 0.0, 0.0, []
+    pieces = [(2.0, 0.0)] + layers + [(2.0, 0.0)]
+    for duration, target in pieces:
+        start = t
+        ramp = 0.3
+        n = int(duration * RATE_HZ)
+        for k in range(n):
+            frac = min(1.0, k / (ramp * RATE_HZ))
+            value = level + (target - level) * frac
+            rows.append((t, value + rng.gauss(0.0, 0.03)))
+            t += 1.0 / RATE_HZ
+        spans.append((start, t, target))
+        level = target
+    return rows, spans
+
+
+def write_csv(path, rows, header='t,force'):
+    with open(path, 'w') as handle:
+        handle.write(header + '\n')
+        for t, f in rows:
+            handle.write('%.6f,%.6f\n' % (t, f))
+
+
+def run(bin_dir, *args):
+    return subprocess.run([os.path.join(bin_dir, 'recognize')] + list(args),
+                          capture_output=True, text=True, timeout=60)
+
+
+def test_two_cortical_layers_stop_inside_the_inner_one(bin_dir, tmp_path):
+    rows, spans = profile([(4.0, 3.0), (6.0, 0.7), (4.0, 3.0)])
+    path = tmp_path / 'force.csv'
+    write_csv(path, rows)
+    out = run(bin_dir, '--input', str(path), '--json')
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert set(result) == {'key_points', 'stop'}
+    times = [kp['t'] for kp in result['key_points']]
+    assert times == sorted(times) and len(times) >= 4
+    for kp in result['key_points']:
+        assert set(kp) == {'index', 't'}
+        assert rows[kp['index']][0] == pytest.approx(kp['t'], abs=1e-6)
+    inner_start, inner_end = spans[3][0], spans[3][1]
+    assert result['stop'] is not None
+    assert inner_start < result['stop']['t'] < inner_end
+    assert rows[result['stop']['index']][0] == pytest.approx(result['stop']['t'], abs=1e-6)
+
+
+def test_one_layer_never_stops(bin_dir, tmp_path):
+    rows, _ = profile([(4.0, 3.0), (8.0, 0.7)])
+    path = tmp_path / 'force.csv'
+    write_csv(path, rows)
+    out = run(bin_dir, '--input', str(path), '--json')
+    assert out.returncode == 0, out.stderr
+    assert json.loads(out.stdout)['stop'] is None
+
+
+@pytest.mark.parametrize('case', ['missing', 'header', 'nan', 'time', 'param'])
+def test_bad_input_exits_2(bin_dir, tmp_path, case):
+    rows, _ = profile([(2.0, 3.0)])
+    path = tmp_path / 'force.csv'
+    args = ['--input', str(path)]
+    if case == 'missing':
+        args = ['--input', str(tmp_path / 'nope.csv')]
+    elif case == 'header':
+        write_csv(path, rows, header='time,thrust')
+    elif case == 'nan':
+        rows[100] = (rows[100][0], math.nan)
+        write_csv(path, rows)
+    elif case == 'time':
+        rows[100] = (rows[99][0], rows[100][1])
+        write_csv(path, rows)
+    elif case == 'param':
+        write_csv(path, rows)
+        args += ['--param', 'c3=-1']
+    out = run(bin_dir, *args)
+    assert out.returncode == 2, (case, out.stdout, out.stderr)
+    assert out.stderr.strip()
