@@ -171,6 +171,21 @@ struct BulletArm::Impl {
   void integrateReference(double h);
   TargetResult validatePositions(Eigen::VectorXd* q, const std::vector<bool>* mask) const;
   TargetResult validateVelocities(Eigen::VectorXd* qd, const std::vector<bool>* mask) const;
+  /** Overlays named targets on *values and marks them in *mask; rejects unknown names. */
+  TargetResult overlayNamed(const std::map<std::string, double>& named, Eigen::VectorXd* values,
+                            std::vector<bool>* mask) const {
+    mask->assign(n(), false);
+    for (const auto& kv : named) {
+      auto it = std::find(joint_names.begin(), joint_names.end(), kv.first);
+      if (it == joint_names.end()) {
+        return {TargetStatus::kRejected, "unknown joint '" + kv.first + "'"};
+      }
+      const int k = static_cast<int>(it - joint_names.begin());
+      (*mask)[k] = true;
+      (*values)[k] = kv.second;
+    }
+    return {};
+  }
 };
 
 // ------------------------------------------------------------------------------------------
@@ -722,17 +737,10 @@ TargetResult BulletArm::setJointPositionTargets(const Eigen::VectorXd& q) {
 }
 
 TargetResult BulletArm::setJointPositionTargets(const std::map<std::string, double>& q) {
-  std::vector<bool> mask(impl_->n(), false);
+  std::vector<bool> mask;
   Eigen::VectorXd v = impl_->q_ref;
-  for (const auto& kv : q) {
-    auto it = std::find(impl_->joint_names.begin(), impl_->joint_names.end(), kv.first);
-    if (it == impl_->joint_names.end()) {
-      return {TargetStatus::kRejected, "unknown joint '" + kv.first + "'"};
-    }
-    const int k = static_cast<int>(it - impl_->joint_names.begin());
-    mask[k] = true;
-    v[k] = kv.second;
-  }
+  const TargetResult named = impl_->overlayNamed(q, &v, &mask);
+  if (!named.ok()) return named;
   TargetResult r = impl_->validatePositions(&v, &mask);
   if (!r.ok()) return r;
   for (int k = 0; k < impl_->n(); ++k) {
@@ -756,17 +764,10 @@ TargetResult BulletArm::setJointVelocityTargets(const Eigen::VectorXd& qdot) {
 }
 
 TargetResult BulletArm::setJointVelocityTargets(const std::map<std::string, double>& qdot) {
-  std::vector<bool> mask(impl_->n(), false);
+  std::vector<bool> mask;
   Eigen::VectorXd v = impl_->qd_ref;
-  for (const auto& kv : qdot) {
-    auto it = std::find(impl_->joint_names.begin(), impl_->joint_names.end(), kv.first);
-    if (it == impl_->joint_names.end()) {
-      return {TargetStatus::kRejected, "unknown joint '" + kv.first + "'"};
-    }
-    const int k = static_cast<int>(it - impl_->joint_names.begin());
-    mask[k] = true;
-    v[k] = kv.second;
-  }
+  const TargetResult named = impl_->overlayNamed(qdot, &v, &mask);
+  if (!named.ok()) return named;
   TargetResult r = impl_->validateVelocities(&v, &mask);
   if (!r.ok()) return r;
   for (int k = 0; k < impl_->n(); ++k) {
