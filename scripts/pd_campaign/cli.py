@@ -17,6 +17,7 @@ from .design import CASES, build_design, parse_shard, shard
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
 DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
+SIMULATOR_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'simulator.yaml')
 
 # Scenario keys: name -> (type, min, max). Documented in the README ("Scenario files").
 SCENARIO_KEYS = {
@@ -35,6 +36,34 @@ SCENARIO_KEYS = {
 
 class UsageError(Exception):
     pass
+
+
+def simulator_keys():
+    """The simulator's trial-distribution keys, {group: set of keys}, as config/simulator.yaml
+    documents them (the simulator itself checks the ranges at every reset)."""
+    with open(SIMULATOR_CONFIG) as handle:
+        section = yaml.safe_load(handle)['trial_distribution']
+    return {group: set(values) for group, values in section.items()}
+
+
+def check_simulator_section(path, section):
+    """The scenario's `simulator:` section: {group: {key: number}} with the keys of
+    config/simulator.yaml's trial_distribution; errors name the key."""
+    known = simulator_keys()
+    for group, values in section.items():
+        if group not in known:
+            raise UsageError('--scenario %s: unknown key simulator.%s (known: %s)'
+                             % (path, group, ', '.join(sorted(known))))
+        if not isinstance(values, dict):
+            raise UsageError('--scenario %s: simulator.%s must be a mapping' % (path, group))
+        for key, value in values.items():
+            if key not in known[group]:
+                raise UsageError('--scenario %s: unknown key simulator.%s.%s (known: %s)'
+                                 % (path, group, key, ', '.join(sorted(known[group]))))
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise UsageError('--scenario %s: simulator.%s.%s must be a number'
+                                 % (path, group, key))
+            values[key] = float(value)
 
 
 def load_scenario(path):
@@ -64,10 +93,8 @@ def load_scenario(path):
                 if not isinstance(rpm, (int, float)) or not low <= rpm <= high:
                     raise UsageError('--scenario %s: rpm %r out of range [%s, %s]'
                                      % (path, rpm, low, high))
-        if key == 'simulator' and value:
-            raise UsageError('--scenario %s: %r overrides are not supported by the simulator yet '
-                             '(its specimen and patient distributions are the documented '
-                             'defaults); leave it empty' % (path, key))
+        if key == 'simulator':
+            check_simulator_section(path, value)
         if key == 'identification' and value not in ('volunteers', 'online'):
             raise UsageError('--scenario %s: identification %r is not volunteers or online'
                              % (path, value))
@@ -196,7 +223,7 @@ def run_campaign(argv=None):
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
     # The report's meta data describe the design only, so that merged shards report the same.
     meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
-            'design_size': len(design)}
+            'design_size': len(design), 'simulator': scenario.get('simulator') or {}}
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
@@ -241,7 +268,8 @@ def run_campaign(argv=None):
                    '--default-model', DEFAULT_MODEL,
                    '--real-time-factor', str(args.real_time_factor),
                    '--models-dir', models_dir,
-                   '--model', scenario.get('model', 'linear')]
+                   '--model', scenario.get('model', 'linear'),
+                   '--simulator-overrides', json.dumps(scenario.get('simulator') or {})]
         if args.bags:
             command.append('--bags')
         env = dict(os.environ)
@@ -284,6 +312,9 @@ def run_campaign(argv=None):
                 os.killpg(worker.pid, signal.SIGKILL)
     for reader in readers:
         reader.join(timeout=5)
+    if any(worker.returncode == 2 for worker in workers):
+        sys.stderr.write('campaign: a worker refused the scenario (see its message above)\n')
+        return 2
     sys.stderr.write('\n')
     with lock:
         finished = list(rows)
@@ -325,8 +356,9 @@ def run_merge(argv=None):
                 with open(os.path.join(traces, name)) as src, \
                         open(os.path.join(out_dir, 'traces', name), 'w') as dst:
                     dst.write(src.read())
-    keys = ('cases', 'rpms', 'trials', 'seed')
-    if any(tuple(m[k] for k in keys) != tuple(metas[0][k] for k in keys) for m in metas):
+    keys = ('cases', 'rpms', 'trials', 'seed', 'simulator')
+    if any(tuple(m.get(k) for k in keys) != tuple(metas[0].get(k) for k in keys)
+           for m in metas):
         sys.stderr.write('campaign_merge: the directories come from different designs\n')
         return 2
     meta = dict(metas[0])

@@ -13,7 +13,8 @@ from .design import CASES
 TRIAL_COLUMNS = [
     'trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
     'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
-    'inner_cortical_mm',
+    'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
+    'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s', 'wall_s',
     'error',
 ]
@@ -40,7 +41,8 @@ def normalise_row(row):
     out['success'] = str(row['success']).lower() in ('1', 'true')
     out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
     for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
-                'inner_cortical_mm',
+                'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
+                'force_noise_sd_n', 'arm_stiffness_scale',
                 'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s',
                 'wall_s'):
         out[key] = _number(row.get(key))
@@ -192,6 +194,13 @@ def write_report_md(summary, meta, figures, path, notes=''):
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
                 meta['trials'], meta['seed']),
+             'Simulator trial distribution: %s.' % (
+                 'the defaults of config/simulator.yaml (the paper\'s conditions)'
+                 if not meta.get('simulator') else
+                 'config/simulator.yaml with the scenario\'s overrides ' + ', '.join(
+                     '%s.%s = %g' % (group, key, value)
+                     for group, values in sorted(meta['simulator'].items())
+                     for key, value in sorted(values.items()))),
              'Success: the recognizer stopped the drill inside the inner cortical layer (entered, '
              'not passed) with a residual thickness in (0, 2 mm] (paper Sec. V-C, V-E); the '
              'residual is the distance from the deepest cut to the far side of the inner '

@@ -94,10 +94,16 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row = dict(trial)
     recorder.clear()
     moving = trial['case'] != 'stationary'
-    reply = srv['reset'](seed=trial['seed'], moving_bone=moving, scenario_yaml='')
+    reply = srv['reset'](seed=trial['seed'], moving_bone=moving)
     if not reply.success:
         raise RuntimeError('simulator reset failed: %s' % reply.message)
     row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
+    row['volunteer_id'] = reply.volunteer_id
+    row['amplitude_scale'] = reply.patient_amplitude_scale
+    row['ventilator_rate_bpm'] = reply.ventilator_rate_bpm
+    row['tidal_volume_ml'] = reply.ventilator_tidal_volume_ml
+    row['force_noise_sd_n'] = reply.force_noise_sd_n
+    row['arm_stiffness_scale'] = reply.arm_stiffness_scale
     srv['recognizer_reset']()
     srv['safety_reset']()
     # Messages of the previous trial may still be queued: let them drain, then forget them.
@@ -105,11 +111,11 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     recorder.clear()
     model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
     if moving and args.models_dir:
-        # The simulator's virtual patient for this seed is virtual volunteer 1 + seed % 5
-        # (drilling_simulation.cpp, drawVirtualPatient): use the model identified beforehand
-        # from that volunteer's own spontaneous-breathing recording, as in the paper.
+        # The simulator's virtual patient is one of the five virtual volunteers (the reset
+        # reports which): use the model identified beforehand from that volunteer's own
+        # spontaneous-breathing recording, as in the paper.
         model_path = os.path.join(args.models_dir, 'volunteer_%d_%s.yaml'
-                                  % (1 + trial['seed'] % 5, args.model))
+                                  % (reply.volunteer_id, args.model))
         if not os.path.exists(model_path):
             raise RuntimeError('no identified model %s' % model_path)
     elif moving:
@@ -240,6 +246,9 @@ def main(argv=None):
                         help='identified volunteer models (volunteer_<id>_<model>.yaml); '
                         'empty: identify online on the simulator')
     parser.add_argument('--model', default='linear')
+    parser.add_argument('--simulator-overrides', default='{}',
+                        help='JSON of the scenario\'s simulator section: '
+                        '{group: {key: value}} under /simulator/trial_distribution')
     parser.add_argument('--launch', default='campaign_pipeline.launch')
     parser.add_argument('--real-time-factor', type=float, default=20.0)
     args = parser.parse_args(argv)
@@ -300,6 +309,18 @@ def main(argv=None):
         for key, name in PIPELINE_SERVICES.items():
             rospy.wait_for_service(name, timeout=60.0)
             srv[key] = rospy.ServiceProxy(name, types[key])
+        # The scenario's simulator section: set after the launch loaded config/simulator.yaml,
+        # read by the simulator at every reset. One reset checks it before any trial.
+        overrides = json.loads(args.simulator_overrides)
+        for group, values in overrides.items():
+            for key, value in values.items():
+                rospy.set_param('/simulator/trial_distribution/%s/%s' % (group, key), value)
+        if overrides and trials:
+            reply = srv['reset'](seed=trials[0]['seed'], moving_bone=False)
+            if not reply.success:
+                sys.stderr.write('campaign worker: the scenario\'s simulator section was '
+                                 'refused: %s\n' % reply.message)
+                sys.exit(2)
         recorder = TrialRecorder()
         rospy.Subscriber('/drilling_state', DrillingState, recorder.on_state, queue_size=10000)
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,

@@ -3,11 +3,13 @@
  * @brief Porcine lamellar bone specimen: layered geometry and random solid-fraction field.
  */
 #include "pedicle_drilling/core/bone_specimen.hpp"
+#include "pedicle_drilling/core/normal_source.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <random>
 #include <stdexcept>
+#include <string>
 #include <utility>
 
 namespace pedicle_drilling::core {
@@ -15,35 +17,6 @@ namespace pedicle_drilling::core {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
-
-/** Portable standard-normal generator (Box-Muller on raw mt19937_64 output). */
-class NormalSource {
- public:
-  explicit NormalSource(std::uint64_t seed) : rng_(seed) {}
-
-  double uniformOpen() {
-    // 53 random bits -> (0, 1); never exactly 0 so log() is finite.
-    return (static_cast<double>(rng_() >> 11) + 0.5) * (1.0 / 9007199254740992.0);
-  }
-
-  double normal() {
-    if (has_spare_) {
-      has_spare_ = false;
-      return spare_;
-    }
-    const double u1 = uniformOpen();
-    const double u2 = uniformOpen();
-    const double r = std::sqrt(-2.0 * std::log(u1));
-    spare_ = r * std::sin(2.0 * kPi * u2);
-    has_spare_ = true;
-    return r * std::cos(2.0 * kPi * u2);
-  }
-
- private:
-  std::mt19937_64 rng_;
-  bool has_spare_ = false;
-  double spare_ = 0.0;
-};
 
 double truncatedNormal(NormalSource* src, double mean, double sd, double lower) {
   if (sd <= 0.0) return std::max(mean, lower);
@@ -202,7 +175,39 @@ double BoneSpecimen::meanFraction(Material m) const {
   return count > 0 ? acc / count : 0.0;
 }
 
+void SpecimenDistribution::validate() const {
+  auto check = [](double value, double lo, double hi, bool open_lo, const char* name) {
+    const bool ok = std::isfinite(value) && (open_lo ? value > lo : value >= lo) && value <= hi;
+    if (!ok) {
+      throw std::invalid_argument(std::string("SpecimenDistribution: ") + name + " = " +
+                                  std::to_string(value) + " is out of range " +
+                                  (open_lo ? "(" : "[") + std::to_string(lo) + ", " +
+                                  std::to_string(hi) + "]");
+    }
+  };
+  check(outer_cortical_thickness_mean_m, 0.0, 100e-3, true, "outer_cortical_thickness_mean_m");
+  check(outer_cortical_thickness_sd_m, 0.0, 10e-3, false, "outer_cortical_thickness_sd_m");
+  check(cancellous_thickness_mean_m, 0.0, 100e-3, true, "cancellous_thickness_mean_m");
+  check(cancellous_thickness_sd_m, 0.0, 10e-3, false, "cancellous_thickness_sd_m");
+  check(inner_cortical_thickness_mean_m, 0.0, 100e-3, true, "inner_cortical_thickness_mean_m");
+  check(inner_cortical_thickness_sd_m, 0.0, 10e-3, false, "inner_cortical_thickness_sd_m");
+  check(min_layer_thickness_m, 0.0, 10e-3, true, "min_layer_thickness_m");
+  check(outer_cortical_fraction_mean, 0.0, 1.0, true, "outer_cortical_fraction_mean");
+  check(inner_cortical_fraction_mean, 0.0, 1.0, true, "inner_cortical_fraction_mean");
+  check(cortical_fraction_sd, 0.0, 0.3, false, "cortical_fraction_sd");
+  check(cortical_field_cv, 0.0, 1.0, false, "cortical_field_cv");
+  check(cortical_corr_length_m, 0.0, 10e-3, true, "cortical_corr_length_m");
+  check(cancellous_fraction_mean, 0.0, 1.0, true, "cancellous_fraction_mean");
+  check(cancellous_fraction_sd, 0.0, 0.3, false, "cancellous_fraction_sd");
+  check(cancellous_field_cv, 0.0, 2.0, false, "cancellous_field_cv");
+  check(cancellous_corr_length_m, 0.0, 10e-3, true, "cancellous_corr_length_m");
+  check(cancellous_fraction_min, 0.0, 1.0, true, "cancellous_fraction_min");
+  check(cancellous_fraction_max, cancellous_fraction_min, 1.0, true, "cancellous_fraction_max");
+  check(grid_step_m, 0.0, 1e-3, true, "grid_step_m");
+}
+
 BoneSpecimen sample(std::uint64_t seed, const SpecimenDistribution& d) {
+  d.validate();
   NormalSource src(seed);
   const double t_out = truncatedNormal(&src, d.outer_cortical_thickness_mean_m,
                                        d.outer_cortical_thickness_sd_m, d.min_layer_thickness_m);

@@ -830,6 +830,17 @@ Eigen::VectorXd BulletArm::jointEfforts() const { return impl_->tau_last; }
 
 Eigen::VectorXd BulletArm::jointStiffness() const { return impl_->stiffness; }
 
+void BulletArm::setStiffnessScale(double scale) {
+  if (!std::isfinite(scale) || !(scale > 0.0) || scale > 10.0) {
+    throw std::invalid_argument("BulletArm: stiffness scale must be in (0, 10]");
+  }
+  for (int k = 0; k < impl_->stiffness.size(); ++k) {
+    const ArmJointInfo& info = impl_->joint_info[k];
+    impl_->stiffness[k] =
+        info.type == ArmJointType::kContinuous ? info.stiffness : scale * info.stiffness;
+  }
+}
+
 Eigen::Isometry3d BulletArm::linkPose(const std::string& name) const {
   return impl_->linkPose(name);
 }

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "pedicle_drilling/core/normal_source.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
@@ -69,10 +70,12 @@ struct Knot {
 
 double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t) const {
   return q1_ap_mm_per_ml * lagged_tv_ml +
-         drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad);
+         drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad) +
+         movementDisplacementMm(movements, 0, t);
 }
 
-VirtualPatient drawVirtualPatient(std::uint64_t seed) {
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s,
+                                  double movement_scale) {
   VirtualPatient p;
   p.volunteer_id = 1 + static_cast<int>(seed % 5);
   const VolunteerParams v = defaultVolunteer(p.volunteer_id);
@@ -85,7 +88,73 @@ VirtualPatient drawVirtualPatient(std::uint64_t seed) {
   const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
   p.drift_period_s = 40.0 + 50.0 * u1;  // 40-90 s, as the volunteers' slow drift
   p.drift_phase_rad = 2.0 * kPi * u2;
+  // Small movements over the next hour, as generateVolunteer() shapes them: raised-cosine
+  // ramps of 0.5-1 s, half persisting steps, half bumps held 1-3 s.
+  if (movement_scale > 0.0 && v.movements_per_min > 0.0) {
+    NormalSource mv(seed * 0x9E3779B97F4A7C15ULL + 0x5851F42D4C957F2DULL);
+    const double rate_hz = v.movements_per_min / 60.0;
+    double t = start_time_s - std::log(mv.uniformOpen()) / rate_hz;
+    while (t < start_time_s + 3600.0) {
+      PatientMovement m;
+      m.t = t;
+      m.ramp = 0.5 + 0.5 * mv.uniformOpen();
+      m.hold = mv.uniformOpen() < 0.5 ? -1.0 : 1.0 + 2.0 * mv.uniformOpen();
+      m.size[0] = movement_scale * v.movement_mm[0] * mv.normal();
+      p.movements.push_back(m);
+      t -= std::log(mv.uniformOpen()) / rate_hz;
+    }
+  }
   return p;
+}
+
+void TrialVariability::validate() const {
+  auto check = [](double value, double hi, const char* name) {
+    if (!std::isfinite(value) || value < 0.0 || value > hi) {
+      std::ostringstream os;
+      os << "TrialVariability: " << name << " = " << value << " is out of range [0, " << hi
+         << "]";
+      throw std::invalid_argument(os.str());
+    }
+  };
+  check(patient_amplitude_scale_sd, 0.3, "patient_amplitude_scale_sd");
+  check(ventilator_rate_sd_bpm, 5.0, "ventilator_rate_sd_bpm");
+  check(ventilator_tidal_volume_sd_ml, 200.0, "ventilator_tidal_volume_sd_ml");
+  check(sensor_noise_scale_sd, 0.5, "sensor_noise_scale_sd");
+  check(arm_stiffness_scale_sd, 0.3, "arm_stiffness_scale_sd");
+  check(patient_movement_scale, 5.0, "patient_movement_scale");
+}
+
+TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
+                                    const VentilatorSettings& ventilator,
+                                    double force_noise_sd_n) {
+  variability.validate();
+  // Own stream (not the specimen's, sensor's or tracker's): changing a spread never changes
+  // the other draws of the same seed. Every deviate is drawn whatever its SD, for the same
+  // reason; each is truncated at +-3 SD by resampling.
+  NormalSource src(seed * 0x2545F4914F6CDD1DULL + 0x632BE59BD9B4E019ULL);
+  auto truncated = [&src]() {
+    for (int i = 0; i < 100; ++i) {
+      const double z = src.normal();
+      if (std::abs(z) <= 3.0) return z;
+    }
+    return 0.0;
+  };
+  const double z_amplitude = truncated();
+  const double z_rate = truncated();
+  const double z_volume = truncated();
+  const double z_noise = truncated();
+  const double z_stiffness = truncated();
+  TrialConditions c;
+  c.volunteer_id = 1 + static_cast<int>(seed % 5);
+  c.patient_amplitude_scale = 1.0 + variability.patient_amplitude_scale_sd * z_amplitude;
+  // Bounded below so that a wide spread cannot produce a non-physical ventilator setting.
+  c.ventilator_rate_bpm =
+      std::max(1.0, ventilator.rate_bpm + variability.ventilator_rate_sd_bpm * z_rate);
+  c.ventilator_tidal_volume_ml = std::max(
+      10.0, ventilator.tv_max_ml + variability.ventilator_tidal_volume_sd_ml * z_volume);
+  c.force_noise_sd_n = force_noise_sd_n * (1.0 + variability.sensor_noise_scale_sd * z_noise);
+  c.arm_stiffness_scale = 1.0 + variability.arm_stiffness_scale_sd * z_stiffness;
+  return c;
 }
 
 SpmsGeometry DrillingSimulationParams::urdfSpmsGeometry() {
@@ -161,6 +230,7 @@ struct DrillingSimulation::Impl {
   double relative_ap0 = 0.0;
   int trial_count = 0;
   VentilatorSample vent_now;
+  TrialConditions conditions;
 
   Impl(const DrillingSimulationParams& p)
       : params(p),
@@ -310,11 +380,37 @@ struct DrillingSimulation::Impl {
   }
 
   void resetTrial(std::uint64_t new_seed, bool moving) {
+    // Everything that can throw first, so that a bad distribution leaves the trial unchanged.
+    const TrialConditions drawn = drawTrialConditions(new_seed, params.variability,
+                                                      params.ventilator,
+                                                      params.sensor.force_noise_sd_n);
+    auto new_process =
+        std::make_unique<DrillingProcess>(sample(new_seed, params.specimen), params.drill);
+    VentilatorSettings breathing = params.ventilator;
+    breathing.rate_bpm = drawn.ventilator_rate_bpm;
+    breathing.tv_max_ml = drawn.ventilator_tidal_volume_ml;
+    breathing.validate();
+    ForceSensorParams sensor_params = params.sensor;
+    if (params.sensor.force_noise_sd_n > 0.0) {
+      const double noise_scale = drawn.force_noise_sd_n / params.sensor.force_noise_sd_n;
+      sensor_params.force_noise_sd_n = drawn.force_noise_sd_n;
+      sensor_params.torque_noise_sd_nm *= noise_scale;
+    }
+
     seed = new_seed;
     moving_bone = moving;
-    patient = drawVirtualPatient(seed);
-    process = std::make_unique<DrillingProcess>(sample(seed, params.specimen), params.drill);
-    sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, params.sensor);
+    conditions = drawn;
+    patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
+    patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
+    process = std::move(new_process);
+    sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, sensor_params);
+    arm->setStiffnessScale(drawn.arm_stiffness_scale);
+    // The trial's breathing takes effect at the next breath (a ventilator never cuts one).
+    const VentilatorSettings& current = ventilator.model().settings();
+    if (breathing.rate_bpm != current.rate_bpm || breathing.tv_max_ml != current.tv_max_ml) {
+      ventilator.requestSettings(breathing);
+      lagged_ventilator.requestSettings(breathing);
+    }
     sensor->tare();  // standard practice before drilling
     tracker_rng.seed(seed * 40503ULL + 3ULL);
     arm->applyTipForce(Eigen::Vector3d::Zero());
@@ -573,6 +669,23 @@ TargetResult DrillingSimulation::commandSpindle(double rpm) {
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
   impl_->ventilator.requestSettings(settings);
   impl_->lagged_ventilator.requestSettings(settings);
+  impl_->params.ventilator = settings;  // the base the next trials' breathing is drawn around
+}
+
+void DrillingSimulation::setTrialDistribution(const SpecimenDistribution& specimen,
+                                              const TrialVariability& variability) {
+  specimen.validate();
+  variability.validate();
+  impl_->params.specimen = specimen;
+  impl_->params.variability = variability;
+}
+
+Eigen::VectorXd DrillingSimulation::armJointStiffness() const {
+  return impl_->arm->jointStiffness();
+}
+
+const TrialConditions& DrillingSimulation::trialConditions() const {
+  return impl_->conditions;
 }
 
 double DrillingSimulation::time() const { return impl_->time; }

@@ -14,26 +14,14 @@ constexpr double kPi = 3.14159265358979323846;
 }  // namespace
 
 ForceSensor::ForceSensor(std::uint64_t seed, ForceSensorParams params)
-    : params_(params), rng_(seed) {
+    : params_(params), normal_(seed) {
   if (!(params_.rate_hz > 0.0)) throw std::invalid_argument("ForceSensor: rate_hz must be > 0");
   for (int i = 0; i < 3; ++i) bias_[i] = params_.force_bias_sd_n * normal();
   for (int i = 3; i < 6; ++i) bias_[i] = params_.torque_bias_sd_nm * normal();
-  vibration_phase0_ = 2.0 * kPi * ((static_cast<double>(rng_() >> 11) + 0.5) / 9007199254740992.0);
+  vibration_phase0_ = 2.0 * kPi * normal_.uniformOpen();
 }
 
-double ForceSensor::normal() {
-  // Box-Muller on raw mt19937_64 output: portable and deterministic across standard libraries.
-  if (has_spare_) {
-    has_spare_ = false;
-    return spare_;
-  }
-  const double u1 = (static_cast<double>(rng_() >> 11) + 0.5) / 9007199254740992.0;
-  const double u2 = (static_cast<double>(rng_() >> 11) + 0.5) / 9007199254740992.0;
-  const double r = std::sqrt(-2.0 * std::log(u1));
-  spare_ = r * std::sin(2.0 * kPi * u2);
-  has_spare_ = true;
-  return r * std::cos(2.0 * kPi * u2);
-}
+double ForceSensor::normal() { return normal_.normal(); }
 
 void ForceSensor::tare() { tare_offset_ = bias_; }
 

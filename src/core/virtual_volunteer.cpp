@@ -41,30 +41,6 @@ void breathVolume(const Breath& b, double tau, double* v, double* dv) {
   }
 }
 
-/** Smooth 0 -> 1 transition over [0, w] (raised cosine). */
-double smoothStep(double x, double w) {
-  if (x <= 0.0) return 0.0;
-  if (x >= w) return 1.0;
-  return 0.5 * (1.0 - std::cos(kPi * x / w));
-}
-
-struct Movement {
-  double t;                     // onset, s
-  double ramp;                  // transition time, s
-  double hold;                  // < 0: step (persists); else bump returns after hold
-  std::array<double, 3> size;   // mm per axis
-};
-
-double movementAt(const std::vector<Movement>& ms, int axis, double t) {
-  double d = 0.0;
-  for (const Movement& m : ms) {
-    double f = smoothStep(t - m.t, m.ramp);
-    if (m.hold >= 0.0) f -= smoothStep(t - m.t - m.ramp - m.hold, m.ramp);
-    d += m.size[axis] * f;
-  }
-  return d;
-}
-
 double interpolate(const std::vector<double>& t, const std::vector<double>& x, double tq) {
   if (tq <= t.front()) return x.front();
   if (tq >= t.back()) return x.back();
@@ -187,6 +163,24 @@ VolunteerParams VolunteerParams::noiseFree() const {
   return p;
 }
 
+double movementDisplacementMm(const std::vector<PatientMovement>& movements, int axis,
+                              double t) {
+  // Smooth 0 -> 1 transition over [0, w] (raised cosine).
+  auto smooth_step = [](double x, double w) {
+    if (x <= 0.0) return 0.0;
+    if (x >= w) return 1.0;
+    return 0.5 * (1.0 - std::cos(kPi * x / w));
+  };
+  double d = 0.0;
+  for (const PatientMovement& m : movements) {
+    if (t <= m.t) continue;
+    double f = smooth_step(t - m.t, m.ramp);
+    if (m.hold >= 0.0) f -= smooth_step(t - m.t - m.ramp - m.hold, m.ramp);
+    d += m.size[axis] * f;
+  }
+  return d;
+}
+
 VolunteerParams defaultVolunteer(int id) {
   if (id < 1 || id > 5) {
     throw std::invalid_argument("defaultVolunteer: id must be 1..5, got " + std::to_string(id));
@@ -272,12 +266,12 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
   }
 
   // Small patient movements: Poisson process over the recording.
-  std::vector<Movement> moves;
+  std::vector<PatientMovement> moves;
   if (p.movements_per_min > 0.0) {
     std::exponential_distribution<double> gap(p.movements_per_min / 60.0);
     double tm = gap(rng);
     while (tm < p.duration_s) {
-      Movement m;
+      PatientMovement m;
       m.t = tm;
       m.ramp = 0.5 + 0.5 * unit(rng);
       m.hold = unit(rng) < 0.5 ? -1.0 : 1.0 + 2.0 * unit(rng);
@@ -323,7 +317,7 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
       const double drift =
           drift_slope[i] * tk +
           0.4 * p.drift_mm[i] * std::sin(2.0 * kPi * tk / drift_period[i] + drift_phase[i]);
-      noisy[i] = clean[i] + drift + movementAt(moves, i, tk) +
+      noisy[i] = clean[i] + drift + movementDisplacementMm(moves, i, tk) +
                  p.tracker_noise_mm[i] * normal(rng);
     }
     out.clean.ap.push_back(clean[0]);

@@ -42,6 +42,7 @@
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
+#include "pedicle_drilling/ros/trial_distribution_params.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -86,6 +87,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
       sp.sensor.force_noise_sd_n = params.getDouble("force_noise_sd_n", 0.03, 0.0, 10.0);
       sp.moving_bone = params.getBool("moving_bone", true);
       sp.ventilator = loadVentilatorSettings(ParamLoader(ros::NodeHandle(pnh, "ventilator")));
+      const TrialDistributionParams distribution = loadTrialDistribution(pnh);
+      sp.specimen = distribution.specimen;
+      sp.variability = distribution.variability;
       const int seed = params.getInt("seed", 1, 0, 2147483647);
       real_time_factor_ = params.getDouble("real_time_factor", 1.0, 0.0, 1000.0);
       publish_clock_ = params.getBool("publish_clock", true);
@@ -350,15 +354,19 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   bool onReset(ResetSimulation::Request& req, ResetSimulation::Response& res) {
-    if (!req.scenario_yaml.empty()) {
+    // The distributions are re-read at every reset, so that a campaign (or a user with
+    // `rosparam set`) can change them between trials; a bad value refuses the reset.
+    TrialDistributionParams distribution;
+    try {
+      distribution = loadTrialDistribution(getPrivateNodeHandle());
+    } catch (const std::exception& e) {
       res.success = false;
-      res.message =
-          "scenario_yaml is not supported yet: pass \"\" (specimen and patient distributions "
-          "are the documented defaults); nothing was reset";
+      res.message = std::string(e.what()) + "; nothing was reset";
       return true;
     }
     std::lock_guard<std::mutex> lock(mutex_);
     try {
+      sim_->setTrialDistribution(distribution.specimen, distribution.variability);
       sim_->reset(req.seed, req.moving_bone);
     } catch (const std::exception& e) {
       res.success = false;
@@ -375,6 +383,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
     res.outer_cortical_thickness_m = s.outerCorticalThickness();
     res.cancellous_thickness_m = s.cancellousThickness();
     res.inner_cortical_thickness_m = s.innerCorticalThickness();
+    const core::TrialConditions& c = sim_->trialConditions();
+    res.volunteer_id = c.volunteer_id;
+    res.patient_amplitude_scale = c.patient_amplitude_scale;
+    res.ventilator_rate_bpm = c.ventilator_rate_bpm;
+    res.ventilator_tidal_volume_ml = c.ventilator_tidal_volume_ml;
+    res.force_noise_sd_n = c.force_noise_sd_n;
+    res.arm_stiffness_scale = c.arm_stiffness_scale;
     publishGroundTruth(sim_->time());
     return true;
   }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "pedicle_drilling/core/bone_specimen.hpp"
@@ -53,6 +54,30 @@ TEST(BoneSpecimen, DeterministicPerSeed) {
   EXPECT_EQ(a.innerCorticalThickness(), b.innerCorticalThickness());
   EXPECT_EQ(a.fractionProfile(), b.fractionProfile());
   EXPECT_NE(a.innerCorticalThickness(), c.innerCorticalThickness());
+}
+
+TEST(BoneSpecimen, DistributionValidationNamesTheField) {
+  EXPECT_NO_THROW(SpecimenDistribution{}.validate());
+  auto message = [](const SpecimenDistribution& d) {
+    try {
+      sample(1, d);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  SpecimenDistribution d;
+  d.cancellous_thickness_sd_m = -1e-3;
+  EXPECT_NE(message(d).find("cancellous_thickness_sd_m"), std::string::npos) << message(d);
+  d = SpecimenDistribution{};
+  d.outer_cortical_fraction_mean = 1.2;
+  EXPECT_NE(message(d).find("outer_cortical_fraction_mean"), std::string::npos) << message(d);
+  d = SpecimenDistribution{};
+  d.cancellous_fraction_max = 0.01;  // below cancellous_fraction_min
+  EXPECT_NE(message(d).find("cancellous_fraction_max"), std::string::npos) << message(d);
+  d = SpecimenDistribution{};
+  d.grid_step_m = std::nan("");
+  EXPECT_NE(message(d).find("grid_step_m"), std::string::npos) << message(d);
 }
 
 TEST(BoneSpecimen, ThicknessStatisticsMatchDistribution) {
@@ -108,8 +133,9 @@ TEST(BoneSpecimen, CancellousFieldCorrelationLength) {
   SpecimenDistribution d;
   d.cancellous_thickness_mean_m = 40e-3;  // long layer for statistics
   d.cancellous_thickness_sd_m = 0.0;
-  d.cancellous_fraction_min = -10.0;  // no clamping, pure field
-  d.cancellous_fraction_max = 10.0;
+  // No clamping, pure field: mean 0.25 with a 10 % field CV stays within [0.03, 0.70] (>8 SD).
+  d.cancellous_fraction_sd = 0.0;
+  d.cancellous_field_cv = 0.10;
   double acf_short = 0.0;
   double acf_l = 0.0;
   const int seeds = 20;

@@ -257,6 +257,21 @@ TEST(BulletArm, ChainStructureAndMergedLinks) {
   EXPECT_GT(tip.linear().col(2).z(), 1.0 - 1e-6);  // drill axis +z
 }
 
+TEST(BulletArm, StiffnessScaleScalesRevoluteAndPrismaticJointsOnly) {
+  BulletArm arm(readFile(urdfPath("rsssii.urdf")), "world", "drill_tip");
+  const Eigen::VectorXd nominal = arm.jointStiffness();
+  arm.setStiffnessScale(0.7);
+  const Eigen::VectorXd scaled = arm.jointStiffness();
+  for (int k = 0; k < 7; ++k) EXPECT_NEAR(scaled[k], 0.7 * nominal[k], 1e-9 * nominal[k]) << k;
+  EXPECT_EQ(scaled[7], nominal[7]);  // continuous spindle keeps its stiffness
+  arm.setStiffnessScale(1.0);       // relative to the URDF value, not cumulative
+  EXPECT_NEAR(arm.jointStiffness()[1], nominal[1], 1e-9);
+  EXPECT_THROW(arm.setStiffnessScale(0.0), std::invalid_argument);
+  EXPECT_THROW(arm.setStiffnessScale(std::nan("")), std::invalid_argument);
+  EXPECT_THROW(arm.setStiffnessScale(11.0), std::invalid_argument);
+  EXPECT_NEAR(arm.jointStiffness()[1], nominal[1], 1e-9);  // a refused scale changes nothing
+}
+
 TEST(BulletArm, LinkPosesMatchIndependentUrdfForwardKinematics) {
   const std::string xml = readFile(urdfPath("workcell.urdf"));
   auto model = urdf::parseURDF(xml);

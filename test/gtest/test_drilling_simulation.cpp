@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
 namespace {
@@ -386,6 +387,43 @@ TEST(VirtualPatient, DrawnFromTheVirtualVolunteerTruth) {
   EXPECT_NE(drawVirtualPatient(1).drift_phase_rad, drawVirtualPatient(6).drift_phase_rad);
 }
 
+TEST(VirtualPatient, SmallMovementsFollowTheVolunteerRateAndSize) {
+  EXPECT_TRUE(drawVirtualPatient(3, 0.0, 0.0).movements.empty());
+  // Over the hour after the start: Poisson onsets at the volunteer's rate (1-3 per min).
+  double total = 0.0;
+  double expected = 0.0;
+  double sum_sq = 0.0;
+  int n = 0;
+  for (std::uint64_t seed = 0; seed < 10; ++seed) {
+    const VirtualPatient p = drawVirtualPatient(seed, 100.0, 1.0);
+    const VolunteerParams v = defaultVolunteer(p.volunteer_id);
+    total += p.movements.size();
+    expected += v.movements_per_min * 60.0;
+    for (const PatientMovement& m : p.movements) {
+      EXPECT_GE(m.t, 100.0);
+      EXPECT_LT(m.t, 3700.0);
+      EXPECT_GE(m.ramp, 0.5);
+      EXPECT_LE(m.ramp, 1.0);
+      sum_sq += m.size[0] * m.size[0];
+      ++n;
+    }
+    // Before the first onset the movements add nothing.
+    EXPECT_EQ(movementDisplacementMm(p.movements, 0, 100.0), 0.0);
+  }
+  EXPECT_NEAR(total / expected, 1.0, 0.05);
+  EXPECT_NEAR(std::sqrt(sum_sq / n), 0.10, 0.01);  // AP movement SD of the volunteers
+  // The scale multiplies the sizes of the same onsets.
+  const VirtualPatient a = drawVirtualPatient(4, 0.0, 1.0);
+  const VirtualPatient b = drawVirtualPatient(4, 0.0, 2.0);
+  ASSERT_EQ(a.movements.size(), b.movements.size());
+  EXPECT_DOUBLE_EQ(b.movements[3].size[0], 2.0 * a.movements[3].size[0]);
+  EXPECT_DOUBLE_EQ(b.movements[3].t, a.movements[3].t);
+  // apDisplacementMm includes them.
+  const double t = a.movements[3].t + 5.0;
+  EXPECT_NEAR(a.apDisplacementMm(0.0, t) - drawVirtualPatient(4, 0.0, 0.0).apDisplacementMm(0.0, t),
+              movementDisplacementMm(a.movements, 0, t), 1e-12);
+}
+
 }  // namespace
 }  // namespace pedicle_drilling::core
 
@@ -401,6 +439,165 @@ TEST(DrillingSimulationTrial, StartTrialZeroesRelativeApMotion) {
   sim.startTrial();
   EXPECT_EQ(sim.trialCount(), 1);
   EXPECT_NEAR(sim.groundTruth().relative_ap_m, 0.0, 1e-12);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core
+
+namespace pedicle_drilling::core {
+namespace {
+
+TEST(TrialConditions, ZeroSpreadGivesTheConfiguredValuesForEverySeed) {
+  VentilatorSettings vent;
+  vent.rate_bpm = 14.0;
+  vent.tv_max_ml = 450.0;
+  for (std::uint64_t seed = 0; seed < 20; ++seed) {
+    const TrialConditions c = drawTrialConditions(seed, TrialVariability{}, vent, 0.03);
+    EXPECT_EQ(c.volunteer_id, 1 + static_cast<int>(seed % 5));
+    EXPECT_EQ(c.patient_amplitude_scale, 1.0);
+    EXPECT_EQ(c.ventilator_rate_bpm, 14.0);
+    EXPECT_EQ(c.ventilator_tidal_volume_ml, 450.0);
+    EXPECT_EQ(c.force_noise_sd_n, 0.03);
+    EXPECT_EQ(c.arm_stiffness_scale, 1.0);
+  }
+}
+
+TEST(TrialConditions, SpreadsHaveTheirSdAreTruncatedAndReproducible) {
+  TrialVariability v;
+  v.patient_amplitude_scale_sd = 0.1;
+  v.ventilator_rate_sd_bpm = 2.0;
+  v.ventilator_tidal_volume_sd_ml = 50.0;
+  v.sensor_noise_scale_sd = 0.2;
+  v.arm_stiffness_scale_sd = 0.15;
+  const VentilatorSettings vent;  // 12 bpm, 500 ml
+  const int n = 4000;
+  std::vector<double> amp, rate, tv, noise, stiff;
+  for (int seed = 0; seed < n; ++seed) {
+    const TrialConditions c = drawTrialConditions(seed, v, vent, 0.03);
+    amp.push_back(c.patient_amplitude_scale);
+    rate.push_back(c.ventilator_rate_bpm);
+    tv.push_back(c.ventilator_tidal_volume_ml);
+    noise.push_back(c.force_noise_sd_n / 0.03);
+    stiff.push_back(c.arm_stiffness_scale);
+  }
+  auto check = [n](const std::vector<double>& x, double mean, double sd, const char* what) {
+    double m = 0.0;
+    for (double e : x) m += e / n;
+    double var = 0.0;
+    for (double e : x) var += (e - m) * (e - m) / (n - 1);
+    // Truncation at 3 SD shrinks the SD by 1.3 %; 4000 draws: SE of the mean sd/63.
+    EXPECT_NEAR(m, mean, 4.0 * sd / std::sqrt(n)) << what;
+    EXPECT_NEAR(std::sqrt(var), sd * 0.987, 0.05 * sd) << what;
+    EXPECT_LE(*std::max_element(x.begin(), x.end()), mean + 3.0 * sd + 1e-12) << what;
+    EXPECT_GE(*std::min_element(x.begin(), x.end()), mean - 3.0 * sd - 1e-12) << what;
+  };
+  check(amp, 1.0, 0.1, "amplitude");
+  check(rate, 12.0, 2.0, "rate");
+  check(tv, 500.0, 50.0, "tidal volume");
+  check(noise, 1.0, 0.2, "sensor noise");
+  check(stiff, 1.0, 0.15, "arm stiffness");
+  const TrialConditions a = drawTrialConditions(7, v, vent, 0.03);
+  const TrialConditions b = drawTrialConditions(7, v, vent, 0.03);
+  EXPECT_EQ(a.patient_amplitude_scale, b.patient_amplitude_scale);
+  EXPECT_EQ(a.arm_stiffness_scale, b.arm_stiffness_scale);
+  // Each factor has its own deviate: switching one spread off leaves the others' draws alone.
+  TrialVariability only_rate = v;
+  only_rate.patient_amplitude_scale_sd = 0.0;
+  const TrialConditions c = drawTrialConditions(7, only_rate, vent, 0.03);
+  EXPECT_EQ(c.patient_amplitude_scale, 1.0);
+  EXPECT_EQ(c.ventilator_rate_bpm, a.ventilator_rate_bpm);
+  EXPECT_EQ(c.arm_stiffness_scale, a.arm_stiffness_scale);
+}
+
+TEST(TrialConditions, OutOfRangeSpreadsNameTheField) {
+  const VentilatorSettings vent;
+  auto message = [&vent](const TrialVariability& v) {
+    try {
+      drawTrialConditions(1, v, vent, 0.03);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  TrialVariability v;
+  v.patient_amplitude_scale_sd = 0.5;
+  EXPECT_NE(message(v).find("patient_amplitude_scale_sd"), std::string::npos) << message(v);
+  v = TrialVariability{};
+  v.ventilator_rate_sd_bpm = std::nan("");
+  EXPECT_NE(message(v).find("ventilator_rate_sd_bpm"), std::string::npos) << message(v);
+  v = TrialVariability{};
+  v.arm_stiffness_scale_sd = -0.1;
+  EXPECT_NE(message(v).find("arm_stiffness_scale_sd"), std::string::npos) << message(v);
+}
+
+TEST(DrillingSimulationTrial, ResetAppliesTheDrawnPatientSensorArmAndBreathing) {
+  DrillingSimulationParams params;
+  DrillingSimulation sim(workcell(), params, 3);
+  const double q1_volunteer = drawVirtualPatient(8).q1_ap_mm_per_ml;
+  TrialVariability v;
+  v.patient_amplitude_scale_sd = 0.2;
+  v.ventilator_rate_sd_bpm = 3.0;
+  v.ventilator_tidal_volume_sd_ml = 80.0;
+  v.sensor_noise_scale_sd = 0.3;
+  v.arm_stiffness_scale_sd = 0.2;
+  sim.setTrialDistribution(SpecimenDistribution{}, v);
+  sim.reset(8, true);
+  const TrialConditions& c = sim.trialConditions();
+  const TrialConditions expected = drawTrialConditions(8, v, params.ventilator, 0.03);
+  EXPECT_EQ(c.patient_amplitude_scale, expected.patient_amplitude_scale);
+  EXPECT_NE(c.patient_amplitude_scale, 1.0);
+  EXPECT_DOUBLE_EQ(sim.patient().q1_ap_mm_per_ml, q1_volunteer * c.patient_amplitude_scale);
+  EXPECT_EQ(sim.patient().volunteer_id, 4);
+  // The new breathing takes effect at the next breath (12 bpm: within 5 s).
+  sim.step(5.5);
+  EXPECT_DOUBLE_EQ(sim.ventilator().model().settings().rate_bpm, c.ventilator_rate_bpm);
+  EXPECT_DOUBLE_EQ(sim.ventilator().model().settings().tv_max_ml, c.ventilator_tidal_volume_ml);
+  // Back to no spread: the configured breathing returns and scales are 1 again.
+  sim.setTrialDistribution(SpecimenDistribution{}, TrialVariability{});
+  sim.reset(8, true);
+  EXPECT_EQ(sim.trialConditions().arm_stiffness_scale, 1.0);
+  EXPECT_DOUBLE_EQ(sim.patient().q1_ap_mm_per_ml, q1_volunteer);
+  sim.step(60.0 / c.ventilator_rate_bpm + 0.5);
+  EXPECT_DOUBLE_EQ(sim.ventilator().model().settings().rate_bpm, params.ventilator.rate_bpm);
+}
+
+TEST(DrillingSimulationTrial, StiffnessScaleIsAppliedToTheArmAtReset) {
+  DrillingSimulationParams params;
+  DrillingSimulation sim(workcell(), params, 2);
+  const Eigen::VectorXd nominal = sim.armJointStiffness();
+  TrialVariability v;
+  v.arm_stiffness_scale_sd = 0.3;
+  sim.setTrialDistribution(SpecimenDistribution{}, v);
+  sim.reset(17, false);
+  const double scale = sim.trialConditions().arm_stiffness_scale;
+  EXPECT_NE(scale, 1.0);
+  const Eigen::VectorXd scaled = sim.armJointStiffness();
+  const std::vector<std::string>& names = sim.armJointNames();
+  for (int k = 0; k < scaled.size(); ++k) {
+    const double factor = names[k] == "spindle_joint" ? 1.0 : scale;
+    EXPECT_NEAR(scaled[k], factor * nominal[k], 1e-9 * nominal[k]) << names[k];
+  }
+}
+
+TEST(DrillingSimulationTrial, BadDistributionThrowsAndLeavesTheTrialAlone) {
+  DrillingSimulationParams params;
+  DrillingSimulation sim(workcell(), params, 3);
+  const double inner = sim.process().specimen().innerCorticalThickness();
+  SpecimenDistribution bad;
+  bad.inner_cortical_thickness_mean_m = -1e-3;
+  EXPECT_THROW(sim.setTrialDistribution(bad, TrialVariability{}), std::invalid_argument);
+  TrialVariability bad_v;
+  bad_v.sensor_noise_scale_sd = 2.0;
+  EXPECT_THROW(sim.setTrialDistribution(SpecimenDistribution{}, bad_v), std::invalid_argument);
+  sim.reset(3, true);  // the old, valid distributions are still in force
+  EXPECT_DOUBLE_EQ(sim.process().specimen().innerCorticalThickness(), inner);
+  // A specimen mean set without spread is what every trial gets.
+  SpecimenDistribution fixed;
+  fixed.inner_cortical_thickness_mean_m = 3.0e-3;
+  fixed.inner_cortical_thickness_sd_m = 0.0;
+  sim.setTrialDistribution(fixed, TrialVariability{});
+  sim.reset(11, true);
+  EXPECT_DOUBLE_EQ(sim.process().specimen().innerCorticalThickness(), 3.0e-3);
 }
 
 }  // namespace

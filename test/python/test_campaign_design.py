@@ -121,3 +121,21 @@ def test_scenario_unknown_key_is_an_error(tmp_path):
                           '--scenario', str(bad)], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2
     assert 'speed_of_light' in out.stderr
+
+
+@pytest.mark.parametrize('section, named', [
+    ('{patients: {amplitude_scale_sd: 0.1}}', 'simulator.patients'),
+    ('{patient: {amplitude_sd: 0.1}}', 'simulator.patient.amplitude_sd'),
+    ('{patient: {amplitude_scale_sd: lots}}', 'simulator.patient.amplitude_scale_sd'),
+    ('{arm: 0.1}', 'simulator.arm'),
+])
+def test_scenario_simulator_section_is_checked_against_the_simulator_keys(tmp_path, section,
+                                                                          named):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('trials: 1\nsimulator: %s\n' % section)
+    out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
+                          '--scenario', str(bad), '--out', str(tmp_path / 'out')],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stderr
+    assert named in out.stderr
+

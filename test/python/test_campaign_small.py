@@ -67,3 +67,46 @@ def test_bags_keep_each_trial_for_replay(tmp_path):
         topics = handle.get_type_and_topic_info().topics
     for topic in ('/ft_sensor/wrench', '/simulator/ground_truth', '/drilling_state', '/tf'):
         assert topic in topics and topics[topic].message_count > 0, topic
+
+
+def test_scenario_simulator_section_reaches_the_trials(tmp_path):
+    """A scenario's `simulator:` spreads are drawn per trial (recorded in trials.csv); an
+    out-of-range one is refused by the simulator with exit 2, naming the parameter."""
+    scenario = tmp_path / 'spread.yaml'
+    scenario.write_text(
+        'cases: [uncompensated]\nrpms: [12000]\ntrials: 2\nseed: 21\n'
+        'identification: online\nidentification_window_s: 10.0\nmax_duration_s: 40.0\n'
+        'simulator:\n'
+        '  patient: {amplitude_scale_sd: 0.2}\n'
+        '  ventilator: {rate_sd_bpm: 2.0}\n'
+        '  arm: {stiffness_scale_sd: 0.2}\n'
+        '  sensor: {noise_scale_sd: 0.3}\n'
+        '  specimen: {inner_cortical_thickness_mean_mm: 2.5, inner_cortical_thickness_sd_mm: 0}\n')
+    out = tmp_path / 'spread'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(scenario), '--jobs', '1',
+         '--out', str(out), '--base-port', '13100'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2
+    for row in rows:
+        assert row['error'] == '', row['error']
+        assert abs(float(row['inner_cortical_mm']) - 2.5) < 1e-9
+        assert 0.4 <= float(row['amplitude_scale']) <= 1.6
+        assert 6.0 <= float(row['ventilator_rate_bpm']) <= 18.0
+        assert 0.4 <= float(row['arm_stiffness_scale']) <= 1.6
+    for column in ('amplitude_scale', 'ventilator_rate_bpm', 'arm_stiffness_scale',
+                   'force_noise_sd_n'):
+        assert rows[0][column] != rows[1][column], column
+
+    bad = tmp_path / 'bad_spread.yaml'
+    bad.write_text('cases: [stationary]\nrpms: [12000]\ntrials: 1\n'
+                   'simulator: {patient: {amplitude_scale_sd: 0.9}}\n')
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(bad), '--jobs', '1',
+         '--out', str(tmp_path / 'bad'), '--base-port', '13300'],
+        capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert 'trial_distribution/patient/amplitude_scale_sd' in result.stderr

@@ -70,7 +70,7 @@ class StationaryDrillingTest(unittest.TestCase):
     def test_two_cortical_peaks_and_ground_truth_depth(self):
         rospy.wait_for_service('/simulator/reset', timeout=30.0)
         reset = rospy.ServiceProxy('/simulator/reset', ResetSimulation)
-        res = reset(seed=SEED, moving_bone=False, scenario_yaml='')
+        res = reset(seed=SEED, moving_bone=False)
         self.assertTrue(res.success, res.message)
         bone = (res.outer_cortical_thickness_m + res.cancellous_thickness_m +
                 res.inner_cortical_thickness_m)

@@ -61,6 +61,12 @@ struct SpecimenDistribution {
   double cancellous_fraction_max = 0.70;       ///< clamp of the random field (dense strut)
 
   double grid_step_m = 10e-6;  ///< sampling step of the density field along depth (10 um)
+
+  /**
+   * @brief Checks every field against its physical range (thicknesses (0, 100 mm], SDs >= 0,
+   *        fractions in (0, 1], ...). @throws std::invalid_argument naming the field.
+   */
+  void validate() const;
 };
 
 /**

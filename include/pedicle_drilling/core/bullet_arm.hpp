@@ -168,6 +168,13 @@ class BulletArm {
   Eigen::VectorXd jointEfforts() const;
   /// @brief Servo stiffness of every joint [Nm/rad or N/m].
   Eigen::VectorXd jointStiffness() const;
+  /**
+   * @brief Scales the servo stiffness of every revolute and prismatic joint by `scale` relative
+   *        to the URDF-derived value (continuous joints keep theirs); damping follows, as it is
+   *        recomputed from the stiffness each step. @throws std::invalid_argument unless
+   *        0 < scale <= 10 and finite.
+   */
+  void setStiffnessScale(double scale);
 
   /// @brief Pose of any URDF link of the chain (including links merged through fixed joints)
   /// in the base_link frame. @throws std::out_of_range for an unknown link.

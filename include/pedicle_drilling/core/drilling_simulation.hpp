@@ -40,6 +40,7 @@
 #include "pedicle_drilling/core/force_sensor.hpp"
 #include "pedicle_drilling/core/spms_kinematics.hpp"
 #include "pedicle_drilling/core/ventilator.hpp"
+#include "pedicle_drilling/core/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -51,15 +52,64 @@ struct VirtualPatient {
   double drift_mm = 0.15;           ///< amplitude of the slow AP drift [mm]
   double drift_period_s = 60.0;     ///< period of the slow AP drift [s]
   double drift_phase_rad = 0.0;     ///< phase of the slow AP drift [rad]
+  /// Small unpredictable movements (AP component used), as the volunteers' recordings have.
+  std::vector<PatientMovement> movements;
   /** @brief True AP displacement [mm] for a lagged tidal volume [ml] at time t [s]. */
   double apDisplacementMm(double lagged_tv_ml, double t) const;
 };
 
 /**
  * @brief Draws a virtual patient from a seed: the truth model (q1_AP, lag, drift) of virtual
- *        volunteer 1 + seed % 5 (virtual_volunteer.hpp), drift period and phase from the seed.
+ *        volunteer 1 + seed % 5 (virtual_volunteer.hpp), drift period and phase from the seed,
+ *        and the volunteer's small movements (Poisson onsets at its rate, AP size SD times
+ *        `movement_scale`, the recordings' shapes) over the hour after `start_time_s`.
  */
-VirtualPatient drawVirtualPatient(std::uint64_t seed);
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s = 0.0,
+                                  double movement_scale = 1.0);
+
+/**
+ * @brief Per-trial spread of the patient, ventilator, sensor and arm, drawn at every
+ *        reset(seed) (the specimen's spread is SpecimenDistribution). Every SD defaults to 0:
+ *        the paper's conditions (one ventilator setting, one sensor, one arm; patients differ
+ *        through the five virtual volunteers). Draws are normal, truncated at +-3 SD.
+ */
+struct TrialVariability {
+  /// Relative SD of the patient's AP displacement per ml (inter-patient amplitude), [0, 0.3].
+  double patient_amplitude_scale_sd = 0.0;
+  /// SD of the breathing rate around the configured ventilator rate [breaths/min], [0, 5].
+  double ventilator_rate_sd_bpm = 0.0;
+  /// SD of the tidal volume around the configured Tv_max [ml], [0, 200].
+  double ventilator_tidal_volume_sd_ml = 0.0;
+  /// Relative SD of the force/torque sensor's white-noise level, [0, 0.5].
+  double sensor_noise_scale_sd = 0.0;
+  /// Relative SD of every arm joint's servo stiffness (pose, payload, gear wear), [0, 0.3].
+  double arm_stiffness_scale_sd = 0.0;
+  /// Factor on the size of the volunteer's small movements, [0, 5]; 0: none. Not a spread: 1
+  /// keeps the movements the virtual volunteers' recordings show (virtual_volunteer.hpp).
+  double patient_movement_scale = 1.0;
+  /** @brief @throws std::invalid_argument naming the field when a value is out of range. */
+  void validate() const;
+};
+
+/** @brief What reset(seed) drew for one trial (reported with the trial's results). */
+struct TrialConditions {
+  int volunteer_id = 1;                      ///< virtual volunteer of the patient (1..5)
+  double patient_amplitude_scale = 1.0;      ///< factor on the volunteer's AP slope q1
+  double ventilator_rate_bpm = 12.0;         ///< breathing rate of the trial [breaths/min]
+  double ventilator_tidal_volume_ml = 500.0; ///< Tv_max of the trial [ml]
+  double force_noise_sd_n = 0.03;            ///< sensor white noise per force axis [N]
+  double arm_stiffness_scale = 1.0;          ///< factor on every arm joint's servo stiffness
+};
+
+/**
+ * @brief Draws the trial conditions of `seed` around the configured ventilator settings and
+ *        sensor noise. Deterministic for a seed; with every SD 0 it returns the configured
+ *        values and scale factors of 1 (only volunteer_id depends on the seed).
+ * @throws std::invalid_argument if `variability` is out of range.
+ */
+TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
+                                    const VentilatorSettings& ventilator,
+                                    double force_noise_sd_n);
 
 /** @brief Parameters of the simulated workcell. Defaults and sources: simulator_physics.md. */
 struct DrillingSimulationParams {
@@ -84,6 +134,7 @@ struct DrillingSimulationParams {
   bool moving_bone = true;           ///< initial trial: bone follows the patient (reset() sets)
   VentilatorSettings ventilator;     ///< internal ventilator driving the patient
   SpecimenDistribution specimen;     ///< specimen distribution for reset(seed)
+  TrialVariability variability;      ///< patient/ventilator/sensor/arm spread for reset(seed)
   DrillParameters drill;             ///< drill and force-law constants
   ForceSensorParams sensor;          ///< force/torque sensor model
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
@@ -163,6 +214,16 @@ class DrillingSimulation {
    */
   void reset(std::uint64_t seed, bool moving_bone);
 
+  /**
+   * @brief Replaces the distributions the next reset(seed) draws from (the current trial is
+   *        not changed). @throws std::invalid_argument if a value is out of range; nothing
+   *        changes then.
+   */
+  void setTrialDistribution(const SpecimenDistribution& specimen,
+                            const TrialVariability& variability);
+  /** @brief What the last reset (or the constructor) drew. */
+  const TrialConditions& trialConditions() const;
+
   /** @brief Advances one physics step (1 / physics_rate_hz). */
   SimulationStep stepOnce();
   /** @brief Advances by at least `dt` seconds (whole physics steps); returns steps run. */
@@ -193,6 +254,9 @@ class DrillingSimulation {
   Eigen::VectorXd armJointPositions() const;
   /** @brief Arm joint velocities (order of armJointNames()). */
   Eigen::VectorXd armJointVelocities() const;
+  /** @brief Servo stiffness of every arm joint (order of armJointNames()), after the trial's
+   *         stiffness scale [Nm/rad or N/m]. */
+  Eigen::VectorXd armJointStiffness() const;
   /** @brief Arm joint efforts of the last Bullet step. */
   Eigen::VectorXd armJointEfforts() const;
   /** @brief SPMS joint names (slider1..3_joint, rod1..3_joint) and their URDF values. */

@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <random>
 
+#include "pedicle_drilling/core/normal_source.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief Wrench [Fx, Fy, Fz (N), Tx, Ty, Tz (N m)] in the sensor frame. */
@@ -76,9 +78,7 @@ class ForceSensor {
   double normal();
 
   ForceSensorParams params_;
-  std::mt19937_64 rng_;
-  bool has_spare_ = false;
-  double spare_ = 0.0;
+  NormalSource normal_;  ///< noise, bias and phase deviates
   Wrench bias_ = Wrench::Zero();
   Wrench tare_offset_ = Wrench::Zero();
   double spindle_phase_ = 0.0;

@@ -122,6 +122,20 @@ struct VolunteerData {
   int num_breaths = 0;              ///< breaths started inside the recording
 };
 
+/**
+ * @brief A small patient movement: a raised-cosine transition of `ramp` seconds starting at
+ *        `t`, either a step that persists (`hold` < 0) or a bump that returns after `hold` s.
+ */
+struct PatientMovement {
+  double t = 0.0;                        ///< onset [s]
+  double ramp = 0.5;                     ///< transition time [s]
+  double hold = -1.0;                    ///< < 0: step; else time held before returning [s]
+  std::array<double, 3> size{{0, 0, 0}}; ///< displacement per axis (AP, SI, LR) [mm]
+};
+
+/** @brief Sum of the movements' displacement along `axis` (0 AP, 1 SI, 2 LR) at time t [mm]. */
+double movementDisplacementMm(const std::vector<PatientMovement>& movements, int axis, double t);
+
 /** @brief Parameters of the default volunteers, ids 1..5 (fixed seeds); throws otherwise. */
 VolunteerParams defaultVolunteer(int id);
 

@@ -8,6 +8,7 @@
 #include <ros/node_handle.h>
 
 #include <cmath>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -82,6 +83,24 @@ class ParamLoader {
     if (nh_.hasParam(name) && !nh_.getParam(name, value)) fail(name, "must be a string");
     if (!allow_empty && value.empty()) fail(name, "must not be empty");
     return value;
+  }
+
+  /**
+   * @brief Fails on a key of the mapping `name` that is not in `known` (a typo would otherwise
+   *        be a silent default), or when `name` is set but is not a mapping. Absent: no-op.
+   */
+  void rejectUnknownKeys(const std::string& name, const std::set<std::string>& known) const {
+    if (!nh_.hasParam(name)) return;
+    XmlRpc::XmlRpcValue raw;
+    nh_.getParam(name, raw);
+    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) fail(name, "must be a mapping");
+    for (auto it = raw.begin(); it != raw.end(); ++it) {
+      if (known.count(it->first) == 0) {
+        std::string list;
+        for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
+        fail(name + "/" + it->first, "is not a known parameter (known: " + list + ")");
+      }
+    }
   }
 
   /** @brief Throws ParameterError naming the fully resolved parameter. */
