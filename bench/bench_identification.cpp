@@ -66,17 +66,17 @@ int main() {
       std::printf("BENCH identify_speedup_ceres_over_pso %.1f x\n", ms_p / ms_c);
       std::printf("BENCH identify_ceres_time %.4f ms\n", ms_c);
       std::printf("BENCH identify_pso_time %.3f ms\n", ms_p);
-      std::printf("BENCH identify_ceres_r2_mean %.10f\n", r2_ceres);
-      std::printf("BENCH identify_pso_r2_mean %.10f\n", r2_pso);
-      std::printf("BENCH identify_ols_r2_mean %.10f\n", r2_ols);
-      std::printf("BENCH identify_pso_max_r2_gap_to_ols %.3g\n", max_gap);
+      std::printf("BENCH identify_ceres_r2_mean %.10f R2\n", r2_ceres);
+      std::printf("BENCH identify_pso_r2_mean %.10f R2\n", r2_pso);
+      std::printf("BENCH identify_ols_r2_mean %.10f R2\n", r2_ols);
+      std::printf("BENCH identify_pso_max_r2_gap_to_ols %.3g R2\n", max_gap);
     } else {
       std::printf("BENCH identify_hysteresis_speedup_ceres_over_pso %.1f x\n", ms_p / ms_c);
       std::printf("BENCH identify_hysteresis_ceres_time %.4f ms\n", ms_c);
       std::printf("BENCH identify_hysteresis_pso_time %.3f ms\n", ms_p);
-      std::printf("BENCH identify_hysteresis_ceres_r2_mean %.10f\n", r2_ceres);
-      std::printf("BENCH identify_hysteresis_pso_r2_mean %.10f\n", r2_pso);
-      std::printf("BENCH identify_hysteresis_pso_max_r2_gap_to_ols %.3g\n", max_gap);
+      std::printf("BENCH identify_hysteresis_ceres_r2_mean %.10f R2\n", r2_ceres);
+      std::printf("BENCH identify_hysteresis_pso_r2_mean %.10f R2\n", r2_pso);
+      std::printf("BENCH identify_hysteresis_pso_max_r2_gap_to_ols %.3g R2\n", max_gap);
     }
   }
   return 0;

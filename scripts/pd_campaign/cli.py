@@ -2,6 +2,7 @@
 import argparse
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -17,6 +18,8 @@ from .design import CASES, build_design, parse_shard, shard
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
 DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
+# Table II files a campaign copies from its identification; shards share them.
+TABLE2_FILES = ('table2.md', 'table2.csv')
 SIMULATOR_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'simulator.yaml')
 
 # Scenario keys: name -> (type, min, max). Documented in the README ("Scenario files").
@@ -136,7 +139,7 @@ def parse_args(argv):
     else:
         raise UsageError('--case %r is not one of: %s, all' % (args.case, ', '.join(CASES)))
     if args.rpm is None:
-        rpms = [float(r) for r in scenario.get('rpms', [12000])]
+        rpms = [float(r) for r in scenario.get('rpms', [12000, 16000, 20000])]
     else:
         try:
             rpms = [float(r) for r in args.rpm.split(',')]
@@ -240,10 +243,8 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: Table II identification failed:\n%s\n'
                              % (result.stderr or result.stdout))
             return 1
-        for name in ('table2.md', 'table2.csv'):
-            with open(os.path.join(ident_dir, name)) as src, \
-                    open(os.path.join(out_dir, name), 'w') as dst:
-                dst.write(src.read())
+        for name in TABLE2_FILES:
+            shutil.copyfile(os.path.join(ident_dir, name), os.path.join(out_dir, name))
         models_dir = os.path.join(ident_dir, 'models')
     jobs = min(args.jobs, len(selected))
     slices = [selected[i::jobs] for i in range(jobs)]
@@ -350,6 +351,11 @@ def run_merge(argv=None):
                 sys.stderr.write('campaign_merge: trial %s appears twice\n' % row['trial_id'])
                 return 2
             rows[row['trial_id']] = row
+        # Table II (the volunteers' identification) is the same in every shard of a design.
+        for name in TABLE2_FILES:
+            source = os.path.join(directory, name)
+            if os.path.exists(source) and not os.path.exists(os.path.join(out_dir, name)):
+                shutil.copyfile(source, os.path.join(out_dir, name))
         traces = os.path.join(directory, 'traces')
         if os.path.isdir(traces):
             for name in os.listdir(traces):
@@ -366,4 +372,9 @@ def run_merge(argv=None):
     expected = meta.get('design_size')
     sys.stderr.write('campaign_merge: %d trials%s -> %s\n' % (
         len(rows), '' if expected is None else ' of %d' % expected, out_dir))
+    if expected is not None and len(rows) != expected:
+        sys.stderr.write('campaign_merge: %d trial(s) of the design are missing (a shard not '
+                         'finished or not given); the report covers the others\n'
+                         % (expected - len(rows)))
+        return 1
     return 0

@@ -20,6 +20,8 @@ TRIAL_COLUMNS = [
 ]
 
 PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}
+# Paper Sec. V-D (Fig. 16, 12000 rpm): median peak force of a case minus the stationary one, N.
+PAPER_PEAK_DIFFERENCES = {'uncompensated': (-1.2, -1.43), 'compensated': (-0.43, -0.01)}
 
 
 def _number(value):
@@ -169,8 +171,9 @@ def markdown_table(summary):
              '| median residual (successes) [mm] | median tracking RMS [mm] | stops |',
              '|---|---|---|---|---|---|---|---|---|---|']
     for g in summary:
-        lines.append('| %s | %.0f | %d/%d | %s | %s-%s | %s | %s | %s | %s | %s |' % (
-            g['case'], g['rpm'], g['successes'], g['trials'], _pct(g['success_rate']),
+        errors = ' (+%d errored, not counted)' % g['errors'] if g.get('errors') else ''
+        lines.append('| %s | %.0f | %d/%d%s | %s | %s-%s | %s | %s | %s | %s | %s |' % (
+            g['case'], g['rpm'], g['successes'], g['trials'], errors, _pct(g['success_rate']),
             _pct(g['wilson95'][0]), _pct(g['wilson95'][1]), _num(g['median_f_out_n']),
             _num(g['median_f_in_n']), _num(g['median_residual_mm_successful']),
             _num(g['median_tracking_rms_mm']),
@@ -187,6 +190,62 @@ def failure_table(summary):
             g['case'], g['rpm'], ', '.join('%s %d' % kv for kv in g['outcomes'].items()),
             _num(g['median_tracking_rms_mm_failures'])))
     return '\n'.join(lines)
+
+
+def _dominant(counts, exclude=()):
+    items = [(n, k) for k, n in counts.items() if k not in exclude]
+    return max(items) if items else (0, None)
+
+
+def analysis(summary):
+    """Sentences computed from the summary: where a case falls short of the stationary case (the
+    bar the paper sets for compensation) and of the paper, and what the failures have in common.
+    The causes behind them are discussed in the README ("Results of make run")."""
+    by_key = {(g['case'], g['rpm']): g for g in summary}
+    lines = []
+    for rpm in sorted({g['rpm'] for g in summary}):
+        base = by_key.get(('stationary', rpm))
+        for case in ('uncompensated', 'compensated'):
+            g = by_key.get((case, rpm))
+            if g is None or not g['trials']:
+                continue
+            text = '* %s, %.0f rpm: %d/%d (Wilson 95 %% %s-%s)' % (
+                case, rpm, g['successes'], g['trials'], _pct(g['wilson95'][0]),
+                _pct(g['wilson95'][1]))
+            if base is not None and base['trials']:
+                text += ' against stationary %d/%d' % (base['successes'], base['trials'])
+                if g['wilson95'][1] < base['wilson95'][0]:
+                    text += ', clearly below it (the intervals do not overlap)'
+                elif g['successes'] * base['trials'] < base['successes'] * g['trials']:
+                    text += ', below it but within the statistical spread'
+                else:
+                    text += ', as good'
+            failures = g['trials'] - g['successes']
+            if failures:
+                count, where = _dominant(g['outcomes'], exclude=('success',))
+                text += '. %d of %d failures: %s' % (count, failures, where)
+                stops = _dominant(g['stop_reasons'])[1]
+                if stops:
+                    text += '; most common stop: %s' % stops
+                if g.get('median_tracking_rms_mm_failures') is not None:
+                    text += '; median tip-bone AP tracking RMS of the failures %.2f mm' % (
+                        g['median_tracking_rms_mm_failures'])
+            lines.append(text + '.')
+    base = by_key.get(('stationary', 12000.0))
+    if base and base['median_f_out_n'] is not None and base['median_f_in_n'] is not None:
+        for case, (paper_out, paper_in) in sorted(PAPER_PEAK_DIFFERENCES.items()):
+            g = by_key.get((case, 12000.0))
+            if not g or g['median_f_out_n'] is None or g['median_f_in_n'] is None:
+                continue
+            lines.append('* Median peak forces, %s minus stationary at 12000 rpm: F_out %+.2f N, '
+                         'F_in %+.2f N (paper Fig. 16: %+.2f N, %+.2f N).' % (
+                             case, g['median_f_out_n'] - base['median_f_out_n'],
+                             g['median_f_in_n'] - base['median_f_in_n'], paper_out, paper_in))
+    if not lines:
+        return ''
+    return '\n'.join(['## What the numbers say', '',
+                      'Computed from the table above; the causes behind the shortfalls are '
+                      'analysed in the README ("Results of make run").', ''] + lines)
 
 
 def write_report_md(summary, meta, figures, path, notes=''):
@@ -218,6 +277,9 @@ def write_report_md(summary, meta, figures, path, notes=''):
               'Where the drill ended for every trial (simulator ground truth), and the tip-bone '
               'AP tracking of the failed trials (RMS about the feed line while drilling).', '',
               failure_table(summary), '']
+    findings = analysis(summary)
+    if findings:
+        lines += [findings, '']
     if notes:
         lines += [notes.strip(), '']
     if figures:

@@ -200,6 +200,9 @@ struct DrillingSimulation::Impl {
   // Trajectory (commandable joints only).
   std::vector<Knot> knots;  // empty: hold
   Eigen::VectorXd hold_q;
+  // The joint controllers' position setpoint: the commanded reference, moved at most at each
+  // joint's URDF velocity limit per arm block (a real controller never outruns its limits).
+  Eigen::VectorXd servo_ref;
 
   // Spindle.
   double spindle_cmd_rpm = 0.0;
@@ -364,8 +367,13 @@ struct DrillingSimulation::Impl {
     }
     std::map<std::string, double> pos, vel;
     for (size_t j = 0; j < commandable.size(); ++j) {
-      pos[commandable[j]] = q0[j];
-      vel[commandable[j]] = (q1[j] - q0[j]) / block;  // the servo reference ramps to q1
+      const double limit = arm->jointInfo()[commandable_index[j]].velocity * block;
+      // Not lagging: the setpoint is the reference now (q0). Lagging: it keeps its own value.
+      const double from = std::abs(servo_ref[j] - q0[j]) <= limit ? q0[j] : servo_ref[j];
+      const double to = from + std::clamp(q1[j] - from, -limit, limit);
+      pos[commandable[j]] = from;
+      vel[commandable[j]] = (to - from) / block;  // the servo reference ramps to `to`
+      servo_ref[j] = to;
     }
     arm->setJointPositionTargets(pos);
     arm->setJointVelocityTargets(vel);
@@ -419,13 +427,14 @@ struct DrillingSimulation::Impl {
     knots.clear();
     hold_q.resize(static_cast<int>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
+    servo_ref = hold_q;
     spindle_cmd_rpm = 0.0;
     spindle_rpm = 0.0;
     arm->setJointVelocityTargets(std::map<std::string, double>{{"spindle_joint", 0.0}});
     last_force = ForceSample{};
     tip_block_start = tip_block_end = physics_tip = arm->tipPose().translation();
     drill_axis = arm->tipPose().linear().col(2);
-    tip_depth = bone_world.translation().z() - physics_tip.z();
+    tip_depth = -(bone_world.inverse() * physics_tip).z();
     relative_ap0 = physics_tip.z() - bone_world.translation().z();
   }
 };
@@ -520,10 +529,13 @@ SimulationStep DrillingSimulation::stepOnce() {
   s.vent_now = s.ventilator.sample(s.time);
   s.updatePlatform();
 
-  // Tip depth along the (vertical) drill axis below the bone top surface; beside the bone's
-  // footprint there is no bone under the tip.
+  // Tip depth below the bone's top surface along the surface normal (the bone frame's z; the
+  // layers are parallel to the surface), so platform roll and pitch tilt the layers with the
+  // bone. The paper drills perpendicular to the surface, where this is the depth along the drill
+  // axis; the 1-D force law does not model an oblique entry. Beside the bone's footprint there
+  // is no bone under the tip.
   const Eigen::Vector3d tip_in_bone = s.bone_world.inverse() * s.physics_tip;
-  s.tip_depth = s.bone_world.translation().z() - s.physics_tip.z();
+  s.tip_depth = -tip_in_bone.z();
   const bool over_bone = std::abs(tip_in_bone.x()) <= s.params.bone_half_x_m &&
                          std::abs(tip_in_bone.y()) <= s.params.bone_half_y_m;
   const Material before = s.cutLayer();
@@ -646,6 +658,28 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
     }
     prev_q = k.q;
     knots.push_back(k);
+  }
+  // Speeds above the URDF velocity limits: the joint servos cap the speed (BulletArm), so the
+  // joint falls behind the command; say so (the first offence) instead of lagging silently.
+  bool too_fast = false;
+  for (size_t i = 1; i < knots.size() && !too_fast; ++i) {
+    const double dt = knots[i].t - knots[i - 1].t;
+    for (size_t j = 0; j < m && !too_fast; ++j) {
+      const int c = map[j];
+      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[c]];
+      const double mean_speed = std::abs(knots[i].q[c] - knots[i - 1].q[c]) / dt;
+      const double speed = std::max(mean_speed, knots[i].cubic ? std::abs(knots[i].v[c]) : 0.0);
+      too_fast = speed > info.velocity * (1.0 + 1e-6);
+      if (too_fast) {
+        std::ostringstream os;
+        os << "joint '" << info.name << "' commanded at " << speed << " between t = "
+           << knots[i - 1].t << " and " << knots[i].t << " s, above its velocity limit "
+           << info.velocity << ": it follows at the limit and lags the command";
+        result.status = TargetStatus::kClamped;
+        if (!result.message.empty()) result.message += "; ";
+        result.message += os.str();
+      }
+    }
   }
   // A cubic segment needs the start velocity; a linear first segment ignores it.
   s.knots = std::move(knots);

@@ -122,4 +122,29 @@ double siAxialRigidityGroup(double q1_mm_per_ml, const SpineGeometry& geometry) 
   return 2.0 * geometry.totalDiscLengthMm() / slopePerMm3(q1_mm_per_ml);
 }
 
+double equivalentStiffness(Axis axis, double q1_mm_per_ml) {
+  if (q1_mm_per_ml == 0.0) return 0.0;
+  switch (axis) {
+    case Axis::kAP:
+      return apEquivalentBendingStiffness(q1_mm_per_ml);
+    case Axis::kSI:
+      return siEquivalentAxialStiffness(q1_mm_per_ml);
+    case Axis::kLR:
+      break;
+  }
+  return 0.0;
+}
+
+std::string equivalentStiffnessLabel(Axis axis) {
+  switch (axis) {
+    case Axis::kAP:
+      return "EI*V0/(p0*b_w) mm^6";
+    case Axis::kSI:
+      return "E*A*V0/(2*p0*S*L) mm^2";
+    case Axis::kLR:
+      break;
+  }
+  return "";
+}
+
 }  // namespace pedicle_drilling::core

@@ -231,6 +231,12 @@ std::string modelToYaml(const PatientModel& model) {
     os << "    q0: " << formatDouble(r.model.q0) << "\n";
     os << "    r2: " << formatDouble(r.r2) << "\n";
     os << "    rmse: " << formatDouble(r.rmse) << "\n";
+    const std::string stiffness_label = equivalentStiffnessLabel(a);
+    if (!stiffness_label.empty()) {
+      // Informative only (derived from q1 and Table I), not read back.
+      os << "    equivalent_stiffness: " << formatDouble(equivalentStiffness(a, r.model.q1))
+         << "  # " << stiffness_label << "\n";
+    }
     os << "    wavelet: " << quote(r.wavelet) << "\n";
     os << "    level: " << r.level << "\n";
     os << "    kept_levels: [";

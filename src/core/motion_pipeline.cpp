@@ -189,7 +189,14 @@ std::string formatAxisReport(const AxisReport& r) {
                 axisName(r.axis).c_str(), r.wavelet.c_str(), r.fit.model.q1, r.fit.model.q2,
                 r.fit.model.q0, r.fit.r2, r.r2_raw, r.fit.rmse, r.fit.iterations,
                 r.fit.time_s * 1e3);
-  return buf;
+  std::string line = buf;
+  const std::string label = equivalentStiffnessLabel(r.axis);
+  if (!label.empty()) {
+    std::snprintf(buf, sizeof(buf), "  stiffness %.4g %s",
+                  equivalentStiffness(r.axis, r.fit.model.q1), label.c_str());
+    line += buf;
+  }
+  return line;
 }
 
 }  // namespace pedicle_drilling::core

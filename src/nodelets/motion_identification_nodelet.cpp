@@ -354,12 +354,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       axis.wavelet = r.wavelet == "none" ? "" : r.wavelet;
       axis.r2 = r.fit.r2;
       axis.rmse_mm = r.fit.rmse;
-      axis.equivalent_stiffness = 0.0;
-      if (r.fit.model.q1 != 0.0 && r.axis == core::Axis::kAP) {
-        axis.equivalent_stiffness = core::apEquivalentBendingStiffness(r.fit.model.q1);
-      } else if (r.fit.model.q1 != 0.0 && r.axis == core::Axis::kSI) {
-        axis.equivalent_stiffness = core::siEquivalentAxialStiffness(r.fit.model.q1);
-      }
+      axis.equivalent_stiffness = core::equivalentStiffness(r.axis, r.fit.model.q1);
       msg.axes.push_back(axis);
     }
     model_pub_.publish(msg);

@@ -12,12 +12,14 @@
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
+#include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
 
 #include <cmath>
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 
 #include "pedicle_drilling/StopCommand.h"
@@ -73,6 +75,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                                 hints);
     predicted_sub_ = nh.subscribe("compensation/predicted_marker_pose", 50,
                                   &SafetyMonitorNodelet::onPredicted, this, hints);
+    status_sub_ = nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus,
+                               this);
     check_timer_ = nh.createTimer(ros::Duration(1.0 / check_rate_hz),
                                   &SafetyMonitorNodelet::onCheck, this);
     diagnostic_timer_ = nh.createTimer(ros::Duration(diagnostic_period_s),
@@ -154,10 +158,19 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     return best;
   }
 
+  /** @brief The planner's phase: while a trial runs, a stream never heard is a timeout too. */
+  void onPlannerStatus(const std_msgs::String::ConstPtr& msg) {
+    static const std::set<std::string> kTrialPhases = {"moving_to_pose", "registering",
+                                                       "drilling", "stopped", "retreating"};
+    std::lock_guard<std::mutex> lock(mutex_);
+    trial_running_ = kTrialPhases.count(msg->data) > 0;
+  }
+
   void onCheck(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    // The watchdog is armed once both streams have been heard since start or reset.
-    if (have_force_ && have_tracker_) monitor_->check(now());
+    // The watchdog is armed once both streams have been heard since start or reset, or as soon
+    // as a trial runs: then a sensor that never published times out from the arming time.
+    if ((have_force_ && have_tracker_) || trial_running_) monitor_->check(now());
     evaluate();
   }
 
@@ -226,6 +239,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   bool have_force_ = false;
   bool have_tracker_ = false;
   bool stop_sent_ = false;
+  bool trial_running_ = false;
   std::deque<StampedPosition> tracked_;
   std::deque<StampedPosition> predicted_;
   ros::Publisher stop_pub_;
@@ -233,6 +247,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   ros::Subscriber wrench_sub_;
   ros::Subscriber tracker_sub_;
   ros::Subscriber predicted_sub_;
+  ros::Subscriber status_sub_;
   ros::ServiceServer reset_srv_;
   ros::Timer check_timer_;
   ros::Timer diagnostic_timer_;

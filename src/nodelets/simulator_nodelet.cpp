@@ -364,6 +364,37 @@ class SimulatorNodelet : public nodelet::Nodelet {
       res.message = std::string(e.what()) + "; nothing was reset";
       return true;
     }
+    // An explicit specimen: the given thicknesses with no spread.
+    const struct {
+      const char* field;
+      double mm;
+      double* mean_m;
+      double* sd_m;
+    } layers[] = {
+        {"outer_cortical_thickness_mm", req.outer_cortical_thickness_mm,
+         &distribution.specimen.outer_cortical_thickness_mean_m,
+         &distribution.specimen.outer_cortical_thickness_sd_m},
+        {"cancellous_thickness_mm", req.cancellous_thickness_mm,
+         &distribution.specimen.cancellous_thickness_mean_m,
+         &distribution.specimen.cancellous_thickness_sd_m},
+        {"inner_cortical_thickness_mm", req.inner_cortical_thickness_mm,
+         &distribution.specimen.inner_cortical_thickness_mean_m,
+         &distribution.specimen.inner_cortical_thickness_sd_m},
+    };
+    const double min_mm = distribution.specimen.min_layer_thickness_m * 1e3;
+    for (const auto& layer : layers) {
+      if (layer.mm == 0.0) continue;
+      if (!(layer.mm >= min_mm && layer.mm <= 100.0)) {
+        std::ostringstream os;
+        os << "request field " << layer.field << " = " << layer.mm << " is not 0 (drawn) or in ["
+           << min_mm << ", 100] mm; nothing was reset";
+        res.success = false;
+        res.message = os.str();
+        return true;
+      }
+      *layer.mean_m = layer.mm * 1e-3;
+      *layer.sd_m = 0.0;
+    }
     std::lock_guard<std::mutex> lock(mutex_);
     try {
       sim_->setTrialDistribution(distribution.specimen, distribution.variability);

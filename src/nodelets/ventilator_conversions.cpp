@@ -60,6 +60,8 @@ VentilatorSettings toMsg(const core::VentilatorSettings& s) {
       s.expiratory_spec == core::ExpiratorySpec::kPeakRatio ? "peak_ratio" : "time_constant";
   msg.peak_flow_ratio = s.peak_flow_ratio;
   msg.expiratory_tau_s = s.expiratory_tau_s;
+  msg.ramp_start_fraction = s.ramp_start_fraction;
+  msg.exponential_shape = s.exponential_shape;
   return msg;
 }
 
@@ -75,6 +77,9 @@ core::VentilatorSettings fromMsg(const VentilatorSettings& msg) {
                                 "expiratory_spec");
   s.peak_flow_ratio = msg.peak_flow_ratio;
   s.expiratory_tau_s = msg.expiratory_tau_s;
+  s.ramp_start_fraction = msg.ramp_start_fraction;
+  // 0 is what a request that does not name the field carries: the documented default.
+  if (msg.exponential_shape != 0.0) s.exponential_shape = msg.exponential_shape;
   s.validate();
   return s;
 }

@@ -288,6 +288,30 @@ TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
   EXPECT_NEAR(std::sqrt(sq / 2000) * 1e3, 0.25, 0.02);
 }
 
+TEST(DrillingSimulation, CommandsAboveTheVelocityLimitAreFollowedAtTheLimit) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  sim.step(0.2);
+  // 20 mm of feed in 0.1 s is 0.2 m/s, above the feed joint's 0.01 m/s URDF limit: reported as
+  // clamped, naming the joint and the limit, and executed at the limit (the joint lags).
+  const double feed_before = sim.armJointPositions()[6];
+  TrajectoryCommand fast;
+  fast.joint_names = {"feed_joint"};
+  fast.points.push_back({sim.time() + 0.1, {feed_before + 0.02}, {}});
+  const TargetResult too_fast = sim.commandTrajectory(fast);
+  EXPECT_EQ(too_fast.status, TargetStatus::kClamped);
+  EXPECT_NE(too_fast.message.find("feed_joint"), std::string::npos) << too_fast.message;
+  EXPECT_NE(too_fast.message.find("velocity limit 0.01"), std::string::npos) << too_fast.message;
+  sim.step(0.1);
+  const double moved = sim.armJointPositions()[6] - feed_before;
+  EXPECT_GT(moved, 0.0005);                 // it moves ...
+  EXPECT_LT(moved, 0.01 * 0.1 + 0.0002);    // ... at most at the limit, not 20 mm
+  sim.step(2.5);  // 20 mm at 10 mm/s: it arrives 2 s late
+  EXPECT_NEAR(sim.armJointPositions()[6] - feed_before, 0.02, 0.2e-3);
+  // Within the limit (5 mm/s): accepted as it is.
+  fast.points.front() = {sim.time() + 4.0, {feed_before}, {}};
+  EXPECT_EQ(sim.commandTrajectory(fast).status, TargetStatus::kAccepted);
+}
+
 TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
   sim.step(0.2);
@@ -324,7 +348,7 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   const TargetResult late = sim.commandTrajectory(past);
   EXPECT_EQ(late.status, TargetStatus::kClamped);
   EXPECT_NE(late.message.find("past"), std::string::npos);
-  sim.step(0.5);  // the feed joint goes to the late command's final point (10 mm)
+  sim.step(1.2);  // the feed joint goes to the late command's final point (10 mm, <= 10 mm/s)
   EXPECT_NEAR((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 0.01, 1e-4);
   q0 = sim.armJointPositions();
 
@@ -336,7 +360,7 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   EXPECT_EQ(c.status, TargetStatus::kClamped);
   EXPECT_NE(c.message.find("feed_joint"), std::string::npos);
   EXPECT_EQ(sim.commandSpindle(1e6).status, TargetStatus::kClamped);
-  sim.step(1.5);
+  sim.step(5.5);  // 50 mm at the 10 mm/s limit
   EXPECT_NEAR(sim.armJointPositions()[6], 0.06, 1e-4);
   EXPECT_NEAR(sim.spindleRpm(), 21000.0, 1e-6);
 }
@@ -345,15 +369,15 @@ TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFo
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
   TrajectoryCommand a;
   a.joint_names = {"feed_joint"};
-  a.points.push_back({sim.time() + 2.0, {0.04}, {}});
+  a.points.push_back({sim.time() + 8.0, {0.04}, {}});  // 5 mm/s
   ASSERT_TRUE(sim.commandTrajectory(a).ok());
-  sim.step(1.0);  // halfway: 20 mm
+  sim.step(4.0);  // halfway: 20 mm
   EXPECT_NEAR(sim.armJointPositions()[6], 0.02, 0.2e-3);
   TrajectoryCommand b;
   b.joint_names = {"feed_joint"};
-  b.points.push_back({sim.time() + 1.0, {0.01}, {0.0}});
+  b.points.push_back({sim.time() + 3.0, {0.01}, {0.0}});
   ASSERT_TRUE(sim.commandTrajectory(b).ok());
-  sim.step(2.0);  // the first goal (40 mm) is abandoned
+  sim.step(4.0);  // the first goal (40 mm) is abandoned
   EXPECT_NEAR(sim.armJointPositions()[6], 0.01, 0.05e-3);
 }
 

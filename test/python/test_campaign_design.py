@@ -58,6 +58,34 @@ def _rows(d):
     return rows
 
 
+TABLE2_CSV = ('volunteer,model,axis,wavelet,q1,q2,q0,r2,rmse,q1_true,q2_true,q1_rel_err\n'
+              + ''.join('%d,%s,%s,coif4,0.01,0,0,%.3f,0.1,0.01,0,0\n' % (v, m, a, 0.9 + 0.01 * v)
+                        for v in range(1, 6) for m in ('linear', 'hysteresis')
+                        for a in ('ap', 'si', 'lr')))
+TABLE2_MD = '| volunteer | R2 AP |\n|---|---|\n| 1 | 0.91 |\n'
+
+
+def _campaign_dir(path, rows, meta, with_table2=True):
+    """A campaign output directory as `campaign` leaves it (Table II copied in first)."""
+    from pd_campaign import cli
+    path.mkdir()
+    if with_table2:
+        (path / 'table2.csv').write_text(TABLE2_CSV)
+        (path / 'table2.md').write_text(TABLE2_MD)
+    cli.write_outputs(rows, meta, str(path))
+    (path / 'design.json').write_text(json.dumps({'meta': meta}))
+    return str(path)
+
+
+def _shards(tmp_path, d, rows, meta, count):
+    dirs = []
+    for k in range(1, count + 1):
+        part_ids = {t['trial_id'] for t in design.shard(d, k, count)}
+        dirs.append(_campaign_dir(tmp_path / ('shard%d' % k),
+                                  [r for r in rows if r['trial_id'] in part_ids], meta))
+    return dirs
+
+
 def test_merged_shards_give_the_same_report(tmp_path):
     d = design.build_design(design.CASES, [12000, 16000], 4, 3)
     rows = _rows(d)
@@ -65,20 +93,53 @@ def test_merged_shards_give_the_same_report(tmp_path):
     meta = {'cases': list(design.CASES), 'rpms': [12000.0, 16000.0], 'trials': 4, 'seed': 3,
             'design_size': len(d)}
     single = tmp_path / 'single'
-    single.mkdir()
-    cli.write_outputs(rows, meta, str(single))
-    shard_dirs = []
-    for k in (1, 2):
-        part_ids = {t['trial_id'] for t in design.shard(d, k, 2)}
-        shard_dir = tmp_path / ('shard%d' % k)
-        shard_dir.mkdir()
-        cli.write_outputs([r for r in rows if r['trial_id'] in part_ids], meta, str(shard_dir))
-        (shard_dir / 'design.json').write_text(json.dumps({'meta': meta}))
-        shard_dirs.append(str(shard_dir))
+    _campaign_dir(single, rows, meta)
     merged = tmp_path / 'merged'
-    assert cli.run_merge(shard_dirs + ['--out', str(merged)]) == 0
-    for name in ('trials.csv', 'summary.json', 'report.md'):
+    assert cli.run_merge(_shards(tmp_path, d, rows, meta, 2) + ['--out', str(merged)]) == 0
+    for name in ('trials.csv', 'summary.json', 'report.md', 'table2.csv', 'table2.md'):
         assert (merged / name).read_text() == (single / name).read_text(), name
+    report_text = (merged / 'report.md').read_text()
+    assert 'Table II' in report_text and (merged / 'table2.png').stat().st_size > 1000
+
+
+def test_merge_with_a_missing_shard_exits_1(tmp_path):
+    d = design.build_design(design.CASES, [12000], 4, 3)
+    rows = _rows(d)
+    from pd_campaign import cli
+    meta = {'cases': list(design.CASES), 'rpms': [12000.0], 'trials': 4, 'seed': 3,
+            'design_size': len(d)}
+    shard_dirs = _shards(tmp_path, d, rows, meta, 3)
+    merged = tmp_path / 'merged'
+    assert cli.run_merge(shard_dirs[:2] + ['--out', str(merged)]) == 1
+    with open(merged / 'trials.csv') as handle:
+        assert len(list(csv.DictReader(handle))) == len(d) - len(design.shard(d, 3, 3))
+
+
+def test_report_counts_errored_trials_and_states_the_shortfall(tmp_path):
+    d = design.build_design(['stationary', 'compensated'], [12000], 10, 5)
+    rows = []
+    for trial in d:
+        row = dict(trial)
+        compensated = trial['case'] == 'compensated'
+        row.update(success=not compensated or trial['index'] < 2, residual_mm=1.0,
+                   f_out_n=3.0, f_in_n=2.0 if compensated else 2.8, max_depth_mm=4.0,
+                   inner_start_mm=6.0 if compensated and trial['index'] >= 2 else 3.0,
+                   stop_reason='key_point_4', stop_source='state_recognizer',
+                   tracking_rms_mm=0.3 if compensated else 0.04,
+                   error='timeout' if compensated and trial['index'] == 9 else '')
+        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = report.summarise(rows)
+    compensated = [g for g in summary if g['case'] == 'compensated'][0]
+    assert compensated['trials'] == 9 and compensated['errors'] == 1
+    path = tmp_path / 'report.md'
+    meta = {'cases': ['stationary', 'compensated'], 'rpms': [12000.0], 'trials': 10, 'seed': 5}
+    report.write_report_md(summary, meta, [], str(path))
+    text = path.read_text()
+    assert '2/9 (+1 errored, not counted)' in text
+    assert 'compensated, 12000 rpm: 2/9' in text
+    assert 'clearly below it' in text
+    assert '7 of 7 failures: stopped before the inner cortical layer' in text
+    assert 'F_in -0.80 N' in text
 
 
 def test_summary_counts_and_schema(tmp_path):

@@ -76,3 +76,49 @@ def test_good_input_writes_model_and_no_temp_file(tmp_path, bin_dir, good_csv):
     assert os.listdir(out_dir) == ['model.yaml']
     for axis in ('ap:', 'si:', 'lr:'):
         assert axis in run.stdout
+
+
+AXIS_LINE = (r'^(ap|si|lr): wavelet (\S+)\s+q1 (\S+) mm/ml  q2 (\S+) mm\*s/ml  q0 (\S+) mm  '
+             r'R2 (\S+) \(raw (\S+)\)  RMSE (\S+) mm  \d+ it  (\S+) ms(.*)$')
+
+
+def axis_lines(stdout):
+    import re
+    found = {}
+    for line in stdout.splitlines():
+        match = re.match(AXIS_LINE, line.strip())
+        if match:
+            found[match.group(1)] = match.groups()
+    return found
+
+
+@pytest.mark.parametrize('method', ['ceres', 'pso'])
+def test_report_prints_wavelet_coefficients_r2_time_and_stiffness(tmp_path, bin_dir, good_csv,
+                                                                  method):
+    """Per axis: chosen wavelet, q1/q2/q0, R^2, time taken and (AP, SI) the equivalent disc
+    stiffness implied with Table I; the model file agrees with what was printed."""
+    csv_path = write(tmp_path / 'rec.csv', good_csv)
+    model = tmp_path / 'model.yaml'
+    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
+                          str(model), '--method', method, '--wavelets', 'coif4,bior2.8,coif5'],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    lines = axis_lines(run.stdout)
+    assert sorted(lines) == ['ap', 'lr', 'si'], run.stdout
+    for axis, groups in lines.items():
+        wavelet, q1, r2, ms, tail = groups[1], float(groups[2]), float(groups[5]), \
+            float(groups[8]), groups[9]
+        assert wavelet in ('coif4', 'bior2.8', 'coif5')
+        assert 0.5 < r2 <= 1.0 and ms >= 0.0
+        if axis == 'lr':
+            assert 'stiffness' not in tail
+        else:
+            assert q1 > 0.0
+            unit = 'mm^6' if axis == 'ap' else 'mm^2'
+            assert 'stiffness' in tail and unit in tail, tail
+            stiffness = float(tail.split()[1])
+            assert stiffness > 0.0
+    text = model.read_text()
+    assert 'equivalent_stiffness' in text
+    ap_q1 = float(lines['ap'][2])
+    assert abs(float(text.split('q1: ')[1].split()[0]) - ap_q1) <= 1e-5 * abs(ap_q1)

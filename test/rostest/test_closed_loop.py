@@ -76,13 +76,18 @@ class ClosedLoopTest(unittest.TestCase):
         mean = sum(errors) / len(errors)
         rms = math.sqrt(sum((e - mean) ** 2 for e in errors) / len(errors))
         peak = max(abs(e - mean) for e in errors)
+        # The bone's own AP motion over the same window: what the tip would see uncompensated.
+        bone = [g.bone_displacement_m.z for t, g in truth_seen if t_drill + 1.0 <= t <= t_stop]
+        bone_mean = sum(bone) / len(bone)
+        bone_rms = math.sqrt(sum((b - bone_mean) ** 2 for b in bone) / len(bone))
         final = truth_seen[-1][1]
         at_stop = [g for t, g in truth_seen if t <= t_stop][-1]
         report = ('%s: stops %r; residual inner cortical at stop %.3f mm, breakthrough %s; '
-                  'relative AP tip-bone minus feed while drilling: RMS %.3f mm, max %.3f mm\n' %
+                  'relative AP tip-bone minus feed while drilling: RMS %.3f mm, max %.3f mm; '
+                  'bone AP motion RMS %.3f mm\n' %
                   (mode, [(s.source, s.reason) for _, s in stops_seen],
                    at_stop.residual_inner_cortical_m * 1e3, final.breakthrough, rms * 1e3,
-                   peak * 1e3))
+                   peak * 1e3, bone_rms * 1e3))
         sys.stdout.write(report)
         artifacts = os.environ.get('PEDICLE_DRILLING_ARTIFACTS')
         if artifacts:
@@ -90,8 +95,16 @@ class ClosedLoopTest(unittest.TestCase):
             with open(os.path.join(artifacts, 'closed_loop_%s.txt' % mode), 'w') as handle:
                 handle.write(report)
         self.assertEqual(names[-1], 'done')
+        if mode != 'stationary':
+            self.assertGreater(bone_rms, 0.2e-3, 'the bone does not move: %s' % report)
         if mode == 'uncompensated':
-            return  # whatever happens; it must only end safely (checked above)
+            # Nothing follows the bone: the tip sees the bone's motion. Whatever the stop, the
+            # trial must only end safely (checked above).
+            self.assertGreater(rms, 0.5 * bone_rms, report)
+            return
+        if mode == 'compensated':
+            # The compensation removes at least three quarters of the relative motion.
+            self.assertLess(rms, 0.25 * bone_rms, report)
         self.assertTrue(recognizer, 'no recognizer stop: %s' % report)
         self.assertFalse(safety and safety[0][0] < recognizer[0][0],
                          'safety stop before the recognizer: %s' % report)

@@ -117,6 +117,20 @@ class MotionIdentificationFromBag(unittest.TestCase):
             self.assertAlmostEqual(a.q1_mm_per_ml, node[a.axis.lower()]['q1'], places=12)
             self.assertGreater(a.r2, 0.5)
             self.assertTrue(a.wavelet)
+        # Equivalent disc stiffness from the slopes and Table I (Eq. 8, 9): AP
+        # EI V0/(p0 b_w) = (5 m^4/24 + l m^3/6) / q1, SI E A V0/(2 p0 S L) = 1 / q1, with q1 in
+        # mm/mm^3; the same value in the message and the file, none for LR.
+        m, l = 0.5 * (5.31 + 5.67), 23.10
+        expected = {'AP': (5 * m ** 4 / 24 + l * m ** 3 / 6), 'SI': 1.0, 'LR': None}
+        for a in msg.axes:
+            if expected[a.axis] is None:
+                self.assertEqual(a.equivalent_stiffness, 0.0)
+                self.assertNotIn('equivalent_stiffness', node[a.axis.lower()])
+                continue
+            self.assertAlmostEqual(a.equivalent_stiffness * a.q1_mm_per_ml / 1000.0,
+                                   expected[a.axis], delta=1e-9 * expected[a.axis])
+            self.assertAlmostEqual(node[a.axis.lower()]['equivalent_stiffness'],
+                                   a.equivalent_stiffness, delta=1e-9 * a.equivalent_stiffness)
 
         for axis in ('ap', 'si'):
             q1, q1_true = node[axis]['q1'], truth[axis]['q1']

@@ -13,6 +13,7 @@ import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
+from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from pedicle_drilling.msg import StopCommand
@@ -25,6 +26,8 @@ REASONS = {
     'tracker_timeout': 'tracker_timeout',
     'nan_force': 'nan_input',
     'nan_tracker': 'nan_input',
+    'nan_prediction': 'nan_input',
+    'force_silent_at_trial_start': 'force_timeout',
 }
 MARKER = (0.60, 0.02, 0.30)
 
@@ -41,6 +44,7 @@ class SafetyTriggerTest(unittest.TestCase):
         self.tracker_offset = 0.0
         self.nan_force = False
         self.nan_tracker = False
+        self.nan_prediction = False
         self.rng = random.Random(3)
         rospy.Subscriber('/drill/stop', StopCommand, self.on_stop, queue_size=10)
         rospy.Subscriber('/diagnostics', DiagnosticArray, self.on_diag, queue_size=100)
@@ -48,6 +52,8 @@ class SafetyTriggerTest(unittest.TestCase):
         self.tracker_pub = rospy.Publisher('/tracker/marker_pose', PoseStamped, queue_size=10)
         self.pred_pub = rospy.Publisher('/compensation/predicted_marker_pose', PoseStamped,
                                         queue_size=10)
+        self.status_pub = rospy.Publisher('/compensation/status', String, queue_size=1,
+                                          latch=True)
 
     def on_stop(self, msg):
         with self.lock:
@@ -88,6 +94,8 @@ class SafetyTriggerTest(unittest.TestCase):
         tracked.pose.position.z = MARKER[2] + z + self.tracker_offset + self.rng.gauss(0.0, 0.0002)
         if self.nan_tracker:
             tracked.pose.position.y = float('nan')
+        if self.nan_prediction:
+            pred.pose.position.z = float('nan')
         self.tracker_pub.publish(tracked)
         self.last_tracker = stamp
         self.pred_pub.publish(pred)
@@ -101,6 +109,9 @@ class SafetyTriggerTest(unittest.TestCase):
                 self.tracker_pub.get_num_connections() == 0 or
                 self.pred_pub.get_num_connections() == 0):
             rospy.sleep(0.1)
+        # A force sensor dead from the start: no trial running yet, so nothing to stop.
+        self.force_on = trigger != 'force_silent_at_trial_start'
+        self.status_pub.publish(String(data='idle'))
         rospy.Timer(rospy.Duration(0.002), self.publish_force)
         rospy.Timer(rospy.Duration(0.125), self.publish_tracker)
         # Nominal phase: breathing motion predicted well, 2 N thrust: no stop, OK diagnostics.
@@ -124,6 +135,10 @@ class SafetyTriggerTest(unittest.TestCase):
             self.nan_force = True
         elif trigger == 'nan_tracker':
             self.nan_tracker = True
+        elif trigger == 'nan_prediction':
+            self.nan_prediction = True
+        elif trigger == 'force_silent_at_trial_start':
+            self.status_pub.publish(String(data='drilling'))  # the planner starts a trial
         deadline = t_trigger + rospy.Duration(3.0)
         while rospy.Time.now() < deadline:
             with self.lock:
@@ -147,11 +162,13 @@ class SafetyTriggerTest(unittest.TestCase):
             self.assertGreater((stops[0].header.stamp - self.last_force).to_sec(), 0.1)
         if trigger == 'tracker_timeout':
             self.assertGreater((stops[0].header.stamp - self.last_tracker).to_sec(), 0.5)
+        if trigger == 'force_silent_at_trial_start':
+            self.assertGreater((stops[0].header.stamp - t_trigger).to_sec(), 0.0)
         # Reset clears the latch and the diagnostics return to OK.
         self.force_n = 2.0
         self.force_on = self.tracker_on = True
         self.tracker_offset = 0.0
-        self.nan_force = self.nan_tracker = False
+        self.nan_force = self.nan_tracker = self.nan_prediction = False
         rospy.wait_for_service('/safety_monitor/reset', 5.0)
         self.assertTrue(rospy.ServiceProxy('/safety_monitor/reset', Trigger)().success)
         with self.lock:

@@ -98,6 +98,31 @@ class TrialDistributionTest(unittest.TestCase):
         res = self.reset(seed=12, moving_bone=True)
         self.assertTrue(res.success, res.message)
 
+    def test_reset_with_an_explicit_specimen(self):
+        # Layer thicknesses given in the request; 0 leaves a layer to the seed's draw.
+        drawn = self.reset(seed=21, moving_bone=False)
+        self.assertTrue(drawn.success, drawn.message)
+        res = self.reset(seed=21, moving_bone=False, outer_cortical_thickness_mm=1.5,
+                         cancellous_thickness_mm=0.0, inner_cortical_thickness_mm=2.6)
+        self.assertTrue(res.success, res.message)
+        self.assertAlmostEqual(res.outer_cortical_thickness_m, 1.5e-3, places=12)
+        self.assertAlmostEqual(res.inner_cortical_thickness_m, 2.6e-3, places=12)
+        # The cancellous layer is drawn from the seed: the same request draws it again.
+        same = self.reset(seed=21, moving_bone=False, outer_cortical_thickness_mm=1.5,
+                          inner_cortical_thickness_mm=2.6)
+        self.assertEqual(same.cancellous_thickness_m, res.cancellous_thickness_m)
+        self.assertGreaterEqual(res.cancellous_thickness_m, 0.8e-3)
+        # The next plain reset draws again (the request does not stick).
+        again = self.reset(seed=21, moving_bone=False)
+        self.assertAlmostEqual(again.outer_cortical_thickness_m, drawn.outer_cortical_thickness_m,
+                               places=12)
+        # Thinner than the minimum layer, negative or NaN: refused, naming the field.
+        for value in (0.5, -1.0, float('nan'), 150.0):
+            res = self.reset(seed=22, moving_bone=False, inner_cortical_thickness_mm=value)
+            self.assertFalse(res.success, value)
+            self.assertIn('inner_cortical_thickness_mm', res.message)
+            self.assertIn('nothing was reset', res.message)
+
 
 if __name__ == '__main__':
     rospy.init_node('test_simulator_trial_distribution')

@@ -149,4 +149,14 @@ double siEquivalentAxialStiffness(double q1_mm_per_ml);
 double siAxialRigidityGroup(double q1_mm_per_ml,
                             const SpineGeometry& geometry = {});
 
+/**
+ * @brief The equivalent disc stiffness an identified slope implies on its axis: AP
+ *        apEquivalentBendingStiffness() [mm^6], SI siEquivalentAxialStiffness() [mm^2]; 0 for
+ *        LR (no physical model, Sec. V-B) and for a zero slope.
+ */
+double equivalentStiffness(Axis axis, double q1_mm_per_ml);
+
+/** @brief Unit and meaning of equivalentStiffness() on an axis ("" for LR). */
+std::string equivalentStiffnessLabel(Axis axis);
+
 }  // namespace pedicle_drilling::core
