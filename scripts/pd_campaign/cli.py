@@ -33,8 +33,11 @@ SCENARIO_KEYS = {
     'identification_window_s': (float, 5.0, 300.0),
     'identification': (str, None, None),
     'model': (str, None, None),
+    'bone_motion': (str, None, None),
     'simulator': (dict, None, None),
 }
+# bone_motion: what the SPMS plays in the moving cases.
+BONE_MOTIONS = ('model', 'virtual_patient')
 
 
 class UsageError(Exception):
@@ -101,6 +104,9 @@ def load_scenario(path):
         if key == 'identification' and value not in ('volunteers', 'online'):
             raise UsageError('--scenario %s: identification %r is not volunteers or online'
                              % (path, value))
+        if key == 'bone_motion' and value not in BONE_MOTIONS:
+            raise UsageError('--scenario %s: bone_motion %r is not one of %s'
+                             % (path, value, ', '.join(BONE_MOTIONS)))
         if key == 'model' and value not in ('linear', 'hysteresis'):
             raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
         if key == 'cases':
@@ -226,7 +232,9 @@ def run_campaign(argv=None):
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
     # The report's meta data describe the design only, so that merged shards report the same.
     meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
-            'design_size': len(design), 'simulator': scenario.get('simulator') or {}}
+            'design_size': len(design), 'simulator': scenario.get('simulator') or {},
+            'model': scenario.get('model', 'linear'),
+            'bone_motion': scenario.get('bone_motion', 'virtual_patient')}
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
@@ -270,6 +278,7 @@ def run_campaign(argv=None):
                    '--real-time-factor', str(args.real_time_factor),
                    '--models-dir', models_dir,
                    '--model', scenario.get('model', 'linear'),
+                   '--bone-motion', scenario.get('bone_motion', 'virtual_patient'),
                    '--simulator-overrides', json.dumps(scenario.get('simulator') or {})]
         if args.bags:
             command.append('--bags')

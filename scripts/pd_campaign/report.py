@@ -248,6 +248,22 @@ def analysis(summary):
                       'analysed in the README ("Results of make run").', ''] + lines)
 
 
+def bone_motion_sentence(meta):
+    """What the SPMS played in the moving cases, and the prediction model."""
+    model = meta.get('model', 'linear')
+    if meta.get('bone_motion') == 'model':
+        return ('Bone motion (moving cases): the SPMS plays the displacement the patient\'s '
+                'identified %s model predicts from the ventilator\'s tidal volume, the paper\'s '
+                'bench protocol (Algorithm 1: "SPMS and RSSSII do move"); the compensation uses '
+                'the same model.' % model)
+    if meta.get('bone_motion') == 'virtual_patient':
+        return ('Bone motion (moving cases): the virtual patient, i.e. the virtual volunteer\'s '
+                'true motion (lag behind the tidal volume, slow drift, small movements) driven by '
+                'the ventilator; the compensation predicts it with the %s model identified from '
+                'the volunteer\'s recording.' % model)
+    return 'Prediction model: %s.' % model
+
+
 def write_report_md(summary, meta, figures, path, notes=''):
     lines = ['# Campaign report', '',
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
@@ -260,6 +276,7 @@ def write_report_md(summary, meta, figures, path, notes=''):
                      '%s.%s = %g' % (group, key, value)
                      for group, values in sorted(meta['simulator'].items())
                      for key, value in sorted(values.items()))),
+             bone_motion_sentence(meta),
              'Success: the recognizer stopped the drill inside the inner cortical layer (entered, '
              'not passed) with a residual thickness in (0, 2 mm] (paper Sec. V-C, V-E); the '
              'residual is the distance from the deepest cut to the far side of the inner '

@@ -129,6 +129,19 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     else:
         model_path = args.default_model
     rospy.set_param('/compensation_planner/patient_model_path', model_path)
+    if moving and args.bone_motion == 'model':
+        # The paper's bench protocol (Algorithm 1: "SPMS and RSSSII do move"): the SPMS plays
+        # the displacement the patient's model predicts. The same seed draws the same trial
+        # again; only what the bone plays changes.
+        rospy.set_param('/simulator/bone_motion_model_path', model_path)
+        reply = srv['reset'](seed=trial['seed'], moving_bone=moving)
+        rospy.set_param('/simulator/bone_motion_model_path', '')
+        if not reply.success:
+            raise RuntimeError('simulator reset failed: %s' % reply.message)
+        srv['recognizer_reset']()
+        srv['safety_reset']()
+        time.sleep(0.3)
+        recorder.clear()
     bag = start_bag(args, trial) if args.bags else None
     try:
         reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
@@ -246,6 +259,11 @@ def main(argv=None):
                         help='identified volunteer models (volunteer_<id>_<model>.yaml); '
                         'empty: identify online on the simulator')
     parser.add_argument('--model', default='linear')
+    parser.add_argument('--bone-motion', default='virtual_patient',
+                        choices=('model', 'virtual_patient'),
+                        help='model: the SPMS plays the trial\'s identified model (the paper\'s '
+                        'bench protocol); virtual_patient: the volunteer\'s truth with lag, '
+                        'drift and small movements')
     parser.add_argument('--simulator-overrides', default='{}',
                         help='JSON of the scenario\'s simulator section: '
                         '{group: {key: value}} under /simulator/trial_distribution')

@@ -68,8 +68,9 @@ struct Knot {
 
 }  // namespace
 
-double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t) const {
-  return q1_ap_mm_per_ml * lagged_tv_ml +
+double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t,
+                                        double lagged_flow_ml_s) const {
+  return q1_ap_mm_per_ml * lagged_tv_ml + q2_ap_mm_s_per_ml * lagged_flow_ml_s +
          drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad) +
          movementDisplacementMm(movements, 0, t);
 }
@@ -200,6 +201,8 @@ struct DrillingSimulation::Impl {
   // Trajectory (commandable joints only).
   std::vector<Knot> knots;  // empty: hold
   Eigen::VectorXd hold_q;
+  // The displacement model the bone plays from the next reset on (none: virtual patient).
+  std::optional<BoneMotionModel> bone_motion_model;
   // The joint controllers' position setpoint: the commanded reference, moved at most at each
   // joint's URDF velocity limit per arm block (a real controller never outruns its limits).
   Eigen::VectorXd servo_ref;
@@ -288,8 +291,10 @@ struct DrillingSimulation::Impl {
   void updatePlatform() {
     const double t_lag = std::max(0.0, time - patient.lag_s);
     // Earlier times than the last call are clamped by the scheduler (lag change on reset).
-    const double tv_lag = lagged_ventilator.sample(t_lag).volume_ml;
-    desired_heave = moving_bone ? 1e-3 * patient.apDisplacementMm(tv_lag, time) : 0.0;
+    const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
+    desired_heave =
+        moving_bone ? 1e-3 * patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
+                    : 0.0;
     const SpmsIkResult ik = spms.inverseHeave(desired_heave);
     if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
     const double max_step = params.slider_max_speed_m_s * dt;
@@ -409,6 +414,14 @@ struct DrillingSimulation::Impl {
     moving_bone = moving;
     conditions = drawn;
     patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
+    if (bone_motion_model) {
+      // The paper's bench: the SPMS plays the model, nothing else.
+      patient.q1_ap_mm_per_ml = bone_motion_model->q1_ap_mm_per_ml;
+      patient.q2_ap_mm_s_per_ml = bone_motion_model->q2_ap_mm_s_per_ml;
+      patient.lag_s = 0.0;
+      patient.drift_mm = 0.0;
+      patient.movements.clear();
+    }
     patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
     process = std::move(new_process);
     sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, sensor_params);
@@ -712,6 +725,13 @@ void DrillingSimulation::setTrialDistribution(const SpecimenDistribution& specim
   variability.validate();
   impl_->params.specimen = specimen;
   impl_->params.variability = variability;
+}
+
+void DrillingSimulation::setBoneMotionModel(const std::optional<BoneMotionModel>& model) {
+  if (model && !(std::isfinite(model->q1_ap_mm_per_ml) && std::isfinite(model->q2_ap_mm_s_per_ml))) {
+    throw std::invalid_argument("bone motion model: q1 and q2 must be finite");
+  }
+  impl_->bone_motion_model = model;
 }
 
 Eigen::VectorXd DrillingSimulation::armJointStiffness() const {

@@ -30,6 +30,7 @@
 #include <fstream>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -40,6 +41,7 @@
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/motion_model_io.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/trial_distribution_params.hpp"
@@ -353,12 +355,36 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
   }
 
+  /**
+   * @brief ~bone_motion_model_path (re-read at every reset): "" = the virtual patient; else the
+   *        patient model YAML whose AP axis the bone plays (the paper's bench protocol).
+   */
+  std::optional<core::BoneMotionModel> loadBoneMotionModel() const {
+    const ParamLoader params(getPrivateNodeHandle());
+    const std::string path = params.getString("bone_motion_model_path", "", true);
+    if (path.empty()) return std::nullopt;
+    try {
+      const core::PatientModel patient = core::readModelYaml(path);
+      const core::AxisModelRecord& ap = patient.axes[static_cast<int>(core::Axis::kAP)];
+      core::BoneMotionModel model;
+      model.q1_ap_mm_per_ml = ap.model.q1;
+      model.q2_ap_mm_s_per_ml = ap.model.q2;
+      return model;
+    } catch (const std::exception& e) {
+      throw ParameterError("parameter " + getPrivateNodeHandle().resolveName(
+                                              "bone_motion_model_path") +
+                           " = '" + path + "': " + e.what());
+    }
+  }
+
   bool onReset(ResetSimulation::Request& req, ResetSimulation::Response& res) {
     // The distributions are re-read at every reset, so that a campaign (or a user with
     // `rosparam set`) can change them between trials; a bad value refuses the reset.
     TrialDistributionParams distribution;
+    std::optional<core::BoneMotionModel> bone_motion;
     try {
       distribution = loadTrialDistribution(getPrivateNodeHandle());
+      bone_motion = loadBoneMotionModel();
     } catch (const std::exception& e) {
       res.success = false;
       res.message = std::string(e.what()) + "; nothing was reset";
@@ -398,6 +424,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
       sim_->setTrialDistribution(distribution.specimen, distribution.variability);
+      sim_->setBoneMotionModel(bone_motion);
       sim_->reset(req.seed, req.moving_bone);
     } catch (const std::exception& e) {
       res.success = false;
@@ -410,6 +437,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
     os << "new specimen and patient from seed " << req.seed << " (virtual volunteer "
        << sim_->patient().volunteer_id << "), bone " << (req.moving_bone ? "moving" : "stationary")
        << ", arm at home";
+    if (bone_motion) {
+      os << "; the bone plays the model AP d = " << bone_motion->q1_ap_mm_per_ml << " Tv + "
+         << bone_motion->q2_ap_mm_s_per_ml << " dTv/dt (bone_motion_model_path)";
+    }
     res.message = os.str();
     res.outer_cortical_thickness_m = s.outerCorticalThickness();
     res.cancellous_thickness_m = s.cancellousThickness();

@@ -242,6 +242,37 @@ TEST(DrillingSimulation, MovingPlatformFollowsTheRateLimitedSliders) {
   }
 }
 
+TEST(DrillingSimulation, BonePlaysADisplacementModelOnThePaperBench) {
+  // Volunteer 1 + 7 % 5 = 3 has a lag, drift and movements; a played model has none of them.
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 7);
+  BoneMotionModel model;
+  model.q1_ap_mm_per_ml = 0.009;
+  model.q2_ap_mm_s_per_ml = -0.0006;
+  sim.setBoneMotionModel(model);
+  sim.reset(7, true);
+  EXPECT_EQ(sim.patient().volunteer_id, 3);  // the other draws are unchanged
+  EXPECT_EQ(sim.patient().lag_s, 0.0);
+  EXPECT_EQ(sim.patient().drift_mm, 0.0);
+  EXPECT_TRUE(sim.patient().movements.empty());
+  sim.step(0.5);
+  double worst = 0.0;
+  for (int i = 0; i < 10000; ++i) {
+    sim.stepOnce();
+    BreathScheduler ventilator = sim.ventilator();  // a copy: sampling advances a scheduler
+    const VentilatorSample v = ventilator.sample(sim.time());
+    const double expected = 1e-3 * (0.009 * v.volume_ml - 0.0006 * v.flow_ml_s);
+    worst = std::max(worst, std::abs(sim.desiredHeave() - expected));
+  }
+  EXPECT_LT(worst, 1e-9);
+  // Back to the virtual patient at the next reset.
+  sim.setBoneMotionModel(std::nullopt);
+  sim.reset(7, true);
+  EXPECT_GT(sim.patient().lag_s, 0.0);
+  EXPECT_FALSE(sim.patient().movements.empty());
+  model.q1_ap_mm_per_ml = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(sim.setBoneMotionModel(model), std::invalid_argument);
+}
+
 TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 4);
   sim.reset(4, true);

@@ -184,6 +184,15 @@ def test_scenario_unknown_key_is_an_error(tmp_path):
     assert 'speed_of_light' in out.stderr
 
 
+def test_scenario_bone_motion_is_checked(tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('trials: 1\nbone_motion: wobbly\n')
+    out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
+                          '--scenario', str(bad)], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2
+    assert 'bone_motion' in out.stderr and 'wobbly' in out.stderr
+
+
 @pytest.mark.parametrize('section, named', [
     ('{patients: {amplitude_scale_sd: 0.1}}', 'simulator.patients'),
     ('{patient: {amplitude_sd: 0.1}}', 'simulator.patient.amplitude_sd'),
@@ -200,3 +209,11 @@ def test_scenario_simulator_section_is_checked_against_the_simulator_keys(tmp_pa
     assert out.returncode == 2, out.stderr
     assert named in out.stderr
 
+
+
+@pytest.mark.parametrize('name', sorted(n for n in os.listdir(os.path.join(ROOT, 'config'))
+                                         if n.startswith('scenario_')))
+def test_shipped_scenarios_pass_the_campaign_checks(name):
+    from pd_campaign import cli
+    scenario = cli.load_scenario(os.path.join(ROOT, 'config', name))
+    assert scenario.get('bone_motion') in cli.BONE_MOTIONS, name

@@ -1,10 +1,12 @@
 #!/usr/bin/python3
 """Scenario check of the Simulator's ~trial_distribution: what simulator/reset draws, and how
 bad values are refused."""
+import os
 import sys
 import threading
 import unittest
 
+import rospkg
 import rospy
 import rostest
 
@@ -97,6 +99,27 @@ class TrialDistributionTest(unittest.TestCase):
         rospy.set_param(NS + 'ventilator/rate_sd_bpm', 3.0)
         res = self.reset(seed=12, moving_bone=True)
         self.assertTrue(res.success, res.message)
+
+    def test_bone_plays_a_model_file_on_the_paper_bench(self):
+        model = os.path.join(rospkg.RosPack().get_path('pedicle_drilling'), 'config',
+                             'patient_default.yaml')
+        rospy.set_param('/simulator/bone_motion_model_path', model)
+        try:
+            res = self.reset(seed=5, moving_bone=True)
+            self.assertTrue(res.success, res.message)
+            self.assertIn('the bone plays the model', res.message)
+            # A missing file refuses the reset, naming the parameter and the file.
+            rospy.set_param('/simulator/bone_motion_model_path', '/nonexistent/model.yaml')
+            res = self.reset(seed=5, moving_bone=True)
+            self.assertFalse(res.success)
+            self.assertIn('bone_motion_model_path', res.message)
+            self.assertIn('/nonexistent/model.yaml', res.message)
+            self.assertIn('nothing was reset', res.message)
+        finally:
+            rospy.set_param('/simulator/bone_motion_model_path', '')
+        res = self.reset(seed=5, moving_bone=True)
+        self.assertTrue(res.success, res.message)
+        self.assertNotIn('plays the model', res.message)
 
     def test_reset_with_an_explicit_specimen(self):
         # Layer thicknesses given in the request; 0 leaves a layer to the seed's draw.

@@ -27,6 +27,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -54,8 +55,26 @@ struct VirtualPatient {
   double drift_phase_rad = 0.0;     ///< phase of the slow AP drift [rad]
   /// Small unpredictable movements (AP component used), as the volunteers' recordings have.
   std::vector<PatientMovement> movements;
-  /** @brief True AP displacement [mm] for a lagged tidal volume [ml] at time t [s]. */
-  double apDisplacementMm(double lagged_tv_ml, double t) const;
+  /// Phase-lead term on the flow [mm s/ml] (d = q1 Tv + q2 dTv/dt), 0 for a virtual volunteer;
+  /// set when the bone plays a displacement model (BoneMotionModel).
+  double q2_ap_mm_s_per_ml = 0.0;
+  /**
+   * @brief True AP displacement [mm] for a lagged tidal volume [ml] and flow [ml/s] at time
+   *        t [s]: q1 Tv + q2 dTv/dt + drift + movements.
+   */
+  double apDisplacementMm(double lagged_tv_ml, double t, double lagged_flow_ml_s = 0.0) const;
+};
+
+/**
+ * @brief A displacement model for the bone to play instead of a virtual patient: the SPMS
+ *        moves the bone by d_AP = q1 Tv(t) + q2 dTv/dt(t), nothing else (no lag, drift or
+ *        movements). This is the paper's bench protocol: Algorithm 1 computes the predicted
+ *        displacement y_AP(t) and then "SPMS and RSSSII do move", the SPMS playing the
+ *        patient's identified model (Sec. II-B, IV-B, V-C).
+ */
+struct BoneMotionModel {
+  double q1_ap_mm_per_ml = 0.0;    ///< AP slope [mm/ml], finite
+  double q2_ap_mm_s_per_ml = 0.0;  ///< AP flow term [mm s/ml], finite (0 for a linear model)
 };
 
 /**
@@ -221,6 +240,13 @@ class DrillingSimulation {
    */
   void setTrialDistribution(const SpecimenDistribution& specimen,
                             const TrialVariability& variability);
+  /**
+   * @brief From the next reset on, the bone plays `model` (the paper's bench protocol) instead
+   *        of the virtual volunteer's truth; std::nullopt goes back to the virtual patient. The
+   *        volunteer id and the other draws are unchanged.
+   * @throws std::invalid_argument for a non-finite coefficient; nothing changes then.
+   */
+  void setBoneMotionModel(const std::optional<BoneMotionModel>& model);
   /** @brief What the last reset (or the constructor) drew. */
   const TrialConditions& trialConditions() const;
 
