@@ -156,13 +156,27 @@ PlannedSegment CompensationPlanner::segment(int k) const {
   out.index = k;
   out.t0 = t_reg_ + k * params_.period_s;
   out.t1 = out.t0 + params_.period_s;
+  const int n = params_.points_per_segment;
+  out.points.reserve(n);
+  if (params_.segment_profile == SegmentProfile::kBlended) {
+    out.feed_start_m = segmentedSample(out.t0).position.dot(axis_);
+    for (int i = 1; i <= n; ++i) {
+      PlannedPoint pt;
+      pt.t = i == n ? out.t1 : out.t0 + params_.period_s * i / n;
+      const SegmentSample sample = segmentedSample(pt.t);
+      pt.feed_m = sample.position.dot(axis_);
+      pt.feed_velocity_m_s = sample.velocity.dot(axis_);
+      pt.lateral_m = sample.position - pt.feed_m * axis_;
+      out.points.push_back(pt);
+    }
+    out.feed_end_m = out.points.back().feed_m;
+    return out;
+  }
   const Eigen::Vector3d p0 = reference(out.t0);
   const Eigen::Vector3d p1 = reference(out.t1);
   const Segment seg = segmenter_.plan(out.t0, p0, p1);
   out.feed_start_m = p0.dot(axis_);
   out.feed_end_m = p1.dot(axis_);
-  const int n = params_.points_per_segment;
-  out.points.reserve(n);
   for (int i = 1; i <= n; ++i) {
     PlannedPoint pt;
     pt.t = i == n ? out.t1 : out.t0 + params_.period_s * i / n;
@@ -176,9 +190,20 @@ PlannedSegment CompensationPlanner::segment(int k) const {
 }
 
 Eigen::Vector3d CompensationPlanner::segmentedReference(double t) const {
+  return segmentedSample(t).position;
+}
+
+SegmentSample CompensationPlanner::segmentedSample(double t) const {
+  if (params_.segment_profile == SegmentProfile::kBlended) {
+    return segmenter_.sampleBlended([this](double time) { return reference(time); }, t_reg_, t);
+  }
   const int k = segmentIndexAt(t);
   const double t0 = t_reg_ + k * params_.period_s;
-  return segmenter_.plan(t0, reference(t0), reference(t0 + params_.period_s)).position(t);
+  const Segment seg = segmenter_.plan(t0, reference(t0), reference(t0 + params_.period_s));
+  SegmentSample out;
+  out.position = seg.position(t);
+  out.velocity = seg.velocity(t);
+  return out;
 }
 
 // ---------------------------------------------------------------------------------------------

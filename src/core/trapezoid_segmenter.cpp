@@ -133,6 +133,89 @@ Eigen::Vector3d TrapezoidSegmenter::sample(const Reference& ref, double t_start,
   return segmentAt(ref, t_start, t).position(t);
 }
 
+const char* toString(SegmentProfile profile) {
+  return profile == SegmentProfile::kBlended ? "blended" : "rest_to_rest";
+}
+
+bool parseSegmentProfile(const std::string& name, SegmentProfile* profile) {
+  if (name == "blended") {
+    *profile = SegmentProfile::kBlended;
+    return true;
+  }
+  if (name == "rest_to_rest") {
+    *profile = SegmentProfile::kRestToRest;
+    return true;
+  }
+  return false;
+}
+
+SegmentSample TrapezoidSegmenter::sampleBlended(const Reference& ref, double t_start,
+                                                double t) const {
+  if (!std::isfinite(t_start) || !std::isfinite(t)) {
+    throw std::invalid_argument("sampleBlended: t_start and t must be finite");
+  }
+  const double T = period_;
+  const double r = accel_ratio_;
+  SegmentSample out;
+  if (t <= t_start) {
+    out.position = ref(t_start);
+    return out;
+  }
+  const int k = static_cast<int>(std::floor((t - t_start) / T));
+  const auto knotTime = [&](int j) { return t_start + j * T; };
+  // Knots k - 1 .. k + 2 (those that exist).
+  Eigen::Vector3d P[4];
+  for (int i = 0; i < 4; ++i) {
+    const int j = k - 1 + i;
+    P[i] = j >= 0 ? ref(knotTime(j)) : Eigen::Vector3d::Zero();
+  }
+  const auto knot = [&](int j) -> const Eigen::Vector3d& { return P[j - (k - 1)]; };
+  const double tau0 = std::min(1.0 / r, 0.5 * T);
+  const auto chordVelocity = [&](int j) -> Eigen::Vector3d {
+    if (j == 0) return (knot(1) - knot(0)) / (T - 0.5 * tau0);
+    return (knot(j + 1) - knot(j)) / T;
+  };
+  // Blend duration at knot j >= 1.
+  const auto blendTime = [&](const Eigen::Vector3d& v_in, const Eigen::Vector3d& v_out) {
+    const double v_max = std::max(v_in.norm(), v_out.norm());
+    if (v_max <= 0.0) return 0.0;
+    return std::min(T, (v_out - v_in).norm() / (r * v_max));
+  };
+  const double tk = knotTime(k);
+  const double tk1 = knotTime(k + 1);
+  const Eigen::Vector3d v_k = chordVelocity(k);
+  if (k == 0 && t < tk + tau0) {  // start from rest
+    const double s = t - tk;
+    out.position = knot(0) + v_k * (0.5 * s * s / tau0);
+    out.velocity = v_k * (s / tau0);
+    return out;
+  }
+  if (k >= 1) {  // blend around knot k
+    const Eigen::Vector3d v_prev = chordVelocity(k - 1);
+    const double tau = blendTime(v_prev, v_k);
+    if (tau > 0.0 && t < tk + 0.5 * tau) {
+      const double s = t - tk + 0.5 * tau;
+      out.position = knot(k) + v_prev * (t - tk) + (v_k - v_prev) * (0.5 * s * s / tau);
+      out.velocity = v_prev + (v_k - v_prev) * (s / tau);
+      return out;
+    }
+  }
+  {  // blend around knot k + 1
+    const Eigen::Vector3d v_next = chordVelocity(k + 1);
+    const double tau = blendTime(v_k, v_next);
+    if (tau > 0.0 && t > tk1 - 0.5 * tau) {
+      const double s = t - tk1 + 0.5 * tau;
+      out.position = knot(k + 1) + v_k * (t - tk1) + (v_next - v_k) * (0.5 * s * s / tau);
+      out.velocity = v_k + (v_next - v_k) * (s / tau);
+      return out;
+    }
+  }
+  // On the chord polyline, which passes through P_k+1 at t_k+1.
+  out.position = knot(k + 1) + v_k * (t - tk1);
+  out.velocity = v_k;
+  return out;
+}
+
 double TrapezoidSegmenter::trackingErrorBound(double v_max, double a_max) const {
   const double T = period_;
   const double ta = std::min(1.0 / effectiveAccelRatio(), 0.5 * T);

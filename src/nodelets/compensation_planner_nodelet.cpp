@@ -119,6 +119,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       base_params_.period_s = params.getDouble("period_s", 0.125, 0.0, 1.0, true);
       base_params_.accel_ratio = params.getDouble("accel_ratio", 10.0, 0.0, 1000.0, true);
       base_params_.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
+      const std::string profile = params.getString("segment_profile", "rest_to_rest");
+      if (!core::parseSegmentProfile(profile, &base_params_.segment_profile)) {
+        params.fail("segment_profile", "= '" + profile + "' is not blended or rest_to_rest");
+      }
       base_params_.compensate_lateral = params.getBool("compensate_si_lr", false);
       base_params_.predict_axis = {{false, false, false}};
       std::stringstream axes(params.getString("predicted_axes", "ap"));
@@ -462,13 +466,29 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       if (seg.t1 <= now) continue;  // late timer: skip segments already over
       std::vector<double> times;
       std::vector<double> feeds;
+      std::vector<double> feed_velocities;
       std::vector<Eigen::Vector3d> lateral;
-      for (const core::PlannedPoint& pt : seg.points) {
+      const auto add = [&](const core::PlannedPoint& pt) {
         times.push_back(pt.t);
         feeds.push_back(pt.feed_m);
+        feed_velocities.push_back(pt.feed_velocity_m_s);
         lateral.push_back(pt.lateral_m);
+      };
+      // A trajectory message replaces what remains of the one running (JointTrajectory
+      // semantics). Blended: repeat the rest of the running segment, so that the velocity-
+      // continuous path runs as planned, with the planned velocities while drilling (a hold
+      // or retreat adds to the feed; its velocities then come from the points). Rest to rest
+      // (the paper's default): segment k alone, ending at rest; the joint goes from where it
+      // is to segment k's first point.
+      const bool blended = planner_->params().segment_profile == core::SegmentProfile::kBlended;
+      if (blended && seg.index > 0) {
+        for (const core::PlannedPoint& pt : planner_->segment(seg.index - 1).points) {
+          if (pt.t > now) add(pt);
+        }
       }
-      publishTrajectory(ros::Time(seg.t0), times, feeds, lateral);
+      for (const core::PlannedPoint& pt : seg.points) add(pt);
+      publishTrajectory(ros::Time(blended ? seg.t0 - period : seg.t0), times, feeds, lateral,
+                        blended && phase_ == Phase::kDrilling ? &feed_velocities : nullptr);
       if (phase_ == Phase::kDrilling &&
           arm_comp_->feedHome() + seg.feed_end_m > feed_upper_ - 1e-3) {
         NODELET_WARN("CompensationPlanner: feed axis travel exhausted, retracting");
@@ -478,9 +498,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
   }
 
+  /**
+   * @brief One JointTrajectory of the arm joints and the feed joint. Feed velocities are
+   *        `feed_velocities` when given (the planned ones), else differences of the points.
+   */
   void publishTrajectory(const ros::Time& start, const std::vector<double>& times,
                          const std::vector<double>& feeds,
-                         const std::vector<Eigen::Vector3d>& lateral) {
+                         const std::vector<Eigen::Vector3d>& lateral,
+                         const std::vector<double>* feed_velocities = nullptr) {
     trajectory_msgs::JointTrajectory traj;
     traj.header.stamp = start;
     traj.joint_names = arm_joints_;
@@ -506,7 +531,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         pt.velocities.push_back(i + 1 == times.size() ? 0.0 : (q[j] - prev_q[j]) / dt);
       }
       pt.positions.push_back(feed);
-      pt.velocities.push_back(i + 1 == times.size() ? 0.0 : (feed - prev_feed) / dt);
+      pt.velocities.push_back(feed_velocities != nullptr ? (*feed_velocities)[i]
+                              : i + 1 == times.size()    ? 0.0
+                                                         : (feed - prev_feed) / dt);
       pt.time_from_start = ros::Duration(times[i] - start.toSec());
       traj.points.push_back(pt);
       prev_t = times[i];

@@ -56,6 +56,12 @@ struct CompensationParams {
   double latency_s = 0.0;
   /** @brief Trajectory points per segment, sampled from its trapezoid (>= 1; last = end). */
   int points_per_segment = 5;
+  /**
+   * @brief How the 125 ms segments join: kRestToRest (default; each segment a trapezoid from
+   *        rest to rest) or kBlended (velocity-continuous, each period at its chord velocity,
+   *        ramps of accel_ratio x velocity at the boundaries).
+   */
+  SegmentProfile segment_profile = SegmentProfile::kRestToRest;
   /** @brief Which model axes are predicted (paper's experiments: AP only). */
   std::array<bool, 3> predict_axis{{true, false, false}};
   /** @brief If true, the lateral (off-drill-axis) part of the prediction is compensated. */
@@ -173,7 +179,11 @@ class CompensationPlanner {
   /** @brief Feed-axis part of reference(t) [m]. */
   double referenceFeed(double t) const { return reference(t).dot(axis_); }
 
-  /** @brief Segment k: from reference(t_k) to reference(t_k + T), t_k = t_reg + k T. */
+  /**
+   * @brief Segment k (t_k = t_reg + k T to t_k + T): points_per_segment samples of the segmented
+   *        trajectory with their velocities; rest-to-rest segments go from reference(t_k) to
+   *        reference(t_k + T) and end at rest, blended ones follow sampleBlended().
+   */
   PlannedSegment segment(int k) const;
 
   /** @brief Index of the segment containing t (0 before t_reg). */
@@ -181,6 +191,9 @@ class CompensationPlanner {
 
   /** @brief Position of the segmented trajectory at t (what an ideal controller executes). */
   Eigen::Vector3d segmentedReference(double t) const;
+
+  /** @brief Position and velocity of the segmented trajectory at t (params().segment_profile). */
+  SegmentSample segmentedSample(double t) const;
 
   /** @brief Parameters in use. */
   const CompensationParams& params() const { return params_; }

@@ -19,6 +19,7 @@
 #define PEDICLE_DRILLING_CORE_TRAPEZOID_SEGMENTER_HPP_
 
 #include <functional>
+#include <string>
 
 #include <Eigen/Core>
 
@@ -89,6 +90,27 @@ class Segment {
   TrapezoidProfile profile_;
 };
 
+/** @brief How the segments join (CompensationParams::segment_profile). */
+enum class SegmentProfile {
+  /// Each segment is a trapezoid (triangle at the paper's numbers) from rest to rest.
+  kRestToRest,
+  /// Velocity-continuous: each segment cruises at its chord velocity and the velocity changes
+  /// at the segment boundaries with trapezoid ramps of acceleration r times the larger chord
+  /// speed ("linear segments with parabolic blends").
+  kBlended,
+};
+
+/** @brief Name of a profile: "rest_to_rest" or "blended". */
+const char* toString(SegmentProfile profile);
+/** @brief Parses "rest_to_rest" or "blended"; false otherwise. */
+bool parseSegmentProfile(const std::string& name, SegmentProfile* profile);
+
+/** @brief Position and velocity of a segmented trajectory at one time. */
+struct SegmentSample {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();  ///< [m]
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();  ///< [m/s]
+};
+
 /** @brief Cuts a reference trajectory into fixed-period trapezoidal segments (Sec. IV-B). */
 class TrapezoidSegmenter {
  public:
@@ -115,6 +137,19 @@ class TrapezoidSegmenter {
 
   /** @brief Position of the segmented version of `ref` at time t (see segmentAt). */
   Eigen::Vector3d sample(const Reference& ref, double t_start, double t) const;
+
+  /**
+   * @brief The velocity-continuous (SegmentProfile::kBlended) version of `ref` at time t.
+   *
+   * Knots P_j = ref(t_start + j T). Segment j (j >= 1) cruises along the chord P_j -> P_j+1 at
+   * V_j = (P_j+1 - P_j) / T. At each knot j >= 1 the velocity changes from V_j-1 to V_j at a
+   * constant acceleration over tau_j = min(T, |V_j - V_j-1| / (r max(|V_j-1|, |V_j|))),
+   * centred on the knot, so the path leaves the chord polyline only within tau_j / 2 of a knot
+   * (by at most |V_j - V_j-1| tau_j / 8, at the knot). Segment 0 starts from rest at t_start:
+   * it accelerates for tau_0 = min(1 / r, T / 2) and cruises at (P_1 - P_0) / (T - tau_0 / 2),
+   * reaching the polyline at P_1. Before t_start: P_0 at rest. Uses ref at up to four knots.
+   */
+  SegmentSample sampleBlended(const Reference& ref, double t_start, double t) const;
 
   /**
    * @brief Upper bound of |segmented(t) - ref(t)| for a reference with speed <= v_max and
