@@ -91,3 +91,25 @@ def test_bad_input_exits_2(bin_dir, tmp_path, case):
     out = run(bin_dir, *args)
     assert out.returncode == 2, (case, out.stdout, out.stderr)
     assert out.stderr.strip()
+
+
+def test_text_output_agrees_with_json(bin_dir, tmp_path):
+    """Without --json: one line per key point ('key_point ID index I t T') and the stop
+    ('stop index I t T' or 'stop none'), the same as the JSON of the same input."""
+    rows, _ = profile([(4.0, 3.0), (6.0, 0.7), (4.0, 3.0)], seed=4)
+    path = tmp_path / 'force.csv'
+    write_csv(path, rows)
+    text = run(bin_dir, '--input', str(path))
+    js = run(bin_dir, '--input', str(path), '--json')
+    assert text.returncode == 0 and js.returncode == 0, text.stderr + js.stderr
+    result = json.loads(js.stdout)
+    lines = text.stdout.splitlines()
+    assert lines[0] == 'samples %d' % len(rows)
+    key_points = [line.split() for line in lines if line.startswith('key_point ')]
+    assert [int(k[3]) for k in key_points] == [kp['index'] for kp in result['key_points']]
+    assert [float(k[5]) for k in key_points] == pytest.approx(
+        [kp['t'] for kp in result['key_points']], abs=1e-6)
+    stop = [line.split() for line in lines if line.startswith('stop ')]
+    assert len(stop) == 1
+    assert int(stop[0][2]) == result['stop']['index']
+    assert float(stop[0][4]) == pytest.approx(result['stop']['t'], abs=1e-6)
