@@ -343,6 +343,19 @@ void BreathScheduler::requestSettings(const VentilatorSettings& settings) {
   pending_valid_ = true;
 }
 
+void BreathScheduler::restart(double start_time) {
+  if (!std::isfinite(start_time)) {
+    throw std::invalid_argument("BreathScheduler::restart: start_time must be finite");
+  }
+  if (pending_valid_) {
+    model_ = pending_;
+    pending_valid_ = false;
+  }
+  breath_start_ = start_time;
+  last_t_ = start_time;
+  ++breath_index_;
+}
+
 VentilatorSample BreathScheduler::sample(double t) {
   if (!(t >= last_t_)) t = last_t_;  // also catches NaN
   last_t_ = t;

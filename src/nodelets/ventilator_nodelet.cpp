@@ -50,6 +50,15 @@ class VentilatorNodelet : public nodelet::Nodelet {
   void onTimer(const ros::TimerEvent& event) {
     std::lock_guard<std::mutex> lock(mutex_);
     const ros::Time stamp = event.current_expected;
+    if (stamp.toSec() < scheduler_->lastTime()) {
+      // ROS time went back (a bag replayed in a loop, a simulation reset): a ventilator cannot
+      // go back in time, so the breath schedule restarts with a new breath now.
+      NODELET_WARN("Ventilator: time jumped back from %.3f s to %.3f s; a new breath starts now",
+                   scheduler_->lastTime(), stamp.toSec());
+      const bool pending = scheduler_->hasPendingSettings();
+      scheduler_->restart(stamp.toSec());
+      if (pending) settings_pub_.publish(toMsg(scheduler_->model().settings()));
+    }
     const long before = scheduler_->breathIndex();
     const bool pending = scheduler_->hasPendingSettings();
     const core::VentilatorSample sample = scheduler_->sample(stamp.toSec());

@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 #include "pedicle_drilling/core/ventilator.hpp"
@@ -211,6 +212,27 @@ TEST(BreathScheduler, BadSettingsRejectedAndOldOnesKept) {
   EXPECT_THROW(scheduler.requestSettings(bad), std::invalid_argument);
   EXPECT_FALSE(scheduler.hasPendingSettings());
   EXPECT_NEAR(scheduler.sample(6.0).flow_ml_s, 300.0, 1e-6);
+}
+
+TEST(BreathScheduler, RestartAfterTimeJumpedBackStartsANewBreath) {
+  BreathScheduler scheduler(paperSettings(), 100.0);
+  scheduler.sample(107.0);  // second breath, 2 s in
+  EXPECT_EQ(scheduler.breathIndex(), 1);
+  // Without a restart, an earlier time is clamped (a ventilator does not go back).
+  EXPECT_NEAR(scheduler.sample(50.0).t, 107.0, 1e-12);
+  VentilatorSettings bigger = paperSettings();
+  bigger.tv_max_ml = 600.0;
+  scheduler.requestSettings(bigger);
+  scheduler.restart(50.0);
+  EXPECT_EQ(scheduler.breathIndex(), 2);
+  EXPECT_FALSE(scheduler.hasPendingSettings());  // the new breath takes the pending settings
+  const VentilatorSample s = scheduler.sample(50.5);
+  EXPECT_NEAR(s.t, 50.5, 1e-12);
+  EXPECT_NEAR(s.flow_ml_s, 360.0, 1e-6);  // 600 ml over 5/3 s
+  EXPECT_NEAR(s.volume_ml, 180.0, 1e-6);
+  EXPECT_NEAR(scheduler.breathStart(), 50.0, 1e-12);
+  EXPECT_THROW(scheduler.restart(std::numeric_limits<double>::quiet_NaN()),
+               std::invalid_argument);
 }
 
 }  // namespace

@@ -152,6 +152,15 @@ class BreathScheduler {
   void requestSettings(const VentilatorSettings& settings);
   /** @brief Output at time t; t earlier than the last call is clamped to it. */
   VentilatorSample sample(double t);
+  /**
+   * @brief Starts a new breath at `start_time`, which may be earlier than the last sample (time
+   *        jumped back: a bag replayed in a loop, a simulation reset). Pending settings take
+   *        effect with it; the breath index keeps counting. @throws std::invalid_argument for a
+   *        non-finite time.
+   */
+  void restart(double start_time);
+  /** @brief The last sampled time (or the start time). */
+  double lastTime() const { return last_t_; }
   /** @brief Index of the breath containing the last sampled time (0-based). */
   long breathIndex() const { return breath_index_; }
   /** @brief Start time of the current breath. */
