@@ -110,3 +110,40 @@ def test_scenario_simulator_section_reaches_the_trials(tmp_path):
         capture_output=True, text=True, timeout=300)
     assert result.returncode == 2, result.stderr[-3000:]
     assert 'trial_distribution/patient/amplitude_scale_sd' in result.stderr
+
+
+def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
+    """SIGINT to the campaign's process group (a Ctrl-C in its terminal) once a trial has
+    finished: exit status 130, the finished trials kept in trials.csv and the report, the
+    workers (each with its own ROS master) gone."""
+    import signal
+    import time
+    out = tmp_path / 'interrupted'
+    port = 13500
+    campaign = subprocess.Popen(
+        ['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'), '--case', 'stationary',
+         '--rpm', '12000', '--trials', '6', '--jobs', '1', '--seed', '9', '--out', str(out),
+         '--base-port', str(port)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    deadline = time.time() + 400.0
+    finished = 0
+    while time.time() < deadline and campaign.poll() is None and finished == 0:
+        time.sleep(1.0)
+        if (out / 'trials.csv').exists():
+            with open(out / 'trials.csv') as handle:
+                finished = len(list(csv.DictReader(handle)))
+    assert campaign.poll() is None, 'the campaign ended before it could be interrupted'
+    assert finished >= 1, 'no trial finished in time'
+    os.killpg(campaign.pid, signal.SIGINT)
+    _, stderr = campaign.communicate(timeout=120)
+    assert campaign.returncode == 130, stderr[-3000:]
+    assert 'interrupted' in stderr
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert finished <= len(rows) < 6
+    assert all(r['error'] == '' for r in rows)
+    report_text = (out / 'report.md').read_text()
+    assert '%d/%d' % (sum(r['success'] == 'true' for r in rows), len(rows)) in report_text
+    workers = subprocess.run(['pgrep', '-f', 'pd_campaign.worker.*%s' % out],
+                             capture_output=True, text=True)
+    assert workers.stdout.strip() == '', 'workers left running: %s' % workers.stdout
