@@ -285,6 +285,39 @@ struct DrillingSimulation::Impl {
           throw std::runtime_error("DrillingSimulation: URDF has no SPMS joint '" + j + "'");
         }
       }
+      checkSpmsLegAgainstUrdf(i);
+    }
+  }
+
+  /**
+   * Leg i of the URDF against the kinematic model: the rod pivot (slider joint at 0) at the
+   * model's base radius and leg azimuth, at the lower end of the slider stroke, and the slider
+   * joint's limits spanning the model's stroke.
+   */
+  void checkSpmsLegAgainstUrdf(int i) {
+    const std::string slider = "slider" + std::to_string(i) + "_joint";
+    const urdf::JointConstSharedPtr sj = model->getJoint(slider);
+    const urdf::JointConstSharedPtr rj = model->getJoint("rod" + std::to_string(i) + "_joint");
+    const SpmsGeometry& g = spms.geometry();
+    const Eigen::Isometry3d slider_origin = toIsometry(sj->parent_to_joint_origin_transform);
+    const Eigen::Vector3d pivot =
+        slider_origin * toIsometry(rj->parent_to_joint_origin_transform).translation();
+    const double azimuth = (g.leg_azimuth_offset_deg + 120.0 * (i - 1)) * kPi / 180.0;
+    const Eigen::Vector3d expected(g.base_radius_m * std::cos(azimuth),
+                                   g.base_radius_m * std::sin(azimuth), g.slider_min_m);
+    std::ostringstream os;
+    if ((pivot - expected).norm() > 1e-6) {
+      os << "DrillingSimulation: URDF rod pivot of leg " << i << " (" << slider
+         << " at 0) is at (" << pivot.transpose() << ") m in spms_base, the SPMS geometry puts it "
+         << "at (" << expected.transpose() << ") m (base radius " << g.base_radius_m << " m)";
+      throw std::runtime_error(os.str());
+    }
+    if (!sj->limits || std::abs(slider_origin.translation().z() + sj->limits->lower -
+                                g.slider_min_m) > 1e-9 ||
+        std::abs(slider_origin.translation().z() + sj->limits->upper - g.slider_max_m) > 1e-9) {
+      os << "DrillingSimulation: URDF " << slider << " limits do not span the SPMS slider stroke ["
+         << g.slider_min_m << ", " << g.slider_max_m << "] m along the rail";
+      throw std::runtime_error(os.str());
     }
   }
 
