@@ -190,26 +190,18 @@ SegmentSample TrapezoidSegmenter::sampleBlended(const Reference& ref, double t_s
     out.velocity = v_k * (s / tau0);
     return out;
   }
-  if (k >= 1) {  // blend around knot k
-    const Eigen::Vector3d v_prev = chordVelocity(k - 1);
-    const double tau = blendTime(v_prev, v_k);
-    if (tau > 0.0 && t < tk + 0.5 * tau) {
-      const double s = t - tk + 0.5 * tau;
-      out.position = knot(k) + v_prev * (t - tk) + (v_k - v_prev) * (0.5 * s * s / tau);
-      out.velocity = v_prev + (v_k - v_prev) * (s / tau);
-      return out;
-    }
-  }
-  {  // blend around knot k + 1
-    const Eigen::Vector3d v_next = chordVelocity(k + 1);
-    const double tau = blendTime(v_k, v_next);
-    if (tau > 0.0 && t > tk1 - 0.5 * tau) {
-      const double s = t - tk1 + 0.5 * tau;
-      out.position = knot(k + 1) + v_k * (t - tk1) + (v_next - v_k) * (0.5 * s * s / tau);
-      out.velocity = v_k + (v_next - v_k) * (s / tau);
-      return out;
-    }
-  }
+  // The parabolic blend from v_in to v_out centred on knot j, if t lies within it.
+  const auto inBlend = [&](int j, const Eigen::Vector3d& v_in, const Eigen::Vector3d& v_out) {
+    const double tau = blendTime(v_in, v_out);
+    const double tj = knotTime(j);
+    if (!(tau > 0.0 && std::abs(t - tj) < 0.5 * tau)) return false;
+    const double s = t - tj + 0.5 * tau;
+    out.position = knot(j) + v_in * (t - tj) + (v_out - v_in) * (0.5 * s * s / tau);
+    out.velocity = v_in + (v_out - v_in) * (s / tau);
+    return true;
+  };
+  if (k >= 1 && inBlend(k, chordVelocity(k - 1), v_k)) return out;
+  if (inBlend(k + 1, v_k, chordVelocity(k + 1))) return out;
   // On the chord polyline, which passes through P_k+1 at t_k+1.
   out.position = knot(k + 1) + v_k * (t - tk1);
   out.velocity = v_k;

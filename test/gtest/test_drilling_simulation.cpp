@@ -412,33 +412,32 @@ TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFo
   EXPECT_NEAR(sim.armJointPositions()[6], 0.01, 0.05e-3);
 }
 
+// The workcell with the first occurrence of `from` replaced by `to` must be refused with an error
+// containing `expected`.
+void expectEditedWorkcellRejected(const std::string& from, const std::string& to,
+                                  const std::string& expected) {
+  std::string urdf = workcell();
+  const std::size_t at = urdf.find(from);
+  ASSERT_NE(at, std::string::npos) << from;
+  urdf.replace(at, from.size(), to);
+  try {
+    DrillingSimulation sim(urdf, DrillingSimulationParams());
+    FAIL() << "no exception for " << to;
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
+  }
+}
+
 TEST(DrillingSimulation, SpmsLegsOfTheUrdfMustMatchTheKinematicModel) {
-  const std::string good = workcell();
-  EXPECT_NO_THROW(DrillingSimulation(good, DrillingSimulationParams()));
+  EXPECT_NO_THROW(DrillingSimulation(workcell(), DrillingSimulationParams()));
   // Leg 1's lead screw moved outwards by 1 cm: the closed chain would not close.
-  const std::string origin = "<origin xyz=\"0.000000 0.120000 0.05\" rpy=\"0 0 1.570796\"/>";
-  const std::size_t at = good.find(origin);
-  ASSERT_NE(at, std::string::npos);
-  std::string moved = good;
-  moved.replace(at, origin.size(), "<origin xyz=\"0.000000 0.130000 0.05\" rpy=\"0 0 1.570796\"/>");
-  try {
-    DrillingSimulation sim(moved, DrillingSimulationParams());
-    FAIL() << "no exception";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("leg 1"), std::string::npos) << e.what();
-  }
+  expectEditedWorkcellRejected(R"(<origin xyz="0.000000 0.120000 0.05" rpy="0 0 1.570796"/>)",
+                               R"(<origin xyz="0.000000 0.130000 0.05" rpy="0 0 1.570796"/>)",
+                               "leg 1");
   // A slider stroke that differs from the model's.
-  std::string stroke = good;
-  const std::string limit = "<limit lower=\"0.0\" upper=\"0.20\" velocity=\"0.05\" effort=\"400\"/>";
-  const std::size_t lim = stroke.find(limit);
-  ASSERT_NE(lim, std::string::npos);
-  stroke.replace(lim, limit.size(), "<limit lower=\"0.0\" upper=\"0.15\" velocity=\"0.05\" effort=\"400\"/>");
-  try {
-    DrillingSimulation sim(stroke, DrillingSimulationParams());
-    FAIL() << "no exception";
-  } catch (const std::runtime_error& e) {
-    EXPECT_NE(std::string(e.what()).find("stroke"), std::string::npos) << e.what();
-  }
+  expectEditedWorkcellRejected(R"(<limit lower="0.0" upper="0.20" velocity="0.05" effort="400"/>)",
+                               R"(<limit lower="0.0" upper="0.15" velocity="0.05" effort="400"/>)",
+                               "stroke");
 }
 
 TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
