@@ -20,7 +20,7 @@
 #include "pedicle_drilling/core/bullet_arm.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR
-#define PEDICLE_DRILLING_SOURCE_DIR "/work/main"
+#error "PEDICLE_DRILLING_SOURCE_DIR (the package's source folder) is passed by CMakeLists.txt"
 #endif
 
 namespace {

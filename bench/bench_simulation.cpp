@@ -19,7 +19,7 @@
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR
-#define PEDICLE_DRILLING_SOURCE_DIR "/work/main"
+#error "PEDICLE_DRILLING_SOURCE_DIR (the package's source folder) is passed by CMakeLists.txt"
 #endif
 
 namespace {

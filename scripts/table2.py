@@ -13,7 +13,8 @@ up to ~7 %); --paper-denoising uses the paper's displacement-only de-noising. Wr
   table2.csv  volunteer,model,axis,wavelet,q1,q2,q0,r2,rmse,q1_true,q2_true,q1_rel_err
   table2_fig14.png  de-noised displacement and both model fits per axis for one volunteer
   data/       the volunteers' CSV and truth files; models/ the identified model YAML files
-The Markdown table is also printed. Exit status 0, 1 when a tool fails.
+The Markdown table is also printed. Exit status 0, 1 when a tool fails, 2 on a bad option or an
+--out that cannot be created (one line naming it).
 """
 import argparse
 import csv
@@ -101,7 +102,11 @@ def main(argv):
 
     data_dir = os.path.join(args.out, 'data')
     model_dir = os.path.join(args.out, 'models')
-    os.makedirs(model_dir, exist_ok=True)
+    try:
+        os.makedirs(model_dir, exist_ok=True)
+    except OSError as e:
+        sys.stderr.write('table2: --out %r cannot be created: %s\n' % (args.out, e.strerror))
+        return 2
     run(tool('generate_volunteers') + ['--out', data_dir, '--ids', ','.join(map(str, IDS))])
 
     rows, fit_csvs = [], {}

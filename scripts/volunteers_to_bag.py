@@ -16,10 +16,12 @@ The marker position (m) in the tracker frame is marker_offset plus the displacem
 placed on the tracker axes given by --ap-axis/--si-axis/--lr-axis (the MotionIdentification
 nodelet's ~ap_axis/~si_axis/~lr_axis, same defaults), so the nodelet maps it back to AP/SI/LR
 and its intercepts q0 equal the CLI's plus the mapped offset (in mm).
-Exit status: 0 ok, 2 bad arguments or input, 1 a file could not be written.
+Exit status: 0 ok; 2 bad arguments, bad input or an output that cannot be written, with one
+line naming the option or file (no partial bag is left: each is written and renamed).
 """
 import argparse
 import csv
+import math
 import os
 import re
 import subprocess
@@ -51,15 +53,45 @@ def parse_mapping(ap, si, lr):
     return out
 
 
+def parse_numbers(option, text, kind):
+    """Comma-separated numbers of one option; ValueError naming the option."""
+    try:
+        return [kind(x) for x in text.split(',')]
+    except ValueError:
+        raise ValueError('%s %r: must be comma-separated %s' % (
+            option, text, 'integers' if kind is int else 'numbers'))
+
+
 def read_columns(path, names):
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
+    """Columns `names` of a CSV as floats; the first ('t') must strictly increase, every value
+    be finite. Raises ValueError naming the file, the row and the column."""
+    try:
+        with open(path) as f:
+            rows = list(csv.DictReader(f))
+    except OSError as e:
+        raise ValueError('%s: cannot be read: %s' % (path, e.strerror))
     if not rows:
         raise ValueError('%s: no data' % path)
     for n in names:
         if n not in rows[0]:
             raise ValueError('%s: missing column %r' % (path, n))
-    return {n: [float(r[n]) for r in rows] for n in names}
+    columns = {n: [] for n in names}
+    for number, row in enumerate(rows, 2):  # line 1 is the header
+        for n in names:
+            try:
+                value = float(row[n])
+            except (TypeError, ValueError):
+                raise ValueError('%s line %d: column %r = %r is not a number'
+                                 % (path, number, n, row[n]))
+            if not math.isfinite(value):
+                raise ValueError('%s line %d: column %r is not finite' % (path, number, n))
+            columns[n].append(value)
+    t = columns[names[0]]
+    for i in range(1, len(t)):
+        if not t[i] > t[i - 1]:
+            raise ValueError('%s line %d: time %r does not increase (previous %r); the bag would '
+                             'not be identifiable' % (path, i + 2, t[i], t[i - 1]))
+    return columns
 
 
 def find_tool(name):
@@ -72,6 +104,18 @@ def find_tool(name):
 def write_bag(csv_path, tv_path, bag_path, start, offset, mapping):
     disp = read_columns(csv_path, ['t', 'ap', 'si', 'lr'])
     tv = read_columns(tv_path, ['t', 'tv'])
+    # Written to a temporary file and renamed: a failed run leaves no partial bag behind.
+    tmp_path = bag_path + '.tmp'
+    try:
+        count = _write_messages(tmp_path, disp, tv, start, offset, mapping)
+        os.replace(tmp_path, bag_path)
+    finally:
+        if os.path.exists(tmp_path):
+            os.remove(tmp_path)
+    return count
+
+
+def _write_messages(bag_path, disp, tv, start, offset, mapping):
     with rosbag.Bag(bag_path, 'w') as bag:
         t, v = tv['t'], tv['tv']
         n = len(t)
@@ -122,12 +166,15 @@ def main(argv):
         return 2 if e.code else 0
     try:
         mapping = parse_mapping(args.ap_axis, args.si_axis, args.lr_axis)
-        offset = [float(x) for x in args.marker_offset.split(',')]
+        offset = parse_numbers('--marker-offset', args.marker_offset, float)
         if len(offset) != 3 or not all(abs(x) < 1e3 for x in offset):
-            raise ValueError('--marker-offset must be three finite numbers x,y,z in m')
+            raise ValueError('--marker-offset %r: must be three finite numbers x,y,z in m'
+                             % args.marker_offset)
         if not args.start_time > 0.0:
             raise ValueError('--start-time must be > 0 s (ROS time 0 means "no time")')
-        ids = [int(x) for x in args.ids.split(',')]
+        ids = parse_numbers('--ids', args.ids, int)
+        if args.csv_dir and not os.path.isdir(args.csv_dir):
+            raise ValueError('--csv-dir %r is not a folder' % args.csv_dir)
     except ValueError as e:
         print('volunteers_to_bag: %s' % e, file=sys.stderr)
         return 2
@@ -145,9 +192,12 @@ def main(argv):
         try:
             n_tv, n_marker = write_bag(stem + '.csv', stem + '_tv64.csv', bag_path,
                                        args.start_time, offset, mapping)
-        except (OSError, ValueError) as e:
+        except ValueError as e:
             print('volunteers_to_bag: %s' % e, file=sys.stderr)
-            return 2 if isinstance(e, ValueError) else 1
+            return 2
+        except OSError as e:
+            print('volunteers_to_bag: %s: %s' % (bag_path, e.strerror), file=sys.stderr)
+            return 2
         print('volunteer %d: %d tidal_volume, %d tf / marker_pose messages -> %s'
               % (vid, n_tv, n_marker, bag_path))
     return 0

@@ -18,8 +18,6 @@ import numpy as np
 
 PIPELINE_SERVICES = {
     'reset': '/simulator/reset',
-    'recognizer_reset': '/state_recognizer/reset',
-    'safety_reset': '/safety_monitor/reset',
     'identify': '/motion_identification/identify',
     'start_trial': '/compensation_planner/start_trial',
 }
@@ -104,9 +102,9 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row['tidal_volume_ml'] = reply.ventilator_tidal_volume_ml
     row['force_noise_sd_n'] = reply.force_noise_sd_n
     row['arm_stiffness_scale'] = reply.arm_stiffness_scale
-    srv['recognizer_reset']()
-    srv['safety_reset']()
-    # Messages of the previous trial may still be queued: let them drain, then forget them.
+    # The recognizer and the safety monitor are reset by the planner's start_trial (the trial
+    # sequence owns that). Messages of the previous trial may still be queued: let them drain,
+    # then forget them.
     time.sleep(0.3)
     recorder.clear()
     model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
@@ -138,8 +136,6 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
         rospy.set_param('/simulator/bone_motion_model_path', '')
         if not reply.success:
             raise RuntimeError('simulator reset failed: %s' % reply.message)
-        srv['recognizer_reset']()
-        srv['safety_reset']()
         time.sleep(0.3)
         recorder.clear()
     bag = start_bag(args, trial) if args.bags else None
@@ -309,7 +305,6 @@ def main(argv=None):
             raise RuntimeError('roscore on port %d did not start' % args.port)
         import rospy  # after ROS_MASTER_URI is set
         from std_msgs.msg import String
-        from std_srvs.srv import Trigger
         from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand
         from pedicle_drilling.srv import IdentifyMotion, ResetSimulation, StartTrial
         # The worker runs on wall time: it is initialised before /use_sim_time is set, so it
@@ -321,8 +316,7 @@ def main(argv=None):
              'patient_model:=%s' % args.default_model,
              'real_time_factor:=%g' % args.real_time_factor],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
-        types = {'reset': ResetSimulation, 'recognizer_reset': Trigger, 'safety_reset': Trigger,
-                 'identify': IdentifyMotion, 'start_trial': StartTrial}
+        types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial}
         srv = {}
         for key, name in PIPELINE_SERVICES.items():
             rospy.wait_for_service(name, timeout=60.0)

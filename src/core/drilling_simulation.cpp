@@ -823,9 +823,12 @@ const VentilatorSample& DrillingSimulation::ventilatorSample() const { return im
 
 const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
 
-void DrillingSimulation::startTrial() {
+bool DrillingSimulation::startTrial() {
+  const bool remount = impl_->process->maxDepthCut() > 0.0;
+  if (remount) impl_->resetTrial(impl_->seed + 1, impl_->moving_bone);
   impl_->relative_ap0 = impl_->physics_tip.z() - impl_->bone_world.translation().z();
   ++impl_->trial_count;
+  return remount;
 }
 
 int DrillingSimulation::trialCount() const { return impl_->trial_count; }

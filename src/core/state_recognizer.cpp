@@ -121,6 +121,8 @@ const char* toString(DrillingState s) {
       return "inner_cortical";
     case DrillingState::kBreakthrough:
       return "breakthrough";
+    case DrillingState::kStopped:
+      return "stopped";
   }
   return "unknown";
 }
@@ -209,7 +211,12 @@ void StateRecognizer::addKeyPoint(int id, std::size_t index, double t) {
   kp.recognized_index = cur_raw_index_;
   kp.recognized_t = cur_t_;
   out_.key_points[static_cast<std::size_t>(out_.num_key_points++)] = kp;
-  out_.last_key_point = id;
+  if (!out_.stop) out_.last_key_point = id;
+}
+
+void StateRecognizer::setLayerState(DrillingState s) {
+  out_.layer_state = s;
+  if (!out_.stop) out_.state = s;
 }
 
 void StateRecognizer::commandStop() {
@@ -217,6 +224,8 @@ void StateRecognizer::commandStop() {
   out_.stop = true;
   out_.stop_index = cur_raw_index_;
   out_.stop_t = cur_t_;
+  out_.stop_key_point = out_.last_key_point;
+  out_.state = DrillingState::kStopped;
 }
 
 void StateRecognizer::onFiltered(double fbar) {
@@ -233,7 +242,7 @@ void StateRecognizer::onFiltered(double fbar) {
     }
     if (!contact_ && f_max_ > p.f_th) {
       contact_ = true;
-      out_.state = DrillingState::kOuterCortical;
+      setLayerState(DrillingState::kOuterCortical);
     }
     if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
       out_.feature = 0.0;
@@ -265,7 +274,7 @@ void StateRecognizer::onFiltered(double fbar) {
     addKeyPoint(2, cur_raw_index_, cur_t_);
     records_.clear();
     records_.shrink_to_fit();
-    out_.state = DrillingState::kOuterPunctured;
+    setLayerState(DrillingState::kOuterPunctured);
     run_ = 0;
     out_.feature = feature(p, fbar, out_.f_min, out_.d);
     return;  // the cancellous dwell starts with the next sample
@@ -274,14 +283,14 @@ void StateRecognizer::onFiltered(double fbar) {
   const double a = feature(p, fbar, out_.f_min, out_.d);
   out_.feature = a;
 
-  switch (out_.state) {
+  switch (out_.layer_state) {
     case DrillingState::kOuterPunctured:
       if (a < p.c1) {
         // Key point 3 is placed where the dwell is confirmed: the first sample known to be in
         // cancellous bone (the start of the dwell would coincide with key point 2).
         if (++run_ >= p.cancellous_confirm) {
           addKeyPoint(3, cur_raw_index_, cur_t_);
-          out_.state = DrillingState::kCancellous;
+          setLayerState(DrillingState::kCancellous);
           run_ = 0;
         }
       } else {
@@ -302,7 +311,7 @@ void StateRecognizer::onFiltered(double fbar) {
         }
         if (run_ >= p.inner_confirm) {
           addKeyPoint(4, run_start_, run_start_t_);
-          out_.state = DrillingState::kInnerCortical;
+          setLayerState(DrillingState::kInnerCortical);
           run_ = 0;
           delay_left_ = p.stop_delay;
           if (delay_left_ == 0) commandStop();
@@ -313,7 +322,8 @@ void StateRecognizer::onFiltered(double fbar) {
       break;
     case DrillingState::kInnerCortical:
       if (delay_left_ > 0 && --delay_left_ == 0) commandStop();
-      if (out_.last_key_point == 4) {
+      // The layer's own key point (last_key_point freezes at the stop).
+      if (out_.key_points[static_cast<std::size_t>(out_.num_key_points - 1)].id == 4) {
         if (a > inner_peak_) {
           inner_peak_ = a;
           inner_peak_index_ = cur_raw_index_;
@@ -324,7 +334,7 @@ void StateRecognizer::onFiltered(double fbar) {
         }
       } else if (a < p.c1) {
         addKeyPoint(6, cur_raw_index_, cur_t_);
-        out_.state = DrillingState::kBreakthrough;
+        setLayerState(DrillingState::kBreakthrough);
       }
       break;
     default:

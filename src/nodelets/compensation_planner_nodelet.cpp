@@ -10,10 +10,11 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
 #include <pluginlib/class_list_macros.hpp>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
-#include <sensor_msgs/JointState.h>
 #include <std_msgs/Float64.h>
 #include <std_msgs/String.h>
+#include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <trajectory_msgs/JointTrajectory.h>
@@ -23,13 +24,13 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <map>
 #include <memory>
 #include <mutex>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StartTrial.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TidalVolume.h"
@@ -45,6 +46,12 @@ namespace pedicle_drilling {
 
 /** @brief Nodelet wrapper of core::CompensationPlanner. */
 class CompensationPlannerNodelet : public nodelet::Nodelet {
+ public:
+  ~CompensationPlannerNodelet() override {
+    // Join the start thread before any member it may use goes away.
+    if (start_spinner_) start_spinner_->stop();
+  }
+
  private:
   enum class Phase { kIdle, kMovingToPose, kRegistering, kDrilling, kStopped, kRetreating, kDone,
                      kFailed };
@@ -147,6 +154,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       rp.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);
       retreat_planner_ = std::make_unique<core::RetreatPlanner>(rp);
       world_frame_ = params.getString("world_frame", "world");
+      trial_start_services_ = params.getStringList(
+          "trial_start_services", {"state_recognizer/reset", "safety_monitor/reset"});
+      trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
     } catch (const std::exception& e) {
       startup_status_.fail(nh, getName(), e.what());
       return;
@@ -166,10 +176,19 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     marker_sub_ = nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker,
                                this, hints);
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
-    joint_sub_ = nh.subscribe("joint_states", 10, &CompensationPlannerNodelet::onJointStates,
-                              this);
-    start_srv_ = pnh.advertiseService("start_trial", &CompensationPlannerNodelet::onStartTrial,
-                                      this);
+    state_sub_ = nh.subscribe("drilling_state", 100, &CompensationPlannerNodelet::onDrillingState,
+                              this, hints);
+    for (const std::string& name : trial_start_services_) {
+      trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
+    }
+    // ~start_trial calls other nodelets' services and waits for them: it gets a callback queue
+    // and a thread of its own, so that it never blocks the manager's worker threads.
+    ros::NodeHandle start_nh(pnh);
+    start_nh.setCallbackQueue(&start_queue_);
+    start_srv_ = start_nh.advertiseService("start_trial", &CompensationPlannerNodelet::onStartTrial,
+                                           this);
+    start_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &start_queue_);
+    start_spinner_->start();
     setPhase(Phase::kIdle);
     NODELET_INFO("CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), feed home "
                  "%.1f mm, latency %.3f s",
@@ -201,13 +220,6 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     breath_start_ = start;
     have_phase_ = true;
     if (planner_) planner_->predictor().setBreathStart(start);
-  }
-
-  void onJointStates(const sensor_msgs::JointState::ConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    for (std::size_t i = 0; i < msg->name.size() && i < msg->position.size(); ++i) {
-      joint_positions_[msg->name[i]] = msg->position[i];
-    }
   }
 
   void onMarker(const geometry_msgs::PoseStamped::ConstPtr& msg) {
@@ -294,7 +306,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   // ------------------------------------------------------------------------------- trial
 
   bool onStartTrial(StartTrial::Request& req, StartTrial::Response& res) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    // Runs on the planner's own start thread (see onInit), so the blocking calls below never
+    // hold a worker thread of the nodelet manager that the reset services themselves need.
+    std::unique_lock<std::mutex> lock(mutex_);
     res.success = false;
     if (phase_ != Phase::kIdle && phase_ != Phase::kDone && phase_ != Phase::kFailed) {
       res.message = std::string("a trial is running (status ") + phaseName(phase_) + ")";
@@ -331,6 +345,13 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
                     " mode needs the ventilator: no ventilator/settings or tidal_volume received";
       return true;
     }
+    // Every component of the trial starts afresh, here and nowhere else, so that no caller
+    // can forget one: a component that cannot be reset refuses the trial, nothing drills.
+    // No lock held while calling: the components' answers may need this nodelet's callbacks.
+    lock.unlock();
+    const bool started = startComponents(&res.message);
+    lock.lock();
+    if (!started) return true;
     // The patient model is read again for every trial, so a new identification (a new
     // ~patient_model_path, or a rewritten file) applies to the next trial.
     std::string model_path;
@@ -371,6 +392,49 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  /**
+   * @brief Calls every service of ~trial_start_services (std_srvs/Trigger) in order: the
+   *        recognizer's and the safety monitor's ~reset, and on the simulator its start_trial.
+   * @return false with the reason in *why when one is missing or refuses.
+   */
+  bool startComponents(std::string* why) {
+    for (ros::ServiceClient& client : trial_start_clients_) {
+      const std::string name = client.getService();
+      if (!client.waitForExistence(ros::Duration(trial_start_timeout_s_))) {
+        *why = "trial refused: service " + name + " is not available (is its nodelet loaded? "
+               "parameter ~trial_start_services); nothing was started";
+        return false;
+      }
+      std_srvs::Trigger srv;
+      if (!client.call(srv)) {
+        *why = "trial refused: the call to " + name + " failed; nothing was started";
+        return false;
+      }
+      if (!srv.response.success) {
+        *why = "trial refused: " + name + " answered: " + srv.response.message +
+               "; nothing was started";
+        return false;
+      }
+      NODELET_INFO("CompensationPlanner: %s: %s", name.c_str(), srv.response.message.c_str());
+    }
+    return true;
+  }
+
+  /**
+   * @brief The recognizer's state. A stop it reports (latched) is a stop here too, so that a
+   *        lost drill/stop, or a recognizer whose latch survived from an earlier trial, never
+   *        lets the drill feed on.
+   */
+  void onDrillingState(const DrillingState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    recognizer_reports_stop_ = msg->stop;
+    if (msg->stop && phase_ == Phase::kDrilling) {
+      handleStop(ros::Time::now().toSec(), false,
+                 "drilling_state reports a recognizer stop (state " + msg->state_name +
+                     ", key point " + std::to_string(msg->last_key_point) + ")");
+    }
+  }
+
   void sendMoveToPose() {
     trajectory_msgs::JointTrajectory traj;
     traj.header.stamp = ros::Time::now();
@@ -381,18 +445,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     goal.positions.push_back(arm_comp_->feedHome());
     goal.velocities.assign(goal.positions.size(), 0.0);
     goal.time_from_start = ros::Duration(move_duration_s_);
-    bool have_all = true;
-    trajectory_msgs::JointTrajectoryPoint current;
-    for (const std::string& name : traj.joint_names) {
-      const auto it = joint_positions_.find(name);
-      have_all = have_all && it != joint_positions_.end();
-      if (it != joint_positions_.end()) current.positions.push_back(it->second);
-    }
-    if (have_all) {
-      current.velocities.assign(current.positions.size(), 0.0);
-      current.time_from_start = ros::Duration(0.0);
-      traj.points.push_back(current);
-    }
+    // One point: the controller moves from its own current state (JointTrajectoryController
+    // semantics), which stays right when a component reset the robot before this trial.
     traj.points.push_back(goal);
     trajectory_pub_.publish(traj);
   }
@@ -418,6 +472,11 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
 
   void startDrilling(double now) {
     registration_timer_.stop();
+    if (recognizer_reports_stop_) {
+      fail("refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
+           "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
+      return;
+    }
     planner_->start(mode_, now);
     t_end_ = now + max_duration_s_;
     next_k_ = 0;
@@ -568,20 +627,24 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
 
   void onStop(const StopCommand::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double now = ros::Time::now().toSec();
     NODELET_WARN("CompensationPlanner: stop from %s (retreat %s): %s", msg->source.c_str(),
                  msg->retreat ? "yes" : "no", msg->reason.c_str());
+    handleStop(ros::Time::now().toSec(), msg->retreat, msg->reason);
+  }
+
+  /** @brief A stop (recognizer: hold then retract; monitor: retreat at once). */
+  void handleStop(double now, bool retreat, const std::string& reason) {
     switch (phase_) {
       case Phase::kMovingToPose:
       case Phase::kRegistering:
-        fail("stopped before drilling began: " + msg->reason);
+        fail("stopped before drilling began: " + reason);
         return;
       case Phase::kDrilling:
       case Phase::kStopped:
         publishSpindle(0.0);
         planner_->holdFeed(now);
-        if (msg->retreat) {
-          startRetreat(now, msg->reason);
+        if (retreat) {
+          startRetreat(now, reason);
         } else if (phase_ == Phase::kDrilling) {
           hold_end_ = now + stop_hold_s_;
           setPhase(Phase::kStopped);
@@ -657,12 +720,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   int registration_samples_ = 4;
   double registration_timeout_s_ = 3.0;
   double stop_hold_s_ = 1.0;
+  std::vector<std::string> trial_start_services_;
+  double trial_start_timeout_s_ = 2.0;
+  bool recognizer_reports_stop_ = false;
 
   core::VentilatorSettings settings_;
   bool have_settings_ = false;
   double breath_start_ = 0.0;
   bool have_phase_ = false;
-  std::map<std::string, double> joint_positions_;
 
   Phase phase_ = Phase::kIdle;
   ros::Time registration_open_;
@@ -692,7 +757,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber settings_sub_;
   ros::Subscriber marker_sub_;
   ros::Subscriber stop_sub_;
-  ros::Subscriber joint_sub_;
+  ros::Subscriber state_sub_;
+  std::vector<ros::ServiceClient> trial_start_clients_;
+  ros::CallbackQueue start_queue_;
+  std::unique_ptr<ros::AsyncSpinner> start_spinner_;
   ros::ServiceServer start_srv_;
   ros::Timer pose_timer_;
   ros::Timer registration_timer_;

@@ -314,13 +314,29 @@ class SimulatorNodelet : public nodelet::Nodelet {
     marker_pub_.publish(m);
   }
 
-  /** @brief simulator/start_trial: ground truth measures the relative AP motion from now. */
+  /**
+   * @brief simulator/start_trial: ground truth measures the relative AP motion from now; a
+   *        specimen already drilled is replaced by a fresh one (seed + 1), as on the bench.
+   */
   bool onStartTrial(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
-    sim_->startTrial();
+    bool remounted = false;
+    try {
+      remounted = sim_->startTrial();
+    } catch (const std::exception& e) {
+      response.success = false;
+      response.message = std::string("start_trial failed: ") + e.what();
+      return true;
+    }
     response.success = true;
     response.message = "trial " + std::to_string(sim_->trialCount()) + " started at t=" +
                        std::to_string(sim_->time()) + " s";
+    if (remounted) {
+      response.message += "; the specimen was drilled, a fresh one from seed " +
+                          std::to_string(sim_->seed()) + " is mounted (arm at home)";
+      NODELET_INFO("Simulator: %s", response.message.c_str());
+    }
+    publishGroundTruth(sim_->time());
     return true;
   }
 

@@ -2,8 +2,9 @@
  * @file state_recognizer_nodelet.cpp
  * @brief pedicle_drilling/StateRecognizer: force-based drilling-state recognition (paper
  *        Sec. IV-C/D) on the thrust of `ft_sensor/wrench`; publishes `drilling_state` on every
- *        averaged sample and one `drill/stop` (retreat = false) when the inner cortical layer is
- *        reached. Thin wrapper of core::StateRecognizer (doc/state_machine.md).
+ *        averaged sample (state `stopped` from the stop until `~reset`) and one `drill/stop`
+ *        (retreat = false) when the inner cortical layer is reached. Thin wrapper of
+ *        core::StateRecognizer (doc/state_machine.md).
  */
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
@@ -112,10 +113,11 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
                             static_cast<unsigned long>(non_finite_count_));
       return;
     }
+    // One latch, the core's: the stop is published on the sample that latches it.
+    const bool was_stopped = recognizer_->output().stop;
     const core::RecognizerOutput& out = recognizer_->push(t, thrust);
     if (out.new_average) publishState(msg->header.stamp, out);
-    if (out.stop && !stop_sent_) {
-      stop_sent_ = true;
+    if (out.stop && !was_stopped) {
       StopCommand stop;
       stop.header.stamp = msg->header.stamp;
       stop.header.frame_id = msg->header.frame_id;
@@ -125,7 +127,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       std::snprintf(reason, sizeof(reason),
                     "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
                     "raw sample %lu",
-                    out.last_key_point, core::toString(out.state), out.stop_t,
+                    out.stop_key_point, core::toString(out.layer_state), out.stop_t,
                     static_cast<unsigned long>(out.stop_index));
       stop.reason = reason;
       stop_pub_.publish(stop);
@@ -138,6 +140,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     msg.header.stamp = stamp;
     msg.state = static_cast<uint8_t>(out.state);
     msg.state_name = core::toString(out.state);
+    msg.layer_state = static_cast<uint8_t>(out.layer_state);
     msg.last_key_point = static_cast<uint8_t>(out.last_key_point);
     msg.averaged_force = out.averaged_force;
     msg.feature = out.feature;
@@ -152,7 +155,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
     recognizer_->reset();
-    stop_sent_ = false;
+    // Say at once that the latch is cleared (a planner refuses to feed while the latest state
+    // reports a stop).
+    publishState(ros::Time::now(), recognizer_->output());
     response.success = true;
     response.message = "recognizer reset (" + std::to_string(non_finite_count_) +
                        " non-finite samples ignored since start)";
@@ -164,7 +169,6 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   std::unique_ptr<core::StateRecognizer> recognizer_;
   int axis_index_ = 2;
   double axis_sign_ = 1.0;
-  bool stop_sent_ = false;
   std::size_t non_finite_count_ = 0;
   ros::Publisher state_pub_;
   ros::Publisher stop_pub_;

@@ -155,7 +155,8 @@ int main(int argc, char** argv) {
     }
     os << "],\"stop\":";
     if (o.stop) {
-      os << "{\"index\":" << o.stop_index << ",\"t\":" << num(o.stop_t) << "}";
+      os << "{\"index\":" << o.stop_index << ",\"t\":" << num(o.stop_t)
+         << ",\"key_point\":" << o.stop_key_point << "}";
     } else {
       os << "null";
     }
@@ -163,7 +164,8 @@ int main(int argc, char** argv) {
     std::cout << os.str();
   } else {
     std::cout << "samples " << samples.size() << "\n";
-    std::cout << "final_state " << pedicle_drilling::core::toString(o.state) << "\n";
+    // The layer the force shows at the end of the trace (the key points go on after the stop).
+    std::cout << "final_state " << pedicle_drilling::core::toString(o.layer_state) << "\n";
     if (o.params_ready) {
       std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min)
                 << "\n";
@@ -175,7 +177,8 @@ int main(int argc, char** argv) {
                 << num(kp.recognized_t) << "\n";
     }
     if (o.stop) {
-      std::cout << "stop index " << o.stop_index << " t " << num(o.stop_t) << "\n";
+      std::cout << "stop index " << o.stop_index << " t " << num(o.stop_t) << " key_point "
+                << o.stop_key_point << "\n";
     } else {
       std::cout << "stop none\n";
     }

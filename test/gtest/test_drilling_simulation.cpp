@@ -164,6 +164,16 @@ TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
   EXPECT_LT(gt.max_depth_cut_m, target);
   EXPECT_GT(gt.max_depth_cut_m, target - 0.3e-3);
   EXPECT_NEAR(gt.residual_inner_cortical_m, sp.innerCorticalEnd() - gt.max_depth_cut_m, 1e-12);
+  // A new trial on a drilled specimen: the bench mounts a fresh one (the next seed), arm home.
+  const int trials = sim.trialCount();
+  EXPECT_TRUE(sim.startTrial());
+  EXPECT_EQ(sim.trialCount(), trials + 1);
+  EXPECT_EQ(sim.seed(), 6u);
+  EXPECT_DOUBLE_EQ(sim.groundTruth().max_depth_cut_m, 0.0);
+  EXPECT_LT(sim.groundTruth().tip_depth_m, -0.1);
+  EXPECT_FALSE(sim.groundTruth().breakthrough);
+  EXPECT_FALSE(sim.startTrial());  // not drilled yet: the same specimen
+  EXPECT_EQ(sim.seed(), 6u);
   // The reset between trials returns the arm home and clears the drilling state.
   sim.reset(6, false);
   EXPECT_DOUBLE_EQ(sim.groundTruth().max_depth_cut_m, 0.0);
@@ -519,8 +529,9 @@ TEST(DrillingSimulationTrial, StartTrialZeroesRelativeApMotion) {
   sim.step(2.0);  // the bone breathes, the arm holds: relative AP motion builds up
   const double before = sim.groundTruth().relative_ap_m;
   EXPECT_GT(std::abs(before), 1e-4);
-  sim.startTrial();
+  EXPECT_FALSE(sim.startTrial());  // nothing drilled: the same specimen
   EXPECT_EQ(sim.trialCount(), 1);
+  EXPECT_EQ(sim.seed(), 3u);
   EXPECT_NEAR(sim.groundTruth().relative_ap_m, 0.0, 1e-12);
 }
 

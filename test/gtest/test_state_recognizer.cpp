@@ -60,7 +60,7 @@ struct Profile {
 
 struct RunResult {
   RecognizerOutput out;
-  std::vector<DrillingState> states;  // distinct consecutive states visited
+  std::vector<DrillingState> states;  // distinct consecutive layer states visited
 };
 
 RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = RecognizerParams()) {
@@ -69,7 +69,7 @@ RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = R
   r.states.push_back(DrillingState::kIdle);
   for (std::size_t i = 0; i < f.size(); ++i) {
     const RecognizerOutput& o = rec.push(static_cast<double>(i) / kRate, f[i]);
-    if (o.state != r.states.back()) r.states.push_back(o.state);
+    if (o.layer_state != r.states.back()) r.states.push_back(o.layer_state);
   }
   r.out = rec.output();
   return r;
@@ -209,7 +209,8 @@ TEST(StateRecognizerTransitions, InnerCorticalNeedsConfirmationAboveC2) {
   rec.push(i++, 2.0);
   EXPECT_FALSE(rec.output().stop);
   const RecognizerOutput& o = rec.push(i++, 2.2);
-  EXPECT_EQ(o.state, DrillingState::kInnerCortical);
+  EXPECT_EQ(o.layer_state, DrillingState::kInnerCortical);
+  EXPECT_EQ(o.state, DrillingState::kStopped);  // stopped at once (stop_delay = 0)
   EXPECT_EQ(o.last_key_point, 4);
   EXPECT_EQ(o.key_points[3].index, static_cast<std::size_t>(first));
   EXPECT_TRUE(o.stop);
@@ -252,17 +253,46 @@ TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
   EXPECT_EQ(rec.output().key_points[4].index, static_cast<std::size_t>(peak));
   EXPECT_TRUE(rec.output().stop);  // fail-safe stop at KP5
   EXPECT_EQ(rec.output().stop_index, static_cast<std::size_t>(i - 1));
-  EXPECT_EQ(rec.output().state, DrillingState::kInnerCortical);
+  EXPECT_EQ(rec.output().stop_key_point, 5);
+  EXPECT_EQ(rec.output().state, DrillingState::kStopped);
+  EXPECT_EQ(rec.output().layer_state, DrillingState::kInnerCortical);
   rec.push(i++, 1.6);  // A* = 0.50*... = 0.455 >= C1 still
-  EXPECT_EQ(rec.output().state, DrillingState::kInnerCortical);
+  EXPECT_EQ(rec.output().layer_state, DrillingState::kInnerCortical);
   rec.push(i++, 0.5);
-  EXPECT_EQ(rec.output().state, DrillingState::kBreakthrough);
-  EXPECT_EQ(rec.output().last_key_point, 6);
+  // The force shows the breakthrough (key point 6 is recorded for analysis), but the
+  // recognizer's state stays "stopped" at the stop's key point.
+  EXPECT_EQ(rec.output().layer_state, DrillingState::kBreakthrough);
+  EXPECT_EQ(rec.output().state, DrillingState::kStopped);
+  EXPECT_EQ(rec.output().last_key_point, 5);
+  ASSERT_EQ(rec.output().num_key_points, 6);
   EXPECT_EQ(rec.output().key_points[5].index, static_cast<std::size_t>(i - 1));
   // Nothing more happens afterwards.
   for (int j = 0; j < 20; ++j) rec.push(i++, j % 2 ? 3.0 : 0.0);
   EXPECT_EQ(rec.output().num_key_points, 6);
-  EXPECT_EQ(rec.output().state, DrillingState::kBreakthrough);
+  EXPECT_EQ(rec.output().layer_state, DrillingState::kBreakthrough);
+  EXPECT_EQ(rec.output().state, DrillingState::kStopped);
+}
+
+TEST(StateRecognizerTransitions, StateSaysStoppedFromTheStopUntilReset) {
+  RecognizerParams p = directParams();
+  StateRecognizer rec(p);
+  int i = toCancellous(rec);
+  EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
+  while (!rec.output().stop && i < 10000) rec.push(i++, 3.0);
+  ASSERT_TRUE(rec.output().stop);
+  EXPECT_EQ(rec.output().stop_key_point, 4);
+  EXPECT_EQ(rec.output().last_key_point, 4);
+  EXPECT_EQ(rec.output().state, DrillingState::kStopped);
+  EXPECT_STREQ(toString(rec.output().state), "stopped");
+  // A retracting drill: the force falls to zero; the state must not follow it.
+  for (int j = 0; j < 50; ++j) rec.push(i++, 0.0);
+  EXPECT_EQ(rec.output().state, DrillingState::kStopped);
+  EXPECT_EQ(rec.output().last_key_point, 4);
+  rec.reset();
+  EXPECT_EQ(rec.output().state, DrillingState::kIdle);
+  EXPECT_EQ(rec.output().layer_state, DrillingState::kIdle);
+  EXPECT_FALSE(rec.output().stop);
+  EXPECT_EQ(rec.output().stop_key_point, 0);
 }
 
 TEST(StateRecognizerProfile, TwoLayersAllKeyPointsAndStopInInnerLayer) {

@@ -5,8 +5,8 @@ Run with the Debian interpreter, which has pywt:
     PEDICLE_DRILLING_BIN_DIR=/path/to/bin \\
         /usr/bin/python3 -m pytest -q test/python/test_dwt_vs_pywt.py
 
-The binaries are looked up in $PEDICLE_DRILLING_BIN_DIR, else in
-/work/main/catkin_ws/devel/lib/pedicle_drilling. A missing binary or a missing pywt is a
+The binaries are looked up in $PEDICLE_DRILLING_BIN_DIR, else in this checkout's
+catkin_ws/devel/lib/pedicle_drilling. A missing binary or a missing pywt is a
 test failure, not a skip.
 """
 
@@ -23,7 +23,8 @@ try:
 except ImportError:  # pragma: no cover - reported as a failure below
     pywt = None
 
-DEFAULT_BIN_DIR = "/work/main/catkin_ws/devel/lib/pedicle_drilling"
+DEFAULT_BIN_DIR = os.path.join(os.path.dirname(os.path.abspath(__file__)), '..', '..',
+                               'catkin_ws', 'devel', 'lib', 'pedicle_drilling')
 BIN_DIR = os.environ.get("PEDICLE_DRILLING_BIN_DIR", DEFAULT_BIN_DIR)
 
 WAVELETS = (["db%d" % k for k in range(1, 21)] + ["sym%d" % k for k in range(2, 21)] +

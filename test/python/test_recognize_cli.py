@@ -113,3 +113,6 @@ def test_text_output_agrees_with_json(bin_dir, tmp_path):
     assert len(stop) == 1
     assert int(stop[0][2]) == result['stop']['index']
     assert float(stop[0][4]) == pytest.approx(result['stop']['t'], abs=1e-6)
+    # The stop names the key point it was commanded at: 4 (confirmed) or 5 (fail-safe).
+    assert stop[0][5] == 'key_point' and int(stop[0][6]) == result['stop']['key_point']
+    assert result['stop']['key_point'] in (4, 5)

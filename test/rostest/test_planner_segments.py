@@ -102,7 +102,12 @@ class PlannerSegmentsTest(unittest.TestCase):
         self.assertIn('moving_to_pose', statuses)
         statuses = statuses[statuses.index('moving_to_pose'):]
         self.assertEqual(statuses[:3], ['moving_to_pose', 'registering', 'drilling'])
-        move, segments = trajs[0], trajs[1:]
+        # The move to the drilling pose is the trial's one-point trajectory. Messages of the
+        # previous trial (its retreat) may arrive after its 'done' status, but always before the
+        # move (one connection keeps the order): everything after the move is this trial's.
+        moves = [i for i, t in enumerate(trajs) if len(t.points) == 1]
+        self.assertEqual(len(moves), 1, 'move trajectories: %r' % moves)
+        move, segments = trajs[moves[0]], trajs[moves[0] + 1:]
         self.assertEqual(move.joint_names[-1], 'feed_joint')
         self.assertEqual(len(move.joint_names), 7)
         self.assertAlmostEqual(move.points[-1].positions[-1], FEED_HOME, places=9)

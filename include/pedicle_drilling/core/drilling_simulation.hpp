@@ -312,10 +312,13 @@ class DrillingSimulation {
   /** @brief Current patient. */
   const VirtualPatient& patient() const;
   /**
-   * @brief Marks the start of a trial without changing the world: ground truth's relative AP
-   *        motion is measured from now, and the trial counter increments.
+   * @brief Marks the start of a trial: ground truth's relative AP motion is measured from now,
+   *        and the trial counter increments. A specimen is never drilled twice: if the current
+   *        one has been cut, the bench mounts a fresh one first, as reset(seed() + 1,
+   *        movingBone()) with the same distributions and bone motion model (arm at home).
+   * @return true when a fresh specimen was mounted.
    */
-  void startTrial();
+  bool startTrial();
   /** @brief Trials started since construction (reset() does not count). */
   int trialCount() const;
   /** @brief Internal ventilator sample of the last step (unlagged). */

@@ -77,6 +77,7 @@ enum class DrillingState {
   kCancellous,       ///< Key point 3 passed; watching for the inner cortical layer.
   kInnerCortical,    ///< Key point 4 passed (stop is commanded in this state).
   kBreakthrough,     ///< Key point 6 passed: the inner cortical layer has been perforated.
+  kStopped,          ///< The stop was commanded; reported until reset() (never a layer state).
 };
 
 /** @brief Human-readable name of a state. */
@@ -93,8 +94,18 @@ struct KeyPoint {
 
 /** @brief Result of one push(); fixed size, no allocation. */
 struct RecognizerOutput {
-  DrillingState state = DrillingState::kIdle;  ///< Current state.
-  int last_key_point = 0;                      ///< Highest key point recognised so far (0-6).
+  /**
+   * @brief The recognizer's state: the layer state until the stop, then kStopped until reset()
+   *        (what a retracting drill's force looks like is not a drilling state).
+   */
+  DrillingState state = DrillingState::kIdle;
+  /**
+   * @brief The layer the force shows (never kStopped). The key-point machine keeps running
+   *        after the stop, for offline analysis of traces drilled past the stop.
+   */
+  DrillingState layer_state = DrillingState::kIdle;
+  /** @brief Highest key point recognised so far (0-6); frozen at the stop's key point. */
+  int last_key_point = 0;
   bool new_average = false;     ///< True if this sample completed a new averaged value.
   bool filter_ready = false;    ///< True once the Eq. 13 window is full.
   double averaged_force = 0.0;  ///< Latest fbar_i [N] (0 until filter_ready).
@@ -106,7 +117,8 @@ struct RecognizerOutput {
   bool stop = false;            ///< Latched stop command.
   std::size_t stop_index = 0;   ///< Raw index at which stop was commanded (valid if stop).
   double stop_t = 0.0;          ///< Time at which stop was commanded (valid if stop).
-  int num_key_points = 0;       ///< Valid entries in key_points.
+  int stop_key_point = 0;       ///< Key point at which the stop was commanded (valid if stop).
+  int num_key_points = 0;       ///< Valid entries in key_points (also those after the stop).
   std::array<KeyPoint, 6> key_points{};  ///< Key points in order 1..num_key_points.
 };
 
@@ -153,6 +165,7 @@ class StateRecognizer {
   void onFiltered(double fbar);
   void addKeyPoint(int id, std::size_t index, double t);
   void commandStop();
+  void setLayerState(DrillingState s);
 
   RecognizerParams params_;
   Output out_;

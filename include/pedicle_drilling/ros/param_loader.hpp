@@ -12,6 +12,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace pedicle_drilling {
 
@@ -81,6 +82,28 @@ class ParamLoader {
                         bool allow_empty = false) const {
     std::string value = default_value;
     if (nh_.hasParam(name) && !nh_.getParam(name, value)) fail(name, "must be a string");
+    if (!allow_empty && value.empty()) fail(name, "must not be empty");
+    return value;
+  }
+
+  /** @brief A list of non-empty strings (YAML list); may be empty unless !allow_empty. */
+  std::vector<std::string> getStringList(const std::string& name,
+                                         const std::vector<std::string>& default_value,
+                                         bool allow_empty = true) const {
+    std::vector<std::string> value = default_value;
+    if (nh_.hasParam(name)) {
+      XmlRpc::XmlRpcValue raw;
+      nh_.getParam(name, raw);
+      if (raw.getType() != XmlRpc::XmlRpcValue::TypeArray) fail(name, "must be a list of strings");
+      value.clear();
+      for (int i = 0; i < raw.size(); ++i) {
+        if (raw[i].getType() != XmlRpc::XmlRpcValue::TypeString ||
+            static_cast<std::string>(raw[i]).empty()) {
+          fail(name, "item " + std::to_string(i) + " must be a non-empty string");
+        }
+        value.push_back(static_cast<std::string>(raw[i]));
+      }
+    }
     if (!allow_empty && value.empty()) fail(name, "must not be empty");
     return value;
   }
