@@ -12,7 +12,7 @@ import time
 
 import yaml
 
-from . import plots, report
+from . import engine_core, plots, report
 from .design import CASES, build_design, parse_shard, shard
 
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
@@ -36,6 +36,7 @@ SCENARIO_KEYS = {
     'bone_motion': (str, None, None),
     'simulator': (dict, None, None),
 }
+ENGINES = ('core', 'ros')
 # bone_motion: what the SPMS plays in the moving cases.
 BONE_MOTIONS = ('model', 'virtual_patient')
 
@@ -126,7 +127,11 @@ def parse_args(argv):
     parser.add_argument('--trials', type=int, default=None, help='trials per case and speed')
     parser.add_argument('--seed', type=int, default=None)
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO)
-    parser.add_argument('--jobs', type=int, default=2, help='parallel workers (ROS masters)')
+    parser.add_argument('--engine', default='core',
+                        help='core (default): trial_engine, the ROS-free closed-loop engine, '
+                        'deterministic; ros: the full nodelet pipeline on ROS masters')
+    parser.add_argument('--jobs', type=int, default=2,
+                        help='parallel workers (trial_engine processes or ROS masters)')
     parser.add_argument('--out', default='campaign_out')
     parser.add_argument('--shard', default=None, help='K/N: run the K-th of N slices')
     parser.add_argument('--bags', action='store_true', help='keep a rosbag per trial')
@@ -135,7 +140,19 @@ def parse_args(argv):
                         help='sim seconds per wall second in each worker (the nodelets must '
                         'keep up; see README)')
     args = parser.parse_args(argv)
+    if args.engine not in ENGINES:
+        raise UsageError('--engine %r is not one of: %s' % (args.engine, ', '.join(ENGINES)))
     scenario = load_scenario(args.scenario)
+    if args.engine == 'core':
+        # What the core engine does not support is refused by name, before anything runs.
+        if scenario.get('identification', 'volunteers') != 'volunteers':
+            raise UsageError('scenario key identification: %r is not supported by --engine core '
+                             '(use --engine ros)' % scenario.get('identification'))
+        if scenario.get('simulator'):
+            raise UsageError('scenario key simulator: overrides are not supported by --engine '
+                             'core yet (use --engine ros)')
+        if args.bags:
+            raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
     if args.case is None:
         cases = list(scenario.get('cases', CASES))
     elif args.case == 'all':
@@ -234,7 +251,8 @@ def run_campaign(argv=None):
     meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
             'design_size': len(design), 'simulator': scenario.get('simulator') or {},
             'model': scenario.get('model', 'linear'),
-            'bone_motion': scenario.get('bone_motion', 'virtual_patient')}
+            'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
+            'engine': args.engine}
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
@@ -263,10 +281,18 @@ def run_campaign(argv=None):
     lock = threading.Lock()
     progress = Progress(len(selected))
     workers = []
+    pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
     for k, part in enumerate(slices):
         trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
         with open(trial_file, 'w') as handle:
             json.dump(part, handle)
+        if args.engine == 'core':
+            workers.append(engine_core.start(engine_core.trial_engine_command(
+                trial_file, pose, models_dir,
+                scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
+                float(scenario.get('feed_rate_mm_s', 0.5)),
+                float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL)))
+            continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
                    '--trials', trial_file, '--out', out_dir,
@@ -293,6 +319,9 @@ def run_campaign(argv=None):
             line = line.strip()
             if not line.startswith('{'):
                 continue
+            if args.engine == 'core':
+                line = json.dumps(engine_core.row_from_line(line, os.path.join(out_dir,
+                                                                               'traces')))
             row = report.normalise_row({k: ('' if v is None else v)
                                         for k, v in json.loads(line).items()})
             with lock:

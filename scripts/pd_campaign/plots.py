@@ -54,8 +54,9 @@ def fig15(summary, out_dir):
             continue
         rpm = [g['rpm'] for g in groups]
         rate = [100 * g['success_rate'] for g in groups]
-        low = [100 * (g['success_rate'] - g['wilson95'][0]) for g in groups]
-        high = [100 * (g['wilson95'][1] - g['success_rate']) for g in groups]
+        # Rounding can put a bound a hair inside the rate (all or none succeeded): clamp at 0.
+        low = [max(0.0, 100 * (g['success_rate'] - g['wilson95'][0])) for g in groups]
+        high = [max(0.0, 100 * (g['wilson95'][1] - g['success_rate'])) for g in groups]
         ax.errorbar(rpm, rate, yerr=[low, high], marker='o', capsize=4, label=case,
                     color=COLOURS[case])
         if case in PAPER_FIG15:

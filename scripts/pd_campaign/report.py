@@ -11,7 +11,7 @@ from . import stats
 from .design import CASES
 
 TRIAL_COLUMNS = [
-    'trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
+    'trial_id', 'case', 'rpm', 'index', 'seed', 'engine', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
     'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',

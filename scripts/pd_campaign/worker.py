@@ -90,6 +90,7 @@ def peak_forces(states, truth):
 def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     wall_start = time.time()
     row = dict(trial)
+    row['engine'] = 'ros'
     recorder.clear()
     moving = trial['case'] != 'stationary'
     reply = srv['reset'](seed=trial['seed'], moving_bone=moving)
@@ -190,6 +191,13 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     if recorder.status[-1][1] == 'failed':
         raise RuntimeError('the planner failed the trial (statuses: %s)'
                            % ' '.join(s for _, s in recorder.status))
+    row['wall_s'] = time.time() - wall_start
+    return analyse_trial(recorder, row, trial, trace_dir)
+
+
+def analyse_trial(recorder, row, trial, trace_dir):
+    """The outcome of a finished trial from what was recorded (the same for both engines):
+    stop, success (paper Sec. V-C/E), peak forces, tracking error; writes the trace."""
     t_drill = recorder.status_time('drilling')
     if t_drill is None:
         raise RuntimeError('the trial never reached the drilling phase')
@@ -214,7 +222,6 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     row['tracking_rms_mm'], row['tracking_max_mm'] = tracking_error(truth_rows, t_drill, t1)
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
-    row['wall_s'] = time.time() - wall_start
     with open(os.path.join(trace_dir, trial['trial_id'] + '.json'), 'w') as handle:
         json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
                    'feature': [s[2] for s in states],
@@ -344,6 +351,7 @@ def main(argv=None):
                 row = run_trial(rospy, srv, None, recorder, trial, args, trace_dir)
             except Exception as error:  # recorded, the campaign goes on
                 row = dict(trial)
+                row['engine'] = 'ros'
                 row['success'] = False
                 row['error'] = str(error).replace('\n', ' ')[:300]
             sys.stdout.write(json.dumps(row) + '\n')

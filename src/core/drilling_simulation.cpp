@@ -672,15 +672,37 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
     }
     return result;
   }
-  // Start knot: the current reference (replaces the remaining trajectory).
+  // JointTrajectoryController semantics: the running trajectory is kept until the new one's
+  // start time (its header stamp; now when zero or past), then the new one goes from the old
+  // reference at that time to its first point not yet due.
+  const double takeover = std::isfinite(command.start_time_s) && command.start_time_s > s.time
+                              ? std::min(command.start_time_s, last_t)
+                              : s.time;
   Knot start;
   start.t = s.time;
   s.reference(s.time, &start.q, &start.v);
   std::vector<Knot> knots{start};
+  if (takeover > s.time) {
+    for (const Knot& k : s.knots) {
+      if (k.t > s.time && k.t < takeover) knots.push_back(k);
+    }
+    Knot at;
+    at.t = takeover;
+    s.reference(takeover, &at.q, &at.v);
+    // The old segment that contains the takeover keeps its interpolation up to it.
+    at.cubic = false;
+    for (const Knot& k : s.knots) {
+      if (k.t >= takeover) {
+        at.cubic = k.cubic;
+        break;
+      }
+    }
+    knots.push_back(at);
+  }
   TargetResult result;
-  Eigen::VectorXd prev_q = start.q;
+  Eigen::VectorXd prev_q = knots.back().q;
   for (const TrajectoryPoint& pt : command.points) {
-    if (pt.time_s <= s.time) continue;
+    if (pt.time_s <= takeover) continue;
     Knot k;
     k.t = pt.time_s;
     k.q = prev_q;  // joints not named keep their reference

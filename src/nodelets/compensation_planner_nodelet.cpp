@@ -1,11 +1,12 @@
 /**
  * @file compensation_planner_nodelet.cpp
  * @brief pedicle_drilling/CompensationPlanner: Algorithm 1 of the paper (Sec. IV-B). Per trial
- *        (`~start_trial`): spindle on, arm to the drilling pose, marker registration, then every
- *        125 ms the next trapezoidal segment of feed (+ predicted displacement in compensated
- *        mode) as a JointTrajectory on `arm_controller/command`; stops on `drill/stop` (hold,
- *        or retreat along the drill axis). Thin wrapper of core::CompensationPlanner and
- *        core::ArmCompensation.
+ *        (`~start_trial`): every component started afresh, spindle on, arm to the drilling pose,
+ *        marker registration, then every 125 ms the next trapezoidal segment of feed
+ *        (+ predicted displacement in compensated mode) as a JointTrajectory on
+ *        `arm_controller/command`; stops on `drill/stop` (hold, or retreat along the drill axis).
+ *        Thin ROS adapter of core::TrialSequencer (the trial logic, shared with the closed-loop
+ *        engine): parameters, message conversion, timers and the component resets.
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
@@ -21,7 +22,6 @@
 #include <urdf_model/model.h>
 #include <urdf_parser/urdf_parser.h>
 
-#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <memory>
@@ -35,16 +35,64 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/VentilatorSettings.h"
-#include "pedicle_drilling/core/compensation_planner.hpp"
 #include "pedicle_drilling/core/motion_model_io.hpp"
-#include "pedicle_drilling/core/safety_monitor.hpp"
+#include "pedicle_drilling/core/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
 
-/** @brief Nodelet wrapper of core::CompensationPlanner. */
+namespace {
+
+std::string readTextFile(const std::string& path, const std::string& what) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error(what + " '" + path + "' cannot be opened");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/** @brief Planner parameters (README) into the core's struct; the core validates them again. */
+core::TrialSequencerParams loadSequencerParams(const ParamLoader& params) {
+  core::TrialSequencerParams sp;
+  sp.default_feed_rate_mm_s = params.getDouble("feed_rate_mm_s", 0.5, 0.0, 10.0, true);
+  sp.default_spindle_rpm = params.getDouble("spindle_rpm", 12000.0, 0.0, 60000.0, true);
+  sp.default_max_duration_s = params.getDouble("max_duration_s", 120.0, 0.0, 3600.0, true);
+  core::CompensationParams& cp = sp.compensation;
+  cp.latency_s = params.getDouble("latency_s", 0.0, 0.0, 1.0);
+  cp.period_s = params.getDouble("period_s", 0.125, 0.0, 1.0, true);
+  cp.accel_ratio = params.getDouble("accel_ratio", 10.0, 0.0, 1000.0, true);
+  cp.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
+  const std::string profile = params.getString("segment_profile", "rest_to_rest");
+  if (!core::parseSegmentProfile(profile, &cp.segment_profile)) {
+    params.fail("segment_profile", "= '" + profile + "' is not blended or rest_to_rest");
+  }
+  cp.compensate_lateral = params.getBool("compensate_si_lr", false);
+  cp.predict_axis = {{false, false, false}};
+  std::stringstream axes(params.getString("predicted_axes", "ap"));
+  std::string name;
+  while (std::getline(axes, name, ',')) {
+    core::Axis a;
+    if (!core::parseAxis(name, &a)) {
+      params.fail("predicted_axes", "has unknown axis '" + name + "' (use ap, si, lr)");
+    }
+    cp.predict_axis[static_cast<int>(a)] = true;
+  }
+  sp.move_duration_s = params.getDouble("move_duration_s", 2.0, 0.0, 60.0, true);
+  sp.settle_s = params.getDouble("settle_s", 0.5, 0.0, 60.0);
+  sp.registration_samples = params.getInt("registration_samples", 4, 1, 100);
+  sp.registration_timeout_s = params.getDouble("registration_timeout_s", 3.0, 0.0, 60.0, true);
+  sp.stop_hold_s = params.getDouble("stop_hold_s", 1.0, 0.0, 60.0);
+  sp.retreat.distance_m = params.getDouble("retreat_distance_m", 0.025, 0.0, 0.1, true);
+  sp.retreat.speed_m_s = params.getDouble("retreat_speed_m_s", 0.005, 0.0, 0.05, true);
+  sp.retreat.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);
+  return sp;
+}
+
+}  // namespace
+
+/** @brief ROS adapter of core::TrialSequencer. */
 class CompensationPlannerNodelet : public nodelet::Nodelet {
  public:
   ~CompensationPlannerNodelet() override {
@@ -53,43 +101,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
  private:
-  enum class Phase { kIdle, kMovingToPose, kRegistering, kDrilling, kStopped, kRetreating, kDone,
-                     kFailed };
-
-  static const char* phaseName(Phase p) {
-    switch (p) {
-      case Phase::kIdle: return "idle";
-      case Phase::kMovingToPose: return "moving_to_pose";
-      case Phase::kRegistering: return "registering";
-      case Phase::kDrilling: return "drilling";
-      case Phase::kStopped: return "stopped";
-      case Phase::kRetreating: return "retreating";
-      case Phase::kDone: return "done";
-      case Phase::kFailed: return "failed";
-    }
-    return "unknown";
-  }
-
-  static std::string readTextFile(const std::string& path, const std::string& what) {
-    std::ifstream in(path);
-    if (!in) throw std::runtime_error(what + " '" + path + "' cannot be opened");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-  }
-
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
     try {
       const ParamLoader params(pnh);
-      const std::string model_path = params.getString("patient_model_path", "");
-      try {
-        patient_ = core::readModelYaml(model_path);
-      } catch (const std::exception& e) {
-        throw std::runtime_error("patient model file '" + model_path + "' (parameter '" +
-                                 pnh.resolveName("patient_model_path") + "'): " + e.what());
-      }
+      patient_ = loadPatient();
       // Robot description: a URDF file, or the robot_description parameter.
       const std::string urdf_path = params.getString("urdf_path", "", true);
       std::string urdf_xml;
@@ -98,65 +115,39 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       } else if (!nh.getParam("robot_description", urdf_xml)) {
         params.fail("urdf_path", "is empty and there is no robot_description parameter");
       }
+      core::TrialSequencerParams sp = loadSequencerParams(params);
       const std::string base = params.getString("arm_base_link", "world");
       const std::string tip = params.getString("arm_tip_link", "device_base");
-      feed_joint_ = params.getString("feed_joint", "feed_joint");
+      sp.feed_joint = params.getString("feed_joint", "feed_joint");
       const core::KinematicChain arm = core::KinematicChain::fromUrdfString(urdf_xml, base, tip);
       const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
-      const auto feed = model ? model->getJoint(feed_joint_) : nullptr;
-      if (!feed || !feed->limits) params.fail("feed_joint", "'" + feed_joint_ +
-                                              "' is not a limited joint of the URDF");
-      feed_lower_ = feed->limits->lower;
-      feed_upper_ = feed->limits->upper;
-      arm_joints_ = arm.jointNames();
-      Eigen::VectorXd q(arm_joints_.size());
-      for (std::size_t i = 0; i < arm_joints_.size(); ++i) {
-        const std::string key = "drilling_pose/" + arm_joints_[i];
+      const auto feed = model ? model->getJoint(sp.feed_joint) : nullptr;
+      if (!feed || !feed->limits) {
+        params.fail("feed_joint", "'" + sp.feed_joint + "' is not a limited joint of the URDF");
+      }
+      sp.feed_lower_m = feed->limits->lower;
+      sp.feed_upper_m = feed->limits->upper;
+      sp.arm_joints = arm.jointNames();
+      Eigen::VectorXd q(sp.arm_joints.size());
+      for (std::size_t i = 0; i < sp.arm_joints.size(); ++i) {
+        const std::string key = "drilling_pose/" + sp.arm_joints[i];
         if (!pnh.hasParam(key)) params.fail(key, "is missing (load config/drilling_pose.yaml)");
         q[i] = params.getDouble(key, 0.0, -2.0 * M_PI, 2.0 * M_PI);
       }
       const double feed_home =
-          params.getDouble("feed_home_m", 0.01, feed_lower_, 0.5 * feed_upper_);
-      arm_comp_ = std::make_unique<core::ArmCompensation>(arm, q, feed_home);
-
-      default_feed_rate_mm_s_ = params.getDouble("feed_rate_mm_s", 0.5, 0.0, 10.0, true);
-      default_spindle_rpm_ = params.getDouble("spindle_rpm", 12000.0, 0.0, 60000.0, true);
-      default_max_duration_s_ = params.getDouble("max_duration_s", 120.0, 0.0, 3600.0, true);
-      base_params_.latency_s = params.getDouble("latency_s", 0.0, 0.0, 1.0);
-      base_params_.period_s = params.getDouble("period_s", 0.125, 0.0, 1.0, true);
-      base_params_.accel_ratio = params.getDouble("accel_ratio", 10.0, 0.0, 1000.0, true);
-      base_params_.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
-      const std::string profile = params.getString("segment_profile", "rest_to_rest");
-      if (!core::parseSegmentProfile(profile, &base_params_.segment_profile)) {
-        params.fail("segment_profile", "= '" + profile + "' is not blended or rest_to_rest");
-      }
-      base_params_.compensate_lateral = params.getBool("compensate_si_lr", false);
-      base_params_.predict_axis = {{false, false, false}};
-      std::stringstream axes(params.getString("predicted_axes", "ap"));
-      std::string name;
-      while (std::getline(axes, name, ',')) {
-        core::Axis a;
-        if (!core::parseAxis(name, &a)) {
-          params.fail("predicted_axes", "has unknown axis '" + name + "' (use ap, si, lr)");
-        }
-        base_params_.predict_axis[static_cast<int>(a)] = true;
-      }
-      base_params_.drill_axis = arm_comp_->drillAxis();
-      base_params_.validate();
-      move_duration_s_ = params.getDouble("move_duration_s", 2.0, 0.0, 60.0, true);
-      settle_s_ = params.getDouble("settle_s", 0.5, 0.0, 60.0);
-      registration_samples_ = params.getInt("registration_samples", 4, 1, 100);
-      registration_timeout_s_ = params.getDouble("registration_timeout_s", 3.0, 0.0, 60.0, true);
-      stop_hold_s_ = params.getDouble("stop_hold_s", 1.0, 0.0, 60.0);
-      core::RetreatParams rp;
-      rp.distance_m = params.getDouble("retreat_distance_m", 0.025, 0.0, 0.1, true);
-      rp.speed_m_s = params.getDouble("retreat_speed_m_s", 0.005, 0.0, 0.05, true);
-      rp.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);
-      retreat_planner_ = std::make_unique<core::RetreatPlanner>(rp);
+          params.getDouble("feed_home_m", 0.01, sp.feed_lower_m, 0.5 * sp.feed_upper_m);
       world_frame_ = params.getString("world_frame", "world");
       trial_start_services_ = params.getStringList(
           "trial_start_services", {"state_recognizer/reset", "safety_monitor/reset"});
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
+      try {
+        sequencer_ = std::make_unique<core::TrialSequencer>(
+            sp, core::ArmCompensation(arm, q, feed_home), world_frame_);
+      } catch (const std::invalid_argument& e) {
+        // The core names the field first ("settle_s: must be ..."): report it as the parameter.
+        const std::string what = e.what();
+        params.fail(what.substr(0, what.find(':')), what.substr(what.find(':') + 1));
+      }
     } catch (const std::exception& e) {
       startup_status_.fail(nh, getName(), e.what());
       return;
@@ -189,22 +180,34 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
                                            this);
     start_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &start_queue_);
     start_spinner_->start();
-    setPhase(Phase::kIdle);
-    NODELET_INFO("CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), feed home "
-                 "%.1f mm, latency %.3f s",
-                 patient_.patient_id.c_str(), base_params_.drill_axis.x(),
-                 base_params_.drill_axis.y(), base_params_.drill_axis.z(),
-                 arm_comp_->feedHome() * 1e3, base_params_.latency_s);
+    publishStatus(core::TrialPhase::kIdle);
+    const core::TrialSequencerParams& p = sequencer_->params();
+    NODELET_INFO("CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s",
+                 patient_.patient_id.c_str(), p.compensation.drill_axis.x(),
+                 p.compensation.drill_axis.y(), p.compensation.drill_axis.z(),
+                 p.compensation.latency_s);
   }
+
+  /** @brief ~patient_model_path, read at start and again for every trial. */
+  core::PatientModel loadPatient() const {
+    const ros::NodeHandle& pnh = getPrivateNodeHandle();
+    const std::string path = ParamLoader(pnh).getString("patient_model_path", "");
+    try {
+      return core::readModelYaml(path);
+    } catch (const std::exception& e) {
+      throw std::runtime_error("patient model file '" + path + "' (parameter '" +
+                               pnh.resolveName("patient_model_path") + "'): " + e.what());
+    }
+  }
+
+  static double now() { return ros::Time::now().toSec(); }
 
   // ------------------------------------------------------------------------------- inputs
 
   void onSettings(const VentilatorSettings::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      settings_ = fromMsg(*msg);
-      have_settings_ = true;
-      if (planner_) planner_->predictor().setVentilator(settings_);
+      sequencer_->setVentilator(fromMsg(*msg));
     } catch (const std::exception& e) {
       NODELET_ERROR("CompensationPlanner: ignored invalid ventilator settings: %s", e.what());
     }
@@ -217,90 +220,38 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(1.0, "CompensationPlanner: non-finite tidal volume phase ignored");
       return;
     }
-    breath_start_ = start;
-    have_phase_ = true;
-    if (planner_) planner_->predictor().setBreathStart(start);
+    sequencer_->setBreathStart(start);
   }
 
   void onMarker(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double t = msg->header.stamp.toSec();
     const auto& p = msg->pose.position;
-    const Eigen::Vector3d pos(p.x, p.y, p.z);
-    if (phase_ == Phase::kRegistering) {
-      registerSample(*msg, t, pos);
-      return;
-    }
-    if (!registered_ || !planner_ ||
-        (phase_ != Phase::kDrilling && phase_ != Phase::kStopped &&
-         phase_ != Phase::kRetreating)) {
-      return;
-    }
-    // Predicted marker pose at the tracker's own time stamp, for the SafetyMonitor.
-    geometry_msgs::PoseStamped out;
-    out.header.stamp = msg->header.stamp;
-    out.header.frame_id = marker_frame_;
-    const Eigen::Vector3d predicted = marker_reg_ + rotation_ * boneDisplacementSinceMarker(t);
-    out.pose.position.x = predicted.x();
-    out.pose.position.y = predicted.y();
-    out.pose.position.z = predicted.z();
-    out.pose.orientation = marker_orientation_;
-    predicted_pub_.publish(out);
+    const auto& o = msg->pose.orientation;
+    const core::RotationLookup lookup = [this](const std::string& frame, Eigen::Matrix3d* r) {
+      if (!tf_buffer_->canTransform(frame, world_frame_, ros::Time(0))) return false;
+      const auto& q = tf_buffer_->lookupTransform(frame, world_frame_, ros::Time(0))
+                          .transform.rotation;
+      *r = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+      return true;
+    };
+    sequencer_->onMarker(now(), msg->header.stamp.toSec(), msg->header.frame_id,
+                         Eigen::Vector3d(p.x, p.y, p.z), Eigen::Quaterniond(o.w, o.x, o.y, o.z),
+                         lookup);
+    carryOut();
   }
 
-  /** @brief Predicted bone displacement (world, m) since the registration marker time. */
-  Eigen::Vector3d boneDisplacementSinceMarker(double t) const {
-    // mode_, not planner_->mode(): the planner only starts after the registration.
-    if (mode_ == core::CompensationMode::kStationary) return Eigen::Vector3d::Zero();
-    return planner_->predictor().displacement(t) - y_marker_reg_;
+  void onStop(const StopCommand::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    NODELET_WARN("CompensationPlanner: stop from %s (retreat %s): %s", msg->source.c_str(),
+                 msg->retreat ? "yes" : "no", msg->reason.c_str());
+    sequencer_->onStop(now(), msg->retreat, msg->reason);
+    carryOut();
   }
 
-  void registerSample(const geometry_msgs::PoseStamped& msg, double t,
-                       const Eigen::Vector3d& pos) {
-    const double now = ros::Time::now().toSec();
-    if (now > registration_deadline_) {
-      fail("no usable tracker/marker_pose message for registration");
-      return;
-    }
-    if (msg.header.stamp < registration_open_) return;  // measured before the arm settled
-    if (!pos.allFinite()) {
-      fail("non-finite marker pose during registration");
-      return;
-    }
-    if (reg_count_ == 0) {
-      marker_frame_ = msg.header.frame_id;
-      if (marker_frame_.empty() || marker_frame_ == world_frame_) {
-        rotation_ = Eigen::Matrix3d::Identity();
-      } else {
-        if (!tf_buffer_->canTransform(marker_frame_, world_frame_, ros::Time(0))) {
-          NODELET_WARN_THROTTLE(1.0, "CompensationPlanner: waiting for tf %s -> %s",
-                                world_frame_.c_str(), marker_frame_.c_str());
-          return;
-        }
-        const auto tf = tf_buffer_->lookupTransform(marker_frame_, world_frame_, ros::Time(0));
-        const auto& r = tf.transform.rotation;
-        rotation_ = Eigen::Quaterniond(r.w, r.x, r.y, r.z).normalized().toRotationMatrix();
-      }
-      t_marker_reg_ = t;
-      y_marker_reg_ = mode_ == core::CompensationMode::kStationary
-                          ? Eigen::Vector3d::Zero()
-                          : planner_->predictor().displacement(t);
-      marker_orientation_ = msg.pose.orientation;
-      marker_sum_.setZero();
-    } else if (msg.header.frame_id != marker_frame_) {
-      fail("marker frame changed during registration");
-      return;
-    }
-    // Average the samples, each moved back to the first sample's time by the prediction.
-    const Eigen::Vector3d moved = rotation_ * boneDisplacementSinceMarker(t);
-    NODELET_DEBUG("CompensationPlanner: registration sample %d at t=%.3f: (%.5f %.5f %.5f) m, "
-                  "predicted motion since the first (%.5f %.5f %.5f) m",
-                  reg_count_, t, pos.x(), pos.y(), pos.z(), moved.x(), moved.y(), moved.z());
-    marker_sum_ += pos - moved;
-    if (++reg_count_ < registration_samples_) return;
-    marker_reg_ = marker_sum_ / reg_count_;
-    registered_ = true;
-    startDrilling(now);
+  void onDrillingState(const DrillingState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sequencer_->onRecognizerState(now(), msg->stop, msg->state_name, msg->last_key_point);
+    carryOut();
   }
 
   // ------------------------------------------------------------------------------- trial
@@ -310,85 +261,35 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // hold a worker thread of the nodelet manager that the reset services themselves need.
     std::unique_lock<std::mutex> lock(mutex_);
     res.success = false;
-    if (phase_ != Phase::kIdle && phase_ != Phase::kDone && phase_ != Phase::kFailed) {
-      res.message = std::string("a trial is running (status ") + phaseName(phase_) + ")";
-      return true;
-    }
-    core::CompensationMode mode;
-    if (!core::parseCompensationMode(req.mode, &mode)) {
-      res.message = "mode: unknown mode '" + req.mode +
-                    "' (use stationary, uncompensated or compensated)";
-      return true;
-    }
-    auto pick = [&res](double requested, double fallback, double max, const char* name,
-                       double* out) {
-      if (requested == 0.0) {
-        *out = fallback;
-      } else if (!(std::isfinite(requested) && requested > 0.0 && requested <= max)) {
-        res.message = std::string(name) + ": must be 0 (default) or in (0, " +
-                      std::to_string(max) + "]";
-        return false;
-      } else {
-        *out = requested;
-      }
-      return true;
-    };
-    double feed_mm_s = 0.0;
-    if (!pick(req.feed_rate_mm_s, default_feed_rate_mm_s_, 10.0, "feed_rate_mm_s", &feed_mm_s) ||
-        !pick(req.spindle_rpm, default_spindle_rpm_, 60000.0, "spindle_rpm", &spindle_rpm_) ||
-        !pick(req.max_duration_s, default_max_duration_s_, 3600.0, "max_duration_s",
-              &max_duration_s_)) {
-      return true;
-    }
-    if (mode != core::CompensationMode::kStationary && !(have_settings_ && have_phase_)) {
-      res.message = std::string(core::toString(mode)) +
-                    " mode needs the ventilator: no ventilator/settings or tidal_volume received";
-      return true;
-    }
-    // Every component of the trial starts afresh, here and nowhere else, so that no caller
-    // can forget one: a component that cannot be reset refuses the trial, nothing drills.
-    // No lock held while calling: the components' answers may need this nodelet's callbacks.
-    lock.unlock();
-    const bool started = startComponents(&res.message);
-    lock.lock();
-    if (!started) return true;
+    core::TrialRequest request;
+    request.mode = req.mode;
+    request.spindle_rpm = req.spindle_rpm;
+    request.feed_rate_mm_s = req.feed_rate_mm_s;
+    request.max_duration_s = req.max_duration_s;
+    res.message = sequencer_->check(request);  // a bad request resets nothing
+    if (!res.message.empty()) return true;
     // The patient model is read again for every trial, so a new identification (a new
     // ~patient_model_path, or a rewritten file) applies to the next trial.
-    std::string model_path;
-    if (getPrivateNodeHandle().getParam("patient_model_path", model_path)) {
-      try {
-        patient_ = core::readModelYaml(model_path);
-      } catch (const std::exception& e) {
-        res.message = "patient model file '" + model_path + "' (parameter '" +
-                      getPrivateNodeHandle().resolveName("patient_model_path") + "'): " + e.what();
-        return true;
-      }
-    }
-    core::CompensationParams params = base_params_;
-    params.feed_rate_m_s = feed_mm_s * 1e-3;
     try {
-      planner_ = std::make_unique<core::CompensationPlanner>(params, patient_.motionModel());
-      if (have_settings_) planner_->predictor().setVentilator(settings_);
-      if (have_phase_) planner_->predictor().setBreathStart(breath_start_);
+      patient_ = loadPatient();
     } catch (const std::exception& e) {
       res.message = e.what();
       return true;
     }
-    mode_ = mode;
-    registered_ = false;
-    reg_count_ = 0;
-    arm_q_ = arm_comp_->homeJoints();
-    publishSpindle(spindle_rpm_);
-    sendMoveToPose();
-    setPhase(Phase::kMovingToPose);
-    const ros::NodeHandle& nh = getNodeHandle();
-    pose_timer_ = nh.createTimer(ros::Duration(move_duration_s_ + settle_s_),
-                                  &CompensationPlannerNodelet::onPoseReached, this, true);
-    res.success = true;
-    res.message = std::string("trial started: ") + core::toString(mode) + ", feed " +
-                  std::to_string(feed_mm_s) + " mm/s, spindle " + std::to_string(spindle_rpm_) +
-                  " rpm";
-    NODELET_INFO("CompensationPlanner: %s", res.message.c_str());
+    // Every component of the trial starts afresh, here and nowhere else, so that no caller can
+    // forget one: a component that cannot be reset refuses the trial, nothing drills. No lock
+    // is held while calling: the components' answers may need this nodelet's callbacks.
+    lock.unlock();
+    const bool started = startComponents(&res.message);
+    lock.lock();
+    if (!started) return true;
+    res.message = sequencer_->start(request, patient_.motionModel(), now());
+    res.success = res.message.empty();
+    if (res.success) {
+      res.message = "trial started: " + req.mode + ", spindle " +
+                    std::to_string(sequencer_->spindleRpm()) + " rpm";
+    }
+    carryOut();
     return true;
   }
 
@@ -420,332 +321,116 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  /**
-   * @brief The recognizer's state. A stop it reports (latched) is a stop here too, so that a
-   *        lost drill/stop, or a recognizer whose latch survived from an earlier trial, never
-   *        lets the drill feed on.
-   */
-  void onDrillingState(const DrillingState::ConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    recognizer_reports_stop_ = msg->stop;
-    if (msg->stop && phase_ == Phase::kDrilling) {
-      handleStop(ros::Time::now().toSec(), false,
-                 "drilling_state reports a recognizer stop (state " + msg->state_name +
-                     ", key point " + std::to_string(msg->last_key_point) + ")");
+  // ------------------------------------------------------------------------------- outputs
+
+  /** @brief Publishes what the sequencer produced and runs the timers it asked for. */
+  void carryOut() {
+    core::SequencerOutput out = sequencer_->takeOutput();
+    for (const core::SequencerLog& l : out.log) {
+      switch (l.level) {
+        case core::SequencerLog::Level::kInfo:
+          NODELET_INFO("CompensationPlanner: %s", l.text.c_str());
+          break;
+        case core::SequencerLog::Level::kWarn:
+          NODELET_WARN("CompensationPlanner: %s", l.text.c_str());
+          break;
+        case core::SequencerLog::Level::kError:
+          NODELET_ERROR("CompensationPlanner: %s", l.text.c_str());
+          break;
+      }
+    }
+    for (double rpm : out.spindle_rpm) {
+      std_msgs::Float64 msg;
+      msg.data = rpm;
+      spindle_pub_.publish(msg);
+    }
+    for (const core::JointTrajectoryCommand& c : out.trajectories) publishTrajectory(c);
+    for (const core::PredictedMarker& m : out.predicted) {
+      geometry_msgs::PoseStamped msg;
+      msg.header.stamp = ros::Time(m.stamp);
+      msg.header.frame_id = m.frame;
+      msg.pose.position.x = m.position.x();
+      msg.pose.position.y = m.position.y();
+      msg.pose.position.z = m.position.z();
+      msg.pose.orientation.w = m.orientation.w();
+      msg.pose.orientation.x = m.orientation.x();
+      msg.pose.orientation.y = m.orientation.y();
+      msg.pose.orientation.z = m.orientation.z();
+      predicted_pub_.publish(msg);
+    }
+    for (core::TrialPhase p : out.phases) publishStatus(p);
+    if (out.stop_timers) {
+      pose_timer_.stop();
+      registration_timer_.stop();
+      segment_timer_.stop();
+    }
+    for (const core::TimerRequest& t : out.start_timers) startTimer(t);
+  }
+
+  void startTimer(const core::TimerRequest& t) {
+    ros::NodeHandle nh = getNodeHandle();
+    using Kind = core::TimerRequest::Kind;
+    const ros::Duration delay(t.delay_s);
+    switch (t.kind) {
+      case Kind::kPoseReached:
+        pose_timer_ = nh.createTimer(delay, &CompensationPlannerNodelet::onPoseTimer, this, true);
+        break;
+      case Kind::kRegistrationTimeout:
+        registration_timer_ =
+            nh.createTimer(delay, &CompensationPlannerNodelet::onRegistrationTimer, this, true);
+        break;
+      case Kind::kSegment:
+        segment_timer_ = nh.createTimer(delay, &CompensationPlannerNodelet::onSegmentTimer, this,
+                                        !t.periodic);
+        break;
     }
   }
 
-  void sendMoveToPose() {
-    trajectory_msgs::JointTrajectory traj;
-    traj.header.stamp = ros::Time::now();
-    traj.joint_names = arm_joints_;
-    traj.joint_names.push_back(feed_joint_);
-    trajectory_msgs::JointTrajectoryPoint goal;
-    for (int i = 0; i < arm_q_.size(); ++i) goal.positions.push_back(arm_q_[i]);
-    goal.positions.push_back(arm_comp_->feedHome());
-    goal.velocities.assign(goal.positions.size(), 0.0);
-    goal.time_from_start = ros::Duration(move_duration_s_);
-    // One point: the controller moves from its own current state (JointTrajectoryController
-    // semantics), which stays right when a component reset the robot before this trial.
-    traj.points.push_back(goal);
-    trajectory_pub_.publish(traj);
-  }
-
-  void onPoseReached(const ros::TimerEvent&) {
+  void onPoseTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (phase_ != Phase::kMovingToPose) return;
-    registration_open_ = ros::Time::now();
-    registration_deadline_ = registration_open_.toSec() + registration_timeout_s_;
-    setPhase(Phase::kRegistering);
-    registration_timer_ = getNodeHandle().createTimer(ros::Duration(registration_timeout_s_),
-                                               &CompensationPlannerNodelet::onRegistrationTimeout,
-                                               this, true);
+    sequencer_->onPoseReached(now());
+    carryOut();
   }
 
-  void onRegistrationTimeout(const ros::TimerEvent&) {
+  void onRegistrationTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (phase_ == Phase::kRegistering) {
-      fail("no tracker/marker_pose message for registration within " +
-           std::to_string(registration_timeout_s_) + " s");
-    }
-  }
-
-  void startDrilling(double now) {
-    registration_timer_.stop();
-    if (recognizer_reports_stop_) {
-      fail("refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
-           "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
-      return;
-    }
-    planner_->start(mode_, now);
-    t_end_ = now + max_duration_s_;
-    next_k_ = 0;
-    retreat_.reset();
-    setPhase(Phase::kDrilling);
-    NODELET_INFO("CompensationPlanner: marker registered (%d samples), drilling (%s)",
-                 reg_count_, core::toString(mode_));
-    sendDueSegments(now);
-    segment_timer_ = getNodeHandle().createTimer(
-        ros::Duration(planner_->params().period_s), &CompensationPlannerNodelet::onSegmentTimer,
-        this);
+    sequencer_->onRegistrationTimeout(now());
+    carryOut();
   }
 
   void onSegmentTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double now = ros::Time::now().toSec();
-    if (phase_ == Phase::kDrilling && now >= t_end_) {
-      NODELET_WARN("CompensationPlanner: max duration reached, retracting");
-      startRetreat(now, "max duration");
-    } else if (phase_ == Phase::kStopped && now >= hold_end_) {
-      startRetreat(now, "stop hold elapsed");
-    } else if (phase_ == Phase::kRetreating && retreat_ && retreat_->finished(now)) {
-      segment_timer_.stop();
-      setPhase(Phase::kDone);
-      return;
-    }
-    if (phase_ == Phase::kDrilling || phase_ == Phase::kStopped ||
-        phase_ == Phase::kRetreating) {
-      sendDueSegments(now);
-    }
+    sequencer_->onSegmentTimer(now());
+    carryOut();
   }
 
-  /** @brief Feed-joint and arm command at time t (segmented trajectory, hold, retreat). */
-  double feedCommandAt(double t, double segmented_feed) const {
-    double feed = arm_comp_->feedHome() + segmented_feed;
-    if (retreat_) feed -= retreat_->position(t).x();
-    return std::clamp(feed, feed_lower_, feed_upper_);
-  }
-
-  /** @brief Send every segment starting within one period from now (one period ahead). */
-  void sendDueSegments(double now) {
-    const double period = planner_->params().period_s;
-    while (planner_->registrationTime() + next_k_ * period <= now + period) {
-      const core::PlannedSegment seg = planner_->segment(next_k_);
-      ++next_k_;
-      if (seg.t1 <= now) continue;  // late timer: skip segments already over
-      std::vector<double> times;
-      std::vector<double> feeds;
-      std::vector<double> feed_velocities;
-      std::vector<Eigen::Vector3d> lateral;
-      const auto add = [&](const core::PlannedPoint& pt) {
-        times.push_back(pt.t);
-        feeds.push_back(pt.feed_m);
-        feed_velocities.push_back(pt.feed_velocity_m_s);
-        lateral.push_back(pt.lateral_m);
-      };
-      // A trajectory message replaces what remains of the one running (JointTrajectory
-      // semantics). Blended: repeat the rest of the running segment, so that the velocity-
-      // continuous path runs as planned, with the planned velocities while drilling (a hold
-      // or retreat adds to the feed; its velocities then come from the points). Rest to rest
-      // (the paper's default): segment k alone, ending at rest; the joint goes from where it
-      // is to segment k's first point.
-      const bool blended = planner_->params().segment_profile == core::SegmentProfile::kBlended;
-      if (blended && seg.index > 0) {
-        for (const core::PlannedPoint& pt : planner_->segment(seg.index - 1).points) {
-          if (pt.t > now) add(pt);
-        }
-      }
-      for (const core::PlannedPoint& pt : seg.points) add(pt);
-      publishTrajectory(ros::Time(blended ? seg.t0 - period : seg.t0), times, feeds, lateral,
-                        blended && phase_ == Phase::kDrilling ? &feed_velocities : nullptr);
-      if (phase_ == Phase::kDrilling &&
-          arm_comp_->feedHome() + seg.feed_end_m > feed_upper_ - 1e-3) {
-        NODELET_WARN("CompensationPlanner: feed axis travel exhausted, retracting");
-        startRetreat(now, "feed travel exhausted");
-        return;
-      }
-    }
-  }
-
-  /**
-   * @brief One JointTrajectory of the arm joints and the feed joint. Feed velocities are
-   *        `feed_velocities` when given (the planned ones), else differences of the points.
-   */
-  void publishTrajectory(const ros::Time& start, const std::vector<double>& times,
-                         const std::vector<double>& feeds,
-                         const std::vector<Eigen::Vector3d>& lateral,
-                         const std::vector<double>* feed_velocities = nullptr) {
+  void publishTrajectory(const core::JointTrajectoryCommand& c) {
     trajectory_msgs::JointTrajectory traj;
-    traj.header.stamp = start;
-    traj.joint_names = arm_joints_;
-    traj.joint_names.push_back(feed_joint_);
-    double prev_t = start.toSec();
-    double prev_feed = times.empty() ? 0.0 : feedCommandAt(prev_t, feeds.front());
-    Eigen::VectorXd prev_q = arm_q_;
-    for (std::size_t i = 0; i < times.size(); ++i) {
-      Eigen::VectorXd q = arm_q_;
-      if (planner_->params().compensate_lateral && lateral[i].norm() > 1e-9) {
-        try {
-          q = arm_comp_->lateral(lateral[i], arm_q_);
-          arm_q_ = q;
-        } catch (const std::exception& e) {
-          NODELET_ERROR_THROTTLE(1.0, "CompensationPlanner: %s; arm held", e.what());
-        }
-      }
-      const double feed = feedCommandAt(times[i], feeds[i]);
-      const double dt = std::max(1e-6, times[i] - prev_t);
+    traj.header.stamp = ros::Time(c.start_time);
+    traj.joint_names = c.joint_names;
+    for (const core::JointTrajectoryCommand::Point& p : c.points) {
       trajectory_msgs::JointTrajectoryPoint pt;
-      for (int j = 0; j < q.size(); ++j) {
-        pt.positions.push_back(q[j]);
-        pt.velocities.push_back(i + 1 == times.size() ? 0.0 : (q[j] - prev_q[j]) / dt);
-      }
-      pt.positions.push_back(feed);
-      pt.velocities.push_back(feed_velocities != nullptr ? (*feed_velocities)[i]
-                              : i + 1 == times.size()    ? 0.0
-                                                         : (feed - prev_feed) / dt);
-      pt.time_from_start = ros::Duration(times[i] - start.toSec());
-      traj.points.push_back(pt);
-      prev_t = times[i];
-      prev_feed = feed;
-      prev_q = q;
+      pt.positions = p.positions;
+      pt.velocities = p.velocities;
+      pt.time_from_start = ros::Duration(p.time_from_start);
+      traj.points.push_back(std::move(pt));
     }
-    last_feed_command_ = prev_feed;
     trajectory_pub_.publish(traj);
   }
 
-  /** @brief Replace the trajectory from now to the next segment boundary (after a stop). */
-  void resendFromNow(double now) {
-    const double period = planner_->params().period_s;
-    const int k = planner_->segmentIndexAt(now);
-    const double t_end = planner_->registrationTime() + (k + 1) * period;
-    const int n = planner_->params().points_per_segment;
-    std::vector<double> times;
-    std::vector<double> feeds;
-    std::vector<Eigen::Vector3d> lateral;
-    for (int i = 1; i <= n; ++i) {
-      const double t = now + (t_end - now) * i / n;
-      const Eigen::Vector3d r = planner_->segmentedReference(t);
-      const double f = r.dot(planner_->axis());
-      times.push_back(t);
-      feeds.push_back(f);
-      lateral.push_back(r - f * planner_->axis());
-    }
-    publishTrajectory(ros::Time(now), times, feeds, lateral);
-    next_k_ = k + 1;
-    sendDueSegments(now);
-  }
-
-  void onStop(const StopCommand::ConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    NODELET_WARN("CompensationPlanner: stop from %s (retreat %s): %s", msg->source.c_str(),
-                 msg->retreat ? "yes" : "no", msg->reason.c_str());
-    handleStop(ros::Time::now().toSec(), msg->retreat, msg->reason);
-  }
-
-  /** @brief A stop (recognizer: hold then retract; monitor: retreat at once). */
-  void handleStop(double now, bool retreat, const std::string& reason) {
-    switch (phase_) {
-      case Phase::kMovingToPose:
-      case Phase::kRegistering:
-        fail("stopped before drilling began: " + reason);
-        return;
-      case Phase::kDrilling:
-      case Phase::kStopped:
-        publishSpindle(0.0);
-        planner_->holdFeed(now);
-        if (retreat) {
-          startRetreat(now, reason);
-        } else if (phase_ == Phase::kDrilling) {
-          hold_end_ = now + stop_hold_s_;
-          setPhase(Phase::kStopped);
-          resendFromNow(now);
-        }
-        return;
-      default:
-        return;  // idle, already retreating, done: nothing to stop
-    }
-  }
-
-  void startRetreat(double now, const std::string& why) {
-    publishSpindle(0.0);
-    planner_->holdFeed(now);
-    // The held feed the trajectory settles at (the segment in progress ends there).
-    const double feed_now = feedCommandAt(now, planner_->referenceFeed(now));
-    // Back along the drill axis (feed coordinate), clamped at the retracted end of the feed.
-    const double distance =
-        std::min(retreat_planner_->params().distance_m, feed_now - feed_lower_);
-    const core::RetreatParams& rp = retreat_planner_->params();
-    retreat_ = std::make_unique<core::RetreatMotion>(
-        now, Eigen::Vector3d::Zero(), Eigen::Vector3d(std::max(distance, 0.0), 0, 0),
-        core::TrapezoidProfile::minimumTime(std::max(distance, 0.0), rp.speed_m_s,
-                                            rp.accel_m_s2));
-    NODELET_WARN("CompensationPlanner: retreating %.1f mm (%s)", distance * 1e3, why.c_str());
-    setPhase(Phase::kRetreating);
-    resendFromNow(now);
-  }
-
-  void fail(const std::string& why) {
-    NODELET_ERROR("CompensationPlanner: trial failed: %s", why.c_str());
-    publishSpindle(0.0);
-    segment_timer_.stop();
-    pose_timer_.stop();
-    registration_timer_.stop();
-    setPhase(Phase::kFailed);
-  }
-
-  void publishSpindle(double rpm) {
-    std_msgs::Float64 msg;
-    msg.data = rpm;
-    spindle_pub_.publish(msg);
-  }
-
-  void setPhase(Phase p) {
-    phase_ = p;
+  void publishStatus(core::TrialPhase p) {
     std_msgs::String msg;
-    msg.data = phaseName(p);
+    msg.data = core::toString(p);
     status_pub_.publish(msg);
   }
 
   std::mutex mutex_;
   StartupStatus startup_status_;
   core::PatientModel patient_;
-  std::unique_ptr<core::ArmCompensation> arm_comp_;
-  std::unique_ptr<core::CompensationPlanner> planner_;
-  std::unique_ptr<core::RetreatPlanner> retreat_planner_;
-  std::unique_ptr<core::RetreatMotion> retreat_;
-  core::CompensationParams base_params_;
-  core::CompensationMode mode_ = core::CompensationMode::kStationary;
-  std::vector<std::string> arm_joints_;
-  std::string feed_joint_;
+  std::unique_ptr<core::TrialSequencer> sequencer_;
   std::string world_frame_;
-  double feed_lower_ = 0.0;
-  double feed_upper_ = 0.06;
-  double default_feed_rate_mm_s_ = 0.5;
-  double default_spindle_rpm_ = 12000.0;
-  double default_max_duration_s_ = 120.0;
-  double spindle_rpm_ = 0.0;
-  double max_duration_s_ = 0.0;
-  double move_duration_s_ = 2.0;
-  double settle_s_ = 0.5;
-  int registration_samples_ = 4;
-  double registration_timeout_s_ = 3.0;
-  double stop_hold_s_ = 1.0;
   std::vector<std::string> trial_start_services_;
   double trial_start_timeout_s_ = 2.0;
-  bool recognizer_reports_stop_ = false;
-
-  core::VentilatorSettings settings_;
-  bool have_settings_ = false;
-  double breath_start_ = 0.0;
-  bool have_phase_ = false;
-
-  Phase phase_ = Phase::kIdle;
-  ros::Time registration_open_;
-  double registration_deadline_ = 0.0;
-  int reg_count_ = 0;
-  bool registered_ = false;
-  std::string marker_frame_;
-  Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
-  double t_marker_reg_ = 0.0;
-  Eigen::Vector3d y_marker_reg_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d marker_sum_ = Eigen::Vector3d::Zero();
-  Eigen::Vector3d marker_reg_ = Eigen::Vector3d::Zero();
-  geometry_msgs::Quaternion marker_orientation_;
-  Eigen::VectorXd arm_q_;
-  double last_feed_command_ = 0.0;
-  double t_end_ = 0.0;
-  double hold_end_ = 0.0;
-  int next_k_ = 0;
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
@@ -759,12 +444,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber stop_sub_;
   ros::Subscriber state_sub_;
   std::vector<ros::ServiceClient> trial_start_clients_;
-  ros::CallbackQueue start_queue_;
-  std::unique_ptr<ros::AsyncSpinner> start_spinner_;
-  ros::ServiceServer start_srv_;
   ros::Timer pose_timer_;
   ros::Timer registration_timer_;
   ros::Timer segment_timer_;
+  ros::CallbackQueue start_queue_;
+  std::unique_ptr<ros::AsyncSpinner> start_spinner_;
+  ros::ServiceServer start_srv_;
 };
 
 }  // namespace pedicle_drilling

@@ -347,6 +347,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
         msg->header.stamp.isZero() ? now : msg->header.stamp.toSec() - time_offset_;
     core::TrajectoryCommand command;
     command.joint_names = msg->joint_names;
+    // The new trajectory takes over at its stamp (JointTrajectoryController); zero: now.
+    if (!msg->header.stamp.isZero()) command.start_time_s = start;
     for (const trajectory_msgs::JointTrajectoryPoint& p : msg->points) {
       command.points.push_back({start + p.time_from_start.toSec(), p.positions, p.velocities});
     }

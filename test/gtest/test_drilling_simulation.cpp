@@ -422,6 +422,39 @@ TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFo
   EXPECT_NEAR(sim.armJointPositions()[6], 0.01, 0.05e-3);
 }
 
+TEST(DrillingSimulation, ANewTrajectoryTakesOverAtItsStartTimeAsJointTrajectoryController) {
+  // ros_control's JointTrajectoryController: the running trajectory is followed until the new
+  // one's start time (header stamp), and the new one starts from that trajectory's state then.
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  const double t0 = sim.time();
+  TrajectoryCommand a;
+  a.joint_names = {"feed_joint"};
+  a.points.push_back({t0 + 4.0, {0.02}, {}});  // 5 mm/s
+  ASSERT_TRUE(sim.commandTrajectory(a).ok());
+  sim.step(1.0);
+  // Sent at t0 + 1 s, starting at t0 + 2 s: until then the first one runs on.
+  TrajectoryCommand b;
+  b.joint_names = {"feed_joint"};
+  b.start_time_s = t0 + 2.0;
+  b.points.push_back({t0 + 2.0, {0.0}, {}});   // at the start time itself: not due, dropped
+  b.points.push_back({t0 + 3.0, {0.005}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(b).ok());
+  sim.step(0.9);  // t0 + 1.9 s: still on the first trajectory, 9.5 mm
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.0095, 0.2e-3);
+  sim.step(0.6);  // t0 + 2.5 s: from 10 mm at t0 + 2 towards 5 mm at t0 + 3
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.0075, 0.2e-3);
+  sim.step(1.0);
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.005, 0.05e-3);
+  // A start time in the past (or none) takes over now.
+  TrajectoryCommand c;
+  c.joint_names = {"feed_joint"};
+  c.start_time_s = t0;
+  c.points.push_back({sim.time() + 1.0, {0.0}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(c).ok());
+  sim.step(1.2);
+  EXPECT_NEAR(sim.armJointPositions()[6], 0.0, 0.05e-3);
+}
+
 // The workcell with the first occurrence of `from` replaced by `to` must be refused with an error
 // containing `expected`.
 void expectEditedWorkcellRejected(const std::string& from, const std::string& to,

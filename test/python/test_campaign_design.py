@@ -21,6 +21,10 @@ def test_wilson_interval_known_values():
     low, high = stats.wilson_interval(0, 10)
     assert low == 0.0 and high == pytest.approx(0.2775, abs=1e-3)
     assert stats.wilson_interval(0, 0) == (0.0, 1.0)
+    # All succeeded: the upper bound is exactly 1 (a rounded 0.9999999 made a negative error bar).
+    for n in range(1, 40):
+        assert stats.wilson_interval(n, n)[1] == 1.0
+        assert stats.wilson_interval(0, n)[0] == 0.0
 
 
 def test_seeds_are_paired_across_cases_and_stable():
@@ -167,6 +171,7 @@ def test_summary_counts_and_schema(tmp_path):
     (['--jobs', '0'], '--jobs'),
     (['--shard', '3/2'], '--shard'),
     (['--scenario', '/nonexistent.yaml'], '--scenario'),
+    (['--engine', 'warp'], '--engine'),
 ])
 def test_campaign_bad_arguments_exit_2(args, named):
     out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign')] + args,

@@ -5,20 +5,24 @@ import json
 import os
 import subprocess
 
+import pytest
+
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 
 
-def test_small_campaign_outputs_are_consistent(tmp_path):
+@pytest.mark.parametrize('engine', ['core', 'ros'])
+def test_small_campaign_outputs_are_consistent(tmp_path, engine):
     out = tmp_path / 'campaign'
     result = subprocess.run(
         ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'all', '--rpm', '12000',
          '--trials', '1', '--jobs', '1', '--seed', '3', '--out', str(out),
-         '--base-port', '12700'],
+         '--base-port', '12700', '--engine', engine],
         capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     with open(out / 'trials.csv') as handle:
         rows = list(csv.DictReader(handle))
     assert [r['case'] for r in rows] == ['stationary', 'uncompensated', 'compensated']
+    assert {r['engine'] for r in rows} == {engine}
     assert len({r['seed'] for r in rows}) == 1, 'cases must share the specimen (paired design)'
     for row in rows:
         assert row['error'] == '', row['error']
@@ -57,7 +61,7 @@ def test_bags_keep_each_trial_for_replay(tmp_path):
     result = subprocess.run(
         ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'stationary', '--rpm', '12000',
          '--trials', '1', '--jobs', '1', '--seed', '4', '--bags', '--out', str(out),
-         '--base-port', '12900'],
+         '--base-port', '12900', '--engine', 'ros'],
         capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     bag = out / 'bags' / 'stationary-12000-000.bag'
@@ -85,7 +89,7 @@ def test_scenario_simulator_section_reaches_the_trials(tmp_path):
     out = tmp_path / 'spread'
     result = subprocess.run(
         ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(scenario), '--jobs', '1',
-         '--out', str(out), '--base-port', '13100'],
+         '--out', str(out), '--base-port', '13100', '--engine', 'ros'],
         capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     with open(out / 'trials.csv') as handle:
@@ -106,7 +110,7 @@ def test_scenario_simulator_section_reaches_the_trials(tmp_path):
                    'simulator: {patient: {amplitude_scale_sd: 0.9}}\n')
     result = subprocess.run(
         ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(bad), '--jobs', '1',
-         '--out', str(tmp_path / 'bad'), '--base-port', '13300'],
+         '--out', str(tmp_path / 'bad'), '--base-port', '13300', '--engine', 'ros'],
         capture_output=True, text=True, timeout=300)
     assert result.returncode == 2, result.stderr[-3000:]
     assert 'trial_distribution/patient/amplitude_scale_sd' in result.stderr
@@ -123,7 +127,7 @@ def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
     campaign = subprocess.Popen(
         ['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'), '--case', 'stationary',
          '--rpm', '12000', '--trials', '6', '--jobs', '1', '--seed', '9', '--out', str(out),
-         '--base-port', str(port)],
+         '--base-port', str(port), '--engine', 'ros'],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     deadline = time.time() + 400.0
     finished = 0
@@ -147,3 +151,48 @@ def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
     workers = subprocess.run(['pgrep', '-f', 'pd_campaign.worker.*%s' % out],
                              capture_output=True, text=True)
     assert workers.stdout.strip() == '', 'workers left running: %s' % workers.stdout
+
+
+def _trials_without_wall_time(path):
+    with open(path) as handle:
+        rows = list(csv.DictReader(handle))
+    for row in rows:
+        row.pop('wall_s')
+    return rows
+
+
+def test_core_engine_gives_the_same_trials_whatever_the_job_count(tmp_path):
+    """One seed, one trial, bit for bit: --jobs 1 and --jobs 2 write the same trials.csv (apart
+    from wall time) and the same summary, traces included."""
+    outputs = []
+    for jobs in ('1', '2'):
+        out = tmp_path / ('jobs%s' % jobs)
+        result = subprocess.run(
+            ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'all', '--rpm', '12000',
+             '--trials', '3', '--jobs', jobs, '--seed', '4242', '--out', str(out)],
+            capture_output=True, text=True, timeout=900)
+        assert result.returncode == 0, result.stderr[-3000:]
+        outputs.append(out)
+    first, second = (_trials_without_wall_time(o / 'trials.csv') for o in outputs)
+    assert len(first) == 9
+    assert all(r['error'] == '' for r in first), [r['error'] for r in first]
+    assert first == second
+    for row in first:
+        name = row['trial_id'] + '.json'
+        assert (outputs[0] / 'traces' / name).read_bytes() == \
+            (outputs[1] / 'traces' / name).read_bytes(), name
+    with open(outputs[0] / 'summary.json') as a, open(outputs[1] / 'summary.json') as b:
+        assert json.load(a)['groups'] == json.load(b)['groups']
+
+
+def test_core_engine_refuses_what_it_does_not_support(tmp_path):
+    scenario = tmp_path / 'online.yaml'
+    scenario.write_text('cases: [compensated]\nrpms: [12000]\ntrials: 1\n'
+                        'identification: online\n')
+    result = subprocess.run(
+        ['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'), '--scenario',
+         str(scenario), '--out', str(tmp_path / 'out')],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert 'identification' in result.stderr and '--engine ros' in result.stderr
+    assert not (tmp_path / 'out').exists()

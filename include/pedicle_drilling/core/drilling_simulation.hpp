@@ -26,6 +26,7 @@
 
 #include <cstdint>
 #include <map>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <random>
@@ -172,6 +173,13 @@ struct TrajectoryPoint {
 struct TrajectoryCommand {
   std::vector<std::string> joint_names;  ///< subset of the commandable joints
   std::vector<TrajectoryPoint> points;   ///< strictly increasing times
+  /**
+   * @brief When the new trajectory takes over (the message's header stamp), as ros_control's
+   *        JointTrajectoryController does: the running trajectory is followed until then, and
+   *        the new one goes from that trajectory's state at this time to its first point not in
+   *        the past. NaN (a zero stamp) or a time not after now: it takes over now.
+   */
+  double start_time_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /** @brief Output of one physics step. */

@@ -1,0 +1,89 @@
+"""The campaign's core engine: trials run by `trial_engine` (core::ClosedLoopEngine, no ROS),
+one process per job. Each process prints one JSON line per trial with what the ROS worker
+records from the topics; the same analysis (worker.analyse_trial) turns it into a trials.csv row.
+A trial's record depends on its seed only, so the rows do not depend on --jobs or --shard."""
+import json
+import os
+import subprocess
+import time
+import types
+
+from pd_campaign import worker
+
+CONDITION_COLUMNS = ('volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
+                     'force_noise_sd_n', 'arm_stiffness_scale', 'inner_cortical_mm')
+
+
+class RecordedTrial:
+    """A trial record of trial_engine, with the interface of worker.TrialRecorder."""
+
+    def __init__(self, record):
+        self.states = [tuple(s) for s in record['states']]
+        self.key_points = [tuple(k) for k in record['key_points']]
+        self.truth = [tuple(t) for t in record['truth']]
+        self.stops = [tuple(s) for s in record['stops']]
+        self.status = [tuple(s) for s in record['status']]
+        self.last_truth = types.SimpleNamespace(**record['last_truth'])
+
+    def status_time(self, name):
+        return next((t for (t, s) in self.status if s == name), None)
+
+
+def tool(name):
+    """Path of a built tool: $PEDICLE_DRILLING_BIN_DIR, the devel space, or rosrun."""
+    candidates = [os.environ.get('PEDICLE_DRILLING_BIN_DIR', ''),
+                  os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..',
+                               'catkin_ws', 'devel', 'lib', 'pedicle_drilling')]
+    for d in candidates:
+        if d and os.access(os.path.join(d, name), os.X_OK):
+            return [os.path.join(d, name)]
+    return ['rosrun', 'pedicle_drilling', name]
+
+
+def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
+                         feed_rate, max_duration, default_model):
+    command = tool('trial_engine') + ['--trials', trial_file,
+               '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
+               '--model', model, '--bone-motion', bone_motion,
+               '--feed-rate', repr(feed_rate), '--max-duration', repr(max_duration),
+               '--default-model', default_model]
+    if models_dir:
+        command += ['--models-dir', models_dir]
+    return command
+
+
+def row_from_line(line, trace_dir):
+    """A trials.csv row from one output line of trial_engine (errored trials included)."""
+    result = json.loads(line)
+    row = dict(result['trial'])
+    row['engine'] = 'core'
+    if 'error' in result:
+        row['success'] = False
+        row['error'] = str(result['error']).replace('\n', ' ')[:300]
+        return row
+    record = result['record']
+    for key in CONDITION_COLUMNS:
+        row[key] = record['conditions'][key]
+    row['wall_s'] = None  # trial_engine reports no wall time per trial: nothing to compare
+    try:
+        return worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
+    except RuntimeError as error:
+        row['success'] = False
+        row['error'] = str(error)[:300]
+        return row
+
+
+def start(command):
+    return subprocess.Popen(command, stdout=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def drilling_pose(package_root):
+    """Arm joint values of config/drilling_pose.yaml (the planner's ~drilling_pose)."""
+    import yaml
+    with open(os.path.join(package_root, 'config', 'drilling_pose.yaml')) as handle:
+        pose = yaml.safe_load(handle)['drilling_pose']
+    return [float(pose['rsssii_joint%d' % i]) for i in range(1, 7)]
+
+
+def now():
+    return time.time()

@@ -1,0 +1,361 @@
+#include "pedicle_drilling/core/closed_loop_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "pedicle_drilling/core/bone_specimen.hpp"
+#include "pedicle_drilling/core/compensation_planner.hpp"
+#include "pedicle_drilling/core/kinematics.hpp"
+
+namespace pedicle_drilling::core {
+
+void EngineDelays::validate() const {
+  const auto check = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v >= 0.0 && v <= 1.0)) {
+      throw std::invalid_argument(std::string(name) + ": must be in [0, 1] s");
+    }
+  };
+  check(force_to_recognizer_s, "force_to_recognizer_s");
+  check(stop_to_planner_s, "stop_to_planner_s");
+  check(command_to_arm_s, "command_to_arm_s");
+}
+
+namespace {
+
+/** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
+std::uint64_t periodSteps(double rate_hz, const char* name) {
+  if (!(std::isfinite(rate_hz) && rate_hz > 0.0 && rate_hz <= 1000.0)) {
+    throw std::invalid_argument(std::string(name) + ": must be in (0, 1000] Hz");
+  }
+  return static_cast<std::uint64_t>(std::max(1.0, std::round(1000.0 / rate_hz)));
+}
+
+/** @brief A message in transit: handled at the first step at or after `t`. */
+struct Event {
+  double t;
+  std::uint64_t seq;  // emission order: ties are handled in the order they were sent
+  std::function<void()> handle;
+};
+
+/** @brief A timer the sequencer asked for. */
+struct Timer {
+  TimerRequest::Kind kind;
+  double due;
+  double period;  // 0: one shot
+};
+
+}  // namespace
+
+struct ClosedLoopEngine::Impl {
+  EngineConfig config;
+  std::unique_ptr<ArmCompensation> arm;
+  std::uint64_t tracker_period = 125;
+  std::uint64_t tidal_period = 16;
+  std::uint64_t truth_period = 50;
+  std::uint64_t check_period = 5;
+
+  // Per trial (all rebuilt by run(), so that no trial depends on another).
+  std::unique_ptr<DrillingSimulation> sim;
+  std::unique_ptr<TrialSequencer> sequencer;
+  std::unique_ptr<StateRecognizer> recognizer;
+  std::unique_ptr<SafetyMonitor> monitor;
+  std::vector<Event> events;
+  std::uint64_t event_seq = 0;
+  std::vector<Timer> timers;
+  EngineTrialRecord record;
+  bool have_force = false;
+  bool have_tracker = false;
+  bool monitor_stop_sent = false;
+  long last_breath_index = -1;
+  double now = 0.0;
+
+  void send(double delay, std::function<void()> fn) {
+    events.push_back({now + delay, event_seq++, std::move(fn)});
+  }
+
+  void deliverDue() {
+    // Handle every event due by now, in time then emission order; handlers may send more.
+    for (;;) {
+      auto best = events.end();
+      for (auto it = events.begin(); it != events.end(); ++it) {
+        if (it->t <= now + 1e-12 &&
+            (best == events.end() || it->t < best->t || (it->t == best->t && it->seq < best->seq))) {
+          best = it;
+        }
+      }
+      if (best == events.end()) return;
+      const std::function<void()> fn = std::move(best->handle);
+      events.erase(best);
+      fn();
+    }
+  }
+
+  void fireTimers() {
+    for (;;) {
+      auto best = timers.end();
+      for (auto it = timers.begin(); it != timers.end(); ++it) {
+        if (it->due <= now + 1e-9 && (best == timers.end() || it->due < best->due)) best = it;
+      }
+      if (best == timers.end()) return;
+      const TimerRequest::Kind kind = best->kind;
+      if (best->period > 0.0) {
+        best->due += best->period;
+      } else {
+        timers.erase(best);
+      }
+      switch (kind) {
+        case TimerRequest::Kind::kPoseReached:
+          sequencer->onPoseReached(now);
+          break;
+        case TimerRequest::Kind::kRegistrationTimeout:
+          sequencer->onRegistrationTimeout(now);
+          break;
+        case TimerRequest::Kind::kSegment:
+          sequencer->onSegmentTimer(now);
+          break;
+      }
+      carryOut();
+    }
+  }
+
+  /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
+  void carryOut() {
+    SequencerOutput out = sequencer->takeOutput();
+    const double delay = config.delays.command_to_arm_s;
+    for (double rpm : out.spindle_rpm) {
+      send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
+    }
+    for (JointTrajectoryCommand& c : out.trajectories) {
+      TrajectoryCommand command;
+      command.joint_names = c.joint_names;
+      command.start_time_s = c.start_time;  // the header stamp: takes over then
+      for (const JointTrajectoryCommand::Point& p : c.points) {
+        command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities});
+      }
+      send(delay, [this, command]() { sim->commandTrajectory(command); });
+    }
+    for (const PredictedMarker& m : out.predicted) {
+      // The monitor pairs the prediction with the tracked sample of the same stamp.
+      if (m.frame == "tracker_camera" && last_marker_stamp == m.stamp) {
+        monitor->onTracked(now, m.position, last_marker);
+        evaluateMonitor();
+      }
+    }
+    for (TrialPhase p : out.phases) record.status.emplace_back(now, toString(p));
+    if (out.stop_timers) timers.clear();
+    for (const TimerRequest& r : out.start_timers) {
+      timers.push_back({r.kind, now + r.delay_s, r.periodic ? r.delay_s : 0.0});
+    }
+  }
+
+  Eigen::Vector3d last_marker = Eigen::Vector3d::Zero();
+  double last_marker_stamp = -1.0;
+
+  void evaluateMonitor() {
+    if (!monitor->stopped() || monitor_stop_sent) return;
+    monitor_stop_sent = true;
+    const SafetyVerdict& v = monitor->verdict();
+    const std::string reason = std::string(toString(v.reason)) + ": " + v.message;
+    record.stops.push_back({now, "/safety_monitor", reason, true});
+    send(config.delays.stop_to_planner_s, [this, reason]() {
+      sequencer->onStop(now, true, reason);
+      carryOut();
+    });
+  }
+
+  void onRecognizerSample(double t, double thrust) {
+    const bool was_stopped = recognizer->output().stop;
+    const RecognizerOutput& out = recognizer->push(t, thrust);
+    if (out.new_average) {
+      record.states.push_back(
+          {t, out.averaged_force, out.feature, toString(out.state), out.last_key_point});
+      const int previous = record.key_points.empty() ? 0 : record.key_points.back().first;
+      for (int k = previous + 1; k <= out.last_key_point; ++k) record.key_points.emplace_back(k, t);
+      const bool stop = out.stop;
+      const std::string name = toString(out.state);
+      const int kp = out.last_key_point;
+      send(config.delays.stop_to_planner_s, [this, stop, name, kp]() {
+        sequencer->onRecognizerState(now, stop, name, kp);
+        carryOut();
+      });
+    }
+    if (out.stop && !was_stopped) {
+      char reason[200];
+      std::snprintf(reason, sizeof(reason),
+                    "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
+                    "raw sample %lu",
+                    out.stop_key_point, toString(out.layer_state), out.stop_t,
+                    static_cast<unsigned long>(out.stop_index));
+      const std::string text = reason;
+      record.stops.push_back({t, "/state_recognizer", text, false});
+      send(config.delays.stop_to_planner_s, [this, text]() {
+        sequencer->onStop(now, false, text);
+        carryOut();
+      });
+    }
+  }
+
+  void onMarker() {
+    const Eigen::Isometry3d pose = sim->measureMarkerPose();
+    last_marker = pose.translation();
+    last_marker_stamp = now;
+    have_tracker = true;
+    monitor->onTracked(now, last_marker, last_marker);  // the watchdog and the NaN check
+    evaluateMonitor();
+    const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
+    const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
+      if (frame != "tracker_camera") return false;
+      *r = r_cam_world;
+      return true;
+    };
+    sequencer->onMarker(now, now, "tracker_camera", last_marker,
+                        Eigen::Quaterniond(pose.linear()), lookup);
+    carryOut();
+  }
+
+  void onTidalVolume() {
+    const BreathScheduler& ventilator = sim->ventilator();
+    if (ventilator.breathIndex() != last_breath_index) {
+      last_breath_index = ventilator.breathIndex();
+      sequencer->setVentilator(ventilator.model().settings());
+    }
+    const VentilatorSample& v = sim->ventilatorSample();
+    sequencer->setBreathStart(now - std::max(0.0, v.t - ventilator.breathStart()));
+  }
+
+  void recordTruth() {
+    const SimulationGroundTruth g = sim->groundTruth();
+    record.truth.push_back({now, materialName(g.layer), g.max_depth_cut_m,
+                            g.residual_inner_cortical_m, g.breakthrough, g.relative_ap_m,
+                            g.contact});
+    record.last_truth = g;
+  }
+
+  /** @brief One 1 ms physics step and everything the pipeline does in it. */
+  void step(std::uint64_t n) {
+    const SimulationStep s = sim->stepOnce();
+    now = s.time_s;
+    const Eigen::Vector3d force = s.measured_wrench.head<3>();
+    const double thrust = force.z();  // config/recognizer.yaml axis: z
+    const double t = now;
+    if (config.delays.force_to_recognizer_s > 0.0) {
+      send(config.delays.force_to_recognizer_s, [this, t, thrust]() {
+        onRecognizerSample(t, thrust);
+      });
+    } else {
+      onRecognizerSample(t, thrust);
+    }
+    have_force = true;
+    monitor->onForce(now, force);
+    evaluateMonitor();
+    if (n % truth_period == 0 || s.layer_changed) recordTruth();
+    if (n % tracker_period == 0) onMarker();
+    if (n % tidal_period == 0) onTidalVolume();
+    if (n % check_period == 0 && ((have_force && have_tracker) || isRunning(sequencer->phase()))) {
+      monitor->check(now);
+      evaluateMonitor();
+    }
+    fireTimers();
+    deliverDue();
+  }
+};
+
+ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make_unique<Impl>()) {
+  Impl& s = *impl_;
+  s.config = config;
+  config.delays.validate();
+  config.recognizer.validate();
+  config.safety.validate();
+  s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
+  s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
+  s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
+  s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");
+  if (!(config.pre_trial_s >= 0.0 && config.pre_trial_s <= 60.0)) {
+    throw std::invalid_argument("pre_trial_s: must be in [0, 60] s");
+  }
+  if (!(config.trial_timeout_s > 0.0)) {
+    throw std::invalid_argument("trial_timeout_s: must be > 0 s");
+  }
+  const KinematicChain chain =
+      KinematicChain::fromUrdfString(config.urdf_xml, config.arm_base_link, config.arm_tip_link);
+  if (config.drilling_pose.size() != chain.jointNames().size()) {
+    throw std::invalid_argument("drilling_pose: needs one value per arm joint (" +
+                                std::to_string(chain.jointNames().size()) + ")");
+  }
+  const Eigen::VectorXd q =
+      Eigen::Map<const Eigen::VectorXd>(config.drilling_pose.data(), config.drilling_pose.size());
+  s.arm = std::make_unique<ArmCompensation>(chain, q, config.feed_home_m);
+  s.config.sequencer.arm_joints = chain.jointNames();
+  // Checks the sequencer's parameters once, before any trial.
+  TrialSequencer check(s.config.sequencer, *s.arm);
+  (void)check;
+}
+
+ClosedLoopEngine::~ClosedLoopEngine() = default;
+
+const EngineConfig& ClosedLoopEngine::config() const { return impl_->config; }
+
+EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
+  Impl& s = *impl_;
+  const bool moving = spec.mode != "stationary";
+  // Everything new for every trial: its record depends on its seed and nothing else.
+  s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, s.config.simulation, spec.seed);
+  s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
+  s.sim->reset(spec.seed, moving);
+  s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
+  s.recognizer = std::make_unique<StateRecognizer>(s.config.recognizer);
+  s.monitor = std::make_unique<SafetyMonitor>(s.config.safety);
+  s.events.clear();
+  s.event_seq = 0;
+  s.timers.clear();
+  s.record = EngineTrialRecord();
+  s.have_force = false;
+  s.have_tracker = false;
+  s.monitor_stop_sent = false;
+  s.last_breath_index = -1;
+  s.last_marker_stamp = -1.0;
+  s.now = s.sim->time();
+  const BoneSpecimen& specimen = s.sim->process().specimen();
+  s.record.conditions = s.sim->trialConditions();
+  s.record.outer_cortical_thickness_m = specimen.outerCorticalThickness();
+  s.record.cancellous_thickness_m = specimen.cancellousThickness();
+  s.record.inner_cortical_thickness_m = specimen.innerCorticalThickness();
+
+  std::uint64_t n = 0;
+  // Before the trial: the ventilator's settings and breath phase reach the planner.
+  const double t_start = s.now + s.config.pre_trial_s;
+  while (s.now < t_start - 1e-9) s.step(++n);
+  s.sim->startTrial();
+  TrialRequest request;
+  request.mode = spec.mode;
+  request.spindle_rpm = spec.spindle_rpm;
+  request.feed_rate_mm_s = spec.feed_rate_mm_s;
+  request.max_duration_s = spec.max_duration_s;
+  const std::string refused = s.sequencer->start(request, spec.model, s.now);
+  if (!refused.empty()) throw std::runtime_error("start_trial refused: " + refused);
+  s.carryOut();
+  const double deadline = s.now + s.config.trial_timeout_s;
+  while (s.sequencer->phase() != TrialPhase::kDone) {
+    if (s.sequencer->phase() == TrialPhase::kFailed) {
+      std::string statuses;
+      for (const auto& st : s.record.status) statuses += (statuses.empty() ? "" : " ") + st.second;
+      throw std::runtime_error("the planner failed the trial (statuses: " + statuses + ")");
+    }
+    if (s.now > deadline) {
+      std::ostringstream os;
+      os << "trial did not finish within " << s.config.trial_timeout_s << " s of sim time (status "
+         << toString(s.sequencer->phase()) << ")";
+      throw std::runtime_error(os.str());
+    }
+    s.step(++n);
+  }
+  s.recordTruth();
+  return s.record;
+}
+
+}  // namespace pedicle_drilling::core

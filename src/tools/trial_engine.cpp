@@ -1,0 +1,207 @@
+// trial_engine: closed-loop drilling trials on the core engine (core::ClosedLoopEngine), the
+// campaign's default engine (`campaign --engine core`). Reads a JSON list of trials, runs each
+// with the same planner, recognizer, safety monitor and simulation objects as the nodelets, and
+// prints one JSON line per trial: {"trial": <the input>, "record": {...}} or
+// {"trial": ..., "error": "..."} (an errored trial; the others go on).
+//
+//   trial_engine --trials FILE --drilling-pose q1,..,q6 [--models-dir DIR --model linear]
+//                [--default-model FILE] [--bone-motion model|virtual_patient]
+//                [--feed-rate 0.5] [--max-duration 60] [--urdf FILE]
+//
+// Command-line parsing: CLI11 (Debian libcli11-dev): header-only, typed options with ranges,
+// --help, and a repeated single-value option is an error rather than silently ignored.
+// Exit status: 0 (errored trials included), 2 bad options or input (nothing run).
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/closed_loop_engine.hpp"
+#include "pedicle_drilling/core/motion_model_io.hpp"
+
+namespace pd = pedicle_drilling::core;
+using nlohmann::json;
+
+namespace {
+
+struct UsageError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+std::string readText(const std::string& path, const std::string& what) {
+  std::ifstream in(path);
+  if (!in) throw UsageError(what + " '" + path + "' cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+json recordToJson(const pd::EngineTrialRecord& r) {
+  json states = json::array();
+  for (const pd::EngineStateSample& s : r.states) {
+    states.push_back({s.t, s.averaged_force, s.feature, s.state_name, s.last_key_point});
+  }
+  json key_points = json::array();
+  for (const auto& kp : r.key_points) key_points.push_back({kp.first, kp.second});
+  json truth = json::array();
+  for (const pd::EngineTruthSample& s : r.truth) {
+    truth.push_back({s.t, s.layer, s.max_depth_cut_m, s.residual_inner_cortical_m,
+                     s.breakthrough, s.relative_ap_m, s.contact});
+  }
+  json stops = json::array();
+  for (const pd::EngineStop& s : r.stops) stops.push_back({s.t, s.source, s.reason, s.retreat});
+  json status = json::array();
+  for (const auto& s : r.status) status.push_back({s.first, s.second});
+  const pd::SimulationGroundTruth& g = r.last_truth;
+  return {
+      {"conditions",
+       {{"volunteer_id", r.conditions.volunteer_id},
+        {"amplitude_scale", r.conditions.patient_amplitude_scale},
+        {"ventilator_rate_bpm", r.conditions.ventilator_rate_bpm},
+        {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
+        {"force_noise_sd_n", r.conditions.force_noise_sd_n},
+        {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
+        {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
+      {"last_truth",
+       {{"breakthrough", g.breakthrough},
+        {"residual_inner_cortical_m", g.residual_inner_cortical_m},
+        {"max_depth_cut_m", g.max_depth_cut_m},
+        {"inner_cortical_start_m", g.inner_cortical_start_m}}},
+      {"states", states},
+      {"key_points", key_points},
+      {"truth", truth},
+      {"stops", stops},
+      {"status", status}};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Closed-loop drilling trials on the core engine (JSON lines on stdout)",
+               "trial_engine"};
+  std::string trials_path;
+  std::string urdf_path = std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/workcell.urdf";
+  std::string default_model =
+      std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/config/patient_default.yaml";
+  std::string models_dir;
+  std::string model_kind = "linear";
+  std::string bone_motion = "virtual_patient";
+  std::vector<double> drilling_pose;
+  pd::EngineConfig config;
+  double feed_rate = 0.5;
+  double max_duration = 60.0;
+  app.add_option("--trials", trials_path,
+                 "JSON list of trials: {trial_id, seed, case, rpm, ...}")
+      ->required();
+  app.add_option("--drilling-pose", drilling_pose,
+                 "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
+      ->required()
+      ->delimiter(',');
+  app.add_option("--urdf", urdf_path, "workcell URDF");
+  app.add_option("--default-model", default_model, "patient model of the stationary case");
+  app.add_option("--models-dir", models_dir,
+                 "identified volunteer models volunteer_<id>_<model>.yaml (moving cases)");
+  app.add_option("--model", model_kind, "linear | hysteresis")
+      ->check(CLI::IsMember({"linear", "hysteresis"}));
+  app.add_option("--bone-motion", bone_motion, "model | virtual_patient")
+      ->check(CLI::IsMember({"model", "virtual_patient"}));
+  app.add_option("--command-delay-s", config.delays.command_to_arm_s,
+                 "planner command -> arm controller transport delay, s")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--stop-delay-s", config.delays.stop_to_planner_s,
+                 "recognizer/monitor stop -> planner transport delay, s")
+      ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--feed-rate", feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
+  app.add_option("--max-duration", max_duration, "sim time after which a trial is ended, s")
+      ->check(CLI::Range(1.0, 3600.0));
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int code = app.exit(e);
+    return code == 0 ? 0 : 2;
+  }
+
+  json trials;
+  pd::PatientModel stationary_model;
+  try {
+    try {
+      trials = json::parse(readText(trials_path, "--trials"));
+    } catch (const json::parse_error& e) {
+      throw UsageError("--trials '" + trials_path + "' is not JSON: " + e.what());
+    }
+    if (!trials.is_array()) throw UsageError("--trials '" + trials_path + "' is not a list");
+    for (const json& t : trials) {
+      for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
+        if (!t.contains(key)) {
+          throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
+        }
+      }
+      if (!t.at("seed").is_number_unsigned()) {
+        throw UsageError("--trials: seed " + t.at("seed").dump() +
+                         " is not an integer in [0, 2^64)");
+      }
+    }
+    config.urdf_xml = readText(urdf_path, "--urdf");
+    config.drilling_pose = drilling_pose;
+    stationary_model = pd::readModelYaml(default_model);
+  } catch (const UsageError& e) {
+    std::cerr << "trial_engine: " << e.what() << "\n";
+    return 2;
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: --default-model: " << e.what() << "\n";
+    return 2;
+  }
+  std::unique_ptr<pd::ClosedLoopEngine> engine;
+  try {
+    engine = std::make_unique<pd::ClosedLoopEngine>(config);
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: bad configuration: " << e.what() << "\n";
+    return 2;
+  }
+  std::map<std::string, pd::PatientModel> models;
+  for (const json& t : trials) {
+    json out = {{"trial", t}};
+    try {
+      pd::EngineTrialSpec spec;
+      spec.seed = t.at("seed").get<std::uint64_t>();
+      spec.mode = t.at("case").get<std::string>();
+      spec.spindle_rpm = t.at("rpm").get<double>();
+      spec.feed_rate_mm_s = feed_rate;
+      spec.max_duration_s = max_duration;
+      const bool moving = spec.mode != "stationary";
+      pd::PatientModel patient = stationary_model;
+      if (moving) {
+        if (models_dir.empty()) {
+          throw std::runtime_error("--models-dir is needed for the moving cases");
+        }
+        // The simulator's patient is the volunteer the seed draws; use that volunteer's model
+        // identified beforehand from its own recording, as in the paper.
+        const pd::DrillingSimulationParams& sim = config.simulation;
+        const int volunteer = pd::drawTrialConditions(spec.seed, sim.variability, sim.ventilator,
+                                                      sim.sensor.force_noise_sd_n)
+                                  .volunteer_id;
+        const std::string path = models_dir + "/volunteer_" + std::to_string(volunteer) + "_" +
+                                 model_kind + ".yaml";
+        auto it = models.find(path);
+        if (it == models.end()) it = models.emplace(path, pd::readModelYaml(path)).first;
+        patient = it->second;
+        if (bone_motion == "model") {
+          const pd::AxisModelRecord& ap = patient.axes[static_cast<int>(pd::Axis::kAP)];
+          spec.bone_motion = pd::BoneMotionModel{ap.model.q1, ap.model.q2};
+        }
+      }
+      spec.model = patient.motionModel();
+      out["record"] = recordToJson(engine->run(spec));
+    } catch (const std::exception& e) {
+      out["error"] = e.what();
+    }
+    std::cout << out.dump() << "\n" << std::flush;
+  }
+  return 0;
+}

@@ -1,0 +1,297 @@
+// Tests of core::TrialSequencer: the trial sequence of Algorithm 1 driven by explicit time.
+#include "pedicle_drilling/core/trial_sequencer.hpp"
+
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace pd = pedicle_drilling::core;
+
+namespace {
+
+std::string readFile(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+pd::ArmCompensation workcellArm() {
+  const std::string urdf = readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) +
+                                    "/urdf/workcell.urdf");
+  const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(urdf, "world", "device_base");
+  Eigen::VectorXd q(6);
+  q << 0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0;  // config/drilling_pose.yaml
+  return pd::ArmCompensation(arm, q, 0.01);
+}
+
+pd::TrialSequencerParams params() {
+  pd::TrialSequencerParams p;
+  p.arm_joints = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3",
+                  "rsssii_joint4", "rsssii_joint5", "rsssii_joint6"};
+  p.feed_joint = "feed_joint";
+  p.feed_lower_m = 0.0;
+  p.feed_upper_m = 0.06;
+  p.retreat.distance_m = 0.025;
+  return p;
+}
+
+pd::MotionModel apModel() {
+  pd::MotionModel m;
+  m.axis(pd::Axis::kAP).q1 = 0.01;
+  return m;
+}
+
+pd::TrialRequest request(const std::string& mode) {
+  pd::TrialRequest r;
+  r.mode = mode;
+  return r;
+}
+
+const pd::RotationLookup kNoLookup;
+
+/** @brief Runs a stationary trial to the drilling phase; returns the time then. */
+double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
+  EXPECT_EQ(seq->start(request("stationary"), apModel(), t0), "");
+  seq->takeOutput();
+  const double t_pose = t0 + 2.5;
+  seq->onPoseReached(t_pose);
+  seq->takeOutput();
+  for (int i = 1; i <= 4; ++i) {
+    const double t = t_pose + 0.125 * i;
+    seq->onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                  kNoLookup);
+  }
+  EXPECT_EQ(seq->phase(), pd::TrialPhase::kDrilling);
+  return t_pose + 0.5;
+}
+
+}  // namespace
+
+TEST(TrialSequencer, StartMovesToThePoseWithOnePointAndAsksForThePoseTimer) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  const pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.spindle_rpm.size(), 1u);
+  EXPECT_EQ(out.spindle_rpm[0], 12000.0);
+  ASSERT_EQ(out.trajectories.size(), 1u);
+  const pd::JointTrajectoryCommand& move = out.trajectories[0];
+  EXPECT_EQ(move.start_time, 10.0);
+  ASSERT_EQ(move.joint_names.size(), 7u);
+  EXPECT_EQ(move.joint_names.back(), "feed_joint");
+  ASSERT_EQ(move.points.size(), 1u);  // the controller starts from its own state
+  EXPECT_DOUBLE_EQ(move.points[0].time_from_start, 2.0);
+  EXPECT_DOUBLE_EQ(move.points[0].positions.back(), 0.01);
+  ASSERT_EQ(out.phases.size(), 1u);
+  EXPECT_EQ(out.phases[0], pd::TrialPhase::kMovingToPose);
+  ASSERT_EQ(out.start_timers.size(), 1u);
+  EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kPoseReached);
+  EXPECT_DOUBLE_EQ(out.start_timers[0].delay_s, 2.5);
+  EXPECT_FALSE(out.start_timers[0].periodic);
+  // A second start while running is refused.
+  EXPECT_NE(seq.start(request("stationary"), apModel(), 11.0).find("a trial is running"),
+            std::string::npos);
+}
+
+TEST(TrialSequencer, BadRequestsAreRefusedAndNothingHappens) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  EXPECT_NE(seq.start(request("sideways"), apModel(), 0.0).find("mode"), std::string::npos);
+  pd::TrialRequest fast = request("stationary");
+  fast.feed_rate_mm_s = 11.0;
+  EXPECT_NE(seq.check(fast).find("feed_rate_mm_s"), std::string::npos);
+  EXPECT_NE(seq.start(fast, apModel(), 0.0).find("feed_rate_mm_s"), std::string::npos);
+  pd::TrialRequest nan_rpm = request("stationary");
+  nan_rpm.spindle_rpm = std::nan("");
+  EXPECT_NE(seq.start(nan_rpm, apModel(), 0.0).find("spindle_rpm"), std::string::npos);
+  // The moving modes need the ventilator.
+  EXPECT_NE(seq.start(request("compensated"), apModel(), 0.0).find("needs the ventilator"),
+            std::string::npos);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  EXPECT_TRUE(seq.takeOutput().empty());
+  seq.setVentilator(pd::VentilatorSettings());
+  seq.setBreathStart(0.0);
+  EXPECT_EQ(seq.check(request("compensated")), "");
+}
+
+TEST(TrialSequencer, RegistrationThenSegmentsOnTheGridOfThePeriod) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.takeOutput();
+  seq.onPoseReached(12.5);
+  pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.phases.size(), 1u);
+  EXPECT_EQ(out.phases[0], pd::TrialPhase::kRegistering);
+  ASSERT_EQ(out.start_timers.size(), 1u);
+  EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kRegistrationTimeout);
+  // A sample measured before the arm settled does not count.
+  seq.onMarker(12.55, 12.4, "world", Eigen::Vector3d(0.6, 0, 0.27),
+               Eigen::Quaterniond::Identity(), kNoLookup);
+  for (int i = 1; i <= 3; ++i) {
+    seq.onMarker(12.5 + 0.125 * i, 12.5 + 0.125 * i, "world", Eigen::Vector3d(0.6, 0, 0.27),
+                 Eigen::Quaterniond::Identity(), kNoLookup);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
+  seq.onMarker(13.0, 13.0, "world", Eigen::Vector3d(0.6, 0, 0.27),
+               Eigen::Quaterniond::Identity(), kNoLookup);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  out = seq.takeOutput();
+  ASSERT_EQ(out.start_timers.size(), 1u);
+  EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kSegment);
+  EXPECT_TRUE(out.start_timers[0].periodic);
+  EXPECT_DOUBLE_EQ(out.start_timers[0].delay_s, 0.125);
+  // One period ahead: the segments starting at 13.0 and 13.125.
+  ASSERT_EQ(out.trajectories.size(), 2u);
+  EXPECT_DOUBLE_EQ(out.trajectories[0].start_time, 13.0);
+  EXPECT_DOUBLE_EQ(out.trajectories[1].start_time, 13.125);
+  for (const auto& traj : out.trajectories) {
+    ASSERT_EQ(traj.points.size(), 5u);
+    EXPECT_NEAR(traj.points.back().time_from_start, 0.125, 1e-12);
+    EXPECT_EQ(traj.points.back().velocities.back(), 0.0);  // rest to rest
+  }
+  // Feed 0.5 mm/s from the feed home.
+  EXPECT_NEAR(out.trajectories[1].points.back().positions.back(), 0.01 + 0.25 * 0.5e-3, 1e-9);
+  seq.onSegmentTimer(13.125);
+  out = seq.takeOutput();
+  ASSERT_EQ(out.trajectories.size(), 1u);
+  EXPECT_DOUBLE_EQ(out.trajectories[0].start_time, 13.25);
+  // Predicted marker poses for the safety monitor while drilling (stationary: the marker).
+  seq.onMarker(13.2, 13.2, "world", Eigen::Vector3d(0.6, 0, 0.27),
+               Eigen::Quaterniond::Identity(), kNoLookup);
+  out = seq.takeOutput();
+  ASSERT_EQ(out.predicted.size(), 1u);
+  EXPECT_NEAR((out.predicted[0].position - Eigen::Vector3d(0.6, 0, 0.27)).norm(), 0.0, 1e-12);
+  EXPECT_EQ(out.predicted[0].stamp, 13.2);
+}
+
+TEST(TrialSequencer, RegistrationTimeoutFails) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 0.0), "");
+  seq.onPoseReached(2.5);
+  seq.takeOutput();
+  seq.onRegistrationTimeout(5.5);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+  const pd::SequencerOutput out = seq.takeOutput();
+  EXPECT_TRUE(out.stop_timers);
+  ASSERT_EQ(out.spindle_rpm.size(), 1u);
+  EXPECT_EQ(out.spindle_rpm[0], 0.0);
+}
+
+TEST(TrialSequencer, RecognizerStopHoldsThenRetractsThenDone) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  const double t = toDrilling(&seq);
+  seq.takeOutput();
+  seq.onSegmentTimer(t + 0.125);
+  seq.onSegmentTimer(t + 0.25);
+  seq.takeOutput();
+  // The recognizer's state reports the stop (its drill/stop may arrive later, or never).
+  seq.onRecognizerState(t + 0.3, true, "stopped", 4);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kStopped);
+  pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_FALSE(out.spindle_rpm.empty());
+  EXPECT_EQ(out.spindle_rpm.back(), 0.0);
+  ASSERT_FALSE(out.trajectories.empty());
+  EXPECT_DOUBLE_EQ(out.trajectories[0].start_time, t + 0.3);  // re-sent from the stop
+  const double held = out.trajectories[0].points.back().positions.back();
+  // The drill/stop that follows changes nothing.
+  seq.onStop(t + 0.31, false, "key point 4");
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kStopped);
+  out = seq.takeOutput();
+  EXPECT_TRUE(out.trajectories.empty());
+  // Held for stop_hold_s (1 s), then the retreat.
+  seq.onSegmentTimer(t + 0.375);
+  out = seq.takeOutput();
+  for (const auto& traj : out.trajectories) {
+    EXPECT_NEAR(traj.points.back().positions.back(), held, 1e-12);
+  }
+  double now = t + 0.375;
+  while (seq.phase() == pd::TrialPhase::kStopped && now < t + 3.0) {
+    now += 0.125;
+    seq.onSegmentTimer(now);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  while (seq.phase() == pd::TrialPhase::kRetreating && now < t + 30.0) {
+    now += 0.125;
+    seq.onSegmentTimer(now);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDone);
+  out = seq.takeOutput();
+  EXPECT_TRUE(out.stop_timers);
+  double last_feed = 1.0;
+  for (const auto& traj : out.trajectories) last_feed = traj.points.back().positions.back();
+  EXPECT_NEAR(last_feed, 0.0, 1e-9);  // retracted to the feed's end (clamped)
+}
+
+TEST(TrialSequencer, MonitorStopRetreatsAtOnce) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  const double t = toDrilling(&seq);
+  seq.takeOutput();
+  seq.onStop(t + 0.2, true, "position_error");
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+}
+
+TEST(TrialSequencer, StopBeforeDrillingFailsTheTrial) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 0.0), "");
+  seq.onStop(1.0, true, "force_timeout");
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+}
+
+TEST(TrialSequencer, LatchedRecognizerStopRefusesToFeed) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.onRecognizerState(0.0, true, "stopped", 4);  // left over from an earlier trial
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  for (int i = 1; i <= 4; ++i) {
+    seq.onMarker(12.5 + 0.125 * i, 12.5 + 0.125 * i, "world", Eigen::Vector3d(0.6, 0, 0.27),
+                 Eigen::Quaterniond::Identity(), kNoLookup);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+  const pd::SequencerOutput out = seq.takeOutput();
+  for (const auto& traj : out.trajectories) EXPECT_EQ(traj.points.size(), 1u);  // the move only
+}
+
+TEST(TrialSequencer, MaxDurationRetracts) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  pd::TrialRequest r = request("stationary");
+  r.max_duration_s = 1.0;
+  ASSERT_EQ(seq.start(r, apModel(), 0.0), "");
+  seq.onPoseReached(2.5);
+  for (int i = 1; i <= 4; ++i) {
+    seq.onMarker(2.5 + 0.125 * i, 2.5 + 0.125 * i, "world", Eigen::Vector3d(0.6, 0, 0.27),
+                 Eigen::Quaterniond::Identity(), kNoLookup);
+  }
+  double now = 3.0;
+  while (seq.phase() == pd::TrialPhase::kDrilling && now < 10.0) {
+    now += 0.125;
+    seq.onSegmentTimer(now);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  EXPECT_NEAR(now, 4.0, 1e-9);
+}
+
+TEST(TrialSequencer, ParametersAreValidatedNamingTheField) {
+  pd::TrialSequencerParams p = params();
+  p.settle_s = -1.0;
+  try {
+    pd::TrialSequencer seq(p, workcellArm());
+    FAIL() << "accepted settle_s = -1";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("settle_s:", 0), 0u) << e.what();
+  }
+  p = params();
+  p.registration_samples = 0;
+  EXPECT_THROW(pd::TrialSequencer(p, workcellArm()), std::invalid_argument);
+  p = params();
+  p.arm_joints.clear();
+  EXPECT_THROW(pd::TrialSequencer(p, workcellArm()), std::invalid_argument);
+}
+
+TEST(TrialSequencer, PhaseNames) {
+  EXPECT_STREQ(pd::toString(pd::TrialPhase::kMovingToPose), "moving_to_pose");
+  EXPECT_STREQ(pd::toString(pd::TrialPhase::kDone), "done");
+  EXPECT_TRUE(pd::isRunning(pd::TrialPhase::kStopped));
+  EXPECT_FALSE(pd::isRunning(pd::TrialPhase::kFailed));
+}
