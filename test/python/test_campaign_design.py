@@ -218,3 +218,27 @@ def test_shipped_scenarios_pass_the_campaign_checks(name):
     from pd_campaign import cli
     scenario = cli.load_scenario(os.path.join(ROOT, 'config', name))
     assert scenario.get('bone_motion') in cli.BONE_MOTIONS, name
+
+
+def _row(trial_id, success, residual, depth=8.0, inner=7.0, breakthrough=False):
+    return {'trial_id': trial_id, 'success': success, 'residual_mm': residual,
+            'max_depth_mm': depth, 'inner_start_mm': inner, 'breakthrough': breakthrough,
+            'error': ''}
+
+
+def test_agreement_pairs_by_trial_and_counts_outcomes():
+    from pd_campaign import agreement
+    a = [_row('c-1', True, 1.5), _row('c-2', False, 5.0, depth=3.0), _row('c-3', False, 0.0,
+                                                                             breakthrough=True)]
+    b = [_row('c-2', False, 4.0, depth=2.5), _row('c-1', True, 1.4), _row('c-9', True, 1.0)]
+    pairs, figures = agreement.compare(a, b)
+    assert [p[0]['trial_id'] for p in pairs] == ['c-1', 'c-2']  # c-3 and c-9 unpaired
+    assert figures['paired'] == 2 and figures['same_success'] == 2
+    assert figures['same_outcome'] == 2
+    assert figures['median_residual_diff_mm'] == pytest.approx(1.0)
+    assert agreement.outcome(a[2]) == 'breakthrough'
+    assert agreement.outcome(a[1]) == 'before inner layer'
+    text = agreement.markdown(pairs, figures, 'ros', 'core')
+    assert 'the same success in 2 of 2' in text
+    with pytest.raises(ValueError):
+        agreement.compare(a, [_row('x', True, 1.0)])

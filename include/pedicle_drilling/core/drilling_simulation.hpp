@@ -264,9 +264,10 @@ class DrillingSimulation {
   int step(double dt);
 
   /**
-   * @brief Replaces the remaining trajectory (JointTrajectoryController semantics): the new
-   *        one starts from the current reference position and velocity at time(). Points at or
-   *        before time() are dropped. Unknown or duplicate names, NaN/inf, size mismatches, non-
+   * @brief A new trajectory (JointTrajectoryController semantics): the running one is followed
+   *        until command.start_time_s (now if NaN or past), then the new one goes from that
+   *        reference position and velocity to its points after the start time; points at or
+   *        before it are dropped. Unknown or duplicate names, NaN/inf, size mismatches, non-
    *        increasing times or no point in the future reject the whole command (kRejected, the
    *        old trajectory continues). Out-of-limit positions are clamped (kClamped).
    */

@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# Campaign throughput (make bench): the core engine on the paper's design (3 cases x 3 spindle
+# speeds x 20 trials, --jobs 2), and the same 10 seeds through both engines (stationary case,
+# 12000 rpm). Prints BENCH lines; each campaign's time includes its Table II identification
+# (about 3 s), so the figures are conservative.
+set -eu
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
+OUT="$(mktemp -d)"
+trap 'rm -rf "${OUT}"' EXIT
+seconds() {
+  local start end
+  start=$(date +%s.%N)
+  "$@" > /dev/null 2>&1
+  end=$(date +%s.%N)
+  python3 -c "print(${end} - ${start})"
+}
+paper=$(seconds rosrun pedicle_drilling campaign --trials 20 --jobs 2 --seed 101 \
+  --out "${OUT}/paper")
+trials=$(python3 -c "import csv; print(sum(1 for _ in csv.DictReader(open('${OUT}/paper/trials.csv'))))")
+python3 -c "print('BENCH campaign_trials_per_min %.0f trials/min (core engine, --jobs 2, %d trials in %.1f s)' % (${trials} * 60.0 / ${paper}, ${trials}, ${paper}))"
+core=$(seconds rosrun pedicle_drilling campaign --case stationary --rpm 12000 --trials 10 \
+  --jobs 1 --seed 102 --engine core --out "${OUT}/core")
+ros=$(seconds rosrun pedicle_drilling campaign --case stationary --rpm 12000 --trials 10 \
+  --jobs 1 --seed 102 --engine ros --out "${OUT}/ros")
+python3 -c "print('BENCH campaign_core_over_ros_speedup %.1f x (10 seeds, --jobs 1: core %.1f s, ros %.1f s)' % (${ros} / ${core}, ${core}, ${ros}))"
