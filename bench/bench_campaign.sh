@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Campaign throughput (make bench): the core engine on the paper's design (3 cases x 3 spindle
-# speeds x 20 trials, --jobs 2), and the same 10 seeds through both engines (stationary case,
+# Campaign throughput (make bench): the core engine on the paper's three cases at 12000 rpm,
+# 200 trials each (600 trials, --jobs 2), and the same 10 seeds through both engines (stationary case,
 # 12000 rpm). Prints BENCH lines; each campaign's time includes its Table II identification
 # (about 3 s), so the figures are conservative.
 set -eu
@@ -14,7 +14,7 @@ seconds() {
   end=$(date +%s.%N)
   python3 -c "print(${end} - ${start})"
 }
-paper=$(seconds rosrun pedicle_drilling campaign --trials 20 --jobs 2 --seed 101 \
+paper=$(seconds rosrun pedicle_drilling campaign --rpm 12000 --trials 200 --jobs 2 --seed 101 \
   --out "${OUT}/paper")
 trials=$(python3 -c "import csv; print(sum(1 for _ in csv.DictReader(open('${OUT}/paper/trials.csv'))))")
 python3 -c "print('BENCH campaign_trials_per_min %.0f trials/min (core engine, --jobs 2, %d trials in %.1f s)' % (${trials} * 60.0 / ${paper}, ${trials}, ${paper}))"

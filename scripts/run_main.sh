@@ -4,7 +4,8 @@
 #      model, scenario_paper.yaml): 3 cases x 3 spindle speeds x 200 trials (core engine)
 #   2. beyond the bench: the bone moves as the virtual patient (lag, drift, small movements),
 #      compensated with the paper's linear model (scenario_virtual_patient.yaml) and with the
-#      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each
+#      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 20 trials each (ROS
+#      pipeline: the core engine does not agree with it there yet)
 #   3. 5 trials per case of design 1 through the full ROS pipeline, twice, and their agreement
 #      with the core engine (engine_agreement.md)
 # Reports in results/campaign*/report.md.
@@ -24,11 +25,13 @@ start=$(date +%s)
 #    spindle speed, so that the Wilson intervals span a few points.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" --trials 200 \
   --jobs "${JOBS}" --out "${OUT}/campaign"
-# 2. Beyond the bench: the bone moves as the virtual patient, linear vs hysteresis model.
+# 2. Beyond the bench: the bone moves as the virtual patient, linear vs hysteresis model. On the
+#    ROS pipeline: the core engine does not yet agree with it on this scenario (README,
+#    "Engine agreement"), so these stay on the engine the earlier results came from.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_virtual_patient.yaml" \
-  --trials 200 --jobs "${JOBS}" --out "${OUT}/campaign_virtual_patient"
+  --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_virtual_patient"
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_hysteresis.yaml" \
-  --trials 200 --jobs "${JOBS}" --out "${OUT}/campaign_hysteresis"
+  --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_hysteresis"
 # 3. The integration check: the first trials of the same design through the full ROS pipeline,
 #    twice, trial by trial beside the core engine (the same seeds).
 for run in ros ros_repeat; do

@@ -51,6 +51,19 @@ struct Timer {
 
 }  // namespace
 
+namespace {
+
+/** @brief A number in [0, 1) from the seed (splitmix64), independent of the simulation's draws. */
+double startPhaseFraction(std::uint64_t seed) {
+  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL + 0x5851f42d4c957f2dULL;  // own stream
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z = z ^ (z >> 31);
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
+}  // namespace
+
 struct ClosedLoopEngine::Impl {
   EngineConfig config;
   std::unique_ptr<ArmCompensation> arm;
@@ -327,8 +340,14 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.record.inner_cortical_thickness_m = specimen.innerCorticalThickness();
 
   std::uint64_t n = 0;
-  // Before the trial: the ventilator's settings and breath phase reach the planner.
-  const double t_start = s.now + s.config.pre_trial_s;
+  // Before the trial: the ventilator's settings and breath phase reach the planner. Then the
+  // trial starts at a breath phase drawn from the seed (uniform over one breath), as an operator
+  // starts at an arbitrary moment of the breathing: a fixed start would put every trial's first
+  // contact at the same phase.
+  const double breath_s = 60.0 / s.record.conditions.ventilator_rate_bpm;
+  const double t_start =
+      s.now + s.config.pre_trial_s +
+      (s.config.draw_start_phase ? startPhaseFraction(spec.seed) * breath_s : 0.0);
   while (s.now < t_start - 1e-9) s.step(++n);
   s.sim->startTrial();
   TrialRequest request;

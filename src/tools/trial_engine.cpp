@@ -117,6 +117,12 @@ int main(int argc, char** argv) {
   app.add_option("--stop-delay-s", config.delays.stop_to_planner_s,
                  "recognizer/monitor stop -> planner transport delay, s")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--pre-trial-s", config.pre_trial_s,
+                 "sim time from the reset to the earliest trial start, s")
+      ->check(CLI::Range(0.0, 60.0));
+  bool fixed_start = false;
+  app.add_flag("--fixed-start", fixed_start,
+               "start exactly --pre-trial-s after the reset (no breath phase drawn from the seed)");
   app.add_option("--feed-rate", feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
   app.add_option("--max-duration", max_duration, "sim time after which a trial is ended, s")
       ->check(CLI::Range(1.0, 3600.0));
@@ -127,6 +133,7 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : 2;
   }
 
+  config.draw_start_phase = !fixed_start;
   json trials;
   pd::PatientModel stationary_model;
   try {

@@ -52,9 +52,12 @@ struct EngineConfig {
   std::string arm_base_link = "world";
   std::string arm_tip_link = "device_base";
   EngineDelays delays;
-  /** @brief Sim time between the reset and the trial start: the ventilator's settings and
-   *         breath phase reach the planner (the ROS worker waits about as long). */
+  /** @brief Sim time between the reset and the earliest trial start: the ventilator's
+   *         settings and breath phase reach the planner. The start then waits a fraction of one
+   *         breath drawn from the seed, so that trials start at every phase of the breathing. */
   double pre_trial_s = 1.0;
+  /** @brief false: start exactly pre_trial_s after the reset (no drawn breath phase). */
+  bool draw_start_phase = true;
   /** @brief A trial not done this long after its start is an error (never silently cut). */
   double trial_timeout_s = 600.0;
 };
