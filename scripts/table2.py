@@ -24,22 +24,13 @@ import sys
 
 import yaml
 
+from pd_campaign.tools import tool
+
 IDS = [1, 2, 3, 4, 5]
 MODELS = ['linear', 'hysteresis']
 AXES = ['ap', 'si', 'lr']
 CSV_FIELDS = ['volunteer', 'model', 'axis', 'wavelet', 'q1', 'q2', 'q0', 'r2', 'rmse',
               'q1_true', 'q2_true', 'q1_rel_err']
-
-
-def tool(name):
-    """Path of a built tool: $PEDICLE_DRILLING_BIN_DIR, the devel space, or rosrun."""
-    candidates = [os.environ.get('PEDICLE_DRILLING_BIN_DIR', ''),
-                  os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', 'catkin_ws',
-                               'devel', 'lib', 'pedicle_drilling')]
-    for d in candidates:
-        if d and os.access(os.path.join(d, name), os.X_OK):
-            return [os.path.join(d, name)]
-    return ['rosrun', 'pedicle_drilling', name]
 
 
 def run(cmd):

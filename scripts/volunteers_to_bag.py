@@ -33,6 +33,7 @@ from geometry_msgs.msg import PoseStamped, TransformStamped
 from tf2_msgs.msg import TFMessage
 
 from pedicle_drilling.msg import TidalVolume
+from pd_campaign.tools import tool
 
 AXIS_RE = re.compile(r'^([+-]?)([xyz])$')
 
@@ -92,13 +93,6 @@ def read_columns(path, names):
             raise ValueError('%s line %d: time %r does not increase (previous %r); the bag would '
                              'not be identifiable' % (path, i + 2, t[i], t[i - 1]))
     return columns
-
-
-def find_tool(name):
-    bin_dir = os.environ.get('PEDICLE_DRILLING_BIN_DIR')
-    if bin_dir and os.path.exists(os.path.join(bin_dir, name)):
-        return [os.path.join(bin_dir, name)]
-    return ['rosrun', 'pedicle_drilling', name]
 
 
 def write_bag(csv_path, tv_path, bag_path, start, offset, mapping):
@@ -180,7 +174,7 @@ def main(argv):
         return 2
     csv_dir = args.csv_dir or args.out
     if not args.csv_dir:
-        status = subprocess.call(find_tool('generate_volunteers') +
+        status = subprocess.call(tool('generate_volunteers') +
                                  ['--out', args.out, '--ids', args.ids,
                                   '--duration', args.duration])
         if status != 0:

@@ -319,11 +319,9 @@ def run_campaign(argv=None):
             line = line.strip()
             if not line.startswith('{'):
                 continue
-            if args.engine == 'core':
-                line = json.dumps(engine_core.row_from_line(line, os.path.join(out_dir,
-                                                                               'traces')))
-            row = report.normalise_row({k: ('' if v is None else v)
-                                        for k, v in json.loads(line).items()})
+            raw = (engine_core.row_from_line(line, os.path.join(out_dir, 'traces'))
+                   if args.engine == 'core' else json.loads(line))
+            row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
             with lock:
                 rows.append(row)
                 progress.update(row)

@@ -5,10 +5,10 @@ A trial's record depends on its seed only, so the rows do not depend on --jobs o
 import json
 import os
 import subprocess
-import time
 import types
 
 from pd_campaign import worker
+from pd_campaign.tools import tool
 
 CONDITION_COLUMNS = ('volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                      'force_noise_sd_n', 'arm_stiffness_scale', 'inner_cortical_mm')
@@ -27,17 +27,6 @@ class RecordedTrial:
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
-
-
-def tool(name):
-    """Path of a built tool: $PEDICLE_DRILLING_BIN_DIR, the devel space, or rosrun."""
-    candidates = [os.environ.get('PEDICLE_DRILLING_BIN_DIR', ''),
-                  os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..',
-                               'catkin_ws', 'devel', 'lib', 'pedicle_drilling')]
-    for d in candidates:
-        if d and os.access(os.path.join(d, name), os.X_OK):
-            return [os.path.join(d, name)]
-    return ['rosrun', 'pedicle_drilling', name]
 
 
 def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
@@ -83,7 +72,3 @@ def drilling_pose(package_root):
     with open(os.path.join(package_root, 'config', 'drilling_pose.yaml')) as handle:
         pose = yaml.safe_load(handle)['drilling_pose']
     return [float(pose['rsssii_joint%d' % i]) for i in range(1, 7)]
-
-
-def now():
-    return time.time()

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <cstdio>
 #include <functional>
 #include <sstream>
 #include <stdexcept>
@@ -173,7 +172,7 @@ struct ClosedLoopEngine::Impl {
     if (!monitor->stopped() || monitor_stop_sent) return;
     monitor_stop_sent = true;
     const SafetyVerdict& v = monitor->verdict();
-    const std::string reason = std::string(toString(v.reason)) + ": " + v.message;
+    const std::string reason = describe(v);
     record.stops.push_back({now, "/safety_monitor", reason, true});
     send(config.delays.stop_to_planner_s, [this, reason]() {
       sequencer->onStop(now, true, reason);
@@ -198,13 +197,7 @@ struct ClosedLoopEngine::Impl {
       });
     }
     if (out.stop && !was_stopped) {
-      char reason[200];
-      std::snprintf(reason, sizeof(reason),
-                    "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
-                    "raw sample %lu",
-                    out.stop_key_point, toString(out.layer_state), out.stop_t,
-                    static_cast<unsigned long>(out.stop_index));
-      const std::string text = reason;
+      const std::string text = stopReason(out);
       record.stops.push_back({t, "/state_recognizer", text, false});
       send(config.delays.stop_to_planner_s, [this, text]() {
         sequencer->onStop(now, false, text);

@@ -36,6 +36,10 @@ void SafetyParams::validate() const {
           "must be > 0 (+inf disables)", tracker_timeout_s);
 }
 
+std::string describe(const SafetyVerdict& v) {
+  return std::string(toString(v.reason)) + ": " + v.message;
+}
+
 const char* toString(SafetyVerdict::Reason r) {
   switch (r) {
     case SafetyVerdict::kNone:

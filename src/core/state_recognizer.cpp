@@ -3,6 +3,7 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <limits>
 #include <sstream>
@@ -125,6 +126,17 @@ const char* toString(DrillingState s) {
       return "stopped";
   }
   return "unknown";
+}
+
+std::string stopReason(const RecognizerOutput& out) {
+  if (!out.stop) return "";
+  char reason[200];
+  std::snprintf(reason, sizeof(reason),
+                "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
+                "raw sample %lu",
+                out.stop_key_point, toString(out.layer_state), out.stop_t,
+                static_cast<unsigned long>(out.stop_index));
+  return reason;
 }
 
 StateRecognizer::StateRecognizer(const RecognizerParams& params) : params_(params) {

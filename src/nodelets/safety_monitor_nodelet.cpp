@@ -183,7 +183,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     stop.header.stamp = ros::Time::now();
     stop.source = getName();
     stop.retreat = true;
-    stop.reason = std::string(core::toString(v.reason)) + ": " + v.message;
+    stop.reason = core::describe(v);
     stop_pub_.publish(stop);
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
     publishDiagnostics();
@@ -203,8 +203,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     const core::SafetyVerdict& v = monitor_->verdict();
     if (v.stop) {
       status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
-      status.message = std::string("stop and retreat: ") + core::toString(v.reason) + ": " +
-                       v.message;
+      status.message = "stop and retreat: " + core::describe(v);
     } else {
       status.level = diagnostic_msgs::DiagnosticStatus::OK;
       status.message = have_force_ && have_tracker_ ? "monitoring" : "waiting for force/tracker";

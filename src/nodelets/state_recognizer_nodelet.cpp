@@ -13,7 +13,6 @@
 #include <std_srvs/Trigger.h>
 
 #include <cmath>
-#include <cstdio>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -123,15 +122,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       stop.header.frame_id = msg->header.frame_id;
       stop.source = getName();
       stop.retreat = false;
-      char reason[200];
-      std::snprintf(reason, sizeof(reason),
-                    "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
-                    "raw sample %lu",
-                    out.stop_key_point, core::toString(out.layer_state), out.stop_t,
-                    static_cast<unsigned long>(out.stop_index));
-      stop.reason = reason;
+      stop.reason = core::stopReason(out);
       stop_pub_.publish(stop);
-      NODELET_WARN("StateRecognizer: STOP: %s", reason);
+      NODELET_WARN("StateRecognizer: STOP: %s", stop.reason.c_str());
     }
   }
 

@@ -22,6 +22,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/motion_model_io.hpp"
 
@@ -30,9 +31,7 @@ using nlohmann::json;
 
 namespace {
 
-struct UsageError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
+using pd::UsageError;
 
 std::string readText(const std::string& path, const std::string& what) {
   std::ifstream in(path);

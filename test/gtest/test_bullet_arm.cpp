@@ -19,6 +19,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include "pedicle_drilling/core/bullet_arm.hpp"
+#include "support.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR
 #error "PEDICLE_DRILLING_SOURCE_DIR (the package's source folder) is passed by CMakeLists.txt"
@@ -27,15 +28,8 @@
 namespace pedicle_drilling::core {
 namespace {
 
-const std::string kSourceDir = PEDICLE_DRILLING_SOURCE_DIR;
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open " + path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+const std::string kSourceDir = test::sourceDir();
+using test::readFile;
 
 std::string urdfPath(const std::string& name) { return kSourceDir + "/urdf/" + name; }
 

@@ -3,29 +3,21 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
 #include <iostream>
-#include <sstream>
 #include <string>
 
 #include "pedicle_drilling/core/motion_model_io.hpp"
+#include "support.hpp"
 
 namespace pd = pedicle_drilling::core;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-const std::string kSource = PEDICLE_DRILLING_SOURCE_DIR;
+const std::string kSource = pedicle_drilling::test::sourceDir();
 
 pd::EngineConfig config() {
   pd::EngineConfig c;
-  c.urdf_xml = readFile(kSource + "/urdf/workcell.urdf");
+  c.urdf_xml = pedicle_drilling::test::workcellUrdf();
   c.drilling_pose = {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0};  // config/drilling_pose.yaml
   c.sequencer.retreat.distance_m = 0.025;  // config/compensation_planner.yaml
   return c;

@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include "support.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -27,13 +29,6 @@ pd::CompensationPlanner readyPlanner(const pd::CompensationParams& p, double bre
   planner.predictor().setVentilator(pd::VentilatorSettings());
   planner.predictor().setBreathStart(breath_start);
   return planner;
-}
-
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
 }
 
 }  // namespace
@@ -250,8 +245,7 @@ TEST(CompensationPlanner, LatencyParameterCancelsControllerDelay) {
 }
 
 TEST(ArmCompensation, BacksOffAlongTheDrillAxisAndMovesLaterally) {
-  const std::string urdf = readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) +
-                                    "/urdf/workcell.urdf");
+  const std::string urdf = pedicle_drilling::test::workcellUrdf();
   const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(urdf, "world", "device_base");
   ASSERT_EQ(arm.numJoints(), 6u);
   Eigen::VectorXd q(6);

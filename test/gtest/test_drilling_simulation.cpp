@@ -17,20 +17,12 @@
 
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "support.hpp"
 
 namespace pedicle_drilling::core {
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-std::string workcell() {
-  return readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/workcell.urdf");
-}
+std::string workcell() { return pedicle_drilling::test::workcellUrdf(); }
 
 const std::vector<std::string> kJoints = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3",
                                           "rsssii_joint4", "rsssii_joint5", "rsssii_joint6",
@@ -492,7 +484,7 @@ TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
   }
   // The arm alone (no SPMS) is not a workcell.
   const std::string arm_only =
-      readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/rsssii.urdf");
+      test::readFile(test::sourceDir() + "/urdf/rsssii.urdf");
   try {
     DrillingSimulation sim(arm_only, DrillingSimulationParams());
     FAIL() << "no exception";

@@ -284,6 +284,9 @@ TEST(StateRecognizerTransitions, StateSaysStoppedFromTheStopUntilReset) {
   EXPECT_EQ(rec.output().last_key_point, 4);
   EXPECT_EQ(rec.output().state, DrillingState::kStopped);
   EXPECT_STREQ(toString(rec.output().state), "stopped");
+  EXPECT_NE(stopReason(rec.output()).find("stop after key point 4 (inner_cortical)"),
+            std::string::npos)
+      << stopReason(rec.output());
   // A retracting drill: the force falls to zero; the state must not follow it.
   for (int j = 0; j < 50; ++j) rec.push(i++, 0.0);
   EXPECT_EQ(rec.output().state, DrillingState::kStopped);
@@ -293,6 +296,7 @@ TEST(StateRecognizerTransitions, StateSaysStoppedFromTheStopUntilReset) {
   EXPECT_EQ(rec.output().layer_state, DrillingState::kIdle);
   EXPECT_FALSE(rec.output().stop);
   EXPECT_EQ(rec.output().stop_key_point, 0);
+  EXPECT_EQ(stopReason(rec.output()), "");
 }
 
 TEST(StateRecognizerProfile, TwoLayersAllKeyPointsAndStopInInnerLayer) {

@@ -3,25 +3,17 @@
 
 #include <gtest/gtest.h>
 
-#include <fstream>
-#include <sstream>
 #include <string>
+
+#include "support.hpp"
 
 namespace pd = pedicle_drilling::core;
 
 namespace {
 
-std::string readFile(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
 pd::ArmCompensation workcellArm() {
-  const std::string urdf = readFile(std::string(PEDICLE_DRILLING_SOURCE_DIR) +
-                                    "/urdf/workcell.urdf");
-  const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(urdf, "world", "device_base");
+  const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(
+      pedicle_drilling::test::workcellUrdf(), "world", "device_base");
   Eigen::VectorXd q(6);
   q << 0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0;  // config/drilling_pose.yaml
   return pd::ArmCompensation(arm, q, 0.01);

@@ -5,8 +5,10 @@ import re
 import subprocess
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-# The checkout this runs in, and the folders where checkouts of this project have lived.
-PATTERNS = [re.escape(ROOT), r'/work/main\b', r'/home/[A-Za-z0-9_.-]+/', r'/root/(?!\.ros\b)']
+# The checkout this runs in, and any checkout under the folders where checkouts live (work
+# folders, home folders, root's home other than its ROS log folder).
+PATTERNS = [re.escape(ROOT), r'/work/[A-Za-z0-9_.-]+', r'/home/[A-Za-z0-9_.-]+/',
+            r'/root/(?!\.ros\b)']
 
 
 def tracked_files():
@@ -37,7 +39,7 @@ def test_no_checkout_path_in_the_tree():
 def test_the_check_sees_a_planted_path(tmp_path):
     """The pattern catches what it is meant to (so that the test above can fail)."""
     pattern = re.compile('|'.join('(?:%s)' % p for p in PATTERNS))
-    assert pattern.search('#define DIR "/work/main"')
+    assert pattern.search('#define DIR "/work/checkout"')
     assert pattern.search('bin = "%s/catkin_ws/devel"' % ROOT)
     assert pattern.search('path: /home/alice/catkin_ws/src')
     assert not pattern.search('$(find pedicle_drilling)/config/simulator.yaml')

@@ -58,6 +58,9 @@ struct SafetyVerdict {
 /** @brief Name of a reason, e.g. "position_error". */
 const char* toString(SafetyVerdict::Reason r);
 
+/** @brief "reason: message" of a verdict (the StopCommand's reason). */
+std::string describe(const SafetyVerdict& v);
+
 /** @brief The monitor system of Algorithm 1, as a plain latched state machine. */
 class SafetyMonitor {
  public:

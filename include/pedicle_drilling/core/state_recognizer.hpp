@@ -122,6 +122,9 @@ struct RecognizerOutput {
   std::array<KeyPoint, 6> key_points{};  ///< Key points in order 1..num_key_points.
 };
 
+/** @brief Human-readable reason of a latched stop (the StopCommand's reason); "" if none. */
+std::string stopReason(const RecognizerOutput& out);
+
 /**
  * @brief Online drilling-state recognizer fed one raw thrust sample at a time.
  *

@@ -1,0 +1,63 @@
+"""trial_engine (the core engine as a tool): one JSON line per trial, an errored trial recorded
+without stopping the others, and bad options or input refused with exit status 2 naming them."""
+import json
+import os
+import subprocess
+
+import pytest
+
+POSE = '0,0.435859,1.319709,0,1.386025,0'  # config/drilling_pose.yaml
+
+
+def run(bin_dir, *args):
+    return subprocess.run([os.path.join(bin_dir, 'trial_engine')] + list(args),
+                          capture_output=True, text=True, timeout=300)
+
+
+def trials_file(tmp_path, trials, name='trials.json'):
+    path = tmp_path / name
+    path.write_text(trials if isinstance(trials, str) else json.dumps(trials))
+    return str(path)
+
+
+def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
+    path = trials_file(tmp_path, [
+        {'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary', 'rpm': 12000},
+        {'trial_id': 'sideways-12000-000', 'seed': 5, 'case': 'sideways', 'rpm': 12000}])
+    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+    assert result.returncode == 0, result.stderr
+    lines = [json.loads(line) for line in result.stdout.splitlines()]
+    assert [line['trial']['trial_id'] for line in lines] == ['stationary-12000-000',
+                                                             'sideways-12000-000']
+    record = lines[0]['record']
+    assert record['stops'][0][1] == '/state_recognizer'
+    assert [s[1] for s in record['status']][-1] == 'done'
+    assert not record['last_truth']['breakthrough']
+    assert 'mode' in lines[1]['error']
+    # The same seed gives the same record, bit for bit.
+    again = run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+    assert again.stdout == result.stdout
+
+
+@pytest.mark.parametrize('trials, extra, named', [
+    ('not json', [], '--trials'),
+    ('{"trial_id": "a"}', [], 'not a list'),
+    ([{'trial_id': 'a', 'case': 'stationary', 'rpm': 12000}], [], "'seed'"),
+    ([{'trial_id': 'a', 'seed': -3, 'case': 'stationary', 'rpm': 12000}], [], 'seed'),
+    ([], ['--model', 'linear', '--model', 'hysteresis'], '--model'),
+    ([], ['--command-delay-s', '-1'], '--command-delay-s'),
+    ([], ['--urdf', '/nonexistent.urdf'], '--urdf'),
+])
+def test_bad_input_exits_2_naming_it(bin_dir, tmp_path, trials, extra, named):
+    path = trials_file(tmp_path, trials)
+    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE, *extra)
+    assert result.returncode == 2, (result.stdout, result.stderr)
+    assert named in result.stderr
+    assert result.stdout == ''
+
+
+def test_a_pose_of_the_wrong_size_is_refused(bin_dir, tmp_path):
+    path = trials_file(tmp_path, [])
+    result = run(bin_dir, '--trials', path, '--drilling-pose', '0,1,2,3,4')
+    assert result.returncode == 2
+    assert 'drilling_pose' in result.stderr
