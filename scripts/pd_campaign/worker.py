@@ -35,7 +35,8 @@ class TrialRecorder:
         self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact)
         self.last_truth = None
         self.stops = []           # (t, source, reason, retreat)
-        self.status = []          # (wall, status)
+        self.status = []          # (t, phase name)
+        self.phase = None         # the latest TrialStatus phase (ROS engine)
         self._last_kp = 0
 
     def on_state(self, msg):
@@ -57,9 +58,9 @@ class TrialRecorder:
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
     def on_status(self, msg):
-        # Sim time of the change, from the latest ground truth (status has no stamp).
-        sim_t = self.last_truth.header.stamp.to_sec() if self.last_truth else None
-        self.status.append((sim_t, msg.data))
+        """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
+        self.phase = msg.phase
+        self.status.append((msg.header.stamp.to_sec(), msg.phase_name))
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
@@ -180,15 +181,16 @@ def stop_bag(process):
 
 
 def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
+    from pedicle_drilling.msg import TrialStatus  # ROS engine only
     deadline = time.time() + args.trial_timeout
     while time.time() < deadline:
-        if recorder.status and recorder.status[-1][1] in ('done', 'failed'):
+        if recorder.phase in (TrialStatus.DONE, TrialStatus.FAILED):
             break
         time.sleep(0.02)
     else:
         raise RuntimeError('trial did not finish within %.0f s wall (status: %s)' % (
             args.trial_timeout, recorder.status[-1][1] if recorder.status else 'none'))
-    if recorder.status[-1][1] == 'failed':
+    if recorder.phase == TrialStatus.FAILED:
         raise RuntimeError('the planner failed the trial (statuses: %s)'
                            % ' '.join(s for _, s in recorder.status))
     row['wall_s'] = time.time() - wall_start
@@ -311,8 +313,7 @@ def main(argv=None):
         else:
             raise RuntimeError('roscore on port %d did not start' % args.port)
         import rospy  # after ROS_MASTER_URI is set
-        from std_msgs.msg import String
-        from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand
+        from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand, TrialStatus
         from pedicle_drilling.srv import IdentifyMotion, ResetSimulation, StartTrial
         # The worker runs on wall time: it is initialised before /use_sim_time is set, so it
         # does not have to follow a /clock that runs many times faster than real time.
@@ -345,7 +346,7 @@ def main(argv=None):
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,
                          queue_size=10000)
         rospy.Subscriber('/drill/stop', StopCommand, recorder.on_stop, queue_size=100)
-        rospy.Subscriber('/compensation/status', String, recorder.on_status, queue_size=100)
+        rospy.Subscriber('/compensation/status', TrialStatus, recorder.on_status, queue_size=100)
         for trial in trials:
             try:
                 row = run_trial(rospy, srv, None, recorder, trial, args, trace_dir)

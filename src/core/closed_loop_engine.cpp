@@ -75,14 +75,11 @@ struct ClosedLoopEngine::Impl {
   std::unique_ptr<DrillingSimulation> sim;
   std::unique_ptr<TrialSequencer> sequencer;
   std::unique_ptr<StateRecognizer> recognizer;
-  std::unique_ptr<SafetyMonitor> monitor;
+  std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
   std::vector<Timer> timers;
   EngineTrialRecord record;
-  bool have_force = false;
-  bool have_tracker = false;
-  bool monitor_stop_sent = false;
   long last_breath_index = -1;
   double now = 0.0;
 
@@ -152,13 +149,13 @@ struct ClosedLoopEngine::Impl {
       send(delay, [this, command]() { sim->commandTrajectory(command); });
     }
     for (const PredictedMarker& m : out.predicted) {
-      // The monitor pairs the prediction with the tracked sample of the same stamp.
-      if (m.frame == "tracker_camera" && last_marker_stamp == m.stamp) {
-        monitor->onTracked(now, m.position, last_marker);
-        evaluateMonitor();
-      }
+      monitor->onPredicted(now, {m.stamp, m.frame, m.position});  // paired by the supervisor
+      evaluateMonitor();
     }
-    for (TrialPhase p : out.phases) record.status.emplace_back(now, toString(p));
+    for (TrialPhase p : out.phases) {
+      record.status.emplace_back(now, toString(p));
+      monitor->setTrialRunning(isRunning(p));  // the status the monitor subscribes to
+    }
     if (out.stop_timers) timers.clear();
     for (const TimerRequest& r : out.start_timers) {
       timers.push_back({r.kind, now + r.delay_s, r.periodic ? r.delay_s : 0.0});
@@ -166,13 +163,11 @@ struct ClosedLoopEngine::Impl {
   }
 
   Eigen::Vector3d last_marker = Eigen::Vector3d::Zero();
-  double last_marker_stamp = -1.0;
 
   void evaluateMonitor() {
-    if (!monitor->stopped() || monitor_stop_sent) return;
-    monitor_stop_sent = true;
-    const SafetyVerdict& v = monitor->verdict();
-    const std::string reason = describe(v);
+    const std::optional<SafetyVerdict> v = monitor->takeNewStop();
+    if (!v) return;
+    const std::string reason = describe(*v);
     record.stops.push_back({now, "/safety_monitor", reason, true});
     send(config.delays.stop_to_planner_s, [this, reason]() {
       sequencer->onStop(now, true, reason);
@@ -209,9 +204,7 @@ struct ClosedLoopEngine::Impl {
   void onMarker() {
     const Eigen::Isometry3d pose = sim->measureMarkerPose();
     last_marker = pose.translation();
-    last_marker_stamp = now;
-    have_tracker = true;
-    monitor->onTracked(now, last_marker, last_marker);  // the watchdog and the NaN check
+    monitor->onTracked(now, {now, "tracker_camera", last_marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
     const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
@@ -256,13 +249,12 @@ struct ClosedLoopEngine::Impl {
     } else {
       onRecognizerSample(t, thrust);
     }
-    have_force = true;
     monitor->onForce(now, force);
     evaluateMonitor();
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
     if (n % tracker_period == 0) onMarker();
     if (n % tidal_period == 0) onTidalVolume();
-    if (n % check_period == 0 && ((have_force && have_tracker) || isRunning(sequencer->phase()))) {
+    if (n % check_period == 0) {
       monitor->check(now);
       evaluateMonitor();
     }
@@ -315,16 +307,12 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.sim->reset(spec.seed, moving);
   s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
   s.recognizer = std::make_unique<StateRecognizer>(s.config.recognizer);
-  s.monitor = std::make_unique<SafetyMonitor>(s.config.safety);
+  s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;
   s.timers.clear();
   s.record = EngineTrialRecord();
-  s.have_force = false;
-  s.have_tracker = false;
-  s.monitor_stop_sent = false;
   s.last_breath_index = -1;
-  s.last_marker_stamp = -1.0;
   s.now = s.sim->time();
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();

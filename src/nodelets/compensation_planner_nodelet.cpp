@@ -14,19 +14,14 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
-#include <std_msgs/String.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <trajectory_msgs/JointTrajectory.h>
-#include <urdf_model/model.h>
-#include <urdf_parser/urdf_parser.h>
 
 #include <cmath>
-#include <fstream>
 #include <memory>
 #include <mutex>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -38,59 +33,11 @@
 #include "pedicle_drilling/core/motion_model_io.hpp"
 #include "pedicle_drilling/core/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/planner_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
-
-namespace {
-
-std::string readTextFile(const std::string& path, const std::string& what) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error(what + " '" + path + "' cannot be opened");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-/** @brief Planner parameters (README) into the core's struct; the core validates them again. */
-core::TrialSequencerParams loadSequencerParams(const ParamLoader& params) {
-  core::TrialSequencerParams sp;
-  sp.default_feed_rate_mm_s = params.getDouble("feed_rate_mm_s", 0.5, 0.0, 10.0, true);
-  sp.default_spindle_rpm = params.getDouble("spindle_rpm", 12000.0, 0.0, 60000.0, true);
-  sp.default_max_duration_s = params.getDouble("max_duration_s", 120.0, 0.0, 3600.0, true);
-  core::CompensationParams& cp = sp.compensation;
-  cp.latency_s = params.getDouble("latency_s", 0.0, 0.0, 1.0);
-  cp.period_s = params.getDouble("period_s", 0.125, 0.0, 1.0, true);
-  cp.accel_ratio = params.getDouble("accel_ratio", 10.0, 0.0, 1000.0, true);
-  cp.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
-  const std::string profile = params.getString("segment_profile", "rest_to_rest");
-  if (!core::parseSegmentProfile(profile, &cp.segment_profile)) {
-    params.fail("segment_profile", "= '" + profile + "' is not blended or rest_to_rest");
-  }
-  cp.compensate_lateral = params.getBool("compensate_si_lr", false);
-  cp.predict_axis = {{false, false, false}};
-  std::stringstream axes(params.getString("predicted_axes", "ap"));
-  std::string name;
-  while (std::getline(axes, name, ',')) {
-    core::Axis a;
-    if (!core::parseAxis(name, &a)) {
-      params.fail("predicted_axes", "has unknown axis '" + name + "' (use ap, si, lr)");
-    }
-    cp.predict_axis[static_cast<int>(a)] = true;
-  }
-  sp.move_duration_s = params.getDouble("move_duration_s", 2.0, 0.0, 60.0, true);
-  sp.settle_s = params.getDouble("settle_s", 0.5, 0.0, 60.0);
-  sp.registration_samples = params.getInt("registration_samples", 4, 1, 100);
-  sp.registration_timeout_s = params.getDouble("registration_timeout_s", 3.0, 0.0, 60.0, true);
-  sp.stop_hold_s = params.getDouble("stop_hold_s", 1.0, 0.0, 60.0);
-  sp.retreat.distance_m = params.getDouble("retreat_distance_m", 0.025, 0.0, 0.1, true);
-  sp.retreat.speed_m_s = params.getDouble("retreat_speed_m_s", 0.005, 0.0, 0.05, true);
-  sp.retreat.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);
-  return sp;
-}
-
-}  // namespace
 
 /** @brief ROS adapter of core::TrialSequencer. */
 class CompensationPlannerNodelet : public nodelet::Nodelet {
@@ -107,47 +54,11 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     try {
       const ParamLoader params(pnh);
       patient_ = loadPatient();
-      // Robot description: a URDF file, or the robot_description parameter.
-      const std::string urdf_path = params.getString("urdf_path", "", true);
-      std::string urdf_xml;
-      if (!urdf_path.empty()) {
-        urdf_xml = readTextFile(urdf_path, "URDF file (parameter ~urdf_path)");
-      } else if (!nh.getParam("robot_description", urdf_xml)) {
-        params.fail("urdf_path", "is empty and there is no robot_description parameter");
-      }
-      core::TrialSequencerParams sp = loadSequencerParams(params);
-      const std::string base = params.getString("arm_base_link", "world");
-      const std::string tip = params.getString("arm_tip_link", "device_base");
-      sp.feed_joint = params.getString("feed_joint", "feed_joint");
-      const core::KinematicChain arm = core::KinematicChain::fromUrdfString(urdf_xml, base, tip);
-      const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
-      const auto feed = model ? model->getJoint(sp.feed_joint) : nullptr;
-      if (!feed || !feed->limits) {
-        params.fail("feed_joint", "'" + sp.feed_joint + "' is not a limited joint of the URDF");
-      }
-      sp.feed_lower_m = feed->limits->lower;
-      sp.feed_upper_m = feed->limits->upper;
-      sp.arm_joints = arm.jointNames();
-      Eigen::VectorXd q(sp.arm_joints.size());
-      for (std::size_t i = 0; i < sp.arm_joints.size(); ++i) {
-        const std::string key = "drilling_pose/" + sp.arm_joints[i];
-        if (!pnh.hasParam(key)) params.fail(key, "is missing (load config/drilling_pose.yaml)");
-        q[i] = params.getDouble(key, 0.0, -2.0 * M_PI, 2.0 * M_PI);
-      }
-      const double feed_home =
-          params.getDouble("feed_home_m", 0.01, sp.feed_lower_m, 0.5 * sp.feed_upper_m);
       world_frame_ = params.getString("world_frame", "world");
       trial_start_services_ = params.getStringList(
           "trial_start_services", {"state_recognizer/reset", "safety_monitor/reset"});
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
-      try {
-        sequencer_ = std::make_unique<core::TrialSequencer>(
-            sp, core::ArmCompensation(arm, q, feed_home), world_frame_);
-      } catch (const std::invalid_argument& e) {
-        // The core names the field first ("settle_s: must be ..."): report it as the parameter.
-        const std::string what = e.what();
-        params.fail(what.substr(0, what.find(':')), what.substr(what.find(':') + 1));
-      }
+      sequencer_ = makeSequencer(params, nh, world_frame_);
     } catch (const std::exception& e) {
       startup_status_.fail(nh, getName(), e.what());
       return;
@@ -158,7 +69,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10, true);
     predicted_pub_ =
         nh.advertise<geometry_msgs::PoseStamped>("compensation/predicted_marker_pose", 50);
-    status_pub_ = nh.advertise<std_msgs::String>("compensation/status", 10, true);
+    status_pub_ = nh.advertise<TrialStatus>("compensation/status", 10, true);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
     tidal_sub_ = nh.subscribe("tidal_volume", 10, &CompensationPlannerNodelet::onTidalVolume,
                               this, hints);
@@ -344,20 +255,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       msg.data = rpm;
       spindle_pub_.publish(msg);
     }
-    for (const core::JointTrajectoryCommand& c : out.trajectories) publishTrajectory(c);
-    for (const core::PredictedMarker& m : out.predicted) {
-      geometry_msgs::PoseStamped msg;
-      msg.header.stamp = ros::Time(m.stamp);
-      msg.header.frame_id = m.frame;
-      msg.pose.position.x = m.position.x();
-      msg.pose.position.y = m.position.y();
-      msg.pose.position.z = m.position.z();
-      msg.pose.orientation.w = m.orientation.w();
-      msg.pose.orientation.x = m.orientation.x();
-      msg.pose.orientation.y = m.orientation.y();
-      msg.pose.orientation.z = m.orientation.z();
-      predicted_pub_.publish(msg);
+    for (const core::JointTrajectoryCommand& c : out.trajectories) {
+      trajectory_pub_.publish(toMsg(c));
     }
+    for (const core::PredictedMarker& m : out.predicted) predicted_pub_.publish(toMsg(m));
     for (core::TrialPhase p : out.phases) publishStatus(p);
     if (out.stop_timers) {
       pose_timer_.stop();
@@ -404,25 +305,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     carryOut();
   }
 
-  void publishTrajectory(const core::JointTrajectoryCommand& c) {
-    trajectory_msgs::JointTrajectory traj;
-    traj.header.stamp = ros::Time(c.start_time);
-    traj.joint_names = c.joint_names;
-    for (const core::JointTrajectoryCommand::Point& p : c.points) {
-      trajectory_msgs::JointTrajectoryPoint pt;
-      pt.positions = p.positions;
-      pt.velocities = p.velocities;
-      pt.time_from_start = ros::Duration(p.time_from_start);
-      traj.points.push_back(std::move(pt));
-    }
-    trajectory_pub_.publish(traj);
-  }
-
-  void publishStatus(core::TrialPhase p) {
-    std_msgs::String msg;
-    msg.data = core::toString(p);
-    status_pub_.publish(msg);
-  }
+  void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, ros::Time::now())); }
 
   std::mutex mutex_;
   StartupStatus startup_status_;

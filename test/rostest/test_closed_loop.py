@@ -13,9 +13,8 @@ import unittest
 
 import rospy
 import rostest
-from std_msgs.msg import String
 
-from pedicle_drilling.msg import GroundTruth, StopCommand
+from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
 FEED_RATE = 0.5e-3
@@ -37,7 +36,7 @@ class ClosedLoopTest(unittest.TestCase):
 
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, keep(truth), queue_size=1000)
         rospy.Subscriber('/drill/stop', StopCommand, keep(stops), queue_size=10)
-        rospy.Subscriber('/compensation/status', String, keep(status), queue_size=100)
+        rospy.Subscriber('/compensation/status', TrialStatus, keep(status), queue_size=100)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
         # The moving modes need the ventilator's settings and phase: retry until accepted.
@@ -52,15 +51,15 @@ class ClosedLoopTest(unittest.TestCase):
         t_end = None
         while not rospy.is_shutdown():
             with lock:
-                names = [s.data for _, s in status]
+                names = [s.phase_name for _, s in status]
                 if t_drill is None and 'drilling' in names:
-                    t_drill = next(t for t, s in status if s.data == 'drilling')
+                    t_drill = next(t for t, s in status if s.phase == TrialStatus.DRILLING)
                 if names and names[-1] in ('done', 'failed'):
                     t_end = status[-1][0]
                     break
             rospy.sleep(0.1)
         with lock:
-            names = [s.data for _, s in status]
+            names = [s.phase_name for _, s in status]
             stops_seen = list(stops)
             truth_seen = list(truth)
         self.assertNotIn('failed', names)

@@ -14,9 +14,8 @@ import unittest
 
 import rospy
 import rostest
-from std_msgs.msg import String
 
-from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand
+from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
 TRIALS = 3
@@ -26,7 +25,7 @@ class PipelineThreeTrialsTest(unittest.TestCase):
     def setUp(self):
         self.cond = threading.Condition()
         self.events = []  # (kind, msg) in arrival order
-        rospy.Subscriber('/compensation/status', String, self.keep('status'), queue_size=100)
+        rospy.Subscriber('/compensation/status', TrialStatus, self.keep('status'), queue_size=100)
         rospy.Subscriber('/drill/stop', StopCommand, self.keep('stop'), queue_size=100)
         rospy.Subscriber('/drilling_state', DrillingState, self.keep('state'), queue_size=10000)
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.keep('truth'),
@@ -46,7 +45,7 @@ class PipelineThreeTrialsTest(unittest.TestCase):
             while not predicate():
                 if rospy.is_shutdown() or rospy.get_rostime() > deadline:
                     self.fail('%s: not reached; statuses %r' % (
-                        what, [m.data for k, m in self.events if k == 'status']))
+                        what, [m.phase_name for k, m in self.events if k == 'status']))
                 self.cond.wait(0.5)
 
     def test_three_trials_three_stops_no_breakthrough(self):
@@ -69,17 +68,17 @@ class PipelineThreeTrialsTest(unittest.TestCase):
             self.assertTrue(res.success, 'trial %d: %s' % (trial, res.message))
 
             def finished():
-                return any(k == 'status' and m.data in ('done', 'failed')
+                return any(k == 'status' and m.phase in (TrialStatus.DONE, TrialStatus.FAILED)
                            for k, m in self.events[first:])
             self.wait_for(finished, 'trial %d done' % trial, 300.0)
             with self.cond:
                 events = list(self.events[first:])
-            statuses = [m.data for k, m in events if k == 'status']
+            statuses = [m.phase_name for k, m in events if k == 'status']
             stops = [m for k, m in events if k == 'stop']
             # Ground truth from the trial's own start on (the remount of a drilled specimen
             # happens inside start_trial, before the first status of the trial).
             started_at = next(i for i, (k, m) in enumerate(events)
-                              if k == 'status' and m.data == 'moving_to_pose')
+                              if k == 'status' and m.phase == TrialStatus.MOVING_TO_POSE)
             truth = [m for k, m in events[started_at:] if k == 'truth']
             sources = sorted({s.source.split('/')[-1] for s in stops})
             breakthrough = any(m.breakthrough for m in truth)
@@ -99,7 +98,7 @@ class PipelineThreeTrialsTest(unittest.TestCase):
             # The recognizer started this trial afresh: before the drill fed, it reported idle
             # and no stop (its latch from the previous trial was cleared by start_trial).
             drilling_at = next(i for i, (k, m) in enumerate(events)
-                               if k == 'status' and m.data == 'drilling')
+                               if k == 'status' and m.phase == TrialStatus.DRILLING)
             before = [m for k, m in events[:drilling_at] if k == 'state']
             self.assertTrue(before, summary[-1])
             self.assertFalse(before[-1].stop, summary[-1])

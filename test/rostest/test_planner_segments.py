@@ -12,15 +12,20 @@ import rospy
 import rostest
 import yaml
 from geometry_msgs.msg import PoseStamped
-from std_msgs.msg import Float64, String
+from std_msgs.msg import Float64
 from trajectory_msgs.msg import JointTrajectory
 
-from pedicle_drilling.msg import StopCommand, TidalVolume
+from pedicle_drilling.msg import StopCommand, TidalVolume, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
 FEED_HOME = 0.01       # config/compensation_planner.yaml feed_home_m
 FEED_RATE = 0.5e-3     # m/s
 PERIOD = 0.125
+
+
+def retracts(traj):
+    """True for a trajectory that takes the feed back (a retreat; segments only advance)."""
+    return traj.points[-1].positions[-1] < traj.points[0].positions[-1] - 1e-6
 
 
 class PlannerSegmentsTest(unittest.TestCase):
@@ -37,7 +42,8 @@ class PlannerSegmentsTest(unittest.TestCase):
         self.marker_stamps = []
         rospy.Subscriber('/arm_controller/command', JointTrajectory, self.keep(self.trajectories),
                          queue_size=100)
-        rospy.Subscriber('/compensation/status', String, self.keep(self.status), queue_size=100)
+        rospy.Subscriber('/compensation/status', TrialStatus, self.keep(self.status),
+                         queue_size=100)
         rospy.Subscriber('/spindle/command', Float64, self.keep(self.spindle), queue_size=10)
         rospy.Subscriber('/compensation/predicted_marker_pose', PoseStamped,
                          self.keep(self.predicted), queue_size=100)
@@ -77,43 +83,62 @@ class PlannerSegmentsTest(unittest.TestCase):
         with self.lock:
             self.marker_stamps.append(msg.header.stamp.to_sec())
 
-    def wait_status(self, wanted, timeout):
+    def wait_status(self, wanted, after=0, timeout=60.0):
+        """Waits for the phase `wanted` among the statuses after index `after` (the event; the
+        timeout only bounds a failure); returns its message."""
         deadline = rospy.Time.now() + rospy.Duration(timeout)
         while rospy.Time.now() < deadline:
             with self.lock:
-                if self.status and self.status[-1].data == wanted:
-                    return
+                for msg in self.status[after:]:
+                    if msg.phase == wanted:
+                        return msg
             rospy.sleep(0.02)
         with self.lock:
-            self.fail('status %r not reached; seen %r' % (wanted, [s.data for s in self.status]))
+            self.fail('phase %d not reached; seen %r'
+                      % (wanted, [s.phase_name for s in self.status[after:]]))
 
-    def run_trial(self, mode, drill_s, max_duration=0.0):
+    def status_count(self):
+        with self.lock:
+            return len(self.status)
+
+    def run_trial(self, mode, segments_wanted, max_duration=0.0):
+        """Starts a trial and returns its first `segments_wanted` drilling segments, waiting
+        for them as they arrive (events, not a sleep)."""
         with self.lock:
             first = len(self.trajectories)
-            first_status = len(self.status)
+        first_status = self.status_count()
+        self.trial_status_start = first_status
+        t_call = rospy.Time.now()
         res = self.start(mode=mode, spindle_rpm=0.0, feed_rate_mm_s=0.0,
                          max_duration_s=max_duration)
         self.assertTrue(res.success, res.message)
-        self.wait_status('drilling', 10.0)
-        rospy.sleep(drill_s)
+        drilling = self.wait_status(TrialStatus.DRILLING, first_status)
         with self.lock:
-            trajs = self.trajectories[first:]
-            statuses = [s.data for s in self.status[first_status:]]
-        self.assertIn('moving_to_pose', statuses)
-        statuses = statuses[statuses.index('moving_to_pose'):]
-        self.assertEqual(statuses[:3], ['moving_to_pose', 'registering', 'drilling'])
-        # The move to the drilling pose is the trial's one-point trajectory. Messages of the
-        # previous trial (its retreat) may arrive after its 'done' status, but always before the
-        # move (one connection keeps the order): everything after the move is this trial's.
-        moves = [i for i, t in enumerate(trajs) if len(t.points) == 1]
+            statuses = [s.phase for s in self.status[first_status:]]
+        statuses = statuses[statuses.index(TrialStatus.MOVING_TO_POSE):]
+        self.assertEqual(statuses[:3], [TrialStatus.MOVING_TO_POSE, TrialStatus.REGISTERING,
+                                        TrialStatus.DRILLING])
+        self.assertTrue(drilling.running)
+        # This trial's trajectories are stamped from its start on; the previous trial's (its
+        # retreat, which may still arrive after its 'done') are stamped before the call. The
+        # move to the drilling pose is this trial's one one-point trajectory.
+        deadline = rospy.Time.now() + rospy.Duration(60.0)
+        while True:
+            with self.lock:
+                trajs = [t for t in self.trajectories[first:] if t.header.stamp >= t_call]
+            moves = [i for i, t in enumerate(trajs) if len(t.points) == 1]
+            segments = trajs[moves[0] + 1:] if moves else []
+            if len(segments) >= segments_wanted or rospy.Time.now() > deadline:
+                break
+            rospy.sleep(0.02)
         self.assertEqual(len(moves), 1, 'move trajectories: %r' % moves)
-        move, segments = trajs[moves[0]], trajs[moves[0] + 1:]
+        move = trajs[moves[0]]
         self.assertEqual(move.joint_names[-1], 'feed_joint')
         self.assertEqual(len(move.joint_names), 7)
         self.assertAlmostEqual(move.points[-1].positions[-1], FEED_HOME, places=9)
         self.assertAlmostEqual(move.points[-1].time_from_start.to_sec(), 2.0, places=6)
-        self.assertGreater(len(segments), 10)
-        return segments
+        self.assertGreaterEqual(len(segments), segments_wanted)
+        return segments[:segments_wanted]
 
     def check_segments(self, segments, compensated):
         t_reg = segments[0].header.stamp.to_sec()
@@ -146,7 +171,7 @@ class PlannerSegmentsTest(unittest.TestCase):
 
     def test_compensated_then_uncompensated_then_stops(self):
         # Compensated: the feed follows the predicted displacement (about 5 mm peak to peak).
-        segments = self.run_trial('compensated', 5.0, max_duration=6.0)
+        segments = self.run_trial('compensated', 36, max_duration=6.0)
         max_comp = self.check_segments(segments, compensated=True)
         self.assertGreater(max_comp, 2e-3)
         # The predicted marker pose follows the same prediction at the tracker's stamps.
@@ -171,38 +196,44 @@ class PlannerSegmentsTest(unittest.TestCase):
         self.assertGreater(max(p.pose.position.z for p in predicted) -
                            min(p.pose.position.z for p in predicted), 2e-3)
         # max_duration_s ends it: retract, then done; the spindle is switched off.
-        self.wait_status('done', 15.0)
+        self.wait_status(TrialStatus.DONE, self.trial_status_start)
         with self.lock:
             self.assertEqual(self.spindle[-1].data, 0.0)
             self.assertIn(12000.0, [s.data for s in self.spindle])
 
         # Uncompensated: feed only.
-        segments = self.run_trial('uncompensated', 3.0)
+        segments = self.run_trial('uncompensated', 20)
         max_comp = self.check_segments(segments, compensated=False)
         self.assertLess(max_comp, 1e-6)
         # Safety stop: retreat along the drill axis (feed joint back by up to 25 mm, > 0).
         with self.lock:
             first = len(self.trajectories)
         self.stop_pub.publish(StopCommand(source='test', reason='test retreat', retreat=True))
-        self.wait_status('retreating', 2.0)
-        self.wait_status('done', 15.0)
+        self.wait_status(TrialStatus.RETREATING, self.trial_status_start)
+        self.wait_status(TrialStatus.DONE, self.trial_status_start)
         with self.lock:
             after = self.trajectories[first:]
             self.assertEqual(self.spindle[-1].data, 0.0)
-        feeds = [p.positions[-1] for t in after for p in t.points]
+        # Segments published before the stop was handled may still arrive after it; the retreat
+        # is the first trajectory that takes the feed back, and everything after it (one
+        # connection keeps the order).
+        start = next(i for i, t in enumerate(after) if retracts(t))
+        feeds = [p.positions[-1] for t in after[start:] for p in t.points]
         self.assertLess(feeds[-1], 1e-6)  # fully retracted (retreat clamped at the feed's end)
         self.assertGreaterEqual(min(feeds), 0.0)
         self.assertTrue(all(b <= a + 1e-9 for a, b in zip(feeds, feeds[1:])))
 
         # Stationary trial, recognizer-type stop (no retreat): hold, then retract after the hold.
-        segments = self.run_trial('stationary', 2.0)
+        segments = self.run_trial('stationary', 12)
         with self.lock:
             first = len(self.trajectories)
         self.stop_pub.publish(StopCommand(source='test', reason='key point 4', retreat=False))
-        self.wait_status('stopped', 2.0)
-        rospy.sleep(0.8)
+        self.wait_status(TrialStatus.STOPPED, self.trial_status_start)
+        self.wait_status(TrialStatus.DONE, self.trial_status_start)
         with self.lock:
             held = self.trajectories[first:]
+        # The hold lasts until the retreat's first trajectory (stop_hold_s later).
+        held = held[:next(i for i, t in enumerate(held) if retracts(t))]
         # Segments published before the stop was handled (up to two periods ahead) may still
         # arrive after it; the hold starts with the trajectory the planner re-sends at the stop,
         # stamped at the stop time and therefore off the 125 ms grid of the segments.
@@ -210,7 +241,7 @@ class PlannerSegmentsTest(unittest.TestCase):
 
         def on_grid(traj):
             k = (traj.header.stamp.to_sec() - t_reg) / PERIOD
-            return abs(k - round(k)) < 1e-3
+            return abs(k - round(k)) < 1e-5  # 1.25 us: stamps are exact to the ns
 
         resend = [i for i, traj in enumerate(held) if not on_grid(traj)]
         self.assertTrue(resend, 'no hold trajectory re-sent at the stop')
@@ -227,8 +258,7 @@ class PlannerSegmentsTest(unittest.TestCase):
         # Held at most two segments of feed (0.125 mm) past what was commanded before.
         if before:
             self.assertLess(abs(feeds[0] - before[0]), 2 * PERIOD * FEED_RATE + 1e-6)
-        self.wait_status('retreating', 3.0)
-        self.wait_status('done', 15.0)
+        self.wait_status(TrialStatus.RETREATING, self.trial_status_start)
 
 
 if __name__ == '__main__':

@@ -9,11 +9,10 @@ import unittest
 import rospy
 import rostest
 from geometry_msgs.msg import PoseStamped
-from std_msgs.msg import String
 from std_srvs.srv import Trigger, TriggerResponse
 from trajectory_msgs.msg import JointTrajectory
 
-from pedicle_drilling.msg import DrillingState
+from pedicle_drilling.msg import DrillingState, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
 
@@ -25,7 +24,7 @@ class Namespace(object):
         self.cond = threading.Condition()
         self.status = []
         self.commands = []
-        rospy.Subscriber('/%s/compensation/status' % ns, String, self.keep(self.status),
+        rospy.Subscriber('/%s/compensation/status' % ns, TrialStatus, self.keep(self.status),
                          queue_size=100)
         rospy.Subscriber('/%s/arm_controller/command' % ns, JointTrajectory,
                          self.keep(self.commands), queue_size=100)
@@ -64,7 +63,7 @@ class Namespace(object):
 
     def statuses(self):
         with self.cond:
-            return [s.data for s in self.status]
+            return [s.phase_name for s in self.status]
 
     def wait_status(self, wanted, after, what):
         """Waits for a status in `wanted` among those after index `after` (event driven; the
@@ -72,7 +71,7 @@ class Namespace(object):
         deadline = rospy.Time.now() + rospy.Duration(30.0)
         with self.cond:
             while True:
-                seen = [s.data for s in self.status[after:]]
+                seen = [s.phase_name for s in self.status[after:]]
                 hit = [s for s in seen if s in wanted]
                 if hit:
                     return hit[0], seen

@@ -13,10 +13,9 @@ import rospy
 import rostest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
-from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from pedicle_drilling.msg import StopCommand
+from pedicle_drilling.msg import StopCommand, TrialStatus
 
 # trigger -> reason name reported by the monitor
 REASONS = {
@@ -52,7 +51,7 @@ class SafetyTriggerTest(unittest.TestCase):
         self.tracker_pub = rospy.Publisher('/tracker/marker_pose', PoseStamped, queue_size=10)
         self.pred_pub = rospy.Publisher('/compensation/predicted_marker_pose', PoseStamped,
                                         queue_size=10)
-        self.status_pub = rospy.Publisher('/compensation/status', String, queue_size=1,
+        self.status_pub = rospy.Publisher('/compensation/status', TrialStatus, queue_size=1,
                                           latch=True)
 
     def on_stop(self, msg):
@@ -111,7 +110,8 @@ class SafetyTriggerTest(unittest.TestCase):
             rospy.sleep(0.1)
         # A force sensor dead from the start: no trial running yet, so nothing to stop.
         self.force_on = trigger != 'force_silent_at_trial_start'
-        self.status_pub.publish(String(data='idle'))
+        self.status_pub.publish(TrialStatus(phase=TrialStatus.IDLE, phase_name='idle',
+                                           running=False))
         rospy.Timer(rospy.Duration(0.002), self.publish_force)
         rospy.Timer(rospy.Duration(0.125), self.publish_tracker)
         # Nominal phase: breathing motion predicted well, 2 N thrust: no stop, OK diagnostics.
@@ -138,7 +138,8 @@ class SafetyTriggerTest(unittest.TestCase):
         elif trigger == 'nan_prediction':
             self.nan_prediction = True
         elif trigger == 'force_silent_at_trial_start':
-            self.status_pub.publish(String(data='drilling'))  # the planner starts a trial
+            self.status_pub.publish(TrialStatus(  # the planner starts a trial
+                phase=TrialStatus.DRILLING, phase_name='drilling', running=True))
         deadline = t_trigger + rospy.Duration(3.0)
         while rospy.Time.now() < deadline:
             with self.lock:

@@ -1,5 +1,5 @@
 // The closed-loop trial engine: one drilling trial on the simulation, with the very objects the
-// nodelets run (TrialSequencer, StateRecognizer, SafetyMonitor, DrillingSimulation), called at
+// nodelets run (TrialSequencer, StateRecognizer, SafetySupervisor, DrillingSimulation), called at
 // the rates of the ROS pipeline and with its transport delays as explicit parameters. No ROS,
 // no wall clock, no threads: one seed gives a bit-identical trial record on any machine, at any
 // load and in any process.
@@ -16,7 +16,7 @@
 
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/core/motion_model.hpp"
-#include "pedicle_drilling/core/safety_monitor.hpp"
+#include "pedicle_drilling/core/safety_supervisor.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
 #include "pedicle_drilling/core/trial_sequencer.hpp"
 
@@ -44,7 +44,7 @@ struct EngineConfig {
   double tidal_volume_rate_hz = 64.0;    ///< the simulated ventilator's tidal_volume stream
   double ground_truth_rate_hz = 20.0;    ///< recorded ground truth (plus every layer change)
   RecognizerParams recognizer;           ///< config/recognizer.yaml (thrust = +z of the sensor)
-  SafetyParams safety;                   ///< config/safety_monitor.yaml
+  SupervisorParams safety;               ///< config/safety_monitor.yaml
   double safety_check_rate_hz = 200.0;   ///< the monitor's watchdog timer
   TrialSequencerParams sequencer;        ///< config/compensation_planner.yaml; joints from URDF
   std::vector<double> drilling_pose;     ///< config/drilling_pose.yaml, arm joint order

@@ -8,6 +8,7 @@
 
 #include <Eigen/Geometry>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -20,16 +21,16 @@
 
 namespace pedicle_drilling::core {
 
-/** @brief Phase of a trial (the planner's status). */
-enum class TrialPhase {
-  kIdle,
-  kMovingToPose,
-  kRegistering,
-  kDrilling,
-  kStopped,
-  kRetreating,
-  kDone,
-  kFailed,
+/** @brief Phase of a trial (the planner's status; the values of msg/TrialStatus.msg). */
+enum class TrialPhase : std::uint8_t {
+  kIdle = 0,
+  kMovingToPose = 1,
+  kRegistering = 2,
+  kDrilling = 3,
+  kStopped = 4,
+  kRetreating = 5,
+  kDone = 6,
+  kFailed = 7,
 };
 
 /** @brief Status text of a phase: idle, moving_to_pose, ..., done, failed. */

@@ -8,6 +8,7 @@
 #include <ros/node_handle.h>
 
 #include <cmath>
+#include <fstream>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -125,6 +126,21 @@ class ParamLoader {
       }
     }
   }
+
+  /**
+   * @brief The contents of the file whose path is `path` (the value of parameter `name`).
+   * @throws ParameterError naming the parameter when it cannot be read.
+   */
+  std::string readFile(const std::string& name, const std::string& path) const {
+    std::ifstream in(path);
+    if (!in) fail(name, "= '" + path + "': the file cannot be opened");
+    std::stringstream contents;
+    contents << in.rdbuf();
+    return contents.str();
+  }
+
+  /** @brief True when the parameter is set. */
+  bool has(const std::string& name) const { return nh_.hasParam(name); }
 
   /** @brief Throws ParameterError naming the fully resolved parameter. */
   [[noreturn]] void fail(const std::string& name, const std::string& what) const {

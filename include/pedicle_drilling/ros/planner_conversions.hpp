@@ -1,0 +1,46 @@
+/**
+ * @file planner_conversions.hpp
+ * @brief The CompensationPlanner's parameters into core::TrialSequencerParams, and the trial
+ *        sequencer's outputs as ROS messages.
+ */
+#pragma once
+
+#include <geometry_msgs/PoseStamped.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <memory>
+#include <string>
+
+#include "pedicle_drilling/TrialStatus.h"
+#include "pedicle_drilling/core/trial_sequencer.hpp"
+#include "pedicle_drilling/ros/param_loader.hpp"
+
+namespace pedicle_drilling {
+
+/**
+ * @brief Reads the planner's private parameters (README, CompensationPlanner) with their ranges
+ *        into the core's struct. The arm (joints, feed limits, drilling pose) is filled in by
+ *        the caller from the URDF. @throws ParameterError naming the parameter.
+ */
+core::TrialSequencerParams loadSequencerParams(const ParamLoader& params);
+
+/**
+ * @brief The planner's trial sequencer from its parameters: the sequence's (above), the arm
+ *        from ~urdf_path or robot_description (~arm_base_link, ~arm_tip_link, ~feed_joint and
+ *        its limits), ~drilling_pose/<joint> and ~feed_home_m. A value the core refuses is
+ *        reported as that parameter. @throws ParameterError or std::runtime_error.
+ */
+std::unique_ptr<core::TrialSequencer> makeSequencer(const ParamLoader& params,
+                                                    const ros::NodeHandle& nh,
+                                                    const std::string& world_frame);
+
+/** @brief A trial phase as the typed status message, stamped `stamp`. */
+TrialStatus toMsg(core::TrialPhase phase, const ros::Time& stamp);
+
+/** @brief A trajectory command as trajectory_msgs/JointTrajectory (header stamp = start time). */
+trajectory_msgs::JointTrajectory toMsg(const core::JointTrajectoryCommand& command);
+
+/** @brief A predicted marker pose as geometry_msgs/PoseStamped. */
+geometry_msgs::PoseStamped toMsg(const core::PredictedMarker& marker);
+
+}  // namespace pedicle_drilling

@@ -1,0 +1,84 @@
+/**
+ * @file simulator_conversions.hpp
+ * @brief The Simulator's parameters into core::DrillingSimulationParams, its reset request into
+ *        the trial distribution, and core::DrillingSimulation's state as ROS messages.
+ */
+#pragma once
+
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/TransformStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <ros/node_handle.h>
+#include <sensor_msgs/JointState.h>
+#include <trajectory_msgs/JointTrajectory.h>
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/GroundTruth.h"
+#include "pedicle_drilling/ResetSimulation.h"
+#include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/trial_distribution_params.hpp"
+
+namespace pedicle_drilling {
+
+/**
+ * @brief The simulation's parameters (README, Simulator): arm rate, slider speed, spindle
+ *        acceleration, noises, ~moving_bone, ~ventilator/..., ~trial_distribution/....
+ * @throws ParameterError naming the parameter.
+ */
+core::DrillingSimulationParams loadSimulationParams(const ros::NodeHandle& private_nh);
+
+/**
+ * @brief The simulation from ~urdf_path (the workcell URDF), ~seed and the parameters above.
+ * @throws ParameterError naming the parameter, or std::runtime_error for an unusable URDF.
+ */
+std::unique_ptr<core::DrillingSimulation> makeSimulation(const ros::NodeHandle& private_nh);
+
+/**
+ * @brief A JointTrajectory as the simulated controller's command: it takes over at its header
+ *        stamp (zero: now), points at stamp + time_from_start; `time_offset` maps ROS time to
+ *        simulation time.
+ */
+core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, double now,
+                                double time_offset);
+
+/**
+ * @brief ~bone_motion_model_path: "" = the virtual patient (nullopt); else the patient model
+ *        YAML whose AP axis the bone plays (the paper's bench protocol).
+ * @throws ParameterError naming the parameter and the file's error.
+ */
+std::optional<core::BoneMotionModel> loadBoneMotionModel(const ros::NodeHandle& private_nh);
+
+/**
+ * @brief Applies the explicit layer thicknesses of a reset request (0 = drawn) to the specimen
+ *        distribution (that thickness, no spread).
+ * @return "" or the reason the request is refused (naming the request field).
+ */
+std::string applySpecimenRequest(const ResetSimulation::Request& request,
+                                 core::SpecimenDistribution* specimen);
+
+/** @brief The drawn specimen and trial conditions into a reset response (success untouched). */
+void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Response* response);
+
+/** @brief Ground truth at `stamp` (frame "bone"). */
+GroundTruth toMsg(const core::SimulationGroundTruth& truth, const ros::Time& stamp);
+
+/** @brief The measured 6-axis wrench of a step, frame "ft_sensor". */
+geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const ros::Time& stamp);
+
+/** @brief Arm and SPMS joint states. */
+sensor_msgs::JointState jointStateMsg(const core::DrillingSimulation& sim, const ros::Time& stamp);
+
+/** @brief The simulated ventilator's tidal volume sample, frame "ventilator". */
+TidalVolume tidalVolumeMsg(const core::DrillingSimulation& sim, const ros::Time& stamp);
+
+/** @brief URDF frame transforms as tf messages stamped `stamp`. */
+std::vector<geometry_msgs::TransformStamped> toMsg(const std::vector<core::FrameTransform>& frames,
+                                                   const ros::Time& stamp);
+
+}  // namespace pedicle_drilling

@@ -1,0 +1,206 @@
+#include "pedicle_drilling/ros/simulator_conversions.hpp"
+
+#include <tf2_eigen/tf2_eigen.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/ros/ventilator_conversions.hpp"
+
+namespace pedicle_drilling {
+
+core::DrillingSimulationParams loadSimulationParams(const ros::NodeHandle& private_nh) {
+  const ParamLoader params(private_nh);
+  core::DrillingSimulationParams sp;
+  sp.arm_rate_hz = params.getDouble("arm_rate_hz", 250.0, 1.0, 1000.0);
+  if (std::abs(1000.0 / sp.arm_rate_hz - std::round(1000.0 / sp.arm_rate_hz)) > 1e-9) {
+    params.fail("arm_rate_hz", "must divide the 1000 Hz physics rate (e.g. 1000, 500, 250)");
+  }
+  sp.slider_max_speed_m_s = params.getDouble("slider_max_speed_m_s", 0.05, 0.0, 1.0, true);
+  sp.spindle_accel_rpm_s = params.getDouble("spindle_accel_rpm_s", 40000.0, 0.0, 1.0e6, true);
+  sp.tracker_noise_rms_mm = params.getDouble("tracker_noise_rms_mm", 0.25, 0.0, 10.0);
+  sp.sensor.force_noise_sd_n = params.getDouble("force_noise_sd_n", 0.03, 0.0, 10.0);
+  sp.moving_bone = params.getBool("moving_bone", true);
+  sp.ventilator = loadVentilatorSettings(ParamLoader(ros::NodeHandle(private_nh, "ventilator")));
+  const TrialDistributionParams distribution = loadTrialDistribution(private_nh);
+  sp.specimen = distribution.specimen;
+  sp.variability = distribution.variability;
+  return sp;
+}
+
+std::unique_ptr<core::DrillingSimulation> makeSimulation(const ros::NodeHandle& private_nh) {
+  const ParamLoader params(private_nh);
+  const std::string urdf_path = params.getString("urdf_path", "", true);
+  if (urdf_path.empty()) {
+    params.fail("urdf_path", "must name the workcell URDF file (urdf/workcell.urdf)");
+  }
+  const core::DrillingSimulationParams sp = loadSimulationParams(private_nh);
+  const int seed = params.getInt("seed", 1, 0, 2147483647);
+  const std::string xml = params.readFile("urdf_path", urdf_path);
+  try {
+    return std::make_unique<core::DrillingSimulation>(xml, sp, static_cast<std::uint64_t>(seed));
+  } catch (const std::exception& e) {
+    throw std::runtime_error("URDF '" + urdf_path + "' is not a usable workcell: " + e.what());
+  }
+}
+
+core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, double now,
+                                double time_offset) {
+  const double start = msg.header.stamp.isZero() ? now : msg.header.stamp.toSec() - time_offset;
+  core::TrajectoryCommand command;
+  command.joint_names = msg.joint_names;
+  // The new trajectory takes over at its stamp (JointTrajectoryController); zero: now.
+  if (!msg.header.stamp.isZero()) command.start_time_s = start;
+  for (const trajectory_msgs::JointTrajectoryPoint& p : msg.points) {
+    command.points.push_back({start + p.time_from_start.toSec(), p.positions, p.velocities});
+  }
+  return command;
+}
+
+std::optional<core::BoneMotionModel> loadBoneMotionModel(const ros::NodeHandle& private_nh) {
+  const ParamLoader params(private_nh);
+  const std::string path = params.getString("bone_motion_model_path", "", true);
+  if (path.empty()) return std::nullopt;
+  try {
+    const core::PatientModel patient = core::readModelYaml(path);
+    const core::AxisModelRecord& ap = patient.axes[static_cast<int>(core::Axis::kAP)];
+    core::BoneMotionModel model;
+    model.q1_ap_mm_per_ml = ap.model.q1;
+    model.q2_ap_mm_s_per_ml = ap.model.q2;
+    return model;
+  } catch (const std::exception& e) {
+    params.fail("bone_motion_model_path", "= '" + path + "': " + e.what());
+  }
+}
+
+std::string applySpecimenRequest(const ResetSimulation::Request& request,
+                                 core::SpecimenDistribution* specimen) {
+  const struct {
+    const char* field;
+    double mm;
+    double* mean_m;
+    double* sd_m;
+  } layers[] = {
+      {"outer_cortical_thickness_mm", request.outer_cortical_thickness_mm,
+       &specimen->outer_cortical_thickness_mean_m, &specimen->outer_cortical_thickness_sd_m},
+      {"cancellous_thickness_mm", request.cancellous_thickness_mm,
+       &specimen->cancellous_thickness_mean_m, &specimen->cancellous_thickness_sd_m},
+      {"inner_cortical_thickness_mm", request.inner_cortical_thickness_mm,
+       &specimen->inner_cortical_thickness_mean_m, &specimen->inner_cortical_thickness_sd_m},
+  };
+  const double min_mm = specimen->min_layer_thickness_m * 1e3;
+  for (const auto& layer : layers) {
+    if (layer.mm == 0.0) continue;
+    if (!(layer.mm >= min_mm && layer.mm <= 100.0)) {
+      std::ostringstream os;
+      os << "request field " << layer.field << " = " << layer.mm << " is not 0 (drawn) or in ["
+         << min_mm << ", 100] mm";
+      return os.str();
+    }
+    *layer.mean_m = layer.mm * 1e-3;
+    *layer.sd_m = 0.0;
+  }
+  return "";
+}
+
+void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Response* response) {
+  const core::BoneSpecimen& s = sim.process().specimen();
+  response->outer_cortical_thickness_m = s.outerCorticalThickness();
+  response->cancellous_thickness_m = s.cancellousThickness();
+  response->inner_cortical_thickness_m = s.innerCorticalThickness();
+  const core::TrialConditions& c = sim.trialConditions();
+  response->volunteer_id = c.volunteer_id;
+  response->patient_amplitude_scale = c.patient_amplitude_scale;
+  response->ventilator_rate_bpm = c.ventilator_rate_bpm;
+  response->ventilator_tidal_volume_ml = c.ventilator_tidal_volume_ml;
+  response->force_noise_sd_n = c.force_noise_sd_n;
+  response->arm_stiffness_scale = c.arm_stiffness_scale;
+}
+
+GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) {
+  GroundTruth m;
+  m.header.stamp = stamp;
+  m.header.frame_id = "bone";
+  m.seed = g.seed;
+  m.specimen_layer = core::materialName(g.layer);
+  m.tip_depth_m = g.tip_depth_m;
+  m.max_depth_cut_m = g.max_depth_cut_m;
+  m.outer_cortical_end_m = g.outer_cortical_end_m;
+  m.inner_cortical_start_m = g.inner_cortical_start_m;
+  m.inner_cortical_end_m = g.inner_cortical_end_m;
+  m.residual_inner_cortical_m = g.residual_inner_cortical_m;
+  m.breakthrough = g.breakthrough;
+  m.thrust_n = g.thrust_n;
+  m.contact = g.contact;
+  m.feed_per_rev_m = g.feed_per_rev_m;
+  m.bone_displacement_m.x = g.bone_displacement_m.x();
+  m.bone_displacement_m.y = g.bone_displacement_m.y();
+  m.bone_displacement_m.z = g.bone_displacement_m.z();
+  m.tidal_volume_ml = g.tidal_volume_ml;
+  m.relative_ap_m = g.relative_ap_m;
+  return m;
+}
+
+geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const ros::Time& stamp) {
+  geometry_msgs::WrenchStamped w;
+  w.header.stamp = stamp;
+  w.header.frame_id = "ft_sensor";
+  w.wrench.force.x = step.measured_wrench[0];
+  w.wrench.force.y = step.measured_wrench[1];
+  w.wrench.force.z = step.measured_wrench[2];
+  w.wrench.torque.x = step.measured_wrench[3];
+  w.wrench.torque.y = step.measured_wrench[4];
+  w.wrench.torque.z = step.measured_wrench[5];
+  return w;
+}
+
+sensor_msgs::JointState jointStateMsg(const core::DrillingSimulation& sim,
+                                      const ros::Time& stamp) {
+  sensor_msgs::JointState js;
+  js.header.stamp = stamp;
+  const Eigen::VectorXd q = sim.armJointPositions();
+  const Eigen::VectorXd qd = sim.armJointVelocities();
+  const Eigen::VectorXd tau = sim.armJointEfforts();
+  for (std::size_t k = 0; k < sim.armJointNames().size(); ++k) {
+    js.name.push_back(sim.armJointNames()[k]);
+    js.position.push_back(q[k]);
+    js.velocity.push_back(qd[k]);
+    js.effort.push_back(k < static_cast<std::size_t>(tau.size()) ? tau[k] : 0.0);
+  }
+  for (const auto& kv : sim.spmsJointStates()) {
+    js.name.push_back(kv.first);
+    js.position.push_back(kv.second);
+    js.velocity.push_back(0.0);
+    js.effort.push_back(0.0);
+  }
+  return js;
+}
+
+TidalVolume tidalVolumeMsg(const core::DrillingSimulation& sim, const ros::Time& stamp) {
+  const core::BreathScheduler& ventilator = sim.ventilator();
+  TidalVolume m;
+  m.header.stamp = stamp;
+  m.header.frame_id = "ventilator";
+  m.volume_ml = sim.ventilatorSample().volume_ml;
+  m.flow_ml_s = sim.ventilatorSample().flow_ml_s;
+  m.breath_index = static_cast<uint32_t>(ventilator.breathIndex());
+  m.time_in_breath_s = std::max(0.0, sim.ventilatorSample().t - ventilator.breathStart());
+  return m;
+}
+
+std::vector<geometry_msgs::TransformStamped> toMsg(const std::vector<core::FrameTransform>& frames,
+                                                   const ros::Time& stamp) {
+  std::vector<geometry_msgs::TransformStamped> out;
+  for (const core::FrameTransform& f : frames) {
+    geometry_msgs::TransformStamped t = tf2::eigenToTransform(f.transform);
+    t.header.stamp = stamp;
+    t.header.frame_id = f.parent;
+    t.child_frame_id = f.child;
+    out.push_back(t);
+  }
+  return out;
+}
+
+}  // namespace pedicle_drilling

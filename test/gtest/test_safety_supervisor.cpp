@@ -1,0 +1,129 @@
+// Tests of the safety monitor as a component with streams: pairing, arming, the one stop report.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+#include "pedicle_drilling/core/safety_supervisor.hpp"
+
+namespace pedicle_drilling::core {
+namespace {
+
+const Eigen::Vector3d kBone(0.6, 0.0, 0.27);
+
+StampedPosition at(double stamp, const Eigen::Vector3d& p, const std::string& frame = "camera") {
+  return {stamp, frame, p};
+}
+
+TEST(SafetySupervisorTest, PairsPredictionWithTheTrackedSampleOfTheSameStamp) {
+  SafetySupervisor s;
+  // Tracked first, prediction later with the same stamp: compared (both orders work).
+  EXPECT_EQ(s.onTracked(1.0, at(1.0, kBone)), PairResult::kUnpaired);
+  EXPECT_EQ(s.onPredicted(1.01, at(1.0, kBone + Eigen::Vector3d(0, 0, 1.0e-3))),
+            PairResult::kCompared);
+  EXPECT_FALSE(s.verdict().stop);  // 1.0 mm < H1 = 1.2 mm
+  EXPECT_EQ(s.onPredicted(1.125, at(1.125, kBone + Eigen::Vector3d(0, 0, 1.5e-3))),
+            PairResult::kUnpaired);
+  EXPECT_EQ(s.onTracked(1.13, at(1.125, kBone)), PairResult::kCompared);
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kPositionError);
+}
+
+TEST(SafetySupervisorTest, SamplesFurtherApartThanTheToleranceAreNotCompared) {
+  SupervisorParams p;
+  p.pair_tolerance_s = 0.02;
+  SafetySupervisor s(p);
+  s.onTracked(1.0, at(1.0, kBone));
+  // 5 mm off but 30 ms apart: not the same sample, not compared, no stop.
+  EXPECT_EQ(s.onPredicted(1.0, at(1.03, kBone + Eigen::Vector3d(0, 0, 5e-3))),
+            PairResult::kUnpaired);
+  EXPECT_FALSE(s.verdict().stop);
+}
+
+TEST(SafetySupervisorTest, DifferentFramesAreReportedNotCompared) {
+  SafetySupervisor s;
+  s.onTracked(1.0, at(1.0, kBone, "camera"));
+  EXPECT_EQ(s.onPredicted(1.0, at(1.0, kBone + Eigen::Vector3d(0, 0, 5e-3), "world")),
+            PairResult::kFrameMismatch);
+  EXPECT_FALSE(s.verdict().stop);
+}
+
+TEST(SafetySupervisorTest, NonFinitePredictionStops) {
+  SafetySupervisor s;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  s.onPredicted(1.0, at(1.0, Eigen::Vector3d(nan, 0, 0)));
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kNaNInput);
+}
+
+TEST(SafetySupervisorTest, WatchdogArmsOnBothStreamsOrOnARunningTrial) {
+  SupervisorParams p;
+  p.safety.force_timeout_s = 0.1;
+  p.safety.tracker_timeout_s = 0.5;
+  {
+    // Nothing heard, no trial: a silent workcell is not an error.
+    SafetySupervisor s(p);
+    s.check(0.0);
+    s.check(10.0);
+    EXPECT_FALSE(s.verdict().stop);
+    EXPECT_FALSE(s.heardBoth());
+  }
+  {
+    // A trial runs: a force sensor that never published times out from the arming time.
+    SafetySupervisor s(p);
+    s.setTrialRunning(true);
+    s.check(0.0);
+    s.check(0.05);
+    EXPECT_FALSE(s.verdict().stop);
+    s.check(0.2);
+    ASSERT_TRUE(s.verdict().stop);
+    EXPECT_EQ(s.verdict().reason, SafetyVerdict::kForceTimeout);
+  }
+  {
+    // Both heard, then the tracker goes silent.
+    SafetySupervisor s(p);
+    s.onTracked(0.0, at(0.0, kBone));
+    for (double t = 0.0; t < 0.7; t += 0.001) {
+      s.onForce(t, Eigen::Vector3d(0, 0, 1.0));
+      s.check(t);
+    }
+    EXPECT_TRUE(s.heardBoth());
+    ASSERT_TRUE(s.verdict().stop);
+    EXPECT_EQ(s.verdict().reason, SafetyVerdict::kTrackerTimeout);
+  }
+}
+
+TEST(SafetySupervisorTest, ReportsTheStopOnceUntilReset) {
+  SafetySupervisor s;
+  EXPECT_FALSE(s.takeNewStop());
+  s.onForce(1.0, Eigen::Vector3d(0, 0, 12.0));  // > H2 = 10 N
+  const std::optional<SafetyVerdict> first = s.takeNewStop();
+  ASSERT_TRUE(first);
+  EXPECT_EQ(first->reason, SafetyVerdict::kForceExceeded);
+  s.onForce(1.001, Eigen::Vector3d(0, 0, 15.0));
+  EXPECT_FALSE(s.takeNewStop());  // latched: one stop command, the first cause
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kForceExceeded);
+  s.reset();
+  EXPECT_FALSE(s.verdict().stop);
+  EXPECT_FALSE(s.heardBoth());
+  s.onForce(2.0, Eigen::Vector3d(0, 0, 11.0));
+  EXPECT_TRUE(s.takeNewStop());
+}
+
+TEST(SafetySupervisorTest, RejectsBadParametersNamingThem) {
+  SupervisorParams p;
+  p.pair_tolerance_s = -1.0;
+  try {
+    SafetySupervisor s(p);
+    FAIL() << "accepted a negative pair tolerance";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("pair_tolerance_s", 0), 0u) << e.what();
+  }
+  p = SupervisorParams();
+  p.safety.force_threshold_N = 0.0;
+  EXPECT_THROW(SafetySupervisor s(p), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core
