@@ -26,7 +26,7 @@ SIMULATOR_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'simulator.yaml')
 SCENARIO_KEYS = {
     'cases': (list, None, None),
     'rpms': (list, 1000.0, 60000.0),
-    'trials': (int, 1, 10000),
+    'trials': ((int, list), 1, 10000),  # per case and speed: one count, or one per rpm
     'seed': (int, 0, 2 ** 62),
     'feed_rate_mm_s': (float, 0.05, 5.0),
     'max_duration_s': (float, 5.0, 600.0),
@@ -91,7 +91,16 @@ def load_scenario(path):
             value = float(value)
             data[key] = value
         if not isinstance(value, kind) or isinstance(value, bool):
-            raise UsageError('--scenario %s: %r must be a %s' % (path, key, kind.__name__))
+            raise UsageError('--scenario %s: %r must be a %s' % (
+                path, key, ' or '.join(k.__name__ for k in (kind if isinstance(kind, tuple)
+                                                           else (kind,)))))
+        if key == 'trials':
+            for count in (value if isinstance(value, list) else [value]):
+                if not isinstance(count, int) or isinstance(count, bool) \
+                        or not low <= count <= high:
+                    raise UsageError('--scenario %s: trials %r must be integers in [%s, %s]'
+                                     % (path, count, low, high))
+            continue
         if kind in (int, float) and not low <= value <= high:
             raise UsageError('--scenario %s: %r = %s out of range [%s, %s]'
                              % (path, key, value, low, high))
@@ -124,7 +133,8 @@ def parse_args(argv):
     parser.add_argument('--case', default=None,
                         help='stationary | uncompensated | compensated | all (default: scenario)')
     parser.add_argument('--rpm', default=None, help='comma-separated spindle speeds')
-    parser.add_argument('--trials', type=int, default=None, help='trials per case and speed')
+    parser.add_argument('--trials', default=None,
+                        help='trials per case and speed: N, or one count per --rpm (N1,N2,...)')
     parser.add_argument('--seed', type=int, default=None)
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO)
     parser.add_argument('--engine', default='core',
@@ -170,12 +180,27 @@ def parse_args(argv):
             raise UsageError('--rpm %r is not a comma-separated list of numbers' % args.rpm)
         if any(not 1000.0 <= r <= 60000.0 for r in rpms):
             raise UsageError('--rpm values must be in [1000, 60000]')
-    trials = args.trials if args.trials is not None else scenario.get('trials', 20)
-    if trials < 1:
-        raise UsageError('--trials must be >= 1')
+    if args.trials is not None:
+        try:
+            trials = [int(n) for n in args.trials.split(',')]
+        except ValueError:
+            raise UsageError('--trials %r is not a count or a comma-separated list of counts'
+                             % args.trials)
+    else:
+        trials = scenario.get('trials', 20)
+        trials = trials if isinstance(trials, list) else [trials]
+    if any(not 1 <= n <= 10000 for n in trials):
+        raise UsageError('--trials must be in 1..10000')
+    if len(trials) == 1:
+        trials = trials[0]
+    elif len(trials) != len(rpms):
+        raise UsageError('--trials has %d counts for %d spindle speeds (give one count, or one '
+                         'per speed)' % (len(trials), len(rpms)))
     if args.jobs < 1 or args.jobs > 64:
         raise UsageError('--jobs must be in 1..64')
     seed = args.seed if args.seed is not None else scenario.get('seed', 1)
+    if not 0 <= seed <= SCENARIO_KEYS['seed'][2]:
+        raise UsageError('--seed %d is out of range [0, 2^62]' % seed)
     shard_spec = None
     if args.shard:
         try:

@@ -15,10 +15,14 @@ def trial_seed(base_seed, rpm, index):
 
 
 def build_design(cases, rpms, trials, base_seed):
-    """All trials in canonical order: by rpm, then index, then case."""
+    """All trials in canonical order: by rpm, then index, then case. `trials` is the count per
+    case and speed, or a list of one count per rpm (a trial's seed does not depend on it)."""
+    counts = trials if isinstance(trials, list) else [trials] * len(rpms)
+    if len(counts) != len(rpms):
+        raise ValueError('%d trial counts for %d spindle speeds' % (len(counts), len(rpms)))
     design = []
-    for rpm in rpms:
-        for index in range(trials):
+    for rpm, count in zip(rpms, counts):
+        for index in range(count):
             seed = trial_seed(base_seed, rpm, index)
             for case in cases:
                 design.append({

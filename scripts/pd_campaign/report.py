@@ -114,6 +114,18 @@ def summarise(rows):
             'median_tracking_rms_mm_failures': stats.median(
                 [r['tracking_rms_mm'] for r in valid if not r['success']]),
         })
+    # Moving cases against the stationary case on the same specimens (seeds are paired across
+    # cases, design.py): McNemar's exact test on the discordant pairs.
+    for g in summary:
+        base = groups.get(('stationary', g['rpm']))
+        if g['case'] == 'stationary' or base is None:
+            continue
+        n, both, only_case, only_stationary, neither = stats.paired_counts(
+            groups[(g['case'], g['rpm'])], base, key=lambda r: r['seed'])
+        g['paired_vs_stationary'] = {
+            'pairs': n, 'both': both, 'only_this_case': only_case,
+            'only_stationary': only_stationary, 'neither': neither,
+            'mcnemar_p': stats.mcnemar_exact(only_case, only_stationary)}
     return summary
 
 
@@ -220,6 +232,12 @@ def analysis(summary):
                     text += ', below it but within the statistical spread'
                 else:
                     text += ', as good'
+                paired = g.get('paired_vs_stationary')
+                if paired and paired['pairs']:
+                    text += ('; on the same %d specimens %d succeed only in this case, %d only '
+                             'stationary (McNemar exact p = %.3g)' % (
+                                 paired['pairs'], paired['only_this_case'],
+                                 paired['only_stationary'], paired['mcnemar_p']))
             failures = g['trials'] - g['successes']
             if failures:
                 count, where = _dominant(g['outcomes'], exclude=('success',))
@@ -268,7 +286,8 @@ def write_report_md(summary, meta, figures, path, notes=''):
     lines = ['# Campaign report', '',
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
-                meta['trials'], meta['seed']),
+                '/'.join(str(n) for n in meta['trials']) if isinstance(meta['trials'], list)
+                else meta['trials'], meta['seed']),
              'Simulator trial distribution: %s.' % (
                  'the defaults of config/simulator.yaml (the paper\'s conditions)'
                  if not meta.get('simulator') else
@@ -283,13 +302,18 @@ def write_report_md(summary, meta, figures, path, notes=''):
              'cortical layer (simulator ground truth).', '',
              '## Results (Table III, Fig. 15, Fig. 16)', '', markdown_table(summary), '',
              '## Paper, 12000 rpm (Table III)', '',
-             '| case | paper | this campaign |', '|---|---|---|']
+             'Fisher\'s exact test, two-sided, of this campaign\'s 12000 rpm counts against the '
+             'paper\'s (independent samples).', '',
+             '| case | paper | this campaign | Fisher p |', '|---|---|---|---|']
     for case in meta['cases']:
         ours = [g for g in summary if g['case'] == case and g['rpm'] == 12000.0]
         paper = PAPER_TABLE_III.get(case)
-        lines.append('| %s | %s | %s |' % (
+        fisher = (stats.fisher_exact(ours[0]['successes'], ours[0]['trials'], paper[0], paper[1])
+                  if ours and paper else None)
+        lines.append('| %s | %s | %s | %s |' % (
             case, '%d/%d' % paper if paper else '-',
-            '%d/%d' % (ours[0]['successes'], ours[0]['trials']) if ours else '-'))
+            '%d/%d' % (ours[0]['successes'], ours[0]['trials']) if ours else '-',
+            '%.2g' % fisher if fisher is not None else '-'))
     lines += ['', '## Why trials failed', '',
               'Where the drill ended for every trial (simulator ground truth), and the tip-bone '
               'AP tracking of the failed trials (RMS about the feed line while drilling).', '',

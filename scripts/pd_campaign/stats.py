@@ -25,3 +25,34 @@ def median(values):
         return None
     mid = len(values) // 2
     return values[mid] if len(values) % 2 else 0.5 * (values[mid - 1] + values[mid])
+
+
+def fisher_exact(successes_a, n_a, successes_b, n_b):
+    """Two-sided p of Fisher's exact test on two independent success counts (scipy), e.g. ours
+    against the paper's; 1.0 when either group is empty."""
+    if n_a == 0 or n_b == 0:
+        return 1.0
+    from scipy.stats import fisher_exact as fisher  # the kept library does the test
+    return float(fisher([[successes_a, n_a - successes_a],
+                         [successes_b, n_b - successes_b]], alternative='two-sided')[1])
+
+
+def mcnemar_exact(only_a, only_b):
+    """Two-sided p of McNemar's exact test for paired outcomes: the discordant pairs (only A
+    succeeded, only B succeeded) against a fair coin (scipy's exact binomial test)."""
+    if only_a + only_b == 0:
+        return 1.0
+    from scipy.stats import binomtest
+    return float(binomtest(only_a, only_a + only_b, 0.5, alternative='two-sided').pvalue)
+
+
+def paired_counts(rows_a, rows_b, key):
+    """Pairs two lists of trial rows by `key` (e.g. seed and rpm); returns (pairs, both, only_a,
+    only_b, neither) over the pairs where neither trial errored."""
+    b_by_key = {key(r): r for r in rows_b if not r.get('error')}
+    pairs = [(a, b_by_key[key(a)]) for a in rows_a
+             if not a.get('error') and key(a) in b_by_key]
+    both = sum(1 for a, b in pairs if a['success'] and b['success'])
+    only_a = sum(1 for a, b in pairs if a['success'] and not b['success'])
+    only_b = sum(1 for a, b in pairs if b['success'] and not a['success'])
+    return len(pairs), both, only_a, only_b, len(pairs) - both - only_a - only_b

@@ -252,7 +252,7 @@ struct ClosedLoopEngine::Impl {
     monitor->onForce(now, force);
     evaluateMonitor();
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
-    if (n % tracker_period == 0) onMarker();
+    if (sim->trackerDue(tracker_period)) onMarker();
     if (n % tidal_period == 0) onTidalVolume();
     if (n % check_period == 0) {
       monitor->check(now);

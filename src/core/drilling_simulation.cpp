@@ -23,6 +23,17 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
+// The tracker's sample phase of a trial, uniform in [0, 1): splitmix64 of the seed (its own
+// stream, so that it changes nothing else the seed draws).
+double trackerPhaseFraction(std::uint64_t seed) {
+  std::uint64_t z = seed ^ 0x7472616b70686173ULL;
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z = z ^ (z >> 31);
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
 Eigen::Isometry3d toIsometry(const urdf::Pose& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
@@ -185,6 +196,7 @@ struct DrillingSimulation::Impl {
   std::unique_ptr<DrillingProcess> process;
   std::unique_ptr<ForceSensor> sensor;
   std::mt19937_64 tracker_rng;
+  double tracker_phase = 0.0;  // fraction of a tracker period, drawn per trial
 
   int steps_per_arm_block = 4;
   double dt = 1e-3;
@@ -467,6 +479,7 @@ struct DrillingSimulation::Impl {
     }
     sensor->tare();  // standard practice before drilling
     tracker_rng.seed(seed * 40503ULL + 3ULL);
+    tracker_phase = trackerPhaseFraction(seed);
     arm->applyTipForce(Eigen::Vector3d::Zero());
     const TargetResult r = arm->resetJointState(home);
     if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
@@ -909,6 +922,13 @@ SimulationGroundTruth DrillingSimulation::groundTruth() const {
   g.tidal_volume_ml = s.vent_now.volume_ml;
   g.relative_ap_m = (s.physics_tip.z() - s.bone_world.translation().z()) - s.relative_ap0;
   return g;
+}
+
+bool DrillingSimulation::trackerDue(std::uint64_t period_steps) const {
+  const Impl& s = *impl_;
+  if (period_steps == 0) return false;
+  const auto offset = static_cast<std::uint64_t>(s.tracker_phase * period_steps);
+  return (s.step_index + offset) % period_steps == 0;
 }
 
 Eigen::Isometry3d DrillingSimulation::measureMarkerPose() {

@@ -293,7 +293,7 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
   if (++reg_count_ < params_.registration_samples) return;
   marker_reg_ = marker_sum_ / reg_count_;
   registered_ = true;
-  startDrilling(now);
+  startDrilling(now, stamp);
 }
 
 void TrialSequencer::onRecognizerState(double now, bool stop, const std::string& state_name,
@@ -306,14 +306,18 @@ void TrialSequencer::onRecognizerState(double now, bool stop, const std::string&
   }
 }
 
-void TrialSequencer::startDrilling(double now) {
+void TrialSequencer::startDrilling(double now, double t_reg) {
   if (recognizer_reports_stop_) {
     fail("refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
          "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
     return;
   }
-  planner_->start(mode_, now);
-  t_end_ = now + max_duration_s_;
+  // The segment grid starts at the registration time, the stamp of the last registration
+  // sample (the instant the marker was measured), not when its message was handled: on ROS the
+  // handling time is the last /clock tick, which trails the stamp by a scheduling-dependent
+  // amount and moved the 125 ms grid against the breath from run to run.
+  planner_->start(mode_, t_reg);
+  t_end_ = t_reg + max_duration_s_;
   next_k_ = 0;
   retreat_.reset();
   setPhase(TrialPhase::kDrilling);

@@ -145,7 +145,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         if (n % joint_state_period_ == 0) publishJointStates(t);
         if (n % tf_period_ == 0) publishTf(t);
         if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);
-        if (n % tracker_period_ == 0) publishMarker(t);
+        if (sim_->trackerDue(tracker_period_)) publishMarker(t);
         if (tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0) publishTidalVolume(t);
       }
       if (publish_clock_ && n % clock_period_steps_ == 0) {

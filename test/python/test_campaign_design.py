@@ -27,6 +27,18 @@ def test_wilson_interval_known_values():
         assert stats.wilson_interval(0, n)[0] == 0.0
 
 
+def test_exact_tests_known_values():
+    # Worked by hand. McNemar: 0 vs 5 discordant pairs, two-sided binomial p = 2 / 2^5.
+    assert stats.mcnemar_exact(0, 5) == pytest.approx(0.0625)
+    assert stats.mcnemar_exact(0, 0) == 1.0
+    # Fisher: 3/3 vs 0/3 -> the only table as extreme on each side has p = 1 / C(6, 3) = 0.05.
+    assert stats.fisher_exact(3, 3, 0, 3) == pytest.approx(0.1)
+    assert stats.fisher_exact(5, 10, 5, 10) == pytest.approx(1.0)
+    rows_a = [{'seed': s, 'success': ok} for s, ok in [(1, True), (2, True), (3, False), (4, True)]]
+    rows_b = [{'seed': s, 'success': ok} for s, ok in [(1, True), (2, False), (3, False), (5, True)]]
+    assert stats.paired_counts(rows_a, rows_b, key=lambda r: r['seed']) == (3, 1, 1, 0, 1)
+
+
 def test_seeds_are_paired_across_cases_and_stable():
     d = design.build_design(design.CASES, [12000, 16000], 3, 7)
     assert len(d) == 18
@@ -37,6 +49,19 @@ def test_seeds_are_paired_across_cases_and_stable():
     assert len({next(iter(s)) for s in by_key.values()}) == 6
     assert design.trial_seed(7, 12000, 0) == design.trial_seed(7, 12000, 0)
     assert design.trial_seed(7, 12000, 0) != design.trial_seed(8, 12000, 0)
+
+
+def test_trial_counts_per_speed_keep_every_seed():
+    # 200/100/100 per speed: the same trials as 200 at every speed, minus the tail, same seeds.
+    full = design.build_design(design.CASES, [12000, 16000, 20000], 6, 3)
+    part = design.build_design(design.CASES, [12000, 16000, 20000], [6, 3, 2], 3)
+    assert len(part) == 3 * (6 + 3 + 2)
+    by_id = {t['trial_id']: t for t in full}
+    for trial in part:
+        assert by_id[trial['trial_id']] == trial
+    assert max(t['index'] for t in part if t['rpm'] == 20000) == 1
+    with pytest.raises(ValueError):
+        design.build_design(design.CASES, [12000, 16000], [1, 2, 3], 3)
 
 
 def test_shards_partition_the_design():
@@ -172,6 +197,9 @@ def test_summary_counts_and_schema(tmp_path):
     (['--shard', '3/2'], '--shard'),
     (['--scenario', '/nonexistent.yaml'], '--scenario'),
     (['--engine', 'warp'], '--engine'),
+    (['--seed', '-1'], '--seed'),
+    (['--trials', '5,x'], '--trials'),
+    (['--rpm', '12000,16000', '--trials', '5,5,5'], '--trials'),
 ])
 def test_campaign_bad_arguments_exit_2(args, named):
     out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign')] + args,
@@ -183,6 +211,8 @@ def test_campaign_bad_arguments_exit_2(args, named):
 @pytest.mark.parametrize('text, named', [
     ('trials: 3\nspeed_of_light: 3e8\n', ['speed_of_light']),   # unknown key
     ('trials: 1\nbone_motion: wobbly\n', ['bone_motion', 'wobbly']),
+    ('trials: [3, 0, 3]\n', ['trials']),
+    ('trials: three\n', ['trials']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'

@@ -340,6 +340,15 @@ class DrillingSimulation {
   std::uint64_t seed() const;
 
   /**
+   * @brief True when the optical tracker samples at the end of the last step: every
+   *        period_steps steps (125 at 8 Hz), at a phase drawn from the trial's seed. The tracker
+   *        and the ventilator are independent devices: with both grids starting at 0, a 5 s
+   *        breath is exactly 40 tracker periods and every 125 ms segment end would fall on
+   *        every inspiration start in every trial (the worst case for a dTv/dt step).
+   */
+  bool trackerDue(std::uint64_t period_steps) const;
+
+  /**
    * @brief Tracker measurement of tracker_marker in the tracker_camera frame, with isotropic
    *        Gaussian position noise (tracker_noise_rms_mm 3-D RMS); orientation exact.
    */

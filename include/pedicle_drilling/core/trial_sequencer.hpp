@@ -208,7 +208,7 @@ class TrialSequencer {
   void registerSample(double now, double stamp, const std::string& frame,
                       const Eigen::Vector3d& pos, const Eigen::Quaterniond& orientation,
                       const RotationLookup& lookup);
-  void startDrilling(double now);
+  void startDrilling(double now, double t_reg);
   double feedCommandAt(double t, double segmented_feed) const;
   void sendMoveToPose(double now);
   void sendDueSegments(double now);
