@@ -19,6 +19,7 @@ The Markdown table is also printed. Exit status 0, 1 when a tool fails, 2 on a b
 import argparse
 import csv
 import os
+import concurrent.futures
 import subprocess
 import sys
 
@@ -89,6 +90,8 @@ def main(argv):
     parser.add_argument('--method', default='ceres', choices=['ceres', 'pso'])
     parser.add_argument('--paper-denoising', action='store_true')
     parser.add_argument('--plot-volunteer', type=int, default=1, choices=IDS)
+    parser.add_argument('--jobs', type=int, default=1,
+                        help='identifications run at once (each is independent; same output)')
     args = parser.parse_args(argv)
 
     data_dir = os.path.join(args.out, 'data')
@@ -100,9 +103,13 @@ def main(argv):
         return 2
     run(tool('generate_volunteers') + ['--out', data_dir, '--ids', ','.join(map(str, IDS))])
 
+    if not 1 <= args.jobs <= 64:
+        sys.stderr.write('table2: --jobs must be in 1..64\n')
+        return 2
     rows, fit_csvs = [], {}
     results = {}  # (vid, model) -> axes
     truths = {}
+    commands = []  # ((vid, model), output yaml, command)
     for vid in IDS:
         stem = os.path.join(data_dir, 'volunteer_%d' % vid)
         truths[vid] = load_axes(stem + '_truth.yaml')
@@ -116,16 +123,20 @@ def main(argv):
             if vid == args.plot_volunteer:
                 fit_csvs[model] = os.path.join(model_dir, 'volunteer_%d_%s_fit.csv' % (vid, model))
                 cmd += ['--fit-csv', fit_csvs[model]]
-            run(cmd)
-            axes = load_axes(out_yaml)
-            results[(vid, model)] = axes
-            for axis in AXES:
-                a, t = axes[axis], truths[vid][axis]
-                rows.append({'volunteer': vid, 'model': model, 'axis': axis,
-                             'wavelet': a['wavelet'], 'q1': a['q1'], 'q2': a['q2'],
-                             'q0': a['q0'], 'r2': a['r2'], 'rmse': a['rmse'],
-                             'q1_true': t['q1'], 'q2_true': t['q2'],
-                             'q1_rel_err': a['q1'] / t['q1'] - 1.0})
+            commands.append(((vid, model), out_yaml, cmd))
+    # The identifications are independent processes: run them side by side, read them in order.
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        list(pool.map(run, [cmd for _, _, cmd in commands]))
+    for (vid, model), out_yaml, _ in commands:
+        axes = load_axes(out_yaml)
+        results[(vid, model)] = axes
+        for axis in AXES:
+            a, t = axes[axis], truths[vid][axis]
+            rows.append({'volunteer': vid, 'model': model, 'axis': axis,
+                         'wavelet': a['wavelet'], 'q1': a['q1'], 'q2': a['q2'],
+                         'q0': a['q0'], 'r2': a['r2'], 'rmse': a['rmse'],
+                         'q1_true': t['q1'], 'q2_true': t['q2'],
+                         'q1_rel_err': a['q1'] / t['q1'] - 1.0})
 
     with open(os.path.join(args.out, 'table2.csv'), 'w', newline='') as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS)

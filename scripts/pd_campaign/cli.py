@@ -241,6 +241,9 @@ def _clock(seconds):
 def write_outputs(rows, meta, out_dir, notes=''):
     """trials.csv, summary.json, report.md and figures from the finished rows."""
     report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
+    # Everything below from the rows as trials.csv keeps them (6 significant digits), so that a
+    # merge of shards, which can only read trials.csv, gives the very same summary and report.
+    rows = report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
     summary = report.summarise(rows)
     report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'))
     figures = []
@@ -289,7 +292,8 @@ def run_campaign(argv=None):
         sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
         result = subprocess.run(['/usr/bin/python3', os.path.join(PACKAGE_ROOT, 'scripts',
                                                                    'table2.py'),
-                                 '--out', ident_dir], capture_output=True, text=True)
+                                 '--out', ident_dir, '--jobs', str(args.jobs)],
+                                capture_output=True, text=True)
         if result.returncode != 0:
             sys.stderr.write('campaign: Table II identification failed:\n%s\n'
                              % (result.stderr or result.stdout))
