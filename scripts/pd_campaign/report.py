@@ -15,8 +15,8 @@ TRIAL_COLUMNS = [
     'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
-    'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s', 'wall_s',
-    'error',
+    'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
+    'sim_duration_s', 'wall_s', 'error',
 ]
 
 PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}
@@ -45,8 +45,8 @@ def normalise_row(row):
     for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
                 'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                 'force_noise_sd_n', 'arm_stiffness_scale',
-                'tracking_rms_mm', 'tracking_max_mm', 'identification_r2_ap', 'sim_duration_s',
-                'wall_s'):
+                'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
+                'sim_duration_s', 'wall_s'):
         out[key] = _number(row.get(key))
     return out
 
@@ -109,6 +109,8 @@ def summarise(rows):
             'median_residual_mm_successful': stats.median(
                 [r['residual_mm'] for r in valid if r['success']]),
             'median_tracking_rms_mm': stats.median([r['tracking_rms_mm'] for r in valid]),
+            'median_contact_loss_count': stats.median(
+                [r.get('contact_loss_count') for r in valid]),
             'stop_reasons': _count(stop_category(r) for r in valid),
             'outcomes': _count(outcome(r) for r in valid),
             'median_tracking_rms_mm_failures': stats.median(
@@ -180,15 +182,16 @@ def _num(x, fmt='%.2f'):
 
 def markdown_table(summary):
     lines = ['| case | rpm | successes | rate | Wilson 95 % | median F_out [N] | median F_in [N] '
-             '| median residual (successes) [mm] | median tracking RMS [mm] | stops |',
-             '|---|---|---|---|---|---|---|---|---|---|']
+             '| median residual (successes) [mm] | median tracking RMS [mm] '
+             '| median contact losses | stops |',
+             '|---|---|---|---|---|---|---|---|---|---|---|']
     for g in summary:
         errors = ' (+%d errored, not counted)' % g['errors'] if g.get('errors') else ''
-        lines.append('| %s | %.0f | %d/%d%s | %s | %s-%s | %s | %s | %s | %s | %s |' % (
+        lines.append('| %s | %.0f | %d/%d%s | %s | %s-%s | %s | %s | %s | %s | %s | %s |' % (
             g['case'], g['rpm'], g['successes'], g['trials'], errors, _pct(g['success_rate']),
             _pct(g['wilson95'][0]), _pct(g['wilson95'][1]), _num(g['median_f_out_n']),
             _num(g['median_f_in_n']), _num(g['median_residual_mm_successful']),
-            _num(g['median_tracking_rms_mm']),
+            _num(g['median_tracking_rms_mm']), _num(g.get('median_contact_loss_count')),
             ', '.join('%s %d' % kv for kv in g['stop_reasons'].items())))
     return '\n'.join(lines)
 

@@ -32,7 +32,8 @@ class TrialRecorder:
     def clear(self):
         self.states = []          # (t, averaged_force, feature, state_name, last_key_point)
         self.key_points = []      # (id, t)
-        self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact)
+        self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact,
+                                  #  contact losses so far)
         self.last_truth = None
         self.stops = []           # (t, source, reason, retreat)
         self.status = []          # (t, phase name)
@@ -52,7 +53,7 @@ class TrialRecorder:
         self.last_truth = msg
         self.truth.append((msg.header.stamp.to_sec(), msg.specimen_layer, msg.max_depth_cut_m,
                            msg.residual_inner_cortical_m, msg.breakthrough, msg.relative_ap_m,
-                           msg.contact))
+                           msg.contact, msg.contact_loss_count))
 
     def on_stop(self, msg):
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
@@ -69,7 +70,7 @@ class TrialRecorder:
 def tracking_error(truth, t_start, t_end):
     """RMS and max (mm) of the relative AP tip-bone motion about its best line (removes the feed)
     over [t_start, t_end]; None when too few samples."""
-    sel = [(t, rel) for (t, _, _, _, _, rel, _) in truth if t_start <= t <= t_end]
+    sel = [(t, rel) for (t, _, _, _, _, rel, *_rest) in truth if t_start <= t <= t_end]
     if len(sel) < 10:
         return None, None
     t = np.array([s[0] for s in sel])
@@ -222,6 +223,10 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows)
     t1 = stop[0] if stop else (recorder.truth[-1][0] if recorder.truth else t_drill)
     row['tracking_rms_mm'], row['tracking_max_mm'] = tracking_error(truth_rows, t_drill, t1)
+    # Separations of drill and bone between the first contact and the stop (the simulator counts
+    # them at 1 kHz; the count at the last ground truth before the stop).
+    at_stop = [r for r in recorder.truth if r[0] <= t1 and len(r) > 7]
+    row['contact_loss_count'] = at_stop[-1][7] if at_stop else None
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
     with open(os.path.join(trace_dir, trial['trial_id'] + '.json'), 'w') as handle:

@@ -231,7 +231,7 @@ struct ClosedLoopEngine::Impl {
     const SimulationGroundTruth g = sim->groundTruth();
     record.truth.push_back({now, materialName(g.layer), g.max_depth_cut_m,
                             g.residual_inner_cortical_m, g.breakthrough, g.relative_ap_m,
-                            g.contact});
+                            g.contact, g.contact_loss_count});
     record.last_truth = g;
   }
 

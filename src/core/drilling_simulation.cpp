@@ -22,6 +22,8 @@ namespace pedicle_drilling::core {
 namespace {
 
 constexpr double kPi = 3.14159265358979323846;
+// A separation of drill and bone: no contact for this many 1 ms steps (10 ms).
+constexpr int kSeparationSteps = 10;
 
 // The tracker's sample phase of a trial, uniform in [0, 1): splitmix64 of the seed (its own
 // stream, so that it changes nothing else the seed draws).
@@ -197,6 +199,12 @@ struct DrillingSimulation::Impl {
   std::unique_ptr<ForceSensor> sensor;
   std::mt19937_64 tracker_rng;
   double tracker_phase = 0.0;  // fraction of a tracker period, drawn per trial
+  // Separations since the trial started: contact lost for at least kSeparationSteps steps
+  // (10 ms, two revolutions at 12000 rpm), so that the lips' step-to-step chatter at first
+  // contact is not counted as the drill leaving the bone.
+  bool was_in_contact = false;
+  int steps_without_contact = 0;
+  std::uint32_t contact_losses = 0;
 
   int steps_per_arm_block = 4;
   double dt = 1e-3;
@@ -480,6 +488,9 @@ struct DrillingSimulation::Impl {
     sensor->tare();  // standard practice before drilling
     tracker_rng.seed(seed * 40503ULL + 3ULL);
     tracker_phase = trackerPhaseFraction(seed);
+    was_in_contact = false;
+    steps_without_contact = 0;
+    contact_losses = 0;
     arm->applyTipForce(Eigen::Vector3d::Zero());
     const TargetResult r = arm->resetJointState(home);
     if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
@@ -599,6 +610,12 @@ SimulationStep DrillingSimulation::stepOnce() {
                          std::abs(tip_in_bone.y()) <= s.params.bone_half_y_m;
   const Material before = s.cutLayer();
   s.last_force = s.process->step(s.dt, over_bone ? s.tip_depth : -1.0, s.spindle_rpm);
+  if (s.last_force.contact) {
+    s.was_in_contact = true;
+    s.steps_without_contact = 0;
+  } else if (s.was_in_contact && ++s.steps_without_contact == kSeparationSteps) {
+    ++s.contact_losses;  // one separation per gap, counted once it lasted 10 ms
+  }
 
   SimulationStep out;
   out.time_s = s.time;
@@ -862,6 +879,9 @@ bool DrillingSimulation::startTrial() {
   const bool remount = impl_->process->maxDepthCut() > 0.0;
   if (remount) impl_->resetTrial(impl_->seed + 1, impl_->moving_bone);
   impl_->relative_ap0 = impl_->physics_tip.z() - impl_->bone_world.translation().z();
+  impl_->was_in_contact = false;
+  impl_->steps_without_contact = 0;
+  impl_->contact_losses = 0;
   ++impl_->trial_count;
   return remount;
 }
@@ -916,6 +936,7 @@ SimulationGroundTruth DrillingSimulation::groundTruth() const {
   g.breakthrough = p.breakthrough();
   g.thrust_n = s.last_force.thrust_N;
   g.contact = s.last_force.contact;
+  g.contact_loss_count = s.contact_losses;
   g.feed_per_rev_m = s.last_force.feed_per_rev_m;
   const Eigen::Vector3d d = s.bone_world.translation() - s.bone_home_world;
   g.bone_displacement_m = Eigen::Vector3d(d.y(), d.x(), d.z());  // LR = y, SI = x, AP = z

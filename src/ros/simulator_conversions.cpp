@@ -134,6 +134,7 @@ GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) 
   m.breakthrough = g.breakthrough;
   m.thrust_n = g.thrust_n;
   m.contact = g.contact;
+  m.contact_loss_count = g.contact_loss_count;
   m.feed_per_rev_m = g.feed_per_rev_m;
   m.bone_displacement_m.x = g.bone_displacement_m.x();
   m.bone_displacement_m.y = g.bone_displacement_m.y();

@@ -51,7 +51,7 @@ json recordToJson(const pd::EngineTrialRecord& r) {
   json truth = json::array();
   for (const pd::EngineTruthSample& s : r.truth) {
     truth.push_back({s.t, s.layer, s.max_depth_cut_m, s.residual_inner_cortical_m,
-                     s.breakthrough, s.relative_ap_m, s.contact});
+                     s.breakthrough, s.relative_ap_m, s.contact, s.contact_loss_count});
   }
   json stops = json::array();
   for (const pd::EngineStop& s : r.stops) stops.push_back({s.t, s.source, s.reason, s.retreat});

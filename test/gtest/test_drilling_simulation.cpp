@@ -173,6 +173,44 @@ TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
   EXPECT_EQ(sim.seed(), 6u);
 }
 
+// A separation is a gap of at least 10 ms without cutting after a cut: drill 1 mm into a
+// stationary specimen, then pull the drill back 0.5 mm. (Re-engaging a drilled hole, the
+// compliant arm makes the lips chatter, which counts as well: the count is of interruptions of
+// cutting, whatever their cause.)
+TEST(DrillingSimulation, CountsEachSeparationOfDrillAndBoneOnce) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 5);
+  sim.reset(5, false);
+  sim.commandSpindle(12000.0);
+  moveToDrillingPose(&sim, 1.0);
+  const double gap = -sim.groundTruth().tip_depth_m;
+  const double in = gap + 1e-3;
+  TrajectoryCommand feed;
+  feed.joint_names = {"feed_joint"};
+  const double t0 = sim.time();
+  feed.points.push_back({t0 + in / 0.5e-3, {in}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(feed).ok());
+  sim.step(in / 0.5e-3 + 0.2);
+  EXPECT_TRUE(sim.groundTruth().contact);
+  EXPECT_EQ(sim.groundTruth().contact_loss_count, 0u);  // steady cutting: no separation
+  // Back 0.5 mm in 0.1 s, hold 0.1 s, forward again at the feed rate.
+  TrajectoryCommand back;
+  back.joint_names = {"feed_joint"};
+  const double t1 = sim.time();
+  back.points.push_back({t1 + 0.1, {in - 0.5e-3}, {}});
+  back.points.push_back({t1 + 0.2, {in - 0.5e-3}, {}});
+  back.points.push_back({t1 + 0.2 + 1.5e-3 / 0.5e-3, {in + 1e-3}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(back).ok());
+  sim.step(0.15);
+  EXPECT_FALSE(sim.groundTruth().contact);
+  EXPECT_EQ(sim.groundTruth().contact_loss_count, 1u);
+  sim.step(0.05);  // still off the bone: the same gap, counted once
+  EXPECT_FALSE(sim.groundTruth().contact);
+  EXPECT_EQ(sim.groundTruth().contact_loss_count, 1u);
+  // A new trial starts the count afresh.
+  sim.startTrial();
+  EXPECT_EQ(sim.groundTruth().contact_loss_count, 0u);
+}
+
 TEST(DrillingSimulation, HigherSpindleSpeedLowersTheForce) {
   double peak[2] = {0, 0};
   const double rpm[2] = {12000.0, 20000.0};

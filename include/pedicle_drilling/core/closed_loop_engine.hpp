@@ -92,6 +92,7 @@ struct EngineTruthSample {
   bool breakthrough = false;
   double relative_ap_m = 0.0;
   bool contact = false;
+  std::uint32_t contact_loss_count = 0;  ///< separations since the trial started
 };
 
 /** @brief A stop command (StopCommand). */

@@ -204,6 +204,9 @@ struct SimulationGroundTruth {
   bool breakthrough = false;         ///< the tip passed the canal wall
   double thrust_n = 0.0;             ///< true thrust [N]
   bool contact = false;              ///< lips cutting
+  /** @brief Separations of drill and bone since reset() or startTrial(): gaps of at least 10 ms
+   *  without contact after a contact (shorter ones are the lips' chatter at first contact). */
+  std::uint32_t contact_loss_count = 0;
   double feed_per_rev_m = 0.0;       ///< actual feed per revolution [m]
   Eigen::Vector3d bone_displacement_m = Eigen::Vector3d::Zero();  ///< (LR, SI, AP) from home
   double tidal_volume_ml = 0.0;      ///< patient tidal volume (unlagged) [ml]
