@@ -34,9 +34,13 @@ SCENARIO_KEYS = {
     'identification': (str, None, None),
     'model': (str, None, None),
     'bone_motion': (str, None, None),
+    'compensation_profile': (str, None, None),
     'simulator': (dict, None, None),
 }
 ENGINES = ('core', 'ros')
+# compensation_profile: the planner's segment profile (its ~segment_profile): the paper's 125 ms
+# rest-to-rest trapezoids, or the exact reference (beyond the paper).
+COMPENSATION_PROFILES = {'paper': 'rest_to_rest', 'exact': 'exact'}
 # bone_motion: what the SPMS plays in the moving cases.
 BONE_MOTIONS = ('model', 'virtual_patient')
 
@@ -117,6 +121,9 @@ def load_scenario(path):
         if key == 'bone_motion' and value not in BONE_MOTIONS:
             raise UsageError('--scenario %s: bone_motion %r is not one of %s'
                              % (path, value, ', '.join(BONE_MOTIONS)))
+        if key == 'compensation_profile' and value not in COMPENSATION_PROFILES:
+            raise UsageError('--scenario %s: compensation_profile %r is not one of %s'
+                             % (path, value, ', '.join(COMPENSATION_PROFILES)))
         if key == 'model' and value not in ('linear', 'hysteresis'):
             raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
         if key == 'cases':
@@ -280,6 +287,7 @@ def run_campaign(argv=None):
             'design_size': len(design), 'simulator': scenario.get('simulator') or {},
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
+            'compensation_profile': scenario.get('compensation_profile', 'paper'),
             'engine': args.engine}
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
@@ -320,7 +328,8 @@ def run_campaign(argv=None):
                 trial_file, pose, models_dir,
                 scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
                 float(scenario.get('feed_rate_mm_s', 0.5)),
-                float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL)))
+                float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
+                COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')])))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
@@ -334,6 +343,8 @@ def run_campaign(argv=None):
                    '--models-dir', models_dir,
                    '--model', scenario.get('model', 'linear'),
                    '--bone-motion', scenario.get('bone_motion', 'virtual_patient'),
+                   '--segment-profile',
+                   COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                    '--simulator-overrides', json.dumps(scenario.get('simulator') or {})]
         if args.bags:
             command.append('--bags')

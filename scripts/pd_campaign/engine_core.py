@@ -30,12 +30,12 @@ class RecordedTrial:
 
 
 def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
-                         feed_rate, max_duration, default_model):
+                         feed_rate, max_duration, default_model, segment_profile='rest_to_rest'):
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
                '--model', model, '--bone-motion', bone_motion,
                '--feed-rate', repr(feed_rate), '--max-duration', repr(max_duration),
-               '--default-model', default_model]
+               '--default-model', default_model, '--segment-profile', segment_profile]
     if models_dir:
         command += ['--models-dir', models_dir]
     return command

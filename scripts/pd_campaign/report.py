@@ -270,7 +270,17 @@ def analysis(summary):
 
 
 def bone_motion_sentence(meta):
-    """What the SPMS played in the moving cases, and the prediction model."""
+    """What the SPMS played in the moving cases, the prediction model and the profile."""
+    profile = meta.get('compensation_profile', 'paper')
+    text = _bone_motion(meta)
+    if profile == 'exact':
+        return text + (' Compensation profile: exact (beyond the paper: the predicted reference '
+                       'streamed with its analytic velocities, knots at the flow steps).')
+    return text + (' Compensation profile: paper (125 ms rest-to-rest trapezoids, acceleration '
+                   '10 x velocity).')
+
+
+def _bone_motion(meta):
     model = meta.get('model', 'linear')
     if meta.get('bone_motion') == 'model':
         return ('Bone motion (moving cases): the SPMS plays the displacement the patient\'s '

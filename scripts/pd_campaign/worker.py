@@ -269,6 +269,8 @@ def main(argv=None):
                         help='identified volunteer models (volunteer_<id>_<model>.yaml); '
                         'empty: identify online on the simulator')
     parser.add_argument('--model', default='linear')
+    parser.add_argument('--segment-profile', default='rest_to_rest',
+                        help="the planner's ~segment_profile (scenario key compensation_profile)")
     parser.add_argument('--bone-motion', default='virtual_patient',
                         choices=('model', 'virtual_patient'),
                         help='model: the SPMS plays the trial\'s identified model (the paper\'s '
@@ -327,7 +329,8 @@ def main(argv=None):
         children.append(subprocess.Popen(
             ['roslaunch', 'pedicle_drilling', args.launch,
              'patient_model:=%s' % args.default_model,
-             'real_time_factor:=%g' % args.real_time_factor],
+             'real_time_factor:=%g' % args.real_time_factor,
+             'segment_profile:=%s' % args.segment_profile],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial}
         srv = {}

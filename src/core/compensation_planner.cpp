@@ -1,6 +1,7 @@
 // Active compensation planner of Algorithm 1 (see the header).
 #include "pedicle_drilling/core/compensation_planner.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -87,6 +88,21 @@ VentilatorSample DisplacementPredictor::ventilatorAt(double t) const {
   return s;
 }
 
+std::vector<double> DisplacementPredictor::flowSteps(double t0, double t1) const {
+  std::vector<double> out;
+  if (!ready() || !(t1 > t0)) return out;
+  const double period = ventilator_->period();
+  const double in_cycle[] = {0.0, ventilator_->flowTime(), ventilator_->inspiratoryTime()};
+  const double first = std::floor((t0 - breath_start_) / period);
+  for (double n = first; breath_start_ + n * period <= t1; n += 1.0) {
+    for (double tau : in_cycle) {
+      const double t = breath_start_ + n * period + tau;
+      if (t > t0 && t <= t1 && (out.empty() || t > out.back() + 1e-9)) out.push_back(t);
+    }
+  }
+  return out;
+}
+
 Eigen::Vector3d DisplacementPredictor::displacement(double t) const {
   const VentilatorSample s = ventilatorAt(t);
   Eigen::Vector3d d = Eigen::Vector3d::Zero();
@@ -151,7 +167,55 @@ int CompensationPlanner::segmentIndexAt(double t) const {
   return static_cast<int>(std::floor((t - t_reg_) / params_.period_s));
 }
 
+Eigen::Vector3d CompensationPlanner::referenceVelocity(double t, bool left) const {
+  // One-sided difference over 1 us: exact for the linear pieces of a square flow, and 1e-6
+  // relative for the exponential expiration; never across a flow step.
+  constexpr double h = 1e-6;
+  return left ? (reference(t) - reference(t - h)) / h : (reference(t + h) - reference(t)) / h;
+}
+
+PlannedSegment CompensationPlanner::exactSegment(int k) const {
+  PlannedSegment out;
+  out.index = k;
+  out.t0 = t_reg_ + k * params_.period_s;
+  out.t1 = out.t0 + params_.period_s;
+  // Samples at t0 + i T / n, and knots where the commanded reference's velocity steps: at each
+  // flow step (shifted by the latency, since the reference is y(t + latency)) a point with the
+  // velocity before the step and, 1 ms later, one with the velocity after it.
+  struct Knot {
+    double t;
+    bool left;
+  };
+  std::vector<Knot> knots;
+  const int n = params_.points_per_segment;
+  for (int i = 1; i <= n; ++i) knots.push_back({i == n ? out.t1 : out.t0 + params_.period_s * i / n, true});
+  if (mode_ == CompensationMode::kCompensated && predictor_.ready()) {
+    constexpr double kStepWidth = 1e-3;
+    const double lat = params_.latency_s;
+    for (double step : predictor_.flowSteps(out.t0 + lat, out.t1 + lat)) {
+      const double s = step - lat;
+      knots.push_back({s, true});
+      if (s + kStepWidth < out.t1) knots.push_back({s + kStepWidth, false});
+    }
+  }
+  std::sort(knots.begin(), knots.end(), [](const Knot& a, const Knot& b) { return a.t < b.t; });
+  out.feed_start_m = reference(out.t0).dot(axis_);
+  for (std::size_t i = 0; i < knots.size(); ++i) {
+    if (i > 0 && knots[i].t <= knots[i - 1].t + 1e-9) continue;  // a knot on a sample time
+    PlannedPoint pt;
+    pt.t = knots[i].t;
+    const Eigen::Vector3d p = reference(pt.t);
+    pt.feed_m = p.dot(axis_);
+    pt.feed_velocity_m_s = referenceVelocity(pt.t, knots[i].left).dot(axis_);
+    pt.lateral_m = p - pt.feed_m * axis_;
+    out.points.push_back(pt);
+  }
+  out.feed_end_m = out.points.back().feed_m;
+  return out;
+}
+
 PlannedSegment CompensationPlanner::segment(int k) const {
+  if (params_.segment_profile == SegmentProfile::kExact) return exactSegment(k);
   PlannedSegment out;
   out.index = k;
   out.t0 = t_reg_ + k * params_.period_s;
@@ -194,6 +258,9 @@ Eigen::Vector3d CompensationPlanner::segmentedReference(double t) const {
 }
 
 SegmentSample CompensationPlanner::segmentedSample(double t) const {
+  if (params_.segment_profile == SegmentProfile::kExact) {
+    return {reference(t), referenceVelocity(t, false)};
+  }
   if (params_.segment_profile == SegmentProfile::kBlended) {
     return segmenter_.sampleBlended([this](double time) { return reference(time); }, t_reg_, t);
   }

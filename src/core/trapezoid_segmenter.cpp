@@ -134,12 +134,24 @@ Eigen::Vector3d TrapezoidSegmenter::sample(const Reference& ref, double t_start,
 }
 
 const char* toString(SegmentProfile profile) {
-  return profile == SegmentProfile::kBlended ? "blended" : "rest_to_rest";
+  switch (profile) {
+    case SegmentProfile::kBlended:
+      return "blended";
+    case SegmentProfile::kExact:
+      return "exact";
+    case SegmentProfile::kRestToRest:
+      break;
+  }
+  return "rest_to_rest";
 }
 
 bool parseSegmentProfile(const std::string& name, SegmentProfile* profile) {
   if (name == "blended") {
     *profile = SegmentProfile::kBlended;
+    return true;
+  }
+  if (name == "exact") {
+    *profile = SegmentProfile::kExact;
     return true;
   }
   if (name == "rest_to_rest") {

@@ -110,6 +110,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"linear", "hysteresis"}));
   app.add_option("--bone-motion", bone_motion, "model | virtual_patient")
       ->check(CLI::IsMember({"model", "virtual_patient"}));
+  std::string segment_profile = "rest_to_rest";
+  app.add_option("--segment-profile", segment_profile,
+                 "the planner's ~segment_profile: rest_to_rest (the paper's) | blended | exact")
+      ->check(CLI::IsMember({"rest_to_rest", "blended", "exact"}));
   app.add_option("--command-delay-s", config.delays.command_to_arm_s,
                  "planner command -> arm controller transport delay, s")
       ->check(CLI::Range(0.0, 1.0));
@@ -132,6 +136,7 @@ int main(int argc, char** argv) {
     return code == 0 ? 0 : 2;
   }
 
+  pd::parseSegmentProfile(segment_profile, &config.sequencer.compensation.segment_profile);
   config.draw_start_phase = !fixed_start;
   json trials;
   pd::PatientModel stationary_model;

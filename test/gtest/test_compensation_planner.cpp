@@ -277,3 +277,59 @@ TEST(CompensationPlanner, HeldFeedStopsProgressButKeepsFollowingTheBone) {
   stationary.holdFeed(2.0);
   EXPECT_NEAR(stationary.referenceFeed(9.0), p.feed_rate_m_s * 1.0, 1e-15);
 }
+
+// The exact profile (beyond the paper): the reference itself with its analytic velocities, and
+// knots at the ventilator's flow steps, where the predicted velocity steps.
+TEST(CompensationPlanner, ExactSegmentsFollowTheReferenceWithKnotsAtTheFlowSteps) {
+  pd::CompensationParams p;
+  p.segment_profile = pd::SegmentProfile::kExact;
+  pd::CompensationPlanner planner = readyPlanner(p, 0.3);
+  const pd::VentilatorModel& vent = *planner.predictor().ventilator();
+  // The default settings: square flow, 12 /min, I:E 1:2, no pause: steps at the breath start
+  // and at Ti = 5/3 s in every 5 s breath.
+  const std::vector<double> steps = planner.predictor().flowSteps(0.0, 10.5);
+  ASSERT_EQ(steps.size(), 5u);
+  EXPECT_NEAR(steps[0], 0.3, 1e-12);
+  EXPECT_NEAR(steps[1], 0.3 + vent.flowTime(), 1e-12);
+  EXPECT_NEAR(steps[2], 5.3, 1e-12);
+  EXPECT_NEAR(steps[3], 5.3 + vent.flowTime(), 1e-12);
+  EXPECT_NEAR(steps[4], 10.3, 1e-12);
+  EXPECT_NEAR(vent.flowTime(), 5.0 / 3.0, 1e-12);
+  planner.start(pd::CompensationMode::kCompensated, 4.0);
+  const Eigen::Vector3d axis = planner.axis();
+  // The segment that contains the inspiration start at 5.3 s: t0 = 5.25 s.
+  const pd::PlannedSegment seg = planner.segment(10);
+  ASSERT_DOUBLE_EQ(seg.t0, 5.25);
+  std::vector<double> times;
+  for (const pd::PlannedPoint& pt : seg.points) {
+    times.push_back(pt.t);
+    EXPECT_NEAR(pt.feed_m, planner.reference(pt.t).dot(axis), 1e-12);
+  }
+  // Five samples (every 25 ms) plus the step at 5.3 s (already a sample) and 1 ms after it.
+  ASSERT_EQ(times.size(), 6u);
+  EXPECT_NEAR(times[1], 5.3, 1e-9);
+  EXPECT_NEAR(times[2], 5.301, 1e-9);
+  // Before the step the flow is the expiration's (bone moving away, the drill retracts along
+  // -z less than it feeds), after it the inspiratory flow: AP velocity q1 * flow.
+  const double q1 = 0.01e-3;  // m/ml
+  const double feed = p.feed_rate_m_s;
+  // (The velocities are one-sided 1 us differences: compare with the flow mid-way.)
+  const pd::VentilatorSample before = planner.predictor().ventilatorAt(5.3 - 0.5e-6);
+  const pd::VentilatorSample after = planner.predictor().ventilatorAt(5.301 + 0.5e-6);
+  // Reference = feed * axis + y: feed-axis velocity = feed + q1 * flow * (AP . axis) = feed - q1 F.
+  EXPECT_NEAR(seg.points[1].feed_velocity_m_s, feed - q1 * before.flow_ml_s, 1e-8);
+  EXPECT_NEAR(seg.points[2].feed_velocity_m_s, feed - q1 * after.flow_ml_s, 1e-8);
+  EXPECT_GT(std::abs(seg.points[2].feed_velocity_m_s - seg.points[1].feed_velocity_m_s), 1e-3);
+  // A segment without a step: only the samples, each with the reference's velocity.
+  const pd::PlannedSegment plain = planner.segment(4);
+  ASSERT_EQ(plain.points.size(), 5u);
+  for (const pd::PlannedPoint& pt : plain.points) {
+    const double f = planner.predictor().ventilatorAt(pt.t - 0.5e-6).flow_ml_s;
+    EXPECT_NEAR(pt.feed_velocity_m_s, feed - q1 * f, 1e-8);
+  }
+  // The profile's name round-trips.
+  pd::SegmentProfile parsed;
+  ASSERT_TRUE(pd::parseSegmentProfile("exact", &parsed));
+  EXPECT_EQ(parsed, pd::SegmentProfile::kExact);
+  EXPECT_STREQ(pd::toString(pd::SegmentProfile::kExact), "exact");
+}

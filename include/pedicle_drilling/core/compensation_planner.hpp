@@ -57,9 +57,11 @@ struct CompensationParams {
   /** @brief Trajectory points per segment, sampled from its trapezoid (>= 1; last = end). */
   int points_per_segment = 5;
   /**
-   * @brief How the 125 ms segments join: kRestToRest (default; each segment a trapezoid from
-   *        rest to rest) or kBlended (velocity-continuous, each period at its chord velocity,
-   *        ramps of accel_ratio x velocity at the boundaries).
+   * @brief How the 125 ms segments join: kRestToRest (default, the paper's; each segment a
+   *        trapezoid from rest to rest), kBlended (velocity-continuous, each period at its chord
+   *        velocity, ramps of accel_ratio x velocity at the boundaries) or kExact (beyond the
+   *        paper: the reference itself, points_per_segment samples per period with analytic
+   *        velocities, plus knots at the flow steps).
    */
   SegmentProfile segment_profile = SegmentProfile::kRestToRest;
   /** @brief Which model axes are predicted (paper's experiments: AP only). */
@@ -102,6 +104,12 @@ class DisplacementPredictor {
 
   /** @brief Predicted displacement [m] in the world frame at time t (absolute, includes q0). */
   Eigen::Vector3d displacement(double t) const;
+
+  /**
+   * @brief Times in (t0, t1] where the ventilator's flow is discontinuous (inspiration start,
+   *        end of the inspiratory flow, end of the pause), where the predicted velocity steps.
+   */
+  std::vector<double> flowSteps(double t0, double t1) const;
 
   /** @brief The ventilator model (nullptr before setVentilator()). */
   const VentilatorModel* ventilator() const { return ventilator_.get(); }
@@ -200,7 +208,15 @@ class CompensationPlanner {
   /** @brief Unit drill axis. */
   const Eigen::Vector3d& axis() const { return axis_; }
 
+  /**
+   * @brief Velocity of reference() at t [m/s, world], one-sided: from the left (`left`) or
+   *        the right, so that at a flow step it is the velocity before or after the step.
+   */
+  Eigen::Vector3d referenceVelocity(double t, bool left) const;
+
  private:
+  PlannedSegment exactSegment(int k) const;
+
   CompensationParams params_;
   Eigen::Vector3d axis_;
   DisplacementPredictor predictor_;

@@ -98,11 +98,14 @@ enum class SegmentProfile {
   /// at the segment boundaries with trapezoid ramps of acceleration r times the larger chord
   /// speed ("linear segments with parabolic blends").
   kBlended,
+  /// Beyond the paper: the reference itself, sampled densely with its analytic velocities and
+  /// with knots at the ventilator's flow steps (CompensationPlanner), no trapezoids.
+  kExact,
 };
 
-/** @brief Name of a profile: "rest_to_rest" or "blended". */
+/** @brief Name of a profile: "rest_to_rest", "blended" or "exact". */
 const char* toString(SegmentProfile profile);
-/** @brief Parses "rest_to_rest" or "blended"; false otherwise. */
+/** @brief Parses "rest_to_rest", "blended" or "exact"; false otherwise. */
 bool parseSegmentProfile(const std::string& name, SegmentProfile* profile);
 
 /** @brief Position and velocity of a segmented trajectory at one time. */

@@ -104,6 +104,7 @@ class VentilatorModel {
   const VentilatorSettings& settings() const { return settings_; }
   double period() const { return period_; }                    ///< T, s
   double inspiratoryTime() const { return inspiratory_time_; }  ///< Ti incl. pause, s
+  double flowTime() const { return flow_time_; }                ///< Ti - pause, s
   double inspiratoryAmplitude() const { return amplitude_; }   ///< A, ml/s
   double expiratoryPeak() const { return expiratory_peak_; }   ///< P, ml/s
   double expiratoryTau() const { return expiratory_tau_; }     ///< tau, s
