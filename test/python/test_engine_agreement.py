@@ -1,5 +1,5 @@
 """The two engines checked against each other (opt-in: PEDICLE_DRILLING_SLOW_TESTS=1, about
-8 minutes): the same seeds through the core engine and twice through the ROS pipeline, trial by
+6 minutes): the same seeds through the core engine and twice through the ROS pipeline, trial by
 trial: 10 per case of the paper's design at 12000 rpm and 20 of the virtual patient with the
 hysteresis model (the scenario where the engines once disagreed). Both agreements are printed and
 written to the test artifacts (engine_agreement.md).
@@ -37,7 +37,7 @@ def campaign(out, engine, port):
     return rows
 
 
-@pytest.mark.skipif(not SLOW, reason='opt-in: PEDICLE_DRILLING_SLOW_TESTS=1 (about 8 min)')
+@pytest.mark.skipif(not SLOW, reason='opt-in: PEDICLE_DRILLING_SLOW_TESTS=1 (about 6 min)')
 def test_core_engine_agrees_with_ros_as_well_as_ros_with_itself(tmp_path):
     core = campaign(tmp_path / 'core', 'core', 14100)
     ros = campaign(tmp_path / 'ros', 'ros', 14300)
