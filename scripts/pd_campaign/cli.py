@@ -196,8 +196,9 @@ def parse_args(argv):
     else:
         trials = scenario.get('trials', 20)
         trials = trials if isinstance(trials, list) else [trials]
-    if any(not 1 <= n <= 10000 for n in trials):
-        raise UsageError('--trials must be in 1..10000')
+    low, high = SCENARIO_KEYS['trials'][1:]
+    if any(not low <= n <= high for n in trials):
+        raise UsageError('--trials must be in %d..%d' % (low, high))
     if len(trials) == 1:
         trials = trials[0]
     elif len(trials) != len(rpms):

@@ -10,6 +10,7 @@
 #include "pedicle_drilling/core/bone_specimen.hpp"
 #include "pedicle_drilling/core/compensation_planner.hpp"
 #include "pedicle_drilling/core/kinematics.hpp"
+#include "pedicle_drilling/core/normal_source.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -48,17 +49,9 @@ struct Timer {
   double period;  // 0: one shot
 };
 
-}  // namespace
-
-namespace {
-
-/** @brief A number in [0, 1) from the seed (splitmix64), independent of the simulation's draws. */
+/** @brief The trial's start phase in [0, 1): its own stream of the seed. */
 double startPhaseFraction(std::uint64_t seed) {
-  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL + 0x5851f42d4c957f2dULL;  // own stream
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z = z ^ (z >> 31);
-  return static_cast<double>(z >> 11) * 0x1.0p-53;
+  return uniformFromSeed(seed + 0x5851f42d4c957f2dULL);
 }
 
 }  // namespace
@@ -162,8 +155,6 @@ struct ClosedLoopEngine::Impl {
     }
   }
 
-  Eigen::Vector3d last_marker = Eigen::Vector3d::Zero();
-
   void evaluateMonitor() {
     const std::optional<SafetyVerdict> v = monitor->takeNewStop();
     if (!v) return;
@@ -203,8 +194,8 @@ struct ClosedLoopEngine::Impl {
 
   void onMarker() {
     const Eigen::Isometry3d pose = sim->measureMarkerPose();
-    last_marker = pose.translation();
-    monitor->onTracked(now, {now, "tracker_camera", last_marker});
+    const Eigen::Vector3d marker = pose.translation();
+    monitor->onTracked(now, {now, "tracker_camera", marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
     const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
@@ -212,7 +203,7 @@ struct ClosedLoopEngine::Impl {
       *r = r_cam_world;
       return true;
     };
-    sequencer->onMarker(now, now, "tracker_camera", last_marker,
+    sequencer->onMarker(now, now, "tracker_camera", marker,
                         Eigen::Quaterniond(pose.linear()), lookup);
     carryOut();
   }

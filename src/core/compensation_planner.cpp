@@ -10,6 +10,11 @@ namespace pedicle_drilling::core {
 
 namespace {
 
+/** @brief Time of point i = 1..n of a segment of period T: t0 + T i / n, the last exactly t1. */
+double pointTime(const PlannedSegment& seg, double period, int i, int n) {
+  return i == n ? seg.t1 : seg.t0 + period * i / n;
+}
+
 void require(bool ok, const std::string& name, const std::string& why) {
   if (!ok) throw std::invalid_argument(name + ": " + why);
 }
@@ -188,7 +193,7 @@ PlannedSegment CompensationPlanner::exactSegment(int k) const {
   };
   std::vector<Knot> knots;
   const int n = params_.points_per_segment;
-  for (int i = 1; i <= n; ++i) knots.push_back({i == n ? out.t1 : out.t0 + params_.period_s * i / n, true});
+  for (int i = 1; i <= n; ++i) knots.push_back({pointTime(out, params_.period_s, i, n), true});
   if (mode_ == CompensationMode::kCompensated && predictor_.ready()) {
     constexpr double kStepWidth = 1e-3;
     const double lat = params_.latency_s;
@@ -226,7 +231,7 @@ PlannedSegment CompensationPlanner::segment(int k) const {
     out.feed_start_m = segmentedSample(out.t0).position.dot(axis_);
     for (int i = 1; i <= n; ++i) {
       PlannedPoint pt;
-      pt.t = i == n ? out.t1 : out.t0 + params_.period_s * i / n;
+      pt.t = pointTime(out, params_.period_s, i, n);
       const SegmentSample sample = segmentedSample(pt.t);
       pt.feed_m = sample.position.dot(axis_);
       pt.feed_velocity_m_s = sample.velocity.dot(axis_);
@@ -243,7 +248,7 @@ PlannedSegment CompensationPlanner::segment(int k) const {
   out.feed_end_m = p1.dot(axis_);
   for (int i = 1; i <= n; ++i) {
     PlannedPoint pt;
-    pt.t = i == n ? out.t1 : out.t0 + params_.period_s * i / n;
+    pt.t = pointTime(out, params_.period_s, i, n);
     const Eigen::Vector3d p = i == n ? p1 : seg.position(pt.t);
     pt.feed_m = p.dot(axis_);
     pt.feed_velocity_m_s = i == n ? 0.0 : seg.velocity(pt.t).dot(axis_);

@@ -25,15 +25,10 @@ constexpr double kPi = 3.14159265358979323846;
 // A separation of drill and bone: no contact for this many 1 ms steps (10 ms).
 constexpr int kSeparationSteps = 10;
 
-// The tracker's sample phase of a trial, uniform in [0, 1): splitmix64 of the seed (its own
-// stream, so that it changes nothing else the seed draws).
+// The tracker's sample phase of a trial, uniform in [0, 1): its own stream of the seed, so that
+// it changes nothing else the seed draws.
 double trackerPhaseFraction(std::uint64_t seed) {
-  std::uint64_t z = seed ^ 0x7472616b70686173ULL;
-  z += 0x9e3779b97f4a7c15ULL;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-  z = z ^ (z >> 31);
-  return static_cast<double>(z >> 11) * 0x1.0p-53;
+  return uniformFromSeed(seed ^ 0x7472616b70686173ULL);
 }
 
 Eigen::Isometry3d toIsometry(const urdf::Pose& p) {

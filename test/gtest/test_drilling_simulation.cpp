@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iostream>
 #include <limits>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -171,6 +172,34 @@ TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
   EXPECT_DOUBLE_EQ(sim.groundTruth().max_depth_cut_m, 0.0);
   EXPECT_LT(sim.groundTruth().tip_depth_m, -0.1);
   EXPECT_EQ(sim.seed(), 6u);
+}
+
+// The tracker samples once per period, at a phase drawn from the trial's seed: different
+// seeds put the 8 Hz samples at different points of the breath (both grids start at 0).
+TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
+  std::set<int> phases;
+  for (std::uint64_t seed : {1u, 2u, 3u, 4u, 5u, 6u}) {
+    DrillingSimulation sim(workcell(), DrillingSimulationParams(), seed);
+    sim.reset(seed, false);
+    std::vector<int> due;
+    for (int k = 1; k <= 250; ++k) {
+      sim.stepOnce();
+      if (sim.trackerDue(125)) due.push_back(k);
+    }
+    ASSERT_EQ(due.size(), 2u) << "seed " << seed;
+    EXPECT_EQ(due[1] - due[0], 125);
+    phases.insert(due[0]);
+    // The same seed, the same phase.
+    DrillingSimulation again(workcell(), DrillingSimulationParams(), seed);
+    again.reset(seed, false);
+    int first = 0;
+    for (int k = 1; first == 0 && k <= 125; ++k) {
+      again.stepOnce();
+      if (again.trackerDue(125)) first = k;
+    }
+    EXPECT_EQ(first, due[0]);
+  }
+  EXPECT_GE(phases.size(), 5u);  // six seeds, 125 possible phases
 }
 
 // A separation is a gap of at least 10 ms without cutting after a cut: drill 1 mm into a

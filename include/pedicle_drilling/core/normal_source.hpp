@@ -11,6 +11,19 @@
 namespace pedicle_drilling::core {
 
 /**
+ * @brief One uniform number in [0, 1) from a seed, by splitmix64 (Steele, Lea and Flood 2014):
+ *        for a single draw per trial that must not disturb any generator's sequence. Give each
+ *        use its own stream by offsetting or xor-ing the seed with a constant of its own.
+ */
+inline double uniformFromSeed(std::uint64_t seed) {
+  std::uint64_t z = seed + 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  z = z ^ (z >> 31);
+  return static_cast<double>(z >> 11) * 0x1.0p-53;
+}
+
+/**
  * @brief Standard-normal deviates by an explicit Box-Muller transform on raw mt19937_64 output.
  *
  * std::normal_distribution is implementation-defined; this generator gives the same sequence
