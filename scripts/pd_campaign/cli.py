@@ -366,8 +366,9 @@ def run_campaign(argv=None):
             with lock:
                 rows.append(row)
                 progress.update(row)
-                report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
+                appender.append(row)
 
+    appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'))
     readers = [threading.Thread(target=collect, args=(w,), daemon=True) for w in workers]
     for reader in readers:
         reader.start()
@@ -396,6 +397,7 @@ def run_campaign(argv=None):
     sys.stderr.write('\n')
     with lock:
         finished = list(rows)
+        appender.close()
     write_outputs(finished, meta, out_dir)
     sys.stderr.write('campaign: %d/%d trials finished; report %s\n'
                      % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))

@@ -3,6 +3,7 @@
 Everything here is computed from the trial rows (and per-trial traces) alone, so a merge of
 shard directories produces the same report as a single run with the same design."""
 import csv
+import io
 import json
 import math
 import os
@@ -72,6 +73,34 @@ def write_trials_csv(rows, path):
         for row in rows:
             writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
     os.replace(tmp, path)
+
+
+class TrialsAppender:
+    """trials.csv while a campaign runs: the header, then one complete line per finished trial,
+    appended and flushed as it arrives (nothing finished is lost if the campaign is killed).
+    Appending keeps the cost per trial constant; write_trials_csv rewrites the file sorted,
+    atomically, when the campaign ends."""
+
+    def __init__(self, path):
+        self._handle = open(path, 'w', newline='')
+        self._buffer = io.StringIO()
+        self._writer = csv.DictWriter(self._buffer, fieldnames=TRIAL_COLUMNS,
+                                      extrasaction='ignore')
+        self._writer.writeheader()
+        self._flush()
+
+    def _flush(self):
+        self._handle.write(self._buffer.getvalue())
+        self._handle.flush()
+        self._buffer.seek(0)
+        self._buffer.truncate()
+
+    def append(self, row):
+        self._writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
+        self._flush()
+
+    def close(self):
+        self._handle.close()
 
 
 def read_trials_csv(path):

@@ -188,6 +188,26 @@ def test_summary_counts_and_schema(tmp_path):
     assert len(report.read_trials_csv(str(path))) == 6
 
 
+def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_file(tmp_path):
+    """While a campaign runs, trials.csv gains one line per trial (constant cost per trial); after
+    every append the file reads back as the rows so far, and the final sorted rewrite holds the
+    same rows as the appended file."""
+    d = design.build_design(['stationary', 'compensated'], [12000], 4, 3)
+    rows = _rows(d)
+    path = tmp_path / 'trials.csv'
+    appender = report.TrialsAppender(str(path))
+    for n, row in enumerate(reversed(rows), start=1):
+        appender.append(row)
+        read = report.read_trials_csv(str(path))
+        assert len(read) == n
+        assert read[-1]['trial_id'] == row['trial_id']
+    appender.close()
+    appended = sorted(report.read_trials_csv(str(path)), key=report.sort_key)
+    final = tmp_path / 'final.csv'
+    report.write_trials_csv(rows, str(final))
+    assert appended == report.read_trials_csv(str(final))
+
+
 @pytest.mark.parametrize('args, named', [
     (['--case', 'sideways'], '--case'),
     (['--rpm', 'fast'], '--rpm'),
