@@ -29,10 +29,7 @@ namespace {
 
 /** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
 std::uint64_t periodSteps(double rate_hz, const char* name) {
-  if (!(std::isfinite(rate_hz) && rate_hz > 0.0 && rate_hz <= 1000.0)) {
-    throw std::invalid_argument(std::string(name) + ": must be in (0, 1000] Hz");
-  }
-  return static_cast<std::uint64_t>(std::max(1.0, std::round(1000.0 / rate_hz)));
+  return core::streamPeriodSteps(1000.0, rate_hz, name);
 }
 
 /** @brief A message in transit: handled at the first step at or after `t`. */

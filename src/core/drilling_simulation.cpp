@@ -116,6 +116,15 @@ VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s,
   return p;
 }
 
+std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const std::string& name) {
+  if (!(std::isfinite(rate_hz) && rate_hz > 0.0 && rate_hz <= physics_rate_hz)) {
+    std::ostringstream os;
+    os << name << ": must be in (0, " << physics_rate_hz << "] Hz, got " << rate_hz;
+    throw std::invalid_argument(os.str());
+  }
+  return static_cast<std::uint64_t>(std::max(1.0, std::round(physics_rate_hz / rate_hz)));
+}
+
 void TrialVariability::validate() const {
   auto check = [](double value, double hi, const char* name) {
     if (!std::isfinite(value) || value < 0.0 || value > hi) {

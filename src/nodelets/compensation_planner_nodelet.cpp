@@ -191,7 +191,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // forget one: a component that cannot be reset refuses the trial, nothing drills. No lock
     // is held while calling: the components' answers may need this nodelet's callbacks.
     lock.unlock();
-    const bool started = startComponents(&res.message);
+    const bool started =
+        callTriggerChain(&trial_start_clients_, trial_start_timeout_s_, &res.message);
     lock.lock();
     if (!started) return true;
     res.message = sequencer_->start(request, patient_.motionModel(), now());
@@ -204,52 +205,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  /**
-   * @brief Calls every service of ~trial_start_services (std_srvs/Trigger) in order: the
-   *        recognizer's and the safety monitor's ~reset, and on the simulator its start_trial.
-   * @return false with the reason in *why when one is missing or refuses.
-   */
-  bool startComponents(std::string* why) {
-    for (ros::ServiceClient& client : trial_start_clients_) {
-      const std::string name = client.getService();
-      if (!client.waitForExistence(ros::Duration(trial_start_timeout_s_))) {
-        *why = "trial refused: service " + name + " is not available (is its nodelet loaded? "
-               "parameter ~trial_start_services); nothing was started";
-        return false;
-      }
-      std_srvs::Trigger srv;
-      if (!client.call(srv)) {
-        *why = "trial refused: the call to " + name + " failed; nothing was started";
-        return false;
-      }
-      if (!srv.response.success) {
-        *why = "trial refused: " + name + " answered: " + srv.response.message +
-               "; nothing was started";
-        return false;
-      }
-      NODELET_INFO("CompensationPlanner: %s: %s", name.c_str(), srv.response.message.c_str());
-    }
-    return true;
-  }
-
   // ------------------------------------------------------------------------------- outputs
 
   /** @brief Publishes what the sequencer produced and runs the timers it asked for. */
   void carryOut() {
     core::SequencerOutput out = sequencer_->takeOutput();
-    for (const core::SequencerLog& l : out.log) {
-      switch (l.level) {
-        case core::SequencerLog::Level::kInfo:
-          NODELET_INFO("CompensationPlanner: %s", l.text.c_str());
-          break;
-        case core::SequencerLog::Level::kWarn:
-          NODELET_WARN("CompensationPlanner: %s", l.text.c_str());
-          break;
-        case core::SequencerLog::Level::kError:
-          NODELET_ERROR("CompensationPlanner: %s", l.text.c_str());
-          break;
-      }
-    }
+    logSequencerMessages(out.log, "CompensationPlanner");
     for (double rpm : out.spindle_rpm) {
       std_msgs::Float64 msg;
       msg.data = rpm;

@@ -27,7 +27,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <thread>
 #include <vector>
@@ -41,15 +40,6 @@
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
-
-namespace {
-
-// Number of physics steps between two publications at rate_hz (at least 1).
-int periodSteps(double physics_rate_hz, double rate_hz) {
-  return std::max(1, static_cast<int>(std::lround(physics_rate_hz / rate_hz)));
-}
-
-}  // namespace
 
 /** @brief Nodelet wrapper of core::DrillingSimulation with its own stepping thread. */
 class SimulatorNodelet : public nodelet::Nodelet {
@@ -72,7 +62,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       publish_clock_ = params.getBool("publish_clock", true);
       clock_period_steps_ = params.getInt("clock_period_ms", 1, 1, 100);
       const auto period = [&params](const std::string& name, double default_hz) {
-        return periodSteps(1000.0, params.getDouble(name, default_hz, 0.0, 1000.0, true));
+        return core::streamPeriodSteps(
+            1000.0, params.getDouble(name, default_hz, 0.0, 1000.0, true), name);
       };
       joint_state_period_ = period("joint_state_rate_hz", 100.0);
       tf_period_ = period("tf_rate_hz", 100.0);
@@ -81,7 +72,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       // The simulated ventilator is the device that drives the patient: it publishes what the
       // Ventilator nodelet publishes on hardware-free setups (0 disables it).
       const double tv_rate = params.getDouble("tidal_volume_rate_hz", 64.0, 0.0, 1000.0);
-      tidal_volume_period_ = tv_rate > 0.0 ? periodSteps(1000.0, tv_rate) : 0;
+      tidal_volume_period_ =
+          tv_rate > 0.0 ? core::streamPeriodSteps(1000.0, tv_rate, "tidal_volume_rate_hz") : 0;
     } catch (const std::exception& e) {
       // Safe state: nothing is advertised, the error names the parameter or the file.
       startup_status_.fail(nh, getName(), e.what());
@@ -278,15 +270,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       return true;
     }
     res.success = true;
-    std::ostringstream os;
-    os << "new specimen and patient from seed " << req.seed << " (virtual volunteer "
-       << sim_->patient().volunteer_id << "), bone " << (req.moving_bone ? "moving" : "stationary")
-       << ", arm at home";
-    if (bone_motion) {
-      os << "; the bone plays the model AP d = " << bone_motion->q1_ap_mm_per_ml << " Tv + "
-         << bone_motion->q2_ap_mm_s_per_ml << " dTv/dt (bone_motion_model_path)";
-    }
-    res.message = os.str();
+    res.message = resetSummary(*sim_, req, bone_motion);
     fillResetResponse(*sim_, &res);
     publishGroundTruth(sim_->time());
     return true;
@@ -301,11 +285,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
   bool publish_clock_ = true;
   double time_offset_ = 0.0;
   int clock_period_steps_ = 1;
-  int joint_state_period_ = 10;
-  int tf_period_ = 10;
-  int ground_truth_period_ = 10;
-  int tracker_period_ = 125;
-  int tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
+  std::uint64_t joint_state_period_ = 10;
+  std::uint64_t tf_period_ = 10;
+  std::uint64_t ground_truth_period_ = 10;
+  std::uint64_t tracker_period_ = 125;
+  std::uint64_t tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
   long last_breath_index_ = -1;
   VentilatorSettings last_settings_msg_;
   ros::Publisher tidal_volume_pub_;

@@ -1,5 +1,7 @@
 #include "pedicle_drilling/ros/planner_conversions.hpp"
 
+#include <ros/console.h>
+#include <std_srvs/Trigger.h>
 #include <urdf_model/model.h>
 #include <urdf_parser/urdf_parser.h>
 
@@ -132,6 +134,47 @@ geometry_msgs::PoseStamped toMsg(const core::PredictedMarker& marker) {
   msg.pose.orientation.y = marker.orientation.y();
   msg.pose.orientation.z = marker.orientation.z();
   return msg;
+}
+
+bool callTriggerChain(std::vector<ros::ServiceClient>* clients, double timeout_s,
+                      std::string* why) {
+  for (ros::ServiceClient& client : *clients) {
+    const std::string name = client.getService();
+    if (!client.waitForExistence(ros::Duration(timeout_s))) {
+      *why = "trial refused: service " + name +
+             " is not available (is its nodelet loaded? parameter ~trial_start_services); "
+             "nothing was started";
+      return false;
+    }
+    std_srvs::Trigger srv;
+    if (!client.call(srv)) {
+      *why = "trial refused: the call to " + name + " failed; nothing was started";
+      return false;
+    }
+    if (!srv.response.success) {
+      *why = "trial refused: " + name + " answered: " + srv.response.message +
+             "; nothing was started";
+      return false;
+    }
+    ROS_INFO("CompensationPlanner: %s: %s", name.c_str(), srv.response.message.c_str());
+  }
+  return true;
+}
+
+void logSequencerMessages(const std::vector<core::SequencerLog>& log, const std::string& who) {
+  for (const core::SequencerLog& l : log) {
+    switch (l.level) {
+      case core::SequencerLog::Level::kInfo:
+        ROS_INFO("%s: %s", who.c_str(), l.text.c_str());
+        break;
+      case core::SequencerLog::Level::kWarn:
+        ROS_WARN("%s: %s", who.c_str(), l.text.c_str());
+        break;
+      case core::SequencerLog::Level::kError:
+        ROS_ERROR("%s: %s", who.c_str(), l.text.c_str());
+        break;
+    }
+  }
 }
 
 }  // namespace pedicle_drilling

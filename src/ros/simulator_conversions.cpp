@@ -105,6 +105,20 @@ std::string applySpecimenRequest(const ResetSimulation::Request& request,
   return "";
 }
 
+std::string resetSummary(const core::DrillingSimulation& sim,
+                         const ResetSimulation::Request& request,
+                         const std::optional<core::BoneMotionModel>& bone_motion) {
+  std::ostringstream os;
+  os << "new specimen and patient from seed " << request.seed << " (virtual volunteer "
+     << sim.patient().volunteer_id << "), bone "
+     << (request.moving_bone ? "moving" : "stationary") << ", arm at home";
+  if (bone_motion) {
+    os << "; the bone plays the model AP d = " << bone_motion->q1_ap_mm_per_ml << " Tv + "
+       << bone_motion->q2_ap_mm_s_per_ml << " dTv/dt (bone_motion_model_path)";
+  }
+  return os.str();
+}
+
 void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Response* response) {
   const core::BoneSpecimen& s = sim.process().specimen();
   response->outer_cortical_thickness_m = s.outerCorticalThickness();

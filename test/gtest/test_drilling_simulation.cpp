@@ -788,3 +788,19 @@ TEST(DrillingSimulationTrial, BadDistributionThrowsAndLeavesTheTrialAlone) {
 
 }  // namespace
 }  // namespace pedicle_drilling::core
+
+TEST(StreamPeriodSteps, RoundsTheRatioAndRefusesRatesOutsideThePhysicsRate) {
+  using pedicle_drilling::core::streamPeriodSteps;
+  EXPECT_EQ(streamPeriodSteps(1000.0, 8.0, "tracker_rate_hz"), 125u);
+  EXPECT_EQ(streamPeriodSteps(1000.0, 64.0, "tidal_volume_rate_hz"), 16u);  // 15.625 rounds
+  EXPECT_EQ(streamPeriodSteps(1000.0, 1000.0, "x"), 1u);
+  EXPECT_EQ(streamPeriodSteps(1000.0, 700.0, "x"), 1u);
+  for (double bad : {0.0, -1.0, 1000.5, std::nan(""), HUGE_VAL}) {
+    try {
+      streamPeriodSteps(1000.0, bad, "tracker_rate_hz");
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("tracker_rate_hz"), std::string::npos) << e.what();
+    }
+  }
+}

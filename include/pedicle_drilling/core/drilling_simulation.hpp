@@ -182,6 +182,14 @@ struct TrajectoryCommand {
   double start_time_s = std::numeric_limits<double>::quiet_NaN();
 };
 
+/**
+ * @brief Physics steps between two samples of a stream published at `rate_hz` (at least 1):
+ *        round(physics_rate_hz / rate_hz). Shared by the Simulator nodelet and the closed-loop
+ *        engine so that both sample every stream at the same steps.
+ * @throws std::invalid_argument naming `name` unless 0 < rate_hz <= physics_rate_hz.
+ */
+std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const std::string& name);
+
 /** @brief Output of one physics step. */
 struct SimulationStep {
   double time_s = 0.0;           ///< simulation time at the end of the step

@@ -8,8 +8,11 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
+#include <ros/service_client.h>
+
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/trial_sequencer.hpp"
@@ -42,5 +45,18 @@ trajectory_msgs::JointTrajectory toMsg(const core::JointTrajectoryCommand& comma
 
 /** @brief A predicted marker pose as geometry_msgs/PoseStamped. */
 geometry_msgs::PoseStamped toMsg(const core::PredictedMarker& marker);
+
+/**
+ * @brief Calls every std_srvs/Trigger service of `clients` in order (the planner's
+ *        ~trial_start_services: the recognizer's and the safety monitor's ~reset, on the
+ *        simulator its start_trial), waiting up to `timeout_s` for each to exist.
+ * @return false with the reason in *why when one is missing, fails or refuses; the answers of
+ *         those that accepted are logged.
+ */
+bool callTriggerChain(std::vector<ros::ServiceClient>* clients, double timeout_s,
+                      std::string* why);
+
+/** @brief Logs the sequencer's messages at their levels, prefixed with `who`. */
+void logSequencerMessages(const std::vector<core::SequencerLog>& log, const std::string& who);
 
 }  // namespace pedicle_drilling

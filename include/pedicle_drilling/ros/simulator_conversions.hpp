@@ -62,6 +62,11 @@ std::optional<core::BoneMotionModel> loadBoneMotionModel(const ros::NodeHandle& 
 std::string applySpecimenRequest(const ResetSimulation::Request& request,
                                  core::SpecimenDistribution* specimen);
 
+/** @brief The reset's one-line summary for the response message (seed, volunteer, bone). */
+std::string resetSummary(const core::DrillingSimulation& sim,
+                         const ResetSimulation::Request& request,
+                         const std::optional<core::BoneMotionModel>& bone_motion);
+
 /** @brief The drawn specimen and trial conditions into a reset response (success untouched). */
 void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Response* response);
 
