@@ -16,7 +16,6 @@ up to ~7 %); --paper-denoising uses the paper's displacement-only de-noising. Wr
 The Markdown table is also printed. Exit status 0, 1 when a tool fails, 2 on a bad option or an
 --out that cannot be created (one line naming it).
 """
-import argparse
 import csv
 import os
 import concurrent.futures
@@ -25,7 +24,7 @@ import sys
 
 import yaml
 
-from pd_campaign.tools import tool
+from pd_campaign.tools import argument_parser, tool
 
 IDS = [1, 2, 3, 4, 5]
 MODELS = ['linear', 'hysteresis']
@@ -85,7 +84,7 @@ def plot(fit_csvs, vid, png):
 
 
 def main(argv):
-    parser = argparse.ArgumentParser(description='Table II for the virtual volunteers')
+    parser = argument_parser(description='Table II for the virtual volunteers')
     parser.add_argument('--out', default='table2_out')
     parser.add_argument('--method', default='ceres', choices=['ceres', 'pso'])
     parser.add_argument('--paper-denoising', action='store_true')

@@ -19,7 +19,6 @@ and its intercepts q0 equal the CLI's plus the mapped offset (in mm).
 Exit status: 0 ok; 2 bad arguments, bad input or an output that cannot be written, with one
 line naming the option or file (no partial bag is left: each is written and renamed).
 """
-import argparse
 import csv
 import math
 import os
@@ -33,7 +32,7 @@ from geometry_msgs.msg import PoseStamped, TransformStamped
 from tf2_msgs.msg import TFMessage
 
 from pedicle_drilling.msg import TidalVolume
-from pd_campaign.tools import tool
+from pd_campaign.tools import argument_parser, tool
 
 AXIS_RE = re.compile(r'^([+-]?)([xyz])$')
 
@@ -144,7 +143,7 @@ def _write_messages(bag_path, disp, tv, start, offset, mapping):
 
 
 def main(argv):
-    parser = argparse.ArgumentParser(description=__doc__.split('\n')[0])
+    parser = argument_parser(description=__doc__.split('\n')[0])
     parser.add_argument('--out', required=True)
     parser.add_argument('--ids', default='1,2,3,4,5')
     parser.add_argument('--duration', default='30')

@@ -4,10 +4,9 @@ engine beside the ROS pipeline, and the ROS pipeline beside a second run of itse
 
     python3 -m pd_campaign.agreement DIR_A DIR_B [--label-a A --label-b B]
 """
-import argparse
 import sys
 
-from . import report
+from . import report, tools
 
 
 def outcome(row):
@@ -61,7 +60,7 @@ def _mm(value):
 
 
 def main(argv=None):
-    parser = argparse.ArgumentParser(prog='agreement', description=__doc__.split('\n')[0])
+    parser = tools.argument_parser(prog='agreement', description=__doc__.split('\n')[0])
     parser.add_argument('dir_a')
     parser.add_argument('dir_b')
     parser.add_argument('--label-a', default='A')

@@ -1,5 +1,4 @@
 """`rosrun pedicle_drilling campaign` and `rosrun pedicle_drilling campaign_merge`."""
-import argparse
 import json
 import os
 import shutil
@@ -12,7 +11,7 @@ import time
 
 import yaml
 
-from . import engine_core, plots, report
+from . import engine_core, plots, report, tools
 from .design import CASES, build_design, parse_shard, shard
 
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
@@ -134,7 +133,7 @@ def load_scenario(path):
 
 
 def parse_args(argv):
-    parser = argparse.ArgumentParser(
+    parser = tools.argument_parser(
         prog='campaign', description='Reproduce the paper\'s drilling experiments on the '
         'simulator: Table III, Fig. 15-18, with Wilson 95 %% intervals.')
     parser.add_argument('--case', default=None,
@@ -407,7 +406,7 @@ def run_campaign(argv=None):
 
 
 def run_merge(argv=None):
-    parser = argparse.ArgumentParser(
+    parser = tools.argument_parser(
         prog='campaign_merge', description='Merge shard outputs of one campaign design into one '
         'report, identical to a single run with the same design.')
     parser.add_argument('dirs', nargs='+')

@@ -1,4 +1,5 @@
 """Where the package's built tools are, for the scripts that run them."""
+import argparse
 import os
 
 _ROOT = os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..')
@@ -12,3 +13,37 @@ def tool(name):
         if d and os.access(os.path.join(d, name), os.X_OK):
             return [os.path.join(d, name)]
     return ['rosrun', 'pedicle_drilling', name]
+
+
+class _GivenOnce:
+    """Refuses an option given twice on one command line (`--rpm 12000 ... --rpm 16000` would
+    otherwise silently keep the last): the same rule as the C++ tools (core::CliArgs)."""
+
+    def _once(self, parser, namespace, option_string):
+        seen = getattr(self, '_seen', set())
+        if id(namespace) in seen:
+            parser.error('option %s given more than once: give it once'
+                         % (option_string or self.dest))
+        seen.add(id(namespace))
+        self._seen = seen
+
+
+class _StoreOnce(_GivenOnce, argparse._StoreAction):
+    def __call__(self, parser, namespace, values, option_string=None):
+        self._once(parser, namespace, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+class _StoreTrueOnce(_GivenOnce, argparse._StoreTrueAction):
+    def __call__(self, parser, namespace, values, option_string=None):
+        self._once(parser, namespace, option_string)
+        super().__call__(parser, namespace, values, option_string)
+
+
+def argument_parser(**kwargs):
+    """An argparse parser whose options may each be given once (exit 2 naming a repeated one)."""
+    parser = argparse.ArgumentParser(**kwargs)
+    parser.register('action', None, _StoreOnce)
+    parser.register('action', 'store', _StoreOnce)
+    parser.register('action', 'store_true', _StoreTrueOnce)
+    return parser

@@ -23,11 +23,21 @@ CliArgs::CliArgs(int argc, char** argv, const std::set<std::string>& value_optio
     }
     if (flag_options.count(key)) {
       if (has_inline_value) throw UsageError("option '--" + key + "' takes no value");
-      flags_.insert(key);
+      if (!flags_.insert(key).second) {
+        throw UsageError("option '--" + key + "' given more than once: give it once");
+      }
     } else if (value_options.count(key)) {
       if (!has_inline_value) {
         if (i + 1 >= argc) throw UsageError("option '--" + key + "' needs a value");
         value = argv[++i];
+      }
+      const auto first = values_.find(key);
+      if (first != values_.end()) {
+        // getopt would keep the last, argparse too; a drilling tool refuses, the same way in
+        // every tool (the campaign scripts' parser does too): `--rate 12 ... --rate 0` is a
+        // mistake to report, not a choice to guess.
+        throw UsageError("option '--" + key + "' given more than once ('" + first->second +
+                         "', then '" + value + "'): give it once");
       }
       values_.emplace(key, value);
     } else {
@@ -39,13 +49,6 @@ CliArgs::CliArgs(int argc, char** argv, const std::set<std::string>& value_optio
 std::string CliArgs::get(const std::string& key, const std::string& fallback) const {
   const auto it = values_.find(key);
   return it == values_.end() ? fallback : it->second;
-}
-
-std::vector<std::string> CliArgs::getAll(const std::string& key) const {
-  std::vector<std::string> out;
-  const auto range = values_.equal_range(key);
-  for (auto it = range.first; it != range.second; ++it) out.push_back(it->second);
-  return out;
 }
 
 double CliArgs::getDouble(const std::string& key, double fallback) const {

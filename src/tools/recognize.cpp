@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <fstream>
 #include <iostream>
+#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -107,8 +108,15 @@ int main(int argc, char** argv) {
   bool json = false;
   RecognizerParams params;
   try {
+    std::set<std::string> given;  // an option or --param name given twice is refused
+    const auto once = [&given](const std::string& what) {
+      if (!given.insert(what).second) {
+        throw std::invalid_argument(what + " given more than once: give it once");
+      }
+    };
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
+      if (a == "--input" || a == "--json") once(a);
       if (a == "--input" && i + 1 < argc) {
         input = argv[++i];
       } else if (a == "--json") {
@@ -119,6 +127,7 @@ int main(int argc, char** argv) {
         if (eq == std::string::npos || eq == 0) {
           throw std::invalid_argument("--param '" + kv + "': expected name=value");
         }
+        once("--param " + kv.substr(0, eq));
         params.set(kv.substr(0, eq), kv.substr(eq + 1));
       } else if (a == "--help" || a == "-h") {
         std::cout << kUsage;

@@ -218,6 +218,7 @@ def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_fi
     (['--scenario', '/nonexistent.yaml'], '--scenario'),
     (['--engine', 'warp'], '--engine'),
     (['--seed', '-1'], '--seed'),
+    (['--rpm', '12000', '--rpm', '16000'], '--rpm given more than once'),
     (['--trials', '5,x'], '--trials'),
     (['--rpm', '12000,16000', '--trials', '5,5,5'], '--trials'),
 ])

@@ -70,7 +70,8 @@ def test_one_layer_never_stops(bin_dir, tmp_path):
     assert json.loads(out.stdout)['stop'] is None
 
 
-@pytest.mark.parametrize('case', ['missing', 'header', 'nan', 'time', 'param'])
+@pytest.mark.parametrize('case', ['missing', 'header', 'nan', 'time', 'param', 'input twice',
+                                  'param twice'])
 def test_bad_input_exits_2(bin_dir, tmp_path, case):
     rows, _ = profile([(2.0, 3.0)])
     path = tmp_path / 'force.csv'
@@ -88,9 +89,17 @@ def test_bad_input_exits_2(bin_dir, tmp_path, case):
     elif case == 'param':
         write_csv(path, rows)
         args += ['--param', 'c3=-1']
+    elif case == 'input twice':
+        write_csv(path, rows)
+        args += ['--input', str(path)]
+    elif case == 'param twice':
+        write_csv(path, rows)
+        args += ['--param', 'c3=2', '--param', 'c3=3']
     out = run(bin_dir, *args)
     assert out.returncode == 2, (case, out.stdout, out.stderr)
     assert out.stderr.strip()
+    if case.endswith('twice'):
+        assert 'given more than once' in out.stderr, out.stderr
 
 
 def test_text_output_agrees_with_json(bin_dir, tmp_path):

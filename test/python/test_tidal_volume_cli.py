@@ -41,6 +41,8 @@ def test_paper_settings_csv(bin_dir):
     (['--tv-max', 'nan'], '--tv-max'),
     (['--fs', 'x'], '--fs'),
     (['--bogus', '1'], '--bogus'),
+    # A repeated option once ran silently with the first value (rate 12): refused by every tool.
+    (['--rate', '12', '--ie', '1:2', '--rate', '0'], "'--rate' given more than once"),
 ])
 def test_bad_arguments_exit_2_and_name_the_argument(bin_dir, args, named):
     out = run(bin_dir, *args)

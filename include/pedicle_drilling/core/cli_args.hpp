@@ -26,7 +26,8 @@ class CliArgs {
  public:
   /**
    * @brief Parses argv. @p value_options take a value, @p flag_options do not; anything else
-   *        is a UsageError naming it. `--key=value` is accepted too.
+   *        is a UsageError naming it, and so is an option given twice. `--key=value` is
+   *        accepted too.
    */
   CliArgs(int argc, char** argv, const std::set<std::string>& value_options,
           const std::set<std::string>& flag_options);
@@ -35,15 +36,13 @@ class CliArgs {
   bool flag(const std::string& key) const { return flags_.count(key) > 0; }
   /** @brief The raw string value, or @p fallback when absent. */
   std::string get(const std::string& key, const std::string& fallback) const;
-  /** @brief All values of a repeatable option, in order. */
-  std::vector<std::string> getAll(const std::string& key) const;
   /** @brief A finite double; UsageError naming the option otherwise. */
   double getDouble(const std::string& key, double fallback) const;
   /** @brief An integer; UsageError naming the option otherwise. */
   long getInt(const std::string& key, long fallback) const;
 
  private:
-  std::multimap<std::string, std::string> values_;
+  std::map<std::string, std::string> values_;
   std::set<std::string> flags_;
 };
 
