@@ -4,11 +4,14 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <string>
 
 #include <dirent.h>
+#include <grp.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "pedicle_drilling/core/motion_model.hpp"
@@ -325,17 +328,45 @@ TEST(ModelYaml, FailedRenameRemovesTemporaryAndKeepsDestination) {
   rmdir(dir.c_str());
 }
 
+/**
+ * Runs `body` in a child process that, when this test runs as root (as `make test` does), first
+ * drops to the unprivileged user `nobody` (uid/gid 65534): root ignores directory permissions,
+ * so the failure the test needs could not happen otherwise. @return the child's exit status.
+ */
+int runUnprivileged(const std::function<int()>& body) {
+  const pid_t pid = fork();
+  if (pid == 0) {
+    const bool root = geteuid() == 0;
+    if (root && (setgroups(0, nullptr) != 0 || setgid(65534) != 0 || setuid(65534) != 0)) {
+      _exit(90);
+    }
+    _exit(body());
+  }
+  int status = 0;
+  if (pid < 0 || waitpid(pid, &status, 0) != pid) return -1;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
 TEST(ModelYaml, AtomicWriteIntoReadOnlyDirectoryLeavesOldFile) {
-  if (geteuid() == 0) GTEST_SKIP() << "root ignores directory permissions";
   const std::string dir = makeTempDir();
   const std::string path = dir + "/model.yaml";
   PatientModel old = sampleModel();
   writeModelYaml(old, path);
-  ASSERT_EQ(chmod(dir.c_str(), 0555), 0);
+  ASSERT_EQ(chmod(dir.c_str(), 0555), 0);  // readable and searchable by all, writable by none
   PatientModel changed = old;
   changed.axes[0].model.q1 = 99.0;
-  EXPECT_THROW(writeModelYaml(changed, path), ModelFileError);
+  const int status = runUnprivileged([&]() {
+    try {
+      writeModelYaml(changed, path);
+    } catch (const ModelFileError&) {
+      return 0;  // refused, as it must be
+    } catch (...) {
+      return 3;  // another exception type than the documented one
+    }
+    return 1;  // written
+  });
   chmod(dir.c_str(), 0755);
+  EXPECT_EQ(status, 0) << "90: could not drop privileges; 1: the write succeeded; 3: wrong error";
   expectSameModel(old, readModelYaml(path));
   EXPECT_EQ(listDir(dir), std::vector<std::string>{"model.yaml"});
   std::remove(path.c_str());
