@@ -17,6 +17,8 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "pedicle_drilling/core/atomic_file.hpp"
+
 namespace pedicle_drilling::core {
 
 namespace {
@@ -223,6 +225,16 @@ std::string modelToYaml(const PatientModel& model) {
   os << "axes:\n";
   for (Axis a : kAllAxes) {
     const AxisModelRecord& r = model.axes[static_cast<int>(a)];
+    // The reader refuses what is not finite: never write a file that cannot be read back.
+    for (const auto& [name, value] : {std::pair<const char*, double>{"q1", r.model.q1},
+                                      {"q2", r.model.q2}, {"q0", r.model.q0}, {"r2", r.r2},
+                                      {"rmse", r.rmse}}) {
+      if (!std::isfinite(value)) {
+        throw ModelFileError("model of axis " + axisName(a) + ": " + name + " is " +
+                             formatDouble(value) +
+                             ", not a finite number (the fit failed on this input)");
+      }
+    }
     os << "  " << axisName(a) << ":\n";
     os << "    model: " << modelKindName(r.model.kind) << "\n";
     os << "    q1: " << formatDouble(r.model.q1) << "\n";
@@ -287,46 +299,11 @@ PatientModel modelFromYaml(const std::string& text, const std::string& source) {
 }
 
 void writeModelYaml(const PatientModel& model, const std::string& path) {
-  const std::string text = modelToYaml(model);
-  const size_t slash = path.find_last_of('/');
-  const std::string dir = slash == std::string::npos ? "." : path.substr(0, slash + 1);
-  const std::string base = slash == std::string::npos ? path : path.substr(slash + 1);
-  if (base.empty()) throw ModelFileError(path + ": not a file path");
-  std::string tmpl = (slash == std::string::npos ? std::string() : dir) + "." + base + ".tmpXXXXXX";
-  std::vector<char> buf(tmpl.begin(), tmpl.end());
-  buf.push_back('\0');
-  const int fd = mkstemp(buf.data());
-  if (fd < 0) {
-    throw ModelFileError(path + ": cannot create temporary file in '" + dir +
-                         "': " + std::strerror(errno));
-  }
-  const std::string tmp(buf.data());
-  auto fail = [&](const std::string& what) {
-    const int err = errno;
-    ::close(fd);
-    ::unlink(tmp.c_str());
-    throw ModelFileError(path + ": " + what + ": " + std::strerror(err));
-  };
-  size_t written = 0;
-  while (written < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + written, text.size() - written);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      fail("write failed");
-    }
-    written += static_cast<size_t>(n);
-  }
-  if (::fchmod(fd, 0644) != 0) fail("chmod failed");
-  if (::fsync(fd) != 0) fail("fsync failed");
-  if (::close(fd) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    throw ModelFileError(path + ": close failed: " + std::strerror(err));
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
-    const int err = errno;
-    ::unlink(tmp.c_str());
-    throw ModelFileError(path + ": rename failed: " + std::strerror(err));
+  const std::string text = modelToYaml(model);  // checks the model before anything is created
+  try {
+    writeFileAtomically(path, text);
+  } catch (const FileWriteError& e) {
+    throw ModelFileError(e.what());
   }
 }
 

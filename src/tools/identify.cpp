@@ -22,9 +22,12 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/atomic_file.hpp"
 #include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/denoising.hpp"
 #include "pedicle_drilling/core/identification.hpp"
@@ -81,6 +84,32 @@ std::string baseName(const std::string& path) {
   const size_t dot = b.rfind(".csv");
   if (dot != std::string::npos && dot + 4 == b.size()) b = b.substr(0, dot);
   return b;
+}
+
+namespace core = pedicle_drilling::core;
+
+/** @brief Per sample: t, tv and for each axis the raw, de-noised and model displacement. */
+std::string fitCsv(const core::PairedSamples& rec, const core::PipelineResult& result) {
+  std::ostringstream out;
+  out << std::setprecision(17) << "t,tv";
+  for (const core::AxisReport& a : result.axes) {
+    const std::string n = core::axisName(a.axis);
+    out << ',' << n << "_raw," << n << "_fit," << n << "_model," << n << "_tv";
+  }
+  out << '\n';
+  std::array<std::vector<double>, 3> predicted;
+  for (int k = 0; k < 3; ++k) {
+    predicted[k] = core::predictAll(result.axes[k].fit.model, result.axes[k].samples);
+  }
+  for (size_t i = 0; i < rec.t.size(); ++i) {
+    out << rec.t[i] << ',' << rec.tv[i];
+    for (int k = 0; k < 3; ++k) {
+      out << ',' << result.axes[k].raw[i] << ',' << result.axes[k].samples.d[i] << ','
+          << predicted[k][i] << ',' << result.axes[k].samples.tv[i];
+    }
+    out << '\n';
+  }
+  return out.str();
 }
 
 }  // namespace
@@ -153,6 +182,7 @@ int main(int argc, char** argv) {
   // ---------------------------------------------------------------- data and fits
   pd::PipelineResult result;
   pd::PairedSamples rec;
+  std::string model_text;
   try {
     rec = pd::readRecordingCsv(input);
     result = pd::identifyPatient(rec, opts, patient_id, input);
@@ -163,45 +193,30 @@ int main(int argc, char** argv) {
       std::printf("  %s\n", pd::formatAxisReport(axis).c_str());
     }
     std::fflush(stdout);
+    model_text = pd::modelToYaml(result.model);  // a model that is not finite is bad input
   } catch (const std::exception& e) {
     std::cerr << "identify: " << e.what() << "\n";
     return kBadInput;
   }
 
   // ---------------------------------------------------------------- output
+  // Every output's temporary file is created before any is written, and all are renamed at
+  // the end: a destination that cannot be written leaves no output at all.
   try {
-    pd::writeModelYaml(result.model, output);
+    pd::AtomicFile model_file(output);
+    std::optional<pd::AtomicFile> fit_file;
+    if (!fit_csv.empty()) fit_file.emplace(fit_csv);
+    model_file.write(model_text);
+    if (fit_file) fit_file->write(fitCsv(rec, result));
+    model_file.commit();
+    std::printf("identify: wrote %s\n", output.c_str());
+    if (fit_file) {
+      fit_file->commit();
+      std::printf("identify: wrote %s\n", fit_csv.c_str());
+    }
   } catch (const std::exception& e) {
     std::cerr << "identify: " << e.what() << "\n";
     return kWriteFailed;
-  }
-  std::printf("identify: wrote %s\n", output.c_str());
-  if (!fit_csv.empty()) {
-    std::ofstream out(fit_csv);
-    out << std::setprecision(17) << "t,tv";
-    for (const pd::AxisReport& a : result.axes) {
-      const std::string n = pd::axisName(a.axis);
-      out << ',' << n << "_raw," << n << "_fit," << n << "_model," << n << "_tv";
-    }
-    out << '\n';
-    std::array<std::vector<double>, 3> predicted;
-    for (int k = 0; k < 3; ++k) {
-      predicted[k] = pd::predictAll(result.axes[k].fit.model, result.axes[k].samples);
-    }
-    for (size_t i = 0; i < rec.t.size(); ++i) {
-      out << rec.t[i] << ',' << rec.tv[i];
-      for (int k = 0; k < 3; ++k) {
-        out << ',' << result.axes[k].raw[i] << ',' << result.axes[k].samples.d[i] << ','
-            << predicted[k][i] << ',' << result.axes[k].samples.tv[i];
-      }
-      out << '\n';
-    }
-    out.close();
-    if (!out) {
-      std::cerr << "identify: cannot write " << fit_csv << "\n";
-      return kWriteFailed;
-    }
-    std::printf("identify: wrote %s\n", fit_csv.c_str());
   }
   return 0;
 }

@@ -41,12 +41,31 @@ def swap_rows(lines, a, b):
     return out
 
 
+def scale_columns(lines, names, factor=None, constant=None):
+    """Finite but extreme input: the named columns multiplied by `factor` or set to `constant`."""
+    header = lines[0].split(',')
+    keys = [header.index(n) for n in names]
+    out = [lines[0]]
+    for line in lines[1:]:
+        fields = line.split(',')
+        for k in keys:
+            fields[k] = repr(constant if constant is not None else float(fields[k]) * factor)
+        out.append(','.join(fields))
+    return out
+
+
 CASES = {
     'missing_column': (lambda l: drop_column(l, 'si'), [], ["'si'"]),
     'nan': (lambda l: set_cell(l, 50, 'ap', 'nan'), [], ['NaN', "'ap'"]),
     'non_increasing_time': (lambda l: swap_rows(l, 30, 31), [], ['increasing']),
     'too_few_breaths': (lambda l: l[:21], [], ['two breaths']),
     'unknown_wavelet': (lambda l: l, ['--wavelets', 'coif4,db99'], ["db99"]),
+    # Finite but extreme input once gave `R2 -nan RMSE inf`, a model file the planner refuses,
+    # and exit 0: the model is checked before anything is written.
+    'extreme_scale': (lambda l: scale_columns(l, ['tv', 'ap'], factor=1e300), [],
+                      ['not a finite number']),
+    'extreme_constant': (lambda l: scale_columns(l, ['ap'], constant=1e300), [],
+                         ['not a finite number']),
 }
 
 
@@ -122,3 +141,32 @@ def test_report_prints_wavelet_coefficients_r2_time_and_stiffness(tmp_path, bin_
     assert 'equivalent_stiffness' in text
     ap_q1 = float(lines['ap'][2])
     assert abs(float(text.split('q1: ')[1].split()[0]) - ap_q1) <= 1e-5 * abs(ap_q1)
+
+
+def test_unwritable_fit_csv_leaves_no_output_at_all(tmp_path, bin_dir, good_csv):
+    """--fit-csv into a folder that does not exist once wrote the model and then exited 1: every
+    output's destination is checked before any is written, so nothing is kept."""
+    csv_path = write(tmp_path / 'rec.csv', good_csv)
+    out_dir = tmp_path / 'out'
+    out_dir.mkdir()
+    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
+                          str(out_dir / 'model.yaml'), '--fit-csv',
+                          str(tmp_path / 'missing' / 'fit.csv')],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 1, (run.stdout, run.stderr)
+    assert 'fit.csv' in run.stderr and 'missing' in run.stderr, run.stderr
+    assert os.listdir(out_dir) == []
+
+
+def test_fit_csv_and_model_are_written_together(tmp_path, bin_dir, good_csv):
+    csv_path = write(tmp_path / 'rec.csv', good_csv)
+    out_dir = tmp_path / 'out'
+    out_dir.mkdir()
+    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
+                          str(out_dir / 'model.yaml'), '--fit-csv', str(out_dir / 'fit.csv')],
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert sorted(os.listdir(out_dir)) == ['fit.csv', 'model.yaml']
+    lines = (out_dir / 'fit.csv').read_text().splitlines()
+    assert lines[0].startswith('t,tv,ap_raw,ap_fit,ap_model,ap_tv')
+    assert len(lines) == len(good_csv)

@@ -73,7 +73,11 @@ class ModelFileError : public std::runtime_error {
   explicit ModelFileError(const std::string& what) : std::runtime_error(what) {}
 };
 
-/** @brief Serialises a model to the YAML text above. */
+/**
+ * @brief Serialises a model to the YAML text above.
+ * @throws ModelFileError naming the axis and field when a coefficient, R² or RMSE is not finite
+ *         (the reader would refuse it: no file that cannot be read back is ever written).
+ */
 std::string modelToYaml(const PatientModel& model);
 
 /** @brief Parses the YAML text above; @p source names the origin in error messages. */
