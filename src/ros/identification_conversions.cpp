@@ -55,17 +55,7 @@ MotionIdentificationParams loadMotionIdentificationParams(const ParamLoader& par
   if (o.denoise_tv && !o.denoise) params.fail("denoise_tv", "needs ~denoise true");
   core::DenoiseOptions& d = o.denoise_options;
   d.level = params.getInt("level", 6, 1, 16);
-  const std::string keep = params.getString("kept_levels", "3,4,5");
-  try {
-    d.kept_levels = core::parseIntList(keep, "kept_levels");
-  } catch (const std::exception&) {
-    params.fail("kept_levels", "= '" + keep + "' is not a comma-separated list of integers");
-  }
-  for (int k : d.kept_levels) {
-    if (k < 1 || k > d.level) {
-      params.fail("kept_levels", "= '" + keep + "' has a level outside 1..~level");
-    }
-  }
+  d.kept_levels = params.getIntList("kept_levels", {3, 4, 5}, 1, d.level);
   const std::string wavelets = params.getString("wavelets", "all");
   if (wavelets != "all") {
     std::stringstream names(wavelets);

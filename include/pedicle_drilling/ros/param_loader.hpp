@@ -87,6 +87,53 @@ class ParamLoader {
     return value;
   }
 
+  /**
+   * @brief A non-empty list of integers in [min, max], in any of its natural forms: a YAML list
+   *        (`[3, 4, 5]`), one integer (`_kept_levels:=5` on the command line gives an int) or a
+   *        comma-separated string (`_kept_levels:=3,4,5` gives a string).
+   */
+  std::vector<int> getIntList(const std::string& name, const std::vector<int>& default_value,
+                              int min, int max) const {
+    std::vector<int> value = default_value;
+    if (nh_.hasParam(name)) {
+      XmlRpc::XmlRpcValue raw;
+      nh_.getParam(name, raw);
+      value.clear();
+      const std::string rule = "must be integers: a list [3, 4, 5], one integer or '3,4,5'";
+      if (raw.getType() == XmlRpc::XmlRpcValue::TypeInt) {
+        value.push_back(static_cast<int>(raw));
+      } else if (raw.getType() == XmlRpc::XmlRpcValue::TypeArray) {
+        for (int i = 0; i < raw.size(); ++i) {
+          if (raw[i].getType() != XmlRpc::XmlRpcValue::TypeInt) fail(name, rule);
+          value.push_back(static_cast<int>(raw[i]));
+        }
+      } else if (raw.getType() == XmlRpc::XmlRpcValue::TypeString) {
+        std::stringstream items(static_cast<std::string>(raw));
+        std::string item;
+        while (std::getline(items, item, ',')) {
+          size_t used = 0;
+          try {
+            value.push_back(std::stoi(item, &used));
+          } catch (const std::exception&) {
+            fail(name, rule);
+          }
+          if (item.find_first_not_of(' ', used) != std::string::npos) fail(name, rule);
+        }
+      } else {
+        fail(name, rule);
+      }
+    }
+    if (value.empty()) fail(name, "must not be empty");
+    for (int v : value) {
+      if (v < min || v > max) {
+        std::ostringstream os;
+        os << "has " << v << ", outside [" << min << ", " << max << "]";
+        fail(name, os.str());
+      }
+    }
+    return value;
+  }
+
   /** @brief A list of non-empty strings (YAML list); may be empty unless !allow_empty. */
   std::vector<std::string> getStringList(const std::string& name,
                                          const std::vector<std::string>& default_value,
