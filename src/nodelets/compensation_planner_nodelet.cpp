@@ -60,8 +60,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
       sequencer_ = makeSequencer(params, nh, world_frame_);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());
-      return;
+      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);

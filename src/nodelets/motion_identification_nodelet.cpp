@@ -54,8 +54,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       p_ = loadMotionIdentificationParams(ParamLoader(pnh));
       window_.emplace(p_.window_s);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());
-      return;
+      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     model_pub_ = nh.advertise<MotionModel>("motion_model", 1, true);
     tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume,

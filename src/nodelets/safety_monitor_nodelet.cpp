@@ -57,8 +57,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       }
       supervisor_ = std::make_unique<core::SafetySupervisor>(sp);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());
-      return;
+      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, true);

@@ -76,8 +76,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
           tv_rate > 0.0 ? core::streamPeriodSteps(1000.0, tv_rate, "tidal_volume_rate_hz") : 0;
     } catch (const std::exception& e) {
       // Safe state: nothing is advertised, the error names the parameter or the file.
-      startup_status_.fail(nh, getName(), e.what());
-      return;
+      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     if (publish_clock_) {
       clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);

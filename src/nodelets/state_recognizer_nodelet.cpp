@@ -81,8 +81,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       }
       recognizer_ = std::make_unique<core::StateRecognizer>(p);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());
-      return;
+      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
