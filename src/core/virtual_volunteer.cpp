@@ -14,6 +14,8 @@
 #include <random>
 #include <sstream>
 
+#include "pedicle_drilling/core/atomic_file.hpp"
+
 namespace pedicle_drilling::core {
 
 namespace {
@@ -261,9 +263,6 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
 
   VolunteerData out;
   out.params = p;
-  for (const Breath& b : breaths) {
-    if (b.start >= 0.0 && b.start < p.duration_s) ++out.num_breaths;
-  }
 
   // Small patient movements: Poisson process over the recording.
   std::vector<PatientMovement> moves;
@@ -327,6 +326,10 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
     out.recording.si.push_back(noisy[1]);
     out.recording.lr.push_back(noisy[2]);
   }
+  // One definition of a breath: what `identify` and ~identify count in the written recording
+  // (countBreaths on the tidal volume at the marker times). Counting the breaths that start
+  // inside the recording once gave 10 where identify reported 9 (the last inspiration cut off).
+  out.num_breaths = countBreaths(pairAtMarkerTimes(out.recording).tv);
   return out;
 }
 
@@ -393,22 +396,26 @@ std::string tv64PathFor(const std::string& csv_path) {
 
 void writeRecordingCsv(const Recording& r, const std::string& csv_path) {
   const PairedSamples p = pairAtMarkerTimes(r);
-  {
-    std::ofstream out(csv_path);
-    if (!out) throw std::runtime_error("writeRecordingCsv: cannot write " + csv_path);
-    out << std::setprecision(17) << "t,tv,ap,si,lr\n";
-    for (size_t i = 0; i < p.t.size(); ++i) {
-      out << p.t[i] << ',' << p.tv[i] << ',' << p.ap[i] << ',' << p.si[i] << ',' << p.lr[i]
-          << '\n';
-    }
-    if (!out) throw std::runtime_error("writeRecordingCsv: write failed for " + csv_path);
+  std::ostringstream paired;
+  paired << std::setprecision(17) << "t,tv,ap,si,lr\n";
+  for (size_t i = 0; i < p.t.size(); ++i) {
+    paired << p.t[i] << ',' << p.tv[i] << ',' << p.ap[i] << ',' << p.si[i] << ',' << p.lr[i]
+           << '\n';
   }
-  const std::string tv_path = tv64PathFor(csv_path);
-  std::ofstream out(tv_path);
-  if (!out) throw std::runtime_error("writeRecordingCsv: cannot write " + tv_path);
-  out << std::setprecision(17) << "t,tv\n";
-  for (size_t i = 0; i < r.t_tv.size(); ++i) out << r.t_tv[i] << ',' << r.tv[i] << '\n';
-  if (!out) throw std::runtime_error("writeRecordingCsv: write failed for " + tv_path);
+  std::ostringstream tv64;
+  tv64 << std::setprecision(17) << "t,tv\n";
+  for (size_t i = 0; i < r.t_tv.size(); ++i) tv64 << r.t_tv[i] << ',' << r.tv[i] << '\n';
+  // Both files or neither, each complete (temporary files renamed into place).
+  try {
+    AtomicFile paired_file(csv_path);
+    AtomicFile tv64_file(tv64PathFor(csv_path));
+    paired_file.write(paired.str());
+    tv64_file.write(tv64.str());
+    paired_file.commit();
+    tv64_file.commit();
+  } catch (const FileWriteError& e) {
+    throw std::runtime_error(std::string("writeRecordingCsv: ") + e.what());
+  }
 }
 
 PairedSamples readRecordingCsv(const std::string& csv_path) {

@@ -170,3 +170,22 @@ def test_fit_csv_and_model_are_written_together(tmp_path, bin_dir, good_csv):
     lines = (out_dir / 'fit.csv').read_text().splitlines()
     assert lines[0].startswith('t,tv,ap_raw,ap_fit,ap_model,ap_tv')
     assert len(lines) == len(good_csv)
+
+
+def test_generate_volunteers_and_identify_count_the_same_breaths(tmp_path, bin_dir):
+    """One definition of a breath: generate_volunteers once reported 10 breaths where identify
+    reported 9 for the same recording."""
+    import re
+    for vid in ('1', '2', '3', '4', '5'):
+        gen = subprocess.run([os.path.join(bin_dir, 'generate_volunteers'), '--out',
+                              str(tmp_path), '--ids', vid], capture_output=True, text=True,
+                             timeout=60)
+        assert gen.returncode == 0, gen.stderr
+        generated = int(re.search(r'volunteer %s: (\d+) breaths' % vid, gen.stdout).group(1))
+        ident = subprocess.run([os.path.join(bin_dir, 'identify'), '--input',
+                                str(tmp_path / ('volunteer_%s.csv' % vid)), '--output',
+                                str(tmp_path / ('model_%s.yaml' % vid))],
+                               capture_output=True, text=True, timeout=60)
+        assert ident.returncode == 0, ident.stderr
+        identified = int(re.search(r'(\d+) breaths', ident.stdout).group(1))
+        assert generated == identified, (vid, gen.stdout, ident.stdout)

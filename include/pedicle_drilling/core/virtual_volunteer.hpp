@@ -119,7 +119,7 @@ struct VolunteerData {
   Recording clean;                  ///< noise-, drift- and movement-free signals
   std::vector<double> dtv_dt;       ///< analytic dTv/dt at t_tv, ml/s
   std::vector<double> dtv_dt_disp;  ///< analytic dTv/dt at t_disp, ml/s
-  int num_breaths = 0;              ///< breaths started inside the recording
+  int num_breaths = 0;              ///< countBreaths() of the recorded tv at the marker times
 };
 
 /**
