@@ -41,8 +41,7 @@ int main() {
     }
     best = std::min(best, std::chrono::duration<double>(Clock::now() - start).count());
   }
-  std::printf("BENCH dwt_throughput %.4g samples/s\n",
-              static_cast<double>(kLength) * kReps / best);
+  std::printf("BENCH dwt_throughput %.4g samples/s\n", static_cast<double>(kLength) * kReps / best);
 
   const pd::PairedSamples p =
       pd::pairAtMarkerTimes(pd::generateVolunteer(pd::defaultVolunteer(1)).recording);

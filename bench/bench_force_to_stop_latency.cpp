@@ -12,8 +12,8 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/loader.h>
 #include <ros/ros.h>
-#include <std_srvs/Trigger.h>
 #include <signal.h>
+#include <std_srvs/Trigger.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -50,8 +50,8 @@ std::atomic<bool> g_stop_received{false};
 std::atomic<long long> g_stop_ns{0};
 
 void onStop(const pedicle_drilling::StopCommand::ConstPtr& /*msg*/) {
-  g_stop_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                  Clock::now().time_since_epoch()).count();
+  g_stop_ns =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now().time_since_epoch()).count();
   g_stop_received = true;
 }
 
@@ -102,8 +102,8 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "cannot load pedicle_drilling/StateRecognizer\n");
     } else {
       ros::Publisher pub = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 5000);
-      ros::Subscriber sub = nh.subscribe("drill/stop", 10, onStop,
-                                         ros::TransportHints().tcpNoDelay());
+      ros::Subscriber sub =
+          nh.subscribe("drill/stop", 10, onStop, ros::TransportHints().tcpNoDelay());
       for (int i = 0; i < 200 && (pub.getNumSubscribers() == 0 || sub.getNumPublishers() == 0);
            ++i) {
         std::this_thread::sleep_for(std::chrono::milliseconds(20));

@@ -4,7 +4,8 @@
 // samples, linear model (the paper's model) and hysteresis model.
 // Ceres fits all samples as one residual block from a Gauss-Newton first step (see
 // CeresFitOptions); PSO runs at the paper's settings, 24 particles x 2000 iterations. Every fit
-// is repeated so that each timing is a median over repetitions (Ceres 21, PSO 3; steady_clock). Prints
+// is repeated so that each timing is a median over repetitions (Ceres 21, PSO 3; steady_clock).
+// Prints
 //   BENCH identify_speedup_ceres_over_pso <ratio> x
 //   BENCH identify_ceres_time <ms> ms      (median per axis fit, linear model)
 //   BENCH identify_pso_time <ms> ms        (median per axis fit, linear model)
@@ -32,8 +33,8 @@ int main() {
   namespace pd = pedicle_drilling::core;
   std::vector<pd::AxisSamples> data;
   for (int id = 1; id <= 5; ++id) {
-    const pd::PairedSamples p = pd::pairAtMarkerTimes(pd::generateVolunteer(
-        pd::defaultVolunteer(id)).recording);
+    const pd::PairedSamples p =
+        pd::pairAtMarkerTimes(pd::generateVolunteer(pd::defaultVolunteer(id)).recording);
     for (pd::Axis a : pd::kAllAxes) data.push_back(pd::axisSamples(p, a));
   }
   for (pd::ModelKind kind : {pd::ModelKind::kLinear, pd::ModelKind::kHysteresis}) {

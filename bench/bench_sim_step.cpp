@@ -42,9 +42,9 @@ int main() {
     BulletArm arm(readFile(dir + "/urdf/workcell.urdf"), "world", "drill_tip");
     // Drilling pose of config/drilling_pose.yaml.
     const std::map<std::string, double> pose = {
-        {"rsssii_joint1", 0.0},      {"rsssii_joint2", 0.435859}, {"rsssii_joint3", 1.319709},
-        {"rsssii_joint4", 0.0},      {"rsssii_joint5", 1.386025}, {"rsssii_joint6", 0.0},
-        {"feed_joint", 0.0},         {"spindle_joint", 0.0}};
+        {"rsssii_joint1", 0.0}, {"rsssii_joint2", 0.435859}, {"rsssii_joint3", 1.319709},
+        {"rsssii_joint4", 0.0}, {"rsssii_joint5", 1.386025}, {"rsssii_joint6", 0.0},
+        {"feed_joint", 0.0},    {"spindle_joint", 0.0}};
     Eigen::VectorXd q(arm.numJoints());
     for (int k = 0; k < arm.numJoints(); ++k) q[k] = pose.at(arm.jointNames()[k]);
     if (!arm.resetJointState(q).ok()) throw std::runtime_error("drilling pose rejected");

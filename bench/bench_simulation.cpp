@@ -45,9 +45,8 @@ int main() {
     core::TrajectoryCommand approach;
     approach.joint_names = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3", "rsssii_joint4",
                             "rsssii_joint5", "rsssii_joint6", "feed_joint"};
-    approach.points.push_back({sim.time() + 2.0,
-                               {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0, 0.0},
-                               {}});
+    approach.points.push_back(
+        {sim.time() + 2.0, {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0, 0.0}, {}});
     if (!sim.commandTrajectory(approach).ok()) throw std::runtime_error("approach rejected");
     sim.commandSpindle(12000.0);
     const auto t0 = std::chrono::steady_clock::now();
@@ -60,8 +59,8 @@ int main() {
     const auto t1 = std::chrono::steady_clock::now();
     const double wall = std::chrono::duration<double>(t1 - t0).count();
     const core::SimulationGroundTruth gt = sim.groundTruth();
-    std::printf("sim %.3f s in %.3f s wall; depth cut %.3f mm, breakthrough %d\n", sim.time(),
-                wall, gt.max_depth_cut_m * 1e3, gt.breakthrough ? 1 : 0);
+    std::printf("sim %.3f s in %.3f s wall; depth cut %.3f mm, breakthrough %d\n", sim.time(), wall,
+                gt.max_depth_cut_m * 1e3, gt.breakthrough ? 1 : 0);
     std::printf("BENCH sim_real_time_factor %.1f x\n", sim.time() / wall);
     std::printf("BENCH sim_step_cost %.2f us\n", wall / steps * 1e6);
   } catch (const std::exception& e) {

@@ -74,8 +74,8 @@ std::string materialName(Material m) {
   return "unknown";
 }
 
-BoneSpecimen::BoneSpecimen(double outer_m, double cancellous_m, double inner_m,
-                           double grid_step_m, std::vector<double> fraction_profile)
+BoneSpecimen::BoneSpecimen(double outer_m, double cancellous_m, double inner_m, double grid_step_m,
+                           std::vector<double> fraction_profile)
     : outer_m_(outer_m),
       cancellous_m_(cancellous_m),
       inner_m_(inner_m),

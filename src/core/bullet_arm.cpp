@@ -24,8 +24,8 @@
 #include <stdexcept>
 #include <utility>
 
-#include <Eigen/Dense>
 #include <urdf_parser/urdf_parser.h>
+#include <Eigen/Dense>
 
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wunused-parameter"
@@ -366,8 +366,8 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
 
   // Bullet link geometry per moving joint.
   joint_data.resize(moving.size());
-  std::vector<Eigen::Isometry3d> joint_frame(moving.size());   // J in parent head frame
-  std::vector<Eigen::Vector3d> joint_axis(moving.size());      // a in J
+  std::vector<Eigen::Isometry3d> joint_frame(moving.size());  // J in parent head frame
+  std::vector<Eigen::Vector3d> joint_axis(moving.size());     // a in J
   for (std::size_t k = 0; k < moving.size(); ++k) {
     const auto& j = moving[k];
     const LinkRef& parent = links.at(j->parent_link_name);
@@ -601,8 +601,7 @@ void BulletArm::Impl::subStep(double h) {
     b[k] = h * stiffness[k] + damping[k];
     tau0[k] = -stiffness[k] * (q[k] - q_ref[k]) + damping[k] * qd_ref[k];
   }
-  const Eigen::MatrixXd lhs =
-      Eigen::MatrixXd::Identity(nj, nj) + h * a_inv * b.asDiagonal();
+  const Eigen::MatrixXd lhs = Eigen::MatrixXd::Identity(nj, nj) + h * a_inv * b.asDiagonal();
   const Eigen::VectorXd v_plus = lhs.partialPivLu().solve(v_free + h * a_inv * tau0);
   Eigen::VectorXd tau = tau_gc + tau0 - b.cwiseProduct(v_plus);
   if (params.enforce_effort_limits) {
@@ -644,8 +643,8 @@ TargetResult BulletArm::Impl::validatePositions(Eigen::VectorXd* q,
     if (v < info.lower - kLimitTolerance || v > info.upper + kLimitTolerance) {
       if (!params.clamp_out_of_limit_targets) {
         std::ostringstream m;
-        m << "position target " << v << " for joint '" << info.name << "' outside ["
-          << info.lower << ", " << info.upper << "]";
+        m << "position target " << v << " for joint '" << info.name << "' outside [" << info.lower
+          << ", " << info.upper << "]";
         res.status = TargetStatus::kRejected;
         res.message = m.str();
         return res;

@@ -82,8 +82,8 @@ struct ClosedLoopEngine::Impl {
     for (;;) {
       auto best = events.end();
       for (auto it = events.begin(); it != events.end(); ++it) {
-        if (it->t <= now + 1e-12 &&
-            (best == events.end() || it->t < best->t || (it->t == best->t && it->seq < best->seq))) {
+        if (it->t <= now + 1e-12 && (best == events.end() || it->t < best->t ||
+                                     (it->t == best->t && it->seq < best->seq))) {
           best = it;
         }
       }
@@ -200,8 +200,8 @@ struct ClosedLoopEngine::Impl {
       *r = r_cam_world;
       return true;
     };
-    sequencer->onMarker(now, now, "tracker_camera", marker,
-                        Eigen::Quaterniond(pose.linear()), lookup);
+    sequencer->onMarker(now, now, "tracker_camera", marker, Eigen::Quaterniond(pose.linear()),
+                        lookup);
     carryOut();
   }
 
@@ -218,8 +218,8 @@ struct ClosedLoopEngine::Impl {
   void recordTruth() {
     const SimulationGroundTruth g = sim->groundTruth();
     record.truth.push_back({now, materialName(g.layer), g.max_depth_cut_m,
-                            g.residual_inner_cortical_m, g.breakthrough, g.relative_ap_m,
-                            g.contact, g.contact_loss_count});
+                            g.residual_inner_cortical_m, g.breakthrough, g.relative_ap_m, g.contact,
+                            g.contact_loss_count});
     record.last_truth = g;
   }
 
@@ -231,9 +231,8 @@ struct ClosedLoopEngine::Impl {
     const double thrust = force.z();  // config/recognizer.yaml axis: z
     const double t = now;
     if (config.delays.force_to_recognizer_s > 0.0) {
-      send(config.delays.force_to_recognizer_s, [this, t, thrust]() {
-        onRecognizerSample(t, thrust);
-      });
+      send(config.delays.force_to_recognizer_s,
+           [this, t, thrust]() { onRecognizerSample(t, thrust); });
     } else {
       onRecognizerSample(t, thrust);
     }

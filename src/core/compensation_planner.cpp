@@ -19,9 +19,7 @@ void require(bool ok, const std::string& name, const std::string& why) {
   if (!ok) throw std::invalid_argument(name + ": " + why);
 }
 
-bool isUnit(const Eigen::Vector3d& v) {
-  return v.allFinite() && std::abs(v.norm() - 1.0) < 1e-6;
-}
+bool isUnit(const Eigen::Vector3d& v) { return v.allFinite() && std::abs(v.norm() - 1.0) < 1e-6; }
 
 }  // namespace
 
@@ -53,8 +51,7 @@ void CompensationParams::validate() const {
           "feed_rate_m_s", "must be in [0, 0.01] m/s");
   require(std::isfinite(period_s) && period_s > 0.0 && period_s <= 1.0, "period_s",
           "must be in (0, 1] s");
-  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio",
-          "must be finite and > 0");
+  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio", "must be finite and > 0");
   require(std::isfinite(latency_s) && latency_s >= 0.0 && latency_s <= 1.0, "latency_s",
           "must be in [0, 1] s");
   require(points_per_segment >= 1 && points_per_segment <= 100, "points_per_segment",
@@ -121,8 +118,7 @@ Eigen::Vector3d DisplacementPredictor::displacement(double t) const {
 
 // ---------------------------------------------------------------------------------------------
 
-CompensationPlanner::CompensationPlanner(const CompensationParams& params,
-                                         const MotionModel& model)
+CompensationPlanner::CompensationPlanner(const CompensationParams& params, const MotionModel& model)
     : params_(params),
       axis_(params.drill_axis),
       predictor_((params.validate(), model), params),

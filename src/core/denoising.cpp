@@ -56,10 +56,9 @@ void validateOptions(const std::vector<double>& displacement,
     throw std::invalid_argument("selectWaveletBasis: empty displacement");
   }
   if (displacement.size() != tidal_volume.size()) {
-    throw std::invalid_argument("selectWaveletBasis: displacement has " +
-                                std::to_string(displacement.size()) +
-                                " samples but tidal_volume has " +
-                                std::to_string(tidal_volume.size()));
+    throw std::invalid_argument(
+        "selectWaveletBasis: displacement has " + std::to_string(displacement.size()) +
+        " samples but tidal_volume has " + std::to_string(tidal_volume.size()));
   }
   requireFinite(displacement, "selectWaveletBasis: displacement");
   requireFinite(tidal_volume, "selectWaveletBasis: tidal_volume");
@@ -95,8 +94,7 @@ std::vector<double> denoise(const std::vector<double>& signal, const std::string
   return denoise(signal, getWavelet(wavelet), level, kept_levels, include_approximation, mode);
 }
 
-double noiseToSignalRatio(const std::vector<double>& signal,
-                          const std::vector<double>& denoised) {
+double noiseToSignalRatio(const std::vector<double>& signal, const std::vector<double>& denoised) {
   if (signal.empty() || signal.size() != denoised.size()) {
     throw std::invalid_argument("noiseToSignalRatio: signals must be non-empty and equal length");
   }
@@ -123,9 +121,8 @@ DenoiseMetrics tidalVolumeSpread(const std::vector<double>& denoised,
   const std::size_t n = denoised.size();
   std::vector<std::size_t> order(n);
   std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
-    return tidal_volume[a] < tidal_volume[b];
-  });
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::size_t a, std::size_t b) { return tidal_volume[a] < tidal_volume[b]; });
   // Window [lo, hi) of sorted positions with |Tv - Tv_p| <= dTv; monotonic queues hold
   // sorted positions with decreasing (max queue) / increasing (min queue) s_de.
   std::deque<std::size_t> max_q;

@@ -18,8 +18,8 @@ constexpr double kPi = 3.14159265358979323846;
 DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
     : specimen_(std::move(specimen)), params_(params) {
   if (!(params_.bit_diameter_m > 0.0) || !(params_.point_angle_deg > 0.0) ||
-      !(params_.point_angle_deg < 180.0) ||
-      !(params_.ref_feed_per_rev_m > 0.0) || !(params_.ref_spindle_rpm > 0.0)) {
+      !(params_.point_angle_deg < 180.0) || !(params_.ref_feed_per_rev_m > 0.0) ||
+      !(params_.ref_spindle_rpm > 0.0)) {
     throw std::invalid_argument("DrillingProcess: invalid drill parameters");
   }
   const double half_angle = 0.5 * params_.point_angle_deg * kPi / 180.0;

@@ -23,8 +23,7 @@ void requireFinite(const char* name, double value) {
 void requireOrdered(const char* upper_name, double upper, const char* lower_name, double lower) {
   if (lower + kTolerance < upper) {
     std::ostringstream out;
-    out << lower_name << " (" << lower << " m) is above " << upper_name << " (" << upper
-        << " m)";
+    out << lower_name << " (" << lower << " m) is above " << upper_name << " (" << upper << " m)";
     throw std::invalid_argument(out.str());
   }
 }
@@ -40,12 +39,11 @@ DrillingScene layoutDrillingScene(const SpecimenDepths& depths, double max_depth
   if (!(max_depth_m > 0.0) || !std::isfinite(max_depth_m)) {
     throw std::invalid_argument("max_depth_m must be positive and finite");
   }
-  requireOrdered("the bone top surface", 0.0, "outer_cortical_end_m",
-                 depths.outer_cortical_end_m);
+  requireOrdered("the bone top surface", 0.0, "outer_cortical_end_m", depths.outer_cortical_end_m);
   requireOrdered("outer_cortical_end_m", depths.outer_cortical_end_m, "inner_cortical_start_m",
                  depths.inner_cortical_start_m);
-  requireOrdered("inner_cortical_start_m", depths.inner_cortical_start_m,
-                 "inner_cortical_end_m", depths.inner_cortical_end_m);
+  requireOrdered("inner_cortical_start_m", depths.inner_cortical_start_m, "inner_cortical_end_m",
+                 depths.inner_cortical_end_m);
   if (depths.inner_cortical_end_m > max_depth_m) {
     std::ostringstream out;
     out << "inner_cortical_end_m (" << depths.inner_cortical_end_m << " m) is deeper than "

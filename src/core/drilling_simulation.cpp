@@ -52,8 +52,7 @@ Eigen::Isometry3d jointMotion(const urdf::Joint& joint, double q) {
 }
 
 // Cubic Hermite interpolation on [0, h] at s.
-double hermite(double p0, double v0, double p1, double v1, double h, double s,
-               double* velocity) {
+double hermite(double p0, double v0, double p1, double v1, double h, double s, double* velocity) {
   const double u = s / h;
   const double u2 = u * u, u3 = u2 * u;
   const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u;
@@ -83,8 +82,7 @@ double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t,
          movementDisplacementMm(movements, 0, t);
 }
 
-VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s,
-                                  double movement_scale) {
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s, double movement_scale) {
   VirtualPatient p;
   p.volunteer_id = 1 + static_cast<int>(seed % 5);
   const VolunteerParams v = defaultVolunteer(p.volunteer_id);
@@ -129,8 +127,7 @@ void TrialVariability::validate() const {
   auto check = [](double value, double hi, const char* name) {
     if (!std::isfinite(value) || value < 0.0 || value > hi) {
       std::ostringstream os;
-      os << "TrialVariability: " << name << " = " << value << " is out of range [0, " << hi
-         << "]";
+      os << "TrialVariability: " << name << " = " << value << " is out of range [0, " << hi << "]";
       throw std::invalid_argument(os.str());
     }
   };
@@ -143,8 +140,7 @@ void TrialVariability::validate() const {
 }
 
 TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
-                                    const VentilatorSettings& ventilator,
-                                    double force_noise_sd_n) {
+                                    const VentilatorSettings& ventilator, double force_noise_sd_n) {
   variability.validate();
   // Own stream (not the specimen's, sensor's or tracker's): changing a spread never changes
   // the other draws of the same seed. Every deviate is drawn whatever its SD, for the same
@@ -168,8 +164,8 @@ TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& 
   // Bounded below so that a wide spread cannot produce a non-physical ventilator setting.
   c.ventilator_rate_bpm =
       std::max(1.0, ventilator.rate_bpm + variability.ventilator_rate_sd_bpm * z_rate);
-  c.ventilator_tidal_volume_ml = std::max(
-      10.0, ventilator.tv_max_ml + variability.ventilator_tidal_volume_sd_ml * z_volume);
+  c.ventilator_tidal_volume_ml =
+      std::max(10.0, ventilator.tv_max_ml + variability.ventilator_tidal_volume_sd_ml * z_volume);
   c.force_noise_sd_n = force_noise_sd_n * (1.0 + variability.sensor_noise_scale_sd * z_noise);
   c.arm_stiffness_scale = 1.0 + variability.arm_stiffness_scale_sd * z_stiffness;
   return c;
@@ -303,8 +299,8 @@ struct DrillingSimulation::Impl {
       throw std::runtime_error(os.str());
     }
     for (int i = 1; i <= 3; ++i) {
-      for (const std::string& j : {"slider" + std::to_string(i) + "_joint",
-                                   "rod" + std::to_string(i) + "_joint"}) {
+      for (const std::string& j :
+           {"slider" + std::to_string(i) + "_joint", "rod" + std::to_string(i) + "_joint"}) {
         if (!model->getJoint(j)) {
           throw std::runtime_error("DrillingSimulation: URDF has no SPMS joint '" + j + "'");
         }
@@ -331,13 +327,13 @@ struct DrillingSimulation::Impl {
                                    g.base_radius_m * std::sin(azimuth), g.slider_min_m);
     std::ostringstream os;
     if ((pivot - expected).norm() > 1e-6) {
-      os << "DrillingSimulation: URDF rod pivot of leg " << i << " (" << slider
-         << " at 0) is at (" << pivot.transpose() << ") m in spms_base, the SPMS geometry puts it "
+      os << "DrillingSimulation: URDF rod pivot of leg " << i << " (" << slider << " at 0) is at ("
+         << pivot.transpose() << ") m in spms_base, the SPMS geometry puts it "
          << "at (" << expected.transpose() << ") m (base radius " << g.base_radius_m << " m)";
       throw std::runtime_error(os.str());
     }
-    if (!sj->limits || std::abs(slider_origin.translation().z() + sj->limits->lower -
-                                g.slider_min_m) > 1e-9 ||
+    if (!sj->limits ||
+        std::abs(slider_origin.translation().z() + sj->limits->lower - g.slider_min_m) > 1e-9 ||
         std::abs(slider_origin.translation().z() + sj->limits->upper - g.slider_max_m) > 1e-9) {
       os << "DrillingSimulation: URDF " << slider << " limits do not span the SPMS slider stroke ["
          << g.slider_min_m << ", " << g.slider_max_m << "] m along the rail";
@@ -349,9 +345,9 @@ struct DrillingSimulation::Impl {
     const double t_lag = std::max(0.0, time - patient.lag_s);
     // Earlier times than the last call are clamped by the scheduler (lag change on reset).
     const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
-    desired_heave =
-        moving_bone ? 1e-3 * patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
-                    : 0.0;
+    desired_heave = moving_bone
+                        ? 1e-3 * patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
+                        : 0.0;
     const SpmsIkResult ik = spms.inverseHeave(desired_heave);
     if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
     const double max_step = params.slider_max_speed_m_s * dt;
@@ -451,9 +447,8 @@ struct DrillingSimulation::Impl {
 
   void resetTrial(std::uint64_t new_seed, bool moving) {
     // Everything that can throw first, so that a bad distribution leaves the trial unchanged.
-    const TrialConditions drawn = drawTrialConditions(new_seed, params.variability,
-                                                      params.ventilator,
-                                                      params.sensor.force_noise_sd_n);
+    const TrialConditions drawn = drawTrialConditions(
+        new_seed, params.variability, params.ventilator, params.sensor.force_noise_sd_n);
     auto new_process =
         std::make_unique<DrillingProcess>(sample(new_seed, params.specimen), params.drill);
     VentilatorSettings breathing = params.ventilator;
@@ -514,14 +509,12 @@ struct DrillingSimulation::Impl {
 };
 
 DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
-                                       const DrillingSimulationParams& params,
-                                       std::uint64_t seed)
+                                       const DrillingSimulationParams& params, std::uint64_t seed)
     : impl_(std::make_unique<Impl>(params)) {
   Impl& s = *impl_;
   if (!(params.physics_rate_hz > 0.0) || !(params.arm_rate_hz > 0.0) ||
       !(params.arm_rate_hz <= params.physics_rate_hz)) {
-    throw std::invalid_argument(
-        "DrillingSimulation: need 0 < arm_rate_hz <= physics_rate_hz");
+    throw std::invalid_argument("DrillingSimulation: need 0 < arm_rate_hz <= physics_rate_hz");
   }
   const double ratio = params.physics_rate_hz / params.arm_rate_hz;
   s.steps_per_arm_block = static_cast<int>(std::lround(ratio));
@@ -550,16 +543,15 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
       s.commandable_index.push_back(k);
     }
   }
-  if (std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint") ==
-      s.arm_joints.end()) {
+  if (std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint") == s.arm_joints.end()) {
     throw std::runtime_error("DrillingSimulation: the arm chain has no spindle_joint");
   }
   s.home = Eigen::VectorXd::Zero(s.arm->numJoints());
   for (const auto& kv : params.home_pose) {
     auto it = std::find(s.arm_joints.begin(), s.arm_joints.end(), kv.first);
     if (it == s.arm_joints.end()) {
-      throw std::invalid_argument("DrillingSimulation: home pose names unknown joint '" +
-                                  kv.first + "'");
+      throw std::invalid_argument("DrillingSimulation: home pose names unknown joint '" + kv.first +
+                                  "'");
     }
     s.home[it - s.arm_joints.begin()] = kv.second;
   }
@@ -691,9 +683,8 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
     // runs faster than the planner can follow): go to its final point over the duration of its
     // last interval, instead of dropping it and leaving the joints on an outdated reference.
     TrajectoryCommand late = command;
-    const double span = command.points.size() > 1
-                            ? last_t - command.points[command.points.size() - 2].time_s
-                            : 0.0;
+    const double span =
+        command.points.size() > 1 ? last_t - command.points[command.points.size() - 2].time_s : 0.0;
     late.points = {command.points.back()};
     late.points.front().time_s = s.time + std::max(0.01, span);
     late.points.front().velocities.clear();
@@ -748,8 +739,8 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
       double q = pt.positions[j];
       if (q < info.lower || q > info.upper) {
         std::ostringstream os;
-        os << "joint '" << info.name << "' target " << q << " clamped to [" << info.lower
-           << ", " << info.upper << "]";
+        os << "joint '" << info.name << "' target " << q << " clamped to [" << info.lower << ", "
+           << info.upper << "]";
         result.status = TargetStatus::kClamped;
         if (!result.message.empty()) result.message += "; ";
         result.message += os.str();
@@ -774,9 +765,10 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
       too_fast = speed > info.velocity * (1.0 + 1e-6);
       if (too_fast) {
         std::ostringstream os;
-        os << "joint '" << info.name << "' commanded at " << speed << " between t = "
-           << knots[i - 1].t << " and " << knots[i].t << " s, above its velocity limit "
-           << info.velocity << ": it follows at the limit and lags the command";
+        os << "joint '" << info.name << "' commanded at " << speed
+           << " between t = " << knots[i - 1].t << " and " << knots[i].t
+           << " s, above its velocity limit " << info.velocity
+           << ": it follows at the limit and lags the command";
         result.status = TargetStatus::kClamped;
         if (!result.message.empty()) result.message += "; ";
         result.message += os.str();
@@ -817,7 +809,8 @@ void DrillingSimulation::setTrialDistribution(const SpecimenDistribution& specim
 }
 
 void DrillingSimulation::setBoneMotionModel(const std::optional<BoneMotionModel>& model) {
-  if (model && !(std::isfinite(model->q1_ap_mm_per_ml) && std::isfinite(model->q2_ap_mm_s_per_ml))) {
+  if (model &&
+      !(std::isfinite(model->q1_ap_mm_per_ml) && std::isfinite(model->q2_ap_mm_s_per_ml))) {
     throw std::invalid_argument("bone motion model: q1 and q2 must be finite");
   }
   impl_->bone_motion_model = model;
@@ -827,9 +820,7 @@ Eigen::VectorXd DrillingSimulation::armJointStiffness() const {
   return impl_->arm->jointStiffness();
 }
 
-const TrialConditions& DrillingSimulation::trialConditions() const {
-  return impl_->conditions;
-}
+const TrialConditions& DrillingSimulation::trialConditions() const { return impl_->conditions; }
 
 double DrillingSimulation::time() const { return impl_->time; }
 double DrillingSimulation::physicsDt() const { return impl_->dt; }

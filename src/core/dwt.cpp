@@ -8,9 +8,9 @@ namespace {
 
 /// Filters rearranged once per call so that every inner loop is a forward dot product.
 struct PreparedFilters {
-  std::size_t f = 0;                  // filter length F (even)
-  std::vector<double> dec_lo_rev;     // dec_lo reversed
-  std::vector<double> dec_hi_rev;     // dec_hi reversed
+  std::size_t f = 0;                   // filter length F (even)
+  std::vector<double> dec_lo_rev;      // dec_lo reversed
+  std::vector<double> dec_hi_rev;      // dec_hi reversed
   std::vector<double> rec_lo_poly[2];  // rec_lo polyphase p, reversed: rec[p + 2 (F/2 - 1 - i)]
   std::vector<double> rec_hi_poly[2];
 
@@ -101,8 +101,7 @@ void analyse(const double* x, std::size_t n, const PreparedFilters& pf, Extensio
 /// Single-level synthesis from a and/or d (nullptr = zeros), each of length n, into out
 /// (length idwtOutputLength(n)). sa/sd are scratch.
 void synthesise(const double* a, const double* d, std::size_t n, const PreparedFilters& pf,
-                ExtensionMode mode, double* out, std::vector<double>* sa,
-                std::vector<double>* sd) {
+                ExtensionMode mode, double* out, std::vector<double>* sa, std::vector<double>* sd) {
   const std::size_t f = pf.f;
   const std::size_t half = f / 2;
   const std::size_t m = idwtOutputLength(n, f, mode);
@@ -161,8 +160,7 @@ void synthesise(const double* a, const double* d, std::size_t n, const PreparedF
 }
 
 /// clen[0] = N, clen[j] = length of cA_j / cD_j.
-std::vector<std::size_t> levelLengths(std::size_t n, std::size_t f, int level,
-                                      ExtensionMode mode) {
+std::vector<std::size_t> levelLengths(std::size_t n, std::size_t f, int level, ExtensionMode mode) {
   std::vector<std::size_t> clen(static_cast<std::size_t>(level) + 1);
   clen[0] = n;
   for (int j = 1; j <= level; ++j) {
@@ -242,8 +240,8 @@ std::vector<double> idwt(const std::vector<double>& ca, const std::vector<double
   const std::size_t n = ca.empty() ? cd.size() : ca.size();
   const PreparedFilters pf(wavelet);
   if (mode == ExtensionMode::kSymmetric && 2 * n + 2 < pf.f + 1) {
-    throw std::invalid_argument("idwt: coefficient arrays too short for wavelet '" +
-                                wavelet.name + "'");
+    throw std::invalid_argument("idwt: coefficient arrays too short for wavelet '" + wavelet.name +
+                                "'");
   }
   std::vector<double> out(idwtOutputLength(n, pf.f, mode));
   std::vector<double> sa;
@@ -316,12 +314,11 @@ std::vector<double> waverecSelected(const WaveletDecomposition& decomposition,
   int top = include_approximation ? level : 0;
   for (int j : detail_levels) {
     if (j < 1 || j > level) {
-      throw std::invalid_argument("waverec: detail level " + std::to_string(j) +
-                                  " outside [1, " + std::to_string(level) + "]");
+      throw std::invalid_argument("waverec: detail level " + std::to_string(j) + " outside [1, " +
+                                  std::to_string(level) + "]");
     }
     if (keep[static_cast<std::size_t>(j)]) {
-      throw std::invalid_argument("waverec: detail level " + std::to_string(j) +
-                                  " listed twice");
+      throw std::invalid_argument("waverec: detail level " + std::to_string(j) + " listed twice");
     }
     keep[static_cast<std::size_t>(j)] = true;
     top = std::max(top, j);
@@ -347,8 +344,8 @@ std::vector<double> waverecSelected(const WaveletDecomposition& decomposition,
     }
     const std::size_t n = clen[j];
     out_buf.resize(idwtOutputLength(n, pf.f, decomposition.mode));
-    synthesise(have_a ? a_buf.data() : nullptr, d, n, pf, decomposition.mode, out_buf.data(),
-               &sa, &sd);
+    synthesise(have_a ? a_buf.data() : nullptr, d, n, pf, decomposition.mode, out_buf.data(), &sa,
+               &sd);
     // Trim to the next detail length (pywt.waverec), or to the signal length at the end.
     out_buf.resize(clen[j - 1]);
     a_buf.swap(out_buf);

@@ -157,8 +157,7 @@ FitResult fitCeres(ModelKind kind, const AxisSamples& samples, const CeresFitOpt
   result.time_s = secondsSince(start);
   result.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
   result.method = "ceres";
-  result.converged = summary.IsSolutionUsable() &&
-                     summary.termination_type == ceres::CONVERGENCE;
+  result.converged = summary.IsSolutionUsable() && summary.termination_type == ceres::CONVERGENCE;
   evaluateFit(samples, &result);
   return result;
 }

@@ -7,13 +7,13 @@
 #include <random>
 #include <stdexcept>
 
+#include <urdf_parser/urdf_parser.h>
 #include <kdl/chainfksolverpos_recursive.hpp>
 #include <kdl/chainiksolverpos_lma.hpp>
 #include <kdl/chainiksolverpos_nr_jl.hpp>
 #include <kdl/chainiksolvervel_pinv.hpp>
 #include <kdl/frames.hpp>
 #include <kdl/jntarray.hpp>
-#include <urdf_parser/urdf_parser.h>
 
 namespace pedicle_drilling::core {
 
@@ -115,8 +115,7 @@ KinematicChain::KinematicChain(const urdf::ModelInterface& model, const std::str
   upper_ = Eigen::Map<const Eigen::VectorXd>(hi.data(), static_cast<Eigen::Index>(hi.size()));
 }
 
-KinematicChain KinematicChain::fromUrdfString(const std::string& xml,
-                                              const std::string& base_link,
+KinematicChain KinematicChain::fromUrdfString(const std::string& xml, const std::string& base_link,
                                               const std::string& tip_link) {
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(xml);
   if (!model) throw std::invalid_argument("urdf: cannot parse the URDF XML");
@@ -156,9 +155,9 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
     q_min(i) = std::isfinite(lower_(i)) ? lower_(i) : -1e9;
     q_max(i) = std::isfinite(upper_(i)) ? upper_(i) : 1e9;
   }
-  KDL::ChainIkSolverPos_NR_JL ik_jl(chain_, q_min, q_max, fk, ik_vel, options.max_iterations,
-                                    std::min(options.position_tolerance_m,
-                                             options.orientation_tolerance_rad) * 1e-2);
+  KDL::ChainIkSolverPos_NR_JL ik_jl(
+      chain_, q_min, q_max, fk, ik_vel, options.max_iterations,
+      std::min(options.position_tolerance_m, options.orientation_tolerance_rad) * 1e-2);
   const KDL::Frame goal = toKdl(target);
   std::mt19937 rng(options.random_seed);
 
@@ -198,8 +197,7 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
     }
     const Eigen::Isometry3d reached = forward(qe);
     const double pe = (reached.translation() - target.translation()).norm();
-    const double oe =
-        Eigen::AngleAxisd(target.linear().transpose() * reached.linear()).angle();
+    const double oe = Eigen::AngleAxisd(target.linear().transpose() * reached.linear()).angle();
     const double cost = pe / options.position_tolerance_m + oe / options.orientation_tolerance_rad;
     if (cost < best_cost) {
       best_cost = cost;
@@ -221,8 +219,7 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
     best.message = "no solution within joint limits";
   } else {
     best.message = "did not converge: position error " + std::to_string(best.position_error_m) +
-                   " m, orientation error " + std::to_string(best.orientation_error_rad) +
-                   " rad";
+                   " m, orientation error " + std::to_string(best.orientation_error_rad) + " rad";
   }
   return best;
 }

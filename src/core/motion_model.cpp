@@ -114,9 +114,7 @@ double apEquivalentBendingStiffness(double q1_mm_per_ml, const SpineGeometry& ge
   return geometry.apBeamFactorMm4() / slopePerMm3(q1_mm_per_ml);
 }
 
-double siEquivalentAxialStiffness(double q1_mm_per_ml) {
-  return 1.0 / slopePerMm3(q1_mm_per_ml);
-}
+double siEquivalentAxialStiffness(double q1_mm_per_ml) { return 1.0 / slopePerMm3(q1_mm_per_ml); }
 
 double siAxialRigidityGroup(double q1_mm_per_ml, const SpineGeometry& geometry) {
   return 2.0 * geometry.totalDiscLengthMm() / slopePerMm3(q1_mm_per_ml);

@@ -162,8 +162,8 @@ class Fields {
     char* end = nullptr;
     const double v = std::strtod(e.value.c_str(), &end);
     if (e.quoted || e.value.empty() || *end != '\0' || !std::isfinite(v)) {
-      throw ModelFileError(where(e) + ": key '" + key + "' is not a finite number: '" +
-                           e.value + "'");
+      throw ModelFileError(where(e) + ": key '" + key + "' is not a finite number: '" + e.value +
+                           "'");
     }
     return v;
   }
@@ -227,7 +227,9 @@ std::string modelToYaml(const PatientModel& model) {
     const AxisModelRecord& r = model.axes[static_cast<int>(a)];
     // The reader refuses what is not finite: never write a file that cannot be read back.
     for (const auto& [name, value] : {std::pair<const char*, double>{"q1", r.model.q1},
-                                      {"q2", r.model.q2}, {"q0", r.model.q0}, {"r2", r.r2},
+                                      {"q2", r.model.q2},
+                                      {"q0", r.model.q0},
+                                      {"r2", r.r2},
                                       {"rmse", r.rmse}}) {
       if (!std::isfinite(value)) {
         throw ModelFileError("model of axis " + axisName(a) + ": " + name + " is " +
@@ -238,8 +240,7 @@ std::string modelToYaml(const PatientModel& model) {
     os << "  " << axisName(a) << ":\n";
     os << "    model: " << modelKindName(r.model.kind) << "\n";
     os << "    q1: " << formatDouble(r.model.q1) << "\n";
-    os << "    q2: " << formatDouble(r.model.kind == ModelKind::kLinear ? 0.0 : r.model.q2)
-       << "\n";
+    os << "    q2: " << formatDouble(r.model.kind == ModelKind::kLinear ? 0.0 : r.model.q2) << "\n";
     os << "    q0: " << formatDouble(r.model.q0) << "\n";
     os << "    r2: " << formatDouble(r.r2) << "\n";
     os << "    rmse: " << formatDouble(r.rmse) << "\n";

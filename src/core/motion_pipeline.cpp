@@ -66,8 +66,8 @@ void validatePairedSamples(const PairedSamples& p, const std::string& source) {
   if (p.tv.size() != n || p.ap.size() != n || p.si.size() != n || p.lr.size() != n) {
     throw MissingColumnError(source + ": columns t, tv, ap, si, lr have different lengths");
   }
-  const std::array<std::pair<const char*, const std::vector<double>*>, 5> columns = {{
-      {"t", &p.t}, {"tv", &p.tv}, {"ap", &p.ap}, {"si", &p.si}, {"lr", &p.lr}}};
+  const std::array<std::pair<const char*, const std::vector<double>*>, 5> columns = {
+      {{"t", &p.t}, {"tv", &p.tv}, {"ap", &p.ap}, {"si", &p.si}, {"lr", &p.lr}}};
   for (const auto& column : columns) {
     for (size_t i = 0; i < n; ++i) {
       if (!std::isfinite((*column.second)[i])) {
@@ -85,8 +85,7 @@ void validatePairedSamples(const PairedSamples& p, const std::string& source) {
   const int breaths = countBreaths(p.tv);
   if (breaths < 2) {
     throw TooFewBreathsError(source + ": fewer than two breaths in the tidal volume (found " +
-                             std::to_string(breaths) + " over " + std::to_string(n) +
-                             " samples)");
+                             std::to_string(breaths) + " over " + std::to_string(n) + " samples)");
   }
 }
 

@@ -131,8 +131,7 @@ FitResult fitPso(ModelKind kind, const AxisSamples& samples, const PsoOptions& o
       for (size_t j = 0; j < dim; ++j) {
         const double r1 = unit(rng);
         const double r2 = unit(rng);
-        double vj = options.inertia * v[i][j] +
-                    options.cognitive * r1 * (p_best[i][j] - x[i][j]) +
+        double vj = options.inertia * v[i][j] + options.cognitive * r1 * (p_best[i][j] - x[i][j]) +
                     options.social * r2 * (g_best[j] - x[i][j]);
         vj = std::clamp(vj, -width[j], width[j]);
         double xj = x[i][j] + vj;

@@ -26,8 +26,8 @@ std::string fmt(const char* f, double a, double b, double c) {
 }  // namespace
 
 void SafetyParams::validate() const {
-  require(std::isfinite(position_threshold_m) && position_threshold_m > 0.0,
-          "position_threshold_m", "must be finite and > 0", position_threshold_m);
+  require(std::isfinite(position_threshold_m) && position_threshold_m > 0.0, "position_threshold_m",
+          "must be finite and > 0", position_threshold_m);
   require(std::isfinite(force_threshold_N) && force_threshold_N > 0.0, "force_threshold_N",
           "must be finite and > 0", force_threshold_N);
   require(!std::isnan(force_timeout_s) && force_timeout_s > 0.0, "force_timeout_s",
@@ -58,9 +58,7 @@ const char* toString(SafetyVerdict::Reason r) {
   return "unknown";
 }
 
-SafetyMonitor::SafetyMonitor(const SafetyParams& params) : params_(params) {
-  params_.validate();
-}
+SafetyMonitor::SafetyMonitor(const SafetyParams& params) : params_(params) { params_.validate(); }
 
 void SafetyMonitor::reset() {
   verdict_ = SafetyVerdict();
@@ -141,12 +139,12 @@ void RetreatParams::validate() const {
           distance_m);
   require(std::isfinite(speed_m_s) && speed_m_s > 0.0, "speed_m_s", "must be finite and > 0",
           speed_m_s);
-  require(std::isfinite(accel_m_s2) && accel_m_s2 > 0.0, "accel_m_s2",
-          "must be finite and > 0", accel_m_s2);
+  require(std::isfinite(accel_m_s2) && accel_m_s2 > 0.0, "accel_m_s2", "must be finite and > 0",
+          accel_m_s2);
 }
 
-RetreatMotion::RetreatMotion(double t0, const Eigen::Vector3d& start,
-                             const Eigen::Vector3d& target, const TrapezoidProfile& profile)
+RetreatMotion::RetreatMotion(double t0, const Eigen::Vector3d& start, const Eigen::Vector3d& target,
+                             const TrapezoidProfile& profile)
     : segment_(t0, start, target, profile) {}
 
 RetreatPlanner::RetreatPlanner(const RetreatParams& params) : params_(params) {

@@ -69,8 +69,7 @@ Eigen::Vector3d SpmsKinematics::sliderPoint(int i, double s_m) const {
   return base_point_[i] + s_m * rail_dir_[i];
 }
 
-bool SpmsKinematics::dependentCoordinates(const PlatformPose& pose,
-                                          PlatformFullPose* full) const {
+bool SpmsKinematics::dependentCoordinates(const PlatformPose& pose, PlatformFullPose* full) const {
   // Leg-plane constraints: t_i . P_i = 0 (t_i . B_i = 0 and t_i . u_i = 0), independent of z.
   PlatformFullPose p;
   p.z_m = pose.z_m;

@@ -25,8 +25,8 @@ TrapezoidProfile TrapezoidProfile::fixedDuration(double length, double duration,
   require(std::isfinite(length) && length >= 0.0, "length", "must be finite and >= 0", length);
   require(std::isfinite(duration) && duration > 0.0, "duration", "must be finite and > 0",
           duration);
-  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio",
-          "must be finite and > 0", accel_ratio);
+  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio", "must be finite and > 0",
+          accel_ratio);
   const double r = std::max(accel_ratio, 2.0 / duration);
   TrapezoidProfile p;
   p.length = length;
@@ -105,8 +105,8 @@ TrapezoidSegmenter::TrapezoidSegmenter(double period_s, double accel_ratio)
     : period_(period_s), accel_ratio_(accel_ratio) {
   require(std::isfinite(period_s) && period_s > 0.0, "period_s", "must be finite and > 0",
           period_s);
-  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio",
-          "must be finite and > 0", accel_ratio);
+  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio", "must be finite and > 0",
+          accel_ratio);
 }
 
 double TrapezoidSegmenter::effectiveAccelRatio() const {
@@ -128,8 +128,7 @@ Segment TrapezoidSegmenter::segmentAt(const Reference& ref, double t_start, doub
   return plan(ts, ref(ts), ref(ts + period_));
 }
 
-Eigen::Vector3d TrapezoidSegmenter::sample(const Reference& ref, double t_start,
-                                           double t) const {
+Eigen::Vector3d TrapezoidSegmenter::sample(const Reference& ref, double t_start, double t) const {
   return segmentAt(ref, t_start, t).position(t);
 }
 

@@ -43,8 +43,8 @@ void require(bool ok, const std::string& field, const std::string& rule) {
 
 void TrialSequencerParams::validate() const {
   compensation.validate();
-  require(default_feed_rate_mm_s > 0.0 && default_feed_rate_mm_s <= 10.0,
-          "feed_rate_mm_s", "must be in (0, 10] mm/s");
+  require(default_feed_rate_mm_s > 0.0 && default_feed_rate_mm_s <= 10.0, "feed_rate_mm_s",
+          "must be in (0, 10] mm/s");
   require(default_spindle_rpm > 0.0 && default_spindle_rpm <= 60000.0, "spindle_rpm",
           "must be in (0, 60000] rpm");
   require(default_max_duration_s > 0.0 && default_max_duration_s <= 3600.0, "max_duration_s",
@@ -54,14 +54,13 @@ void TrialSequencerParams::validate() const {
   require(settle_s >= 0.0 && settle_s <= 60.0, "settle_s", "must be in [0, 60] s");
   require(registration_samples >= 1 && registration_samples <= 100, "registration_samples",
           "must be in [1, 100]");
-  require(registration_timeout_s > 0.0 && registration_timeout_s <= 60.0,
-          "registration_timeout_s", "must be in (0, 60] s");
+  require(registration_timeout_s > 0.0 && registration_timeout_s <= 60.0, "registration_timeout_s",
+          "must be in (0, 60] s");
   require(stop_hold_s >= 0.0 && stop_hold_s <= 60.0, "stop_hold_s", "must be in [0, 60] s");
   retreat.validate();
   require(!arm_joints.empty(), "arm_joints", "must not be empty");
   require(!feed_joint.empty(), "feed_joint", "must not be empty");
-  require(std::isfinite(feed_lower_m) && std::isfinite(feed_upper_m) &&
-              feed_lower_m < feed_upper_m,
+  require(std::isfinite(feed_lower_m) && std::isfinite(feed_upper_m) && feed_lower_m < feed_upper_m,
           "feed_joint", "limits must be finite with lower < upper");
 }
 
@@ -145,10 +144,9 @@ std::string TrialSequencer::resolve(const TrialRequest& request, ResolvedRequest
   };
   const double feed_mm_s =
       pick(request.feed_rate_mm_s, params_.default_feed_rate_mm_s, 10.0, "feed_rate_mm_s");
-  const double rpm = pick(request.spindle_rpm, params_.default_spindle_rpm, 60000.0,
-                          "spindle_rpm");
-  const double max_duration = pick(request.max_duration_s, params_.default_max_duration_s,
-                                   3600.0, "max_duration_s");
+  const double rpm = pick(request.spindle_rpm, params_.default_spindle_rpm, 60000.0, "spindle_rpm");
+  const double max_duration =
+      pick(request.max_duration_s, params_.default_max_duration_s, 3600.0, "max_duration_s");
   if (!why.empty()) return why;
   if (mode != CompensationMode::kStationary && !haveVentilator()) {
     return std::string(toString(mode)) +
@@ -190,8 +188,8 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   out_.start_timers.push_back(
       {TimerRequest::Kind::kPoseReached, params_.move_duration_s + params_.settle_s, false});
   std::ostringstream os;
-  os << "trial started: " << toString(mode) << ", feed " << feed_mm_s << " mm/s, spindle "
-     << rpm << " rpm";
+  os << "trial started: " << toString(mode) << ", feed " << feed_mm_s << " mm/s, spindle " << rpm
+     << " rpm";
   log(SequencerLog::Level::kInfo, os.str());
   return "";
 }
@@ -301,15 +299,16 @@ void TrialSequencer::onRecognizerState(double now, bool stop, const std::string&
   recognizer_reports_stop_ = stop;
   if (stop && phase_ == TrialPhase::kDrilling) {
     handleStop(now, false,
-               "drilling_state reports a recognizer stop (state " + state_name +
-                   ", key point " + std::to_string(key_point) + ")");
+               "drilling_state reports a recognizer stop (state " + state_name + ", key point " +
+                   std::to_string(key_point) + ")");
   }
 }
 
 void TrialSequencer::startDrilling(double now, double t_reg) {
   if (recognizer_reports_stop_) {
-    fail("refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
-         "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
+    fail(
+        "refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
+        "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
     return;
   }
   // The segment grid starts at the registration time, the stamp of the last registration
@@ -324,8 +323,7 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   log(SequencerLog::Level::kInfo, "marker registered (" + std::to_string(reg_count_) +
                                       " samples), drilling (" + toString(mode_) + ")");
   sendDueSegments(now);
-  out_.start_timers.push_back(
-      {TimerRequest::Kind::kSegment, planner_->params().period_s, true});
+  out_.start_timers.push_back({TimerRequest::Kind::kSegment, planner_->params().period_s, true});
 }
 
 void TrialSequencer::onSegmentTimer(double now) {

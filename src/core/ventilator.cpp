@@ -71,9 +71,8 @@ struct BreathBalanceResidual {
   static ceres::CostFunction* Create(double tv_max, double flow_time, double shape_integral,
                                      double expiratory_time, bool ratio_mode, double ratio,
                                      double tau_given) {
-    return new ceres::AutoDiffCostFunction<BreathBalanceResidual, 3, 3>(
-        new BreathBalanceResidual(tv_max, flow_time, shape_integral, expiratory_time, ratio_mode,
-                                  ratio, tau_given));
+    return new ceres::AutoDiffCostFunction<BreathBalanceResidual, 3, 3>(new BreathBalanceResidual(
+        tv_max, flow_time, shape_integral, expiratory_time, ratio_mode, ratio, tau_given));
   }
 
   double tv_max_, flow_time_, shape_integral_, expiratory_time_;
@@ -141,9 +140,9 @@ void VentilatorSettings::validate() const {
           "peak_flow_ratio", "in [0.2, 10]", peak_flow_ratio);
   require(std::isfinite(expiratory_tau_s) && expiratory_tau_s > 0.0 && expiratory_tau_s <= 10.0,
           "expiratory_tau_s", "in (0, 10] s", expiratory_tau_s);
-  require(std::isfinite(ramp_start_fraction) && ramp_start_fraction >= 0.0 &&
-              ramp_start_fraction < 1.0,
-          "ramp_start_fraction", "in [0, 1)", ramp_start_fraction);
+  require(
+      std::isfinite(ramp_start_fraction) && ramp_start_fraction >= 0.0 && ramp_start_fraction < 1.0,
+      "ramp_start_fraction", "in [0, 1)", ramp_start_fraction);
   require(std::isfinite(exponential_shape) && exponential_shape > 0.0 && exponential_shape <= 10.0,
           "exponential_shape", "in (0, 10]", exponential_shape);
 }
@@ -180,11 +179,10 @@ VentilatorModel::VentilatorModel(const VentilatorSettings& settings) : settings_
                     : settings_.tv_max_ml / (x[2] * (1.0 - std::exp(-expiratory_time / x[2])));
 
   ceres::Problem problem;
-  problem.AddResidualBlock(
-      BreathBalanceResidual::Create(settings_.tv_max_ml, flow_time_, shape_integral,
-                                    expiratory_time, ratio_mode, settings_.peak_flow_ratio,
-                                    settings_.expiratory_tau_s),
-      nullptr, x);
+  problem.AddResidualBlock(BreathBalanceResidual::Create(
+                               settings_.tv_max_ml, flow_time_, shape_integral, expiratory_time,
+                               ratio_mode, settings_.peak_flow_ratio, settings_.expiratory_tau_s),
+                           nullptr, x);
   problem.SetParameterLowerBound(x, 0, 1e-9);
   problem.SetParameterLowerBound(x, 1, 1e-9);
   problem.SetParameterLowerBound(x, 2, 1e-6);
@@ -277,7 +275,8 @@ double VentilatorModel::volumeInCycle(double tau) const {
   const double inspired = amplitude_ * flow_time_ * shapeIntegral(1.0);
   if (tau < inspiratory_time_) return inspired;
   const double elapsed = tau - inspiratory_time_;
-  return inspired - expiratory_peak_ * expiratory_tau_ * (1.0 - std::exp(-elapsed / expiratory_tau_));
+  return inspired -
+         expiratory_peak_ * expiratory_tau_ * (1.0 - std::exp(-elapsed / expiratory_tau_));
 }
 
 VentilatorSample VentilatorModel::sample(double t) const {

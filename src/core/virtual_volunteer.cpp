@@ -165,8 +165,7 @@ VolunteerParams VolunteerParams::noiseFree() const {
   return p;
 }
 
-double movementDisplacementMm(const std::vector<PatientMovement>& movements, int axis,
-                              double t) {
+double movementDisplacementMm(const std::vector<PatientMovement>& movements, int axis, double t) {
   // Smooth 0 -> 1 transition over [0, w] (raised cosine).
   auto smooth_step = [](double x, double w) {
     if (x <= 0.0) return 0.0;
@@ -189,18 +188,18 @@ VolunteerParams defaultVolunteer(int id) {
   }
   const size_t k = static_cast<size_t>(id - 1);
   // Per-volunteer diversity (Benchetrit 2000): rate, depth, pattern, amplitude, lag, noise.
-  const double rate[5] = {20.0, 18.0, 22.0, 19.0, 21.0};        // breaths/min
-  const double vt[5] = {500.0, 540.0, 460.0, 520.0, 480.0};     // ml
+  const double rate[5] = {20.0, 18.0, 22.0, 19.0, 21.0};     // breaths/min
+  const double vt[5] = {500.0, 540.0, 460.0, 520.0, 480.0};  // ml
   const double rate_cv[5] = {0.10, 0.12, 0.15, 0.11, 0.13};
   const double vt_cv[5] = {0.12, 0.15, 0.18, 0.13, 0.16};
   const double ti_frac[5] = {0.42, 0.40, 0.44, 0.41, 0.43};
-  const double amp_ap[5] = {5.0, 4.6, 4.2, 5.4, 4.8};           // mm peak-to-peak per VT
+  const double amp_ap[5] = {5.0, 4.6, 4.2, 5.4, 4.8};  // mm peak-to-peak per VT
   const double amp_si[5] = {2.0, 1.8, 2.2, 1.9, 2.1};
-  const double amp_lr[5] = {1.0, -0.9, 1.1, -0.8, 1.2};         // sign: side of the tilt
-  const double lag[5] = {0.08, 0.12, 0.06, 0.14, 0.10};         // s (assumed)
+  const double amp_lr[5] = {1.0, -0.9, 1.1, -0.8, 1.2};  // sign: side of the tilt
+  const double lag[5] = {0.08, 0.12, 0.06, 0.14, 0.10};  // s (assumed)
   const double tracker_scale[5] = {0.80, 0.90, 1.00, 0.85, 0.95};
-  const double drift[5] = {0.15, 0.20, 0.30, 0.10, 0.25};       // mm
-  const double moves[5] = {1.5, 2.0, 3.0, 2.0, 2.5};            // per min
+  const double drift[5] = {0.15, 0.20, 0.30, 0.10, 0.25};  // mm
+  const double moves[5] = {1.5, 2.0, 3.0, 2.0, 2.5};       // per min
 
   VolunteerParams p;
   p.id = id;

@@ -10,7 +10,6 @@
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
@@ -18,6 +17,7 @@
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
 #include <trajectory_msgs/JointTrajectory.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
 #include <memory>
@@ -70,12 +70,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         nh.advertise<geometry_msgs::PoseStamped>("compensation/predicted_marker_pose", 50);
     status_pub_ = nh.advertise<TrialStatus>("compensation/status", 10, true);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
-    tidal_sub_ = nh.subscribe("tidal_volume", 10, &CompensationPlannerNodelet::onTidalVolume,
-                              this, hints);
-    settings_sub_ = nh.subscribe("ventilator/settings", 1,
-                                 &CompensationPlannerNodelet::onSettings, this);
-    marker_sub_ = nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker,
-                               this, hints);
+    tidal_sub_ =
+        nh.subscribe("tidal_volume", 10, &CompensationPlannerNodelet::onTidalVolume, this, hints);
+    settings_sub_ =
+        nh.subscribe("ventilator/settings", 1, &CompensationPlannerNodelet::onSettings, this);
+    marker_sub_ =
+        nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker, this, hints);
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
     state_sub_ = nh.subscribe("drilling_state", 100, &CompensationPlannerNodelet::onDrillingState,
                               this, hints);
@@ -86,8 +86,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // and a thread of its own, so that it never blocks the manager's worker threads.
     ros::NodeHandle start_nh(pnh);
     start_nh.setCallbackQueue(&start_queue_);
-    start_srv_ = start_nh.advertiseService("start_trial", &CompensationPlannerNodelet::onStartTrial,
-                                           this);
+    start_srv_ =
+        start_nh.advertiseService("start_trial", &CompensationPlannerNodelet::onStartTrial, this);
     start_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &start_queue_);
     start_spinner_->start();
     publishStatus(core::TrialPhase::kIdle);
@@ -139,8 +139,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     const auto& o = msg->pose.orientation;
     const core::RotationLookup lookup = [this](const std::string& frame, Eigen::Matrix3d* r) {
       if (!tf_buffer_->canTransform(frame, world_frame_, ros::Time(0))) return false;
-      const auto& q = tf_buffer_->lookupTransform(frame, world_frame_, ros::Time(0))
-                          .transform.rotation;
+      const auto& q =
+          tf_buffer_->lookupTransform(frame, world_frame_, ros::Time(0)).transform.rotation;
       *r = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
       return true;
     };
@@ -241,8 +241,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
             nh.createTimer(delay, &CompensationPlannerNodelet::onRegistrationTimer, this, true);
         break;
       case Kind::kSegment:
-        segment_timer_ = nh.createTimer(delay, &CompensationPlannerNodelet::onSegmentTimer, this,
-                                        !t.periodic);
+        segment_timer_ =
+            nh.createTimer(delay, &CompensationPlannerNodelet::onSegmentTimer, this, !t.periodic);
         break;
     }
   }

@@ -18,12 +18,12 @@
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <tf2/exceptions.h>
 #include <tf2_geometry_msgs/tf2_geometry_msgs.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <algorithm>
 #include <memory>
@@ -57,8 +57,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
     }
     model_pub_ = nh.advertise<MotionModel>("motion_model", 1, true);
-    tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume,
-                           this);
+    tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume, this);
     if (!p_.use_pose_topic || !p_.patient_frame.empty()) {
       tf_buffer_ =
           std::make_unique<tf2_ros::Buffer>(ros::Duration(std::max(60.0, 2 * p_.window_s)));
@@ -101,8 +100,8 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
   void onMarkerPose(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (!msg->header.frame_id.empty() && msg->header.frame_id != p_.tracker_frame) {
-      last_marker_error_ = "pose in frame '" + msg->header.frame_id + "', expected '" +
-                           p_.tracker_frame + "'";
+      last_marker_error_ =
+          "pose in frame '" + msg->header.frame_id + "', expected '" + p_.tracker_frame + "'";
       NODELET_WARN_THROTTLE(5.0, "MotionIdentification: %s", last_marker_error_.c_str());
       return;
     }
@@ -195,18 +194,17 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       NODELET_ERROR("MotionIdentification: %s", response.message.c_str());
       return true;
     }
-    MotionModel msg =
-        toMsg(result, p_.patient_frame.empty() ? p_.tracker_frame : p_.patient_frame,
-              p_.patient_id, core::methodName(options.method), path);
+    MotionModel msg = toMsg(result, p_.patient_frame.empty() ? p_.tracker_frame : p_.patient_frame,
+                            p_.patient_id, core::methodName(options.method), path);
     msg.header.stamp = ros::Time::now();
     model_pub_.publish(msg);
     response.model = msg;
     response.success = true;
     std::ostringstream text;
     text << "identified " << core::modelKindName(options.kind) << " model with "
-         << core::methodName(options.method) << " from " << result.samples
-         << " marker samples, " << rec.tv.size() << " tidal-volume samples, " << result.breaths
-         << " breaths over " << result.duration_s << " s; wrote " << path;
+         << core::methodName(options.method) << " from " << result.samples << " marker samples, "
+         << rec.tv.size() << " tidal-volume samples, " << result.breaths << " breaths over "
+         << result.duration_s << " s; wrote " << path;
     response.message = text.str();
     NODELET_INFO("MotionIdentification: %s", response.message.c_str());
     for (const core::AxisReport& r : result.axes) {

@@ -10,9 +10,9 @@
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
 #include <memory>
@@ -48,11 +48,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       p.tracker_timeout_s =
           params.getDouble("tracker_timeout_s", p.tracker_timeout_s, 0.0, 60.0, true);
       check_rate_hz = params.getDouble("check_rate_hz", 200.0, 0.0, 10000.0, true);
-      sp.pair_tolerance_s =
-          params.getDouble("pair_tolerance_s", sp.pair_tolerance_s, 0.0, 1.0);
+      sp.pair_tolerance_s = params.getDouble("pair_tolerance_s", sp.pair_tolerance_s, 0.0, 1.0);
       diagnostic_period_s = params.getDouble("diagnostic_period_s", 1.0, 0.0, 60.0, true);
       if (1.0 / check_rate_hz > 0.5 * p.force_timeout_s) {
-        params.fail("check_rate_hz", "is too low to check force_timeout_s (needs at least 2 "
+        params.fail("check_rate_hz",
+                    "is too low to check force_timeout_s (needs at least 2 "
                     "checks per timeout)");
       }
       supervisor_ = std::make_unique<core::SafetySupervisor>(sp);
@@ -63,23 +63,24 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, true);
     reset_srv_ = pnh.advertiseService("reset", &SafetyMonitorNodelet::onReset, this);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
-    wrench_sub_ = nh.subscribe("ft_sensor/wrench", 1000, &SafetyMonitorNodelet::onWrench, this,
-                               hints);
-    tracker_sub_ = nh.subscribe("tracker/marker_pose", 50, &SafetyMonitorNodelet::onTracked, this,
-                                hints);
+    wrench_sub_ =
+        nh.subscribe("ft_sensor/wrench", 1000, &SafetyMonitorNodelet::onWrench, this, hints);
+    tracker_sub_ =
+        nh.subscribe("tracker/marker_pose", 50, &SafetyMonitorNodelet::onTracked, this, hints);
     predicted_sub_ = nh.subscribe("compensation/predicted_marker_pose", 50,
                                   &SafetyMonitorNodelet::onPredicted, this, hints);
-    status_sub_ = nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus,
-                               this);
-    check_timer_ = nh.createTimer(ros::Duration(1.0 / check_rate_hz),
-                                  &SafetyMonitorNodelet::onCheck, this);
+    status_sub_ =
+        nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus, this);
+    check_timer_ =
+        nh.createTimer(ros::Duration(1.0 / check_rate_hz), &SafetyMonitorNodelet::onCheck, this);
     diagnostic_timer_ = nh.createTimer(ros::Duration(diagnostic_period_s),
                                        &SafetyMonitorNodelet::onDiagnosticTimer, this);
     const core::SafetyParams& p = supervisor_->params().safety;
-    NODELET_INFO("SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
-                 "%.3f s, checks at %.0f Hz",
-                 p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s,
-                 p.tracker_timeout_s, check_rate_hz);
+    NODELET_INFO(
+        "SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
+        "%.3f s, checks at %.0f Hz",
+        p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s, p.tracker_timeout_s,
+        check_rate_hz);
     publishDiagnostics();
   }
 
@@ -111,7 +112,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   void warnIfMismatch(core::PairResult r) {
     if (r != core::PairResult::kFrameMismatch) return;
-    NODELET_WARN_THROTTLE(1.0, "SafetyMonitor: the predicted and the tracked marker pose are in "
+    NODELET_WARN_THROTTLE(1.0,
+                          "SafetyMonitor: the predicted and the tracked marker pose are in "
                           "different frames; position check skipped");
   }
 

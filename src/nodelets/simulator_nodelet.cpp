@@ -11,7 +11,6 @@
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <std_msgs/Float64.h>
@@ -20,6 +19,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <trajectory_msgs/JointTrajectory.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -35,8 +35,8 @@
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
-#include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
+#include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -62,8 +62,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       publish_clock_ = params.getBool("publish_clock", true);
       clock_period_steps_ = params.getInt("clock_period_ms", 1, 1, 100);
       const auto period = [&params](const std::string& name, double default_hz) {
-        return core::streamPeriodSteps(
-            1000.0, params.getDouble(name, default_hz, 0.0, 1000.0, true), name);
+        return core::streamPeriodSteps(1000.0,
+                                       params.getDouble(name, default_hz, 0.0, 1000.0, true), name);
       };
       joint_state_period_ = period("joint_state_rate_hz", 100.0);
       tf_period_ = period("tf_rate_hz", 100.0);
@@ -94,18 +94,19 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     static_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
-    trajectory_sub_ = nh.subscribe("arm_controller/command", 10,
-                                   &SimulatorNodelet::onTrajectory, this);
+    trajectory_sub_ =
+        nh.subscribe("arm_controller/command", 10, &SimulatorNodelet::onTrajectory, this);
     spindle_sub_ = nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
     reset_srv_ = nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
     start_trial_srv_ =
         nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
     publishStaticTransforms();
-    NODELET_INFO("Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
-                 "factor %s, %s /clock",
-                 urdf_path.c_str(), sim_->params().arm_rate_hz,
-                 real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
-                 publish_clock_ ? "publishing" : "not publishing");
+    NODELET_INFO(
+        "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
+        "factor %s, %s /clock",
+        urdf_path.c_str(), sim_->params().arm_rate_hz,
+        real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
+        publish_clock_ ? "publishing" : "not publishing");
     running_ = true;
     thread_ = std::thread(&SimulatorNodelet::loop, this);
   }
@@ -176,9 +177,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void publishJointStates(double t) { joint_state_pub_.publish(jointStateMsg(*sim_, stampOf(t))); }
 
-  void publishTf(double t) { tf_broadcaster_->sendTransform(toMsg(sim_->frameTransforms(false), stampOf(t))); }
+  void publishTf(double t) {
+    tf_broadcaster_->sendTransform(toMsg(sim_->frameTransforms(false), stampOf(t)));
+  }
 
-  void publishGroundTruth(double t) { ground_truth_pub_.publish(toMsg(sim_->groundTruth(), stampOf(t))); }
+  void publishGroundTruth(double t) {
+    ground_truth_pub_.publish(toMsg(sim_->groundTruth(), stampOf(t)));
+  }
 
   void publishMarker(double t) {
     geometry_msgs::PoseStamped m;
@@ -203,8 +208,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       return true;
     }
     response.success = true;
-    response.message = "trial " + std::to_string(sim_->trialCount()) + " started at t=" +
-                       std::to_string(sim_->time()) + " s";
+    response.message = "trial " + std::to_string(sim_->trialCount()) +
+                       " started at t=" + std::to_string(sim_->time()) + " s";
     if (remounted) {
       response.message += "; the specimen was drilled, a fresh one from seed " +
                           std::to_string(sim_->seed()) + " is mounted (arm at home)";
@@ -219,8 +224,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
     const core::TargetResult r = sim_->commandTrajectory(command);
     if (r.status == core::TargetStatus::kRejected) {
-      NODELET_WARN_THROTTLE(1.0, "Simulator: arm_controller/command rejected, previous "
-                                 "trajectory kept: %s", r.message.c_str());
+      NODELET_WARN_THROTTLE(1.0,
+                            "Simulator: arm_controller/command rejected, previous "
+                            "trajectory kept: %s",
+                            r.message.c_str());
     } else if (r.status == core::TargetStatus::kClamped) {
       NODELET_WARN_THROTTLE(1.0, "Simulator: arm_controller/command clamped: %s",
                             r.message.c_str());

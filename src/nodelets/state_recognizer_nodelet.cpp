@@ -8,9 +8,9 @@
  */
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <std_srvs/Trigger.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
 #include <memory>
@@ -35,10 +35,14 @@ bool parseForceAxis(const std::string& name, int* index, double* sign) {
     *sign = n[0] == '-' ? -1.0 : 1.0;
     n = n.substr(1);
   }
-  if (n == "x") *index = 0;
-  else if (n == "y") *index = 1;
-  else if (n == "z") *index = 2;
-  else return false;
+  if (n == "x")
+    *index = 0;
+  else if (n == "y")
+    *index = 1;
+  else if (n == "z")
+    *index = 2;
+  else
+    return false;
   return true;
 }
 
@@ -86,14 +90,14 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
-    wrench_sub_ = nh.subscribe("ft_sensor/wrench", queue_size,
-                               &StateRecognizerNodelet::onWrench, this,
-                               ros::TransportHints().tcpNoDelay());
+    wrench_sub_ = nh.subscribe("ft_sensor/wrench", queue_size, &StateRecognizerNodelet::onWrench,
+                               this, ros::TransportHints().tcpNoDelay());
     const core::RecognizerParams& p = recognizer_->params();
-    NODELET_INFO("StateRecognizer: axis %s%c, pre-average %d, window %d, K %.2f, F_th %.2f N, "
-                 "G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
-                 axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_], p.pre_average, p.window,
-                 p.k_ratio, p.f_th, p.gain, p.h_g, p.c1, p.c2, p.c3);
+    NODELET_INFO(
+        "StateRecognizer: axis %s%c, pre-average %d, window %d, K %.2f, F_th %.2f N, "
+        "G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
+        axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_], p.pre_average, p.window, p.k_ratio, p.f_th,
+        p.gain, p.h_g, p.c1, p.c2, p.c3);
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
@@ -101,8 +105,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     const geometry_msgs::Vector3& f = msg->wrench.force;
     const double component = axis_index_ == 0 ? f.x : (axis_index_ == 1 ? f.y : f.z);
     const double thrust = axis_sign_ * component;
-    const double t = msg->header.stamp.isZero() ? ros::Time::now().toSec()
-                                                : msg->header.stamp.toSec();
+    const double t =
+        msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
     if (!std::isfinite(thrust) || !std::isfinite(t)) {
       // The core refuses non-finite samples; skipping one keeps the block means honest. The
       // SafetyMonitor stops the drill on NaN input, so this only has to stay alive.

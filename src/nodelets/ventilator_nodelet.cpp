@@ -5,8 +5,8 @@
  *        ~set_settings service and take effect at the start of the next breath.
  */
 #include <nodelet/nodelet.h>
-#include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include <memory>
 #include <mutex>

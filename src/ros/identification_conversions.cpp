@@ -38,8 +38,7 @@ MotionIdentificationParams loadMotionIdentificationParams(const ParamLoader& par
     p.mapping = core::parseAxisMapping(ap, si, lr);
   } catch (const std::invalid_argument& e) {
     // The message starts with the axis name ("ap", "si" or "lr"): name that parameter.
-    params.fail(std::string(e.what()).substr(0, 2) + "_axis",
-                std::string("invalid: ") + e.what());
+    params.fail(std::string(e.what()).substr(0, 2) + "_axis", std::string("invalid: ") + e.what());
   }
   core::PipelineOptions& o = p.defaults;
   const std::string model = params.getString("model", "linear");

@@ -11,7 +11,8 @@
 namespace pedicle_drilling {
 
 static_assert(TrialStatus::IDLE == static_cast<int>(core::TrialPhase::kIdle) &&
-                  TrialStatus::MOVING_TO_POSE == static_cast<int>(core::TrialPhase::kMovingToPose) &&
+                  TrialStatus::MOVING_TO_POSE ==
+                      static_cast<int>(core::TrialPhase::kMovingToPose) &&
                   TrialStatus::REGISTERING == static_cast<int>(core::TrialPhase::kRegistering) &&
                   TrialStatus::DRILLING == static_cast<int>(core::TrialPhase::kDrilling) &&
                   TrialStatus::STOPPED == static_cast<int>(core::TrialPhase::kStopped) &&
@@ -89,8 +90,8 @@ std::unique_ptr<core::TrialSequencer> makeSequencer(const ParamLoader& params,
   const double feed_home =
       params.getDouble("feed_home_m", 0.01, sp.feed_lower_m, 0.5 * sp.feed_upper_m);
   try {
-    return std::make_unique<core::TrialSequencer>(
-        sp, core::ArmCompensation(arm, q, feed_home), world_frame);
+    return std::make_unique<core::TrialSequencer>(sp, core::ArmCompensation(arm, q, feed_home),
+                                                  world_frame);
   } catch (const std::invalid_argument& e) {
     // The core names the field first ("settle_s: must be ..."): report it as the parameter.
     const std::string what = e.what();
@@ -152,8 +153,8 @@ bool callTriggerChain(std::vector<ros::ServiceClient>* clients, double timeout_s
       return false;
     }
     if (!srv.response.success) {
-      *why = "trial refused: " + name + " answered: " + srv.response.message +
-             "; nothing was started";
+      *why =
+          "trial refused: " + name + " answered: " + srv.response.message + "; nothing was started";
       return false;
     }
     ROS_INFO("CompensationPlanner: %s: %s", name.c_str(), srv.response.message.c_str());

@@ -110,8 +110,8 @@ std::string resetSummary(const core::DrillingSimulation& sim,
                          const std::optional<core::BoneMotionModel>& bone_motion) {
   std::ostringstream os;
   os << "new specimen and patient from seed " << request.seed << " (virtual volunteer "
-     << sim.patient().volunteer_id << "), bone "
-     << (request.moving_bone ? "moving" : "stationary") << ", arm at home";
+     << sim.patient().volunteer_id << "), bone " << (request.moving_bone ? "moving" : "stationary")
+     << ", arm at home";
   if (bone_motion) {
     os << "; the bone plays the model AP d = " << bone_motion->q1_ap_mm_per_ml << " Tv + "
        << bone_motion->q2_ap_mm_s_per_ml << " dTv/dt (bone_motion_model_path)";
@@ -171,8 +171,7 @@ geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const r
   return w;
 }
 
-sensor_msgs::JointState jointStateMsg(const core::DrillingSimulation& sim,
-                                      const ros::Time& stamp) {
+sensor_msgs::JointState jointStateMsg(const core::DrillingSimulation& sim, const ros::Time& stamp) {
   sensor_msgs::JointState js;
   js.header.stamp = stamp;
   const Eigen::VectorXd q = sim.armJointPositions();

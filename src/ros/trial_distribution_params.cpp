@@ -74,14 +74,14 @@ TrialDistributionParams loadTrialDistribution(const ros::NodeHandle& private_nh)
   top.rejectUnknownKeys("ventilator", {"rate_sd_bpm", "tidal_volume_sd_ml"});
   top.rejectUnknownKeys("sensor", {"noise_scale_sd"});
   top.rejectUnknownKeys("arm", {"stiffness_scale_sd"});
-  v.patient_amplitude_scale_sd = top.getDouble("patient/amplitude_scale_sd",
-                                               v.patient_amplitude_scale_sd, 0.0, 0.3);
+  v.patient_amplitude_scale_sd =
+      top.getDouble("patient/amplitude_scale_sd", v.patient_amplitude_scale_sd, 0.0, 0.3);
   v.patient_movement_scale =
       top.getDouble("patient/movement_scale", v.patient_movement_scale, 0.0, 5.0);
   v.ventilator_rate_sd_bpm =
       top.getDouble("ventilator/rate_sd_bpm", v.ventilator_rate_sd_bpm, 0.0, 5.0);
-  v.ventilator_tidal_volume_sd_ml = top.getDouble("ventilator/tidal_volume_sd_ml",
-                                                  v.ventilator_tidal_volume_sd_ml, 0.0, 200.0);
+  v.ventilator_tidal_volume_sd_ml =
+      top.getDouble("ventilator/tidal_volume_sd_ml", v.ventilator_tidal_volume_sd_ml, 0.0, 200.0);
   v.sensor_noise_scale_sd =
       top.getDouble("sensor/noise_scale_sd", v.sensor_noise_scale_sd, 0.0, 0.5);
   v.arm_stiffness_scale_sd =

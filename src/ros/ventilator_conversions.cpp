@@ -33,8 +33,8 @@ core::VentilatorSettings loadVentilatorSettings(const ParamLoader& params) {
   const std::string waveform = params.getString("waveform", "square");
   try {
     s.waveform = parseWaveformOrThrow(waveform, "waveform");
-    s.expiratory_spec = parseSpec(params.getString("expiratory_spec", "peak_ratio"),
-                                  "expiratory_spec");
+    s.expiratory_spec =
+        parseSpec(params.getString("expiratory_spec", "peak_ratio"), "expiratory_spec");
   } catch (const std::invalid_argument& e) {
     throw ParameterError(std::string("parameter ") + e.what());
   }
@@ -43,8 +43,7 @@ core::VentilatorSettings loadVentilatorSettings(const ParamLoader& params) {
   s.expiratory_tau_s = params.getDouble("expiratory_tau_s", s.expiratory_tau_s, 0.0, 10.0, true);
   s.ramp_start_fraction =
       params.getDouble("ramp_start_fraction", s.ramp_start_fraction, 0.0, 1.0, false, true);
-  s.exponential_shape =
-      params.getDouble("exponential_shape", s.exponential_shape, 0.0, 10.0, true);
+  s.exponential_shape = params.getDouble("exponential_shape", s.exponential_shape, 0.0, 10.0, true);
   return s;
 }
 

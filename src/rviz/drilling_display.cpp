@@ -14,7 +14,6 @@
 #include <cstdio>
 #include <stdexcept>
 
-#include <pluginlib/class_list_macros.hpp>
 #include <rviz/display_context.h>
 #include <rviz/frame_manager.h>
 #include <rviz/ogre_helpers/movable_text.h>
@@ -26,6 +25,7 @@
 #include <rviz/properties/status_property.h>
 #include <rviz/properties/tf_frame_property.h>
 #include <rviz/properties/vector_property.h>
+#include <pluginlib/class_list_macros.hpp>
 
 #include "pedicle_drilling/core/drilling_scene.hpp"
 
@@ -38,8 +38,8 @@ constexpr float kMinThickness = 1e-5f;  // Ogre dislikes zero scale; 10 um is in
 /** @brief Places a unit box between two heights of the bone frame. */
 void placeBox(rviz::Shape* box, const core::Slab& slab, float width, float length) {
   box->setPosition(Ogre::Vector3(0.0f, 0.0f, static_cast<float>(slab.centre())));
-  box->setScale(Ogre::Vector3(width, length,
-                              std::max(static_cast<float>(slab.thickness()), kMinThickness)));
+  box->setScale(
+      Ogre::Vector3(width, length, std::max(static_cast<float>(slab.thickness()), kMinThickness)));
   box->getRootNode()->setVisible(slab.thickness() > 0.0);
 }
 
@@ -64,17 +64,16 @@ DrillingDisplay::DrillingDisplay() {
   ground_truth_topic_property_ = new rviz::RosTopicProperty(
       "Ground truth topic", "simulator/ground_truth",
       QString::fromStdString(ros::message_traits::datatype<GroundTruth>()),
-      "pedicle_drilling/GroundTruth from the simulator: layer depths, deepest cut, residual.",
-      this, SLOT(updateTopics()));
+      "pedicle_drilling/GroundTruth from the simulator: layer depths, deepest cut, residual.", this,
+      SLOT(updateTopics()));
   state_topic_property_ = new rviz::RosTopicProperty(
       "Drilling state topic", "drilling_state",
       QString::fromStdString(ros::message_traits::datatype<DrillingState>()),
       "pedicle_drilling/DrillingState from the state recognizer (text overlay).", this,
       SLOT(updateTopics()));
   frame_property_ = new rviz::TfFrameProperty(
-      "Bone frame", "bone",
-      "tf frame at the centre of the bone's top surface, +z out of the bone.", this, nullptr,
-      false, SLOT(updateAppearance()));
+      "Bone frame", "bone", "tf frame at the centre of the bone's top surface, +z out of the bone.",
+      this, nullptr, false, SLOT(updateAppearance()));
   width_property_ = new rviz::FloatProperty("Bone width (x)", 0.04f,
                                             "Size of the specimen block along x of the bone "
                                             "frame (m).",
@@ -87,16 +86,15 @@ DrillingDisplay::DrillingDisplay() {
                                              this, SLOT(updateAppearance()));
   length_property_->setMin(0.001f);
   length_property_->setMax(1.0f);
-  cortical_colour_property_ =
-      new rviz::ColorProperty("Cortical colour", QColor(240, 234, 210),
-                              "Colour of the outer and inner cortical layers.", this,
-                              SLOT(updateAppearance()));
-  cancellous_colour_property_ = new rviz::ColorProperty(
-      "Cancellous colour", QColor(214, 140, 110), "Colour of the cancellous layer.", this,
-      SLOT(updateAppearance()));
-  hole_colour_property_ = new rviz::ColorProperty(
-      "Hole colour", QColor(25, 25, 160), "Colour of the drilled hole (2.5 mm bit).", this,
-      SLOT(updateAppearance()));
+  cortical_colour_property_ = new rviz::ColorProperty(
+      "Cortical colour", QColor(240, 234, 210), "Colour of the outer and inner cortical layers.",
+      this, SLOT(updateAppearance()));
+  cancellous_colour_property_ =
+      new rviz::ColorProperty("Cancellous colour", QColor(214, 140, 110),
+                              "Colour of the cancellous layer.", this, SLOT(updateAppearance()));
+  hole_colour_property_ = new rviz::ColorProperty("Hole colour", QColor(25, 25, 160),
+                                                  "Colour of the drilled hole (2.5 mm bit).", this,
+                                                  SLOT(updateAppearance()));
   residual_colour_property_ = new rviz::ColorProperty(
       "Residual colour", QColor(255, 220, 0),
       "Colour of the inner cortical bone left below the hole.", this, SLOT(updateAppearance()));
@@ -109,14 +107,14 @@ DrillingDisplay::DrillingDisplay() {
   show_text_property_ = new rviz::BoolProperty(
       "Show text", true, "Text with state, key point, forces, residual and breakthrough.", this,
       SLOT(updateAppearance()));
-  text_height_property_ = new rviz::FloatProperty(
-      "Text height", 0.02f, "Character height of the text overlay (m).", this,
-      SLOT(updateAppearance()));
+  text_height_property_ =
+      new rviz::FloatProperty("Text height", 0.02f, "Character height of the text overlay (m).",
+                              this, SLOT(updateAppearance()));
   text_height_property_->setMin(0.0005f);
   text_height_property_->setMax(1.0f);
   stale_after_property_ = new rviz::FloatProperty(
-      "Stale after (s)", 2.0f,
-      "Warn when no message arrived for this long (wall-clock seconds).", this);
+      "Stale after (s)", 2.0f, "Warn when no message arrived for this long (wall-clock seconds).",
+      this);
   stale_after_property_->setMin(0.1f);
   detail_scale_property_ = new rviz::FloatProperty(
       "Detail scale", 10.0f,
@@ -206,9 +204,7 @@ void DrillingDisplay::updateTopics() {
   }
 }
 
-void DrillingDisplay::updateAppearance() {
-  dirty_ = true;
-}
+void DrillingDisplay::updateAppearance() { dirty_ = true; }
 
 void DrillingDisplay::subscribe() {
   if (!isEnabled()) {
@@ -366,16 +362,16 @@ void DrillingDisplay::rebuild() {
   text_->setCharacterHeight(text_height);
   text_->setCaption(overlayText());
   text_->setColor(Ogre::ColourValue(1.0f, 1.0f, 1.0f, 1.0f));
-  text_node_->setPosition(anchor + Ogre::Vector3(-0.5f * width * scale, 0.0f,
-                                                 -depth * scale - 1.5f * text_height));
+  text_node_->setPosition(
+      anchor + Ogre::Vector3(-0.5f * width * scale, 0.0f, -depth * scale - 1.5f * text_height));
   text_node_->setVisible(show_text_property_->getBool());
 }
 
 std::string DrillingDisplay::overlayText() const {
   std::string text;
   if (state_) {
-    text += "state: " + (state_->state_name.empty() ? std::to_string(state_->state)
-                                                     : state_->state_name);
+    text += "state: " +
+            (state_->state_name.empty() ? std::to_string(state_->state) : state_->state_name);
     if (state_->stop) {
       text += "  STOP";
     }

@@ -8,9 +8,9 @@
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QLineEdit>
+#include <QPaintEvent>
 #include <QPainter>
 #include <QPainterPath>
-#include <QPaintEvent>
 #include <QTimer>
 #include <QVBoxLayout>
 
@@ -20,8 +20,8 @@
 #include <limits>
 #include <string>
 
-#include <pluginlib/class_list_macros.hpp>
 #include <rviz/config.h>
+#include <pluginlib/class_list_macros.hpp>
 
 namespace pedicle_drilling {
 namespace rviz_plugins {
@@ -71,8 +71,7 @@ class StripChart : public QWidget {
     QPainter painter(this);
     painter.setRenderHint(QPainter::Antialiasing, true);
     painter.fillRect(rect(), QColor(28, 28, 32));
-    const QRectF plot(46.0, 22.0, std::max(10.0, width() - 92.0),
-                      std::max(10.0, height() - 44.0));
+    const QRectF plot(46.0, 22.0, std::max(10.0, width() - 92.0), std::max(10.0, height() - 44.0));
     painter.setPen(QColor(90, 90, 96));
     painter.drawRect(plot);
 
@@ -124,8 +123,8 @@ class StripChart : public QWidget {
     painter.setPen(feature_colour);
     for (int i = 0; i <= 4; ++i) {
       const double a = feature_min + (feature_max - feature_min) * i / 4.0;
-      painter.drawText(QRectF(plot.right() + 4.0, y_feature(a) - 8.0, 44.0, 16.0),
-                       Qt::AlignLeft, QString::number(a, 'g', 3));
+      painter.drawText(QRectF(plot.right() + 4.0, y_feature(a) - 8.0, 44.0, 16.0), Qt::AlignLeft,
+                       QString::number(a, 'g', 3));
     }
     painter.setPen(QColor(170, 170, 170));
     for (int i = 0; i <= 4; ++i) {
@@ -278,8 +277,8 @@ void ForcePlotPanel::subscribe(const std::string& topic) {
 }
 
 void ForcePlotPanel::stateCallback(const DrillingState::ConstPtr& msg) {
-  const double t = msg->header.stamp.isZero() ? ros::Time::now().toSec()
-                                              : msg->header.stamp.toSec();
+  const double t =
+      msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
   chart_->add(t, *msg);
   received_ = true;
   last_message_ = ros::WallTime::now();

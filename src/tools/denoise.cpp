@@ -7,8 +7,8 @@
 // from the kept levels, one value per line with 17 significant digits. Exit status 0 on
 // success, 2 on bad arguments or bad input (with a message on stderr).
 
-#include <cerrno>
 #include <cctype>
+#include <cerrno>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/denoising.hpp"
 #include "pedicle_drilling/core/cli_args.hpp"
+#include "pedicle_drilling/core/denoising.hpp"
 #include "pedicle_drilling/core/dwt.hpp"
 #include "pedicle_drilling/core/wavelet.hpp"
 
@@ -72,8 +72,8 @@ std::vector<int> parseKeep(const std::string& text) {
   std::size_t start = 0;
   while (true) {
     const std::size_t comma = text.find(',', start);
-    const std::string item = text.substr(start, comma == std::string::npos ? std::string::npos
-                                                                           : comma - start);
+    const std::string item =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
     try {
       levels.push_back(parseInt(item, "--keep level"));
     } catch (const UsageError&) {
@@ -86,7 +86,6 @@ std::vector<int> parseKeep(const std::string& text) {
   }
   return levels;
 }
-
 
 }  // namespace
 
@@ -142,7 +141,8 @@ int main(int argc, char** argv) {
     if (wavelet_name.empty()) {
       throw UsageError("missing --wavelet");
     }
-    const pedicle_drilling::core::Wavelet* wavelet = pedicle_drilling::core::findWavelet(wavelet_name);
+    const pedicle_drilling::core::Wavelet* wavelet =
+        pedicle_drilling::core::findWavelet(wavelet_name);
     if (wavelet == nullptr) {
       throw UsageError("unknown wavelet '" + wavelet_name + "'");
     }

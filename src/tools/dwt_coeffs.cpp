@@ -47,7 +47,6 @@ int parseLevel(const std::string& text) {
   return static_cast<int>(v);
 }
 
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -84,7 +83,8 @@ int main(int argc, char** argv) {
     if (wavelet_name.empty()) {
       throw UsageError("missing --wavelet");
     }
-    const pedicle_drilling::core::Wavelet* wavelet = pedicle_drilling::core::findWavelet(wavelet_name);
+    const pedicle_drilling::core::Wavelet* wavelet =
+        pedicle_drilling::core::findWavelet(wavelet_name);
     if (wavelet == nullptr) {
       throw UsageError("unknown wavelet '" + wavelet_name + "'");
     }

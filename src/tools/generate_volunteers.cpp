@@ -118,8 +118,8 @@ int main(int argc, char** argv) {
       truth.meta.emplace_back("num_breaths", std::to_string(v.num_breaths));
       pd::writeModelYaml(truth, stem + "_truth.yaml");
       std::printf("volunteer %d: %d breaths, truth q1 AP %.5g SI %.5g LR %.5g mm/ml -> %s.csv\n",
-                  id, v.num_breaths, p.truth.axis(pd::Axis::kAP).q1,
-                  p.truth.axis(pd::Axis::kSI).q1, p.truth.axis(pd::Axis::kLR).q1, stem.c_str());
+                  id, v.num_breaths, p.truth.axis(pd::Axis::kAP).q1, p.truth.axis(pd::Axis::kSI).q1,
+                  p.truth.axis(pd::Axis::kLR).q1, stem.c_str());
     }
   } catch (const std::exception& e) {
     std::cerr << "generate_volunteers: " << e.what() << "\n";

@@ -92,8 +92,8 @@ std::vector<Sample> readCsv(const std::string& path) {
     s.t = parseField(line.substr(0, comma), "time", lineno);
     s.f = parseField(line.substr(comma + 1), "force", lineno);
     if (!out.empty() && !(s.t > out.back().t)) {
-      throw InputError("line " + std::to_string(lineno) + ": time is not increasing (" +
-                       num(s.t) + " after " + num(out.back().t) + ")");
+      throw InputError("line " + std::to_string(lineno) + ": time is not increasing (" + num(s.t) +
+                       " after " + num(out.back().t) + ")");
     }
     out.push_back(s);
   }
@@ -176,8 +176,7 @@ int main(int argc, char** argv) {
     // The layer the force shows at the end of the trace (the key points go on after the stop).
     std::cout << "final_state " << pedicle_drilling::core::toString(o.layer_state) << "\n";
     if (o.params_ready) {
-      std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min)
-                << "\n";
+      std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min) << "\n";
     }
     for (int j = 0; j < o.num_key_points; ++j) {
       const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];

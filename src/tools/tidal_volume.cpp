@@ -25,10 +25,10 @@ const char kUsage[] =
     "Waveforms: square ascending_ramp descending_ramp sine exponential_rise exponential_decay\n";
 
 int run(int argc, char** argv) {
-  const pd::CliArgs args(argc, argv,
-                         {"tv-max", "rate", "ie", "waveform", "fs", "duration", "pause",
-                          "peak-ratio", "tau"},
-                         {"help"});
+  const pd::CliArgs args(
+      argc, argv,
+      {"tv-max", "rate", "ie", "waveform", "fs", "duration", "pause", "peak-ratio", "tau"},
+      {"help"});
   if (args.flag("help")) {
     std::cout << kUsage;
     return 0;

@@ -50,33 +50,32 @@ json recordToJson(const pd::EngineTrialRecord& r) {
   for (const auto& kp : r.key_points) key_points.push_back({kp.first, kp.second});
   json truth = json::array();
   for (const pd::EngineTruthSample& s : r.truth) {
-    truth.push_back({s.t, s.layer, s.max_depth_cut_m, s.residual_inner_cortical_m,
-                     s.breakthrough, s.relative_ap_m, s.contact, s.contact_loss_count});
+    truth.push_back({s.t, s.layer, s.max_depth_cut_m, s.residual_inner_cortical_m, s.breakthrough,
+                     s.relative_ap_m, s.contact, s.contact_loss_count});
   }
   json stops = json::array();
   for (const pd::EngineStop& s : r.stops) stops.push_back({s.t, s.source, s.reason, s.retreat});
   json status = json::array();
   for (const auto& s : r.status) status.push_back({s.first, s.second});
   const pd::SimulationGroundTruth& g = r.last_truth;
-  return {
-      {"conditions",
-       {{"volunteer_id", r.conditions.volunteer_id},
-        {"amplitude_scale", r.conditions.patient_amplitude_scale},
-        {"ventilator_rate_bpm", r.conditions.ventilator_rate_bpm},
-        {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
-        {"force_noise_sd_n", r.conditions.force_noise_sd_n},
-        {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
-        {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
-      {"last_truth",
-       {{"breakthrough", g.breakthrough},
-        {"residual_inner_cortical_m", g.residual_inner_cortical_m},
-        {"max_depth_cut_m", g.max_depth_cut_m},
-        {"inner_cortical_start_m", g.inner_cortical_start_m}}},
-      {"states", states},
-      {"key_points", key_points},
-      {"truth", truth},
-      {"stops", stops},
-      {"status", status}};
+  return {{"conditions",
+           {{"volunteer_id", r.conditions.volunteer_id},
+            {"amplitude_scale", r.conditions.patient_amplitude_scale},
+            {"ventilator_rate_bpm", r.conditions.ventilator_rate_bpm},
+            {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
+            {"force_noise_sd_n", r.conditions.force_noise_sd_n},
+            {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
+            {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
+          {"last_truth",
+           {{"breakthrough", g.breakthrough},
+            {"residual_inner_cortical_m", g.residual_inner_cortical_m},
+            {"max_depth_cut_m", g.max_depth_cut_m},
+            {"inner_cortical_start_m", g.inner_cortical_start_m}}},
+          {"states", states},
+          {"key_points", key_points},
+          {"truth", truth},
+          {"stops", stops},
+          {"status", status}};
 }
 
 }  // namespace
@@ -95,8 +94,7 @@ int main(int argc, char** argv) {
   pd::EngineConfig config;
   double feed_rate = 0.5;
   double max_duration = 60.0;
-  app.add_option("--trials", trials_path,
-                 "JSON list of trials: {trial_id, seed, case, rpm, ...}")
+  app.add_option("--trials", trials_path, "JSON list of trials: {trial_id, seed, case, rpm, ...}")
       ->required();
   app.add_option("--drilling-pose", drilling_pose,
                  "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
@@ -197,8 +195,8 @@ int main(int argc, char** argv) {
         const int volunteer = pd::drawTrialConditions(spec.seed, sim.variability, sim.ventilator,
                                                       sim.sensor.force_noise_sd_n)
                                   .volunteer_id;
-        const std::string path = models_dir + "/volunteer_" + std::to_string(volunteer) + "_" +
-                                 model_kind + ".yaml";
+        const std::string path =
+            models_dir + "/volunteer_" + std::to_string(volunteer) + "_" + model_kind + ".yaml";
         auto it = models.find(path);
         if (it == models.end()) it = models.emplace(path, pd::readModelYaml(path)).first;
         patient = it->second;

@@ -61,7 +61,7 @@ TEST(AtomicFile, ReplacesTheOldContentOnlyOnCommit) {
   {
     AtomicFile file(path);
     file.write("new\n");
-    EXPECT_EQ(readAll(path), "old\n");  // written but not committed: the old file stands
+    EXPECT_EQ(readAll(path), "old\n");   // written but not committed: the old file stands
     EXPECT_EQ(listDir(dir).size(), 2u);  // the old file and the temporary
   }
   EXPECT_EQ(readAll(path), "old\n");  // never committed: the temporary is gone, old kept

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include <Eigen/Dense>
 #include <urdf_parser/urdf_parser.h>
+#include <Eigen/Dense>
 
 #include "pedicle_drilling/core/bullet_arm.hpp"
 #include "support.hpp"
@@ -102,15 +102,15 @@ Eigen::VectorXd poseVector(const BulletArm& arm, const std::map<std::string, dou
 }
 
 const std::vector<std::string> kArmLinks = {
-    "world",         "rsssii_base",  "rsssii_link1", "rsssii_link2", "rsssii_link3",
-    "rsssii_link4",  "rsssii_link5", "rsssii_link6", "device_base",  "feed_carriage",
-    "ft_sensor",     "drill_motor",  "spindle",      "drill_bit",    "drill_tip"};
+    "world",        "rsssii_base",  "rsssii_link1", "rsssii_link2", "rsssii_link3",
+    "rsssii_link4", "rsssii_link5", "rsssii_link6", "device_base",  "feed_carriage",
+    "ft_sensor",    "drill_motor",  "spindle",      "drill_bit",    "drill_tip"};
 const std::vector<std::string> kArmJoints = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3",
                                              "rsssii_joint4", "rsssii_joint5", "rsssii_joint6",
                                              "feed_joint",    "spindle_joint"};
 const std::vector<std::string> kSpmsLinks = {
-    "spms_base", "slider1",       "slider2", "slider3",       "rod1", "rod2",
-    "rod3",      "spms_platform", "bone",    "tracker_marker"};
+    "spms_base", "slider1", "slider2",       "slider3", "rod1",
+    "rod2",      "rod3",    "spms_platform", "bone",    "tracker_marker"};
 
 class WorkcellArm : public ::testing::Test {
  protected:
@@ -184,13 +184,13 @@ TEST(UrdfFiles, ExpectedLinksAndJoints) {
   }
   EXPECT_TRUE(workcell->getLink("tracker_camera"));
   const std::map<std::string, int> types = {
-      {"rsssii_joint1", urdf::Joint::REVOLUTE}, {"rsssii_joint2", urdf::Joint::REVOLUTE},
-      {"rsssii_joint3", urdf::Joint::REVOLUTE}, {"rsssii_joint4", urdf::Joint::REVOLUTE},
-      {"rsssii_joint5", urdf::Joint::REVOLUTE}, {"rsssii_joint6", urdf::Joint::REVOLUTE},
-      {"feed_joint", urdf::Joint::PRISMATIC},   {"spindle_joint", urdf::Joint::CONTINUOUS},
-      {"slider1_joint", urdf::Joint::PRISMATIC}, {"slider2_joint", urdf::Joint::PRISMATIC},
-      {"slider3_joint", urdf::Joint::PRISMATIC}, {"rod1_joint", urdf::Joint::REVOLUTE},
-      {"rod2_joint", urdf::Joint::REVOLUTE},     {"rod3_joint", urdf::Joint::REVOLUTE},
+      {"rsssii_joint1", urdf::Joint::REVOLUTE},      {"rsssii_joint2", urdf::Joint::REVOLUTE},
+      {"rsssii_joint3", urdf::Joint::REVOLUTE},      {"rsssii_joint4", urdf::Joint::REVOLUTE},
+      {"rsssii_joint5", urdf::Joint::REVOLUTE},      {"rsssii_joint6", urdf::Joint::REVOLUTE},
+      {"feed_joint", urdf::Joint::PRISMATIC},        {"spindle_joint", urdf::Joint::CONTINUOUS},
+      {"slider1_joint", urdf::Joint::PRISMATIC},     {"slider2_joint", urdf::Joint::PRISMATIC},
+      {"slider3_joint", urdf::Joint::PRISMATIC},     {"rod1_joint", urdf::Joint::REVOLUTE},
+      {"rod2_joint", urdf::Joint::REVOLUTE},         {"rod3_joint", urdf::Joint::REVOLUTE},
       {"spms_platform_joint", urdf::Joint::FLOATING}};
   for (const auto& kv : types) {
     auto j = workcell->getJoint(kv.first);
@@ -203,8 +203,8 @@ TEST(UrdfFiles, ExpectedLinksAndJoints) {
   auto bit = rsssii->getLink("drill_bit");
   ASSERT_TRUE(bit->visual && bit->visual->geometry);
   ASSERT_EQ(bit->visual->geometry->type, urdf::Geometry::CYLINDER);
-  EXPECT_NEAR(std::static_pointer_cast<urdf::Cylinder>(bit->visual->geometry)->radius * 2.0,
-              0.0025, 1e-12);
+  EXPECT_NEAR(std::static_pointer_cast<urdf::Cylinder>(bit->visual->geometry)->radius * 2.0, 0.0025,
+              1e-12);
   // The F/T sensor sits between the device (feed carriage) and the drill (Sec. V-A).
   EXPECT_EQ(rsssii->getLink("ft_sensor")->parent_joint->parent_link_name, "feed_carriage");
   EXPECT_EQ(rsssii->getLink("drill_motor")->parent_joint->parent_link_name, "ft_sensor");
@@ -227,8 +227,8 @@ TEST(UrdfFiles, SpmsNominalPoseIsConsistentWithRodLength) {
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector3d rod_end =
         urdfFk(*spms, "rod" + std::to_string(i + 1), q) * Eigen::Vector3d(0, 0, 0.12);
-    const Eigen::Vector3d sph = platform * Eigen::Vector3d(0.04 * std::cos(az[i]),
-                                                          0.04 * std::sin(az[i]), 0.0);
+    const Eigen::Vector3d sph =
+        platform * Eigen::Vector3d(0.04 * std::cos(az[i]), 0.04 * std::sin(az[i]), 0.0);
     EXPECT_LT((rod_end - sph).norm(), 1e-6) << "branch " << i + 1;
   }
 }
@@ -258,7 +258,7 @@ TEST(BulletArm, StiffnessScaleScalesRevoluteAndPrismaticJointsOnly) {
   const Eigen::VectorXd scaled = arm.jointStiffness();
   for (int k = 0; k < 7; ++k) EXPECT_NEAR(scaled[k], 0.7 * nominal[k], 1e-9 * nominal[k]) << k;
   EXPECT_EQ(scaled[7], nominal[7]);  // continuous spindle keeps its stiffness
-  arm.setStiffnessScale(1.0);       // relative to the URDF value, not cumulative
+  arm.setStiffnessScale(1.0);        // relative to the URDF value, not cumulative
   EXPECT_NEAR(arm.jointStiffness()[1], nominal[1], 1e-9);
   EXPECT_THROW(arm.setStiffnessScale(0.0), std::invalid_argument);
   EXPECT_THROW(arm.setStiffnessScale(std::nan("")), std::invalid_argument);
@@ -331,8 +331,8 @@ TEST_F(WorkcellArm, NanAndBadTargetsAreRejectedOrClamped) {
   EXPECT_EQ(r.status, TargetStatus::kRejected);
   EXPECT_NE(r.message.find("rsssii_joint3"), std::string::npos) << r.message;
   EXPECT_EQ(arm_->jointPositionTargets(), before);  // nothing applied
-  r = arm_->setJointPositionTargets(std::map<std::string, double>{
-      {"rsssii_joint1", std::numeric_limits<double>::infinity()}});
+  r = arm_->setJointPositionTargets(
+      std::map<std::string, double>{{"rsssii_joint1", std::numeric_limits<double>::infinity()}});
   EXPECT_EQ(r.status, TargetStatus::kRejected);
   r = arm_->setJointVelocityTargets(
       Eigen::VectorXd::Constant(arm_->numJoints(), std::numeric_limits<double>::quiet_NaN()));
@@ -447,8 +447,8 @@ TEST_F(WorkcellArm, VelocityTargetsFeedTheDrill) {
   const Eigen::Vector3d p0 = arm_->tipPose().translation();
   // Feed at 0.5 mm/s (paper Sec. V-A) and spin at 12000 rpm for 2 s.
   const double spindle = 12000.0 * 2.0 * M_PI / 60.0;
-  ASSERT_EQ(arm_->setJointVelocityTargets(std::map<std::string, double>{
-                                              {"feed_joint", 0.0005}, {"spindle_joint", spindle}})
+  ASSERT_EQ(arm_->setJointVelocityTargets(std::map<std::string, double>{{"feed_joint", 0.0005},
+                                                                        {"spindle_joint", spindle}})
                 .status,
             TargetStatus::kAccepted);
   arm_->step(2.0);
@@ -471,9 +471,8 @@ TEST_F(WorkcellArm, TipForceDeflectsAndReleases) {
   ASSERT_TRUE(arm_->resetJointState(q).ok());
   arm_->step(0.2);
   const Eigen::Vector3d p0 = arm_->tipPose().translation();
-  const std::vector<Eigen::Vector3d> forces = {Eigen::Vector3d(0, 0, 3.0),
-                                               Eigen::Vector3d(3.0, 0, 0),
-                                               Eigen::Vector3d(0, 3.0, 0)};
+  const std::vector<Eigen::Vector3d> forces = {
+      Eigen::Vector3d(0, 0, 3.0), Eigen::Vector3d(3.0, 0, 0), Eigen::Vector3d(0, 3.0, 0)};
   for (const Eigen::Vector3d& f : forces) {
     SCOPED_TRACE(f.transpose());
     ASSERT_TRUE(arm_->applyTipForce(f));
@@ -481,10 +480,9 @@ TEST_F(WorkcellArm, TipForceDeflectsAndReleases) {
     const Eigen::Vector3d d = arm_->tipPose().translation() - p0;
     const Eigen::Vector3d pred = arm_->predictedTipDeflection(f);
     const double along = d.dot(f.normalized());
-    std::cout << "[ stiffness ] F = " << f.transpose() << " N -> deflection "
-              << d.transpose() * 1e3 << " mm (|d| = " << d.norm() * 1e3
-              << " mm, along F = " << along * 1e3 << " mm; J K^-1 J^T F predicts "
-              << pred.norm() * 1e3 << " mm)" << std::endl;
+    std::cout << "[ stiffness ] F = " << f.transpose() << " N -> deflection " << d.transpose() * 1e3
+              << " mm (|d| = " << d.norm() * 1e3 << " mm, along F = " << along * 1e3
+              << " mm; J K^-1 J^T F predicts " << pred.norm() * 1e3 << " mm)" << std::endl;
     EXPECT_GT(along, 0.02e-3);  // measurable, in the force direction
     EXPECT_LT(d.norm(), 0.5e-3);
     EXPECT_GT(along / d.norm(), 0.5);

@@ -51,8 +51,7 @@ TEST(CliArgs, RefusesAnOptionGivenTwiceNamingItAndBothValues) {
       << twice;
   EXPECT_NE(errorOf({"--rate=12", "--rate", "12"}).find("'--rate' given more than once"),
             std::string::npos);
-  EXPECT_NE(errorOf({"--json", "--json"}).find("'--json' given more than once"),
-            std::string::npos);
+  EXPECT_NE(errorOf({"--json", "--json"}).find("'--json' given more than once"), std::string::npos);
 }
 
 TEST(CliArgs, NamesUnknownOptionsMissingValuesAndBadNumbers) {

@@ -7,8 +7,8 @@
 #include <cmath>
 #include <iostream>
 #include <numeric>
-#include <vector>
 #include <string>
+#include <vector>
 
 #include "pedicle_drilling/core/motion_model_io.hpp"
 #include "support.hpp"

@@ -17,7 +17,7 @@ namespace {
 
 pd::MotionModel apModel() {
   pd::MotionModel m;
-  m.axis(pd::Axis::kAP).q1 = 0.01;   // 5 mm over 500 ml
+  m.axis(pd::Axis::kAP).q1 = 0.01;  // 5 mm over 500 ml
   m.axis(pd::Axis::kAP).q0 = 0.4;
   m.axis(pd::Axis::kSI).q1 = 0.004;  // 2 mm
   m.axis(pd::Axis::kLR).q1 = 0.002;  // 1 mm
@@ -254,10 +254,9 @@ TEST(ArmCompensation, BacksOffAlongTheDrillAxisAndMovesLaterally) {
   EXPECT_NEAR((comp.drillAxis() - Eigen::Vector3d(0, 0, -1)).norm(), 0.0, 1e-4);
   const Eigen::Isometry3d drilling = arm.forward(q);
   const Eigen::Isometry3d home = arm.forward(comp.homeJoints());
-  EXPECT_NEAR((home.translation() - (drilling.translation() - 0.01 * comp.drillAxis())).norm(),
-              0.0, 1e-6);
-  EXPECT_NEAR(Eigen::AngleAxisd(home.linear().transpose() * drilling.linear()).angle(), 0.0,
+  EXPECT_NEAR((home.translation() - (drilling.translation() - 0.01 * comp.drillAxis())).norm(), 0.0,
               1e-6);
+  EXPECT_NEAR(Eigen::AngleAxisd(home.linear().transpose() * drilling.linear()).angle(), 0.0, 1e-6);
   const Eigen::Vector3d lateral(0.001, -0.002, 0.0);
   const Eigen::VectorXd ql = comp.lateral(lateral, comp.homeJoints());
   EXPECT_NEAR((arm.forward(ql).translation() - home.translation() - lateral).norm(), 0.0, 1e-6);

@@ -322,14 +322,15 @@ TEST(Selection, ChoosesMinimumOfWeightedSumOnBreathingData) {
   std::size_t argmin = 0;
   std::vector<double> scores;
   for (const CandidateScore& r : sel.candidates) {
-    const double s = ((r.nsr - nsr_lo) / (nsr_hi - nsr_lo) +
-                      (r.w_max - wmax_lo) / (wmax_hi - wmax_lo) +
-                      (r.w_mean - wmean_lo) / (wmean_hi - wmean_lo)) / 3.0;
+    const double s =
+        ((r.nsr - nsr_lo) / (nsr_hi - nsr_lo) + (r.w_max - wmax_lo) / (wmax_hi - wmax_lo) +
+         (r.w_mean - wmean_lo) / (wmean_hi - wmean_lo)) /
+        3.0;
     EXPECT_NEAR(r.score, s, 1e-12) << r.wavelet;
     scores.push_back(s);
   }
-  argmin = static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) -
-                                    scores.begin());
+  argmin =
+      static_cast<std::size_t>(std::min_element(scores.begin(), scores.end()) - scores.begin());
   EXPECT_EQ(sel.chosen_index, argmin);
   EXPECT_EQ(sel.wavelet, sel.candidates[argmin].wavelet);
 

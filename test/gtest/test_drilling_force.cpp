@@ -14,8 +14,8 @@
 namespace pedicle_drilling::core {
 namespace {
 
-constexpr double kDt = 1e-3;       // 1 kHz
-constexpr double kFeed = 0.5e-3;   // 0.5 mm/s (paper Sec. V-A)
+constexpr double kDt = 1e-3;      // 1 kHz
+constexpr double kFeed = 0.5e-3;  // 0.5 mm/s (paper Sec. V-A)
 constexpr double kPi = 3.14159265358979323846;
 
 double median(std::vector<double> v) {

@@ -40,11 +40,11 @@ void moveToDrillingPose(DrillingSimulation* sim, double duration) {
 }
 
 struct TrialRecord {
-  std::vector<double> block_mean;         // 50-sample means of the measured force z
-  std::vector<Material> block_layer;      // layer at the deepest cut at the block end
+  std::vector<double> block_mean;     // 50-sample means of the measured force z
+  std::vector<Material> block_layer;  // layer at the deepest cut at the block end
   double outer_peak = 0.0, inner_peak = 0.0, cancellous_mean = 0.0;
-  double max_deflection = 0.0;            // commanded minus actual depth while cutting [m]
-  double gap = 0.0;                       // tip above the bone when the feed starts [m]
+  double max_deflection = 0.0;  // commanded minus actual depth while cutting [m]
+  double gap = 0.0;             // tip above the bone when the feed starts [m]
 };
 
 // Drills a stationary specimen at 0.5 mm/s, 12000 rpm, by commanding the feed joint.
@@ -113,9 +113,9 @@ TEST(DrillingSimulation, StationaryDrillingShowsTwoCorticalPeaksAndGroundTruthDe
     sim.reset(seed, false);
     const double feed = 16e-3;
     const TrialRecord r = drillStationary(&sim, feed);
-    std::cout << "[ trial ] seed " << seed << ": outer peak " << r.outer_peak
-              << " N, inner peak " << r.inner_peak << " N, cancellous " << r.cancellous_mean
-              << " N, max deflection " << r.max_deflection * 1e3 << " mm" << std::endl;
+    std::cout << "[ trial ] seed " << seed << ": outer peak " << r.outer_peak << " N, inner peak "
+              << r.inner_peak << " N, cancellous " << r.cancellous_mean << " N, max deflection "
+              << r.max_deflection * 1e3 << " mm" << std::endl;
     // Paper Fig. 16 stationary medians 3.16 / 2.88 N (calibration.md ranges).
     EXPECT_GE(r.outer_peak, 2.5);
     EXPECT_LE(r.outer_peak, 4.0);
@@ -353,9 +353,8 @@ TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
       parent[f.child] = {f.parent, f.transform};
     }
   }
-  for (const std::string l :
-       {"rsssii_link3", "ft_sensor", "drill_tip", "spms_platform", "bone", "tracker_marker",
-        "tracker_camera", "slider2", "rod3"}) {
+  for (const std::string l : {"rsssii_link3", "ft_sensor", "drill_tip", "spms_platform", "bone",
+                              "tracker_marker", "tracker_camera", "slider2", "rod3"}) {
     ASSERT_TRUE(parent.count(l)) << l;
     // Compose up to world and compare with the simulation's own link pose.
     Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
@@ -379,8 +378,8 @@ TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
     EXPECT_LT((rod_end - sph).norm(), 1e-6) << i;
   }
   // Tracker measurement: marker in the camera frame with ~0.25 mm RMS noise.
-  const Eigen::Isometry3d truth = sim.linkPose("tracker_camera").inverse() *
-                                  sim.linkPose("tracker_marker");
+  const Eigen::Isometry3d truth =
+      sim.linkPose("tracker_camera").inverse() * sim.linkPose("tracker_marker");
   double sq = 0.0;
   for (int k = 0; k < 2000; ++k) {
     sq += (sim.measureMarkerPose().translation() - truth.translation()).squaredNorm();
@@ -403,9 +402,9 @@ TEST(DrillingSimulation, CommandsAboveTheVelocityLimitAreFollowedAtTheLimit) {
   EXPECT_NE(too_fast.message.find("velocity limit 0.01"), std::string::npos) << too_fast.message;
   sim.step(0.1);
   const double moved = sim.armJointPositions()[6] - feed_before;
-  EXPECT_GT(moved, 0.0005);                 // it moves ...
-  EXPECT_LT(moved, 0.01 * 0.1 + 0.0002);    // ... at most at the limit, not 20 mm
-  sim.step(2.5);  // 20 mm at 10 mm/s: it arrives 2 s late
+  EXPECT_GT(moved, 0.0005);               // it moves ...
+  EXPECT_LT(moved, 0.01 * 0.1 + 0.0002);  // ... at most at the limit, not 20 mm
+  sim.step(2.5);                          // 20 mm at 10 mm/s: it arrives 2 s late
   EXPECT_NEAR(sim.armJointPositions()[6] - feed_before, 0.02, 0.2e-3);
   // Within the limit (5 mm/s): accepted as it is.
   fast.points.front() = {sim.time() + 4.0, {feed_before}, {}};
@@ -495,7 +494,7 @@ TEST(DrillingSimulation, ANewTrajectoryTakesOverAtItsStartTimeAsJointTrajectoryC
   TrajectoryCommand b;
   b.joint_names = {"feed_joint"};
   b.start_time_s = t0 + 2.0;
-  b.points.push_back({t0 + 2.0, {0.0}, {}});   // at the start time itself: not due, dropped
+  b.points.push_back({t0 + 2.0, {0.0}, {}});  // at the start time itself: not due, dropped
   b.points.push_back({t0 + 3.0, {0.005}, {}});
   ASSERT_TRUE(sim.commandTrajectory(b).ok());
   sim.step(0.9);  // t0 + 1.9 s: still on the first trajectory, 9.5 mm
@@ -550,8 +549,7 @@ TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
     EXPECT_NE(std::string(e.what()).find("could not parse"), std::string::npos) << e.what();
   }
   // The arm alone (no SPMS) is not a workcell.
-  const std::string arm_only =
-      test::readFile(test::sourceDir() + "/urdf/rsssii.urdf");
+  const std::string arm_only = test::readFile(test::sourceDir() + "/urdf/rsssii.urdf");
   try {
     DrillingSimulation sim(arm_only, DrillingSimulationParams());
     FAIL() << "no exception";

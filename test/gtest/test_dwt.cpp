@@ -96,10 +96,8 @@ TEST(Wavelet, FilterBankIdentities) {
     ASSERT_EQ(w.rec_lo.size(), f);
     ASSERT_EQ(w.rec_hi.size(), f);
     // Low-pass filters have DC gain sqrt(2), high-pass filters reject DC.
-    EXPECT_NEAR(std::accumulate(w.dec_lo.begin(), w.dec_lo.end(), 0.0), kSqrt2, kFilterTol)
-        << name;
-    EXPECT_NEAR(std::accumulate(w.rec_lo.begin(), w.rec_lo.end(), 0.0), kSqrt2, kFilterTol)
-        << name;
+    EXPECT_NEAR(std::accumulate(w.dec_lo.begin(), w.dec_lo.end(), 0.0), kSqrt2, kFilterTol) << name;
+    EXPECT_NEAR(std::accumulate(w.rec_lo.begin(), w.rec_lo.end(), 0.0), kSqrt2, kFilterTol) << name;
     EXPECT_NEAR(std::accumulate(w.dec_hi.begin(), w.dec_hi.end(), 0.0), 0.0, kFilterTol) << name;
     EXPECT_NEAR(std::accumulate(w.rec_hi.begin(), w.rec_hi.end(), 0.0), 0.0, kFilterTol) << name;
     // Biorthogonality: sum_k rec_lo[k] dec_lo[F - 1 - k + 2m] = delta_m (all families).
@@ -221,9 +219,7 @@ TEST(Dwt, HaarByHand) {
   EXPECT_LT(maxAbsDiff(cd, {-1 / kSqrt2, 0.0}), 1e-14);
   // idwt(cA, cD) gives the padded signal; waverec trims it.
   EXPECT_LT(maxAbsDiff(idwt(ca, cd, haar, ExtensionMode::kSymmetric), {1, 2, 3, 3}), 1e-14);
-  EXPECT_LT(maxAbsDiff(idwt(ca, {}, haar, ExtensionMode::kSymmetric),
-                       {1.5, 1.5, 3, 3}),
-            1e-14);
+  EXPECT_LT(maxAbsDiff(idwt(ca, {}, haar, ExtensionMode::kSymmetric), {1.5, 1.5, 3, 3}), 1e-14);
 }
 
 TEST(Dwt, Db2ShortSymmetricByHand) {
@@ -258,8 +254,8 @@ TEST(Dwt, PerfectReconstructionEveryWaveletAndMode) {
           ASSERT_EQ(y.size(), n);
           const double err = maxAbsDiff(x, y);
           worst = std::max(worst, err);
-          EXPECT_LT(err, kReconstructionTol) << name << " " << toString(mode) << " N=" << n
-                                << " L=" << level;
+          EXPECT_LT(err, kReconstructionTol)
+              << name << " " << toString(mode) << " N=" << n << " L=" << level;
         }
       }
     }
@@ -309,8 +305,7 @@ TEST(Dwt, OrthogonalWaveletsPreserveEnergyInPeriodizationMode) {
     const std::vector<double> d3 = waverecSelected(dec, {3}, false);
     const std::vector<double> a3 = waverecSelected(dec, {}, true);
     EXPECT_NEAR(std::inner_product(d1.begin(), d1.end(), d2.begin(), 0.0), 0.0, 1e-10) << name;
-    EXPECT_NEAR((energy(d1) + energy(d2) + energy(d3) + energy(a3)) / ex, 1.0, kFilterTol)
-        << name;
+    EXPECT_NEAR((energy(d1) + energy(d2) + energy(d3) + energy(a3)) / ex, 1.0, kFilterTol) << name;
     ++tested;
   }
   EXPECT_EQ(tested, 44);

@@ -121,8 +121,8 @@ TEST(KinematicsTest, InverseRoundTrip) {
     for (int i = 0; i < 7; ++i) {
       const double lo = std::isfinite(k.lowerLimits()(i)) ? k.lowerLimits()(i) : -M_PI;
       const double hi = std::isfinite(k.upperLimits()(i)) ? k.upperLimits()(i) : M_PI;
-      q(i) = std::uniform_real_distribution<double>(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))(
-          rng);
+      q(i) =
+          std::uniform_real_distribution<double>(lo + 0.1 * (hi - lo), hi - 0.1 * (hi - lo))(rng);
     }
     const Eigen::Isometry3d target = k.forward(q);
     Eigen::VectorXd seed = q;
@@ -160,8 +160,7 @@ TEST(KinematicsTest, Errors) {
   EXPECT_THROW(KinematicChain::fromUrdfString(kArm, "nope", "drill_tip"), std::invalid_argument);
   EXPECT_THROW(KinematicChain::fromUrdfString(kArm, "base_link", "nope"), std::invalid_argument);
   // camera is on a side branch: base of drill_tip is not an ancestor.
-  EXPECT_THROW(KinematicChain::fromUrdfString(kArm, "camera", "drill_tip"),
-               std::invalid_argument);
+  EXPECT_THROW(KinematicChain::fromUrdfString(kArm, "camera", "drill_tip"), std::invalid_argument);
   std::string floating = kArm;
   floating.replace(floating.find("name=\"j3\" type=\"revolute\""), 25,
                    "name=\"j3\" type=\"floating\"");

@@ -105,14 +105,14 @@ TEST(SpineGeometry, BeamFactorEqualsEq7AtXEqualsM) {
 TEST(Stiffness, ApRecoversBendingGroupFromForwardModel) {
   // Forward model Eq. 8 with assumed physical values, in N and mm.
   const SpineGeometry g;
-  const double ei = 2.5e5;           // N mm^2
-  const double v0 = 3.0e6;           // mm^3 (3 L)
-  const double p0 = 0.101325;        // N/mm^2 (1 atm)
-  const double bw = 250.0;           // mm
+  const double ei = 2.5e5;     // N mm^2
+  const double v0 = 3.0e6;     // mm^3 (3 L)
+  const double p0 = 0.101325;  // N/mm^2 (1 atm)
+  const double bw = 250.0;     // mm
   const double m = g.disc_length_mm;
   const double l = g.centrum_length_mm;
-  const double q1_mm_per_mm3 = (5.0 * std::pow(m, 4) / (24.0 * ei) +
-                                l * std::pow(m, 3) / (6.0 * ei)) * p0 * bw / v0;
+  const double q1_mm_per_mm3 =
+      (5.0 * std::pow(m, 4) / (24.0 * ei) + l * std::pow(m, 3) / (6.0 * ei)) * p0 * bw / v0;
   const double q1_mm_per_ml = q1_mm_per_mm3 * 1000.0;
   const double expected = ei * v0 / (p0 * bw);
   EXPECT_NEAR(apEquivalentBendingStiffness(q1_mm_per_ml, g), expected, 1e-12 * expected);

@@ -69,8 +69,8 @@ TEST(ValidatePairedSamples, RejectsNaNNonIncreasingTimeTooFewBreathsAndSizes) {
   back.t[40] = back.t[39];
   EXPECT_THROW(validatePairedSamples(back, "w"), NonIncreasingTimeError);
   PairedSamples short_rec = p;
-  for (std::vector<double>* c : {&short_rec.t, &short_rec.tv, &short_rec.ap, &short_rec.si,
-                                 &short_rec.lr}) {
+  for (std::vector<double>* c :
+       {&short_rec.t, &short_rec.tv, &short_rec.ap, &short_rec.si, &short_rec.lr}) {
     c->resize(20);  // 2.5 s: at most one breath
   }
   EXPECT_THROW(validatePairedSamples(short_rec, "w"), TooFewBreathsError);
@@ -116,8 +116,8 @@ TEST(IdentifyPatient, EqualsTheStepByStepPipeline) {
     EXPECT_NEAR(rec.model.q1, fit.model.q1, 1e-12);
     EXPECT_NEAR(rec.model.q0, fit.model.q0, 1e-9);
     EXPECT_NEAR(rec.r2, fit.r2, 1e-12);
-    EXPECT_NEAR(r.axes[static_cast<int>(a)].r2_raw,
-                rSquared(p.axis(a), predictAll(fit.model, s)), 1e-12);
+    EXPECT_NEAR(r.axes[static_cast<int>(a)].r2_raw, rSquared(p.axis(a), predictAll(fit.model, s)),
+                1e-12);
   }
 }
 
@@ -150,8 +150,8 @@ TEST(IdentifyPatient, RecoversApAndSiSlopesWithDenoisedTv) {
         const double truth = params.truth.axis(a).q1;
         const double got = r.model.axes[static_cast<int>(a)].model.q1;
         EXPECT_LT(std::abs(got / truth - 1.0), 0.05)
-            << "volunteer " << id << " " << axisName(a) << " " << modelKindName(kind) << ": "
-            << got << " vs " << truth;
+            << "volunteer " << id << " " << axisName(a) << " " << modelKindName(kind) << ": " << got
+            << " vs " << truth;
       }
     }
   }

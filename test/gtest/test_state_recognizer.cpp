@@ -24,7 +24,7 @@ struct Profile {
   double f_in = 3.0;
   double f_canc = 0.7;
   bool inner = true;
-  double noise = 0.3;      // raw Gaussian noise sigma [N]
+  double noise = 0.3;  // raw Gaussian noise sigma [N]
   double canc_ripple = 0.15;
   unsigned seed = 1;
 
@@ -89,7 +89,7 @@ TEST(StateRecognizerFeature, Eq14And15) {
   EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, -1.0, 0.0, 3.0), 0.0);
   EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 0.9, 0.0, 3.0), 3.0 * 0.027);  // 0.081 < H_g
   EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 2.4, 0.0, 3.0), 1.2 * 3.0 * 0.512);
-  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 5.0, 0.0, 3.0), 1.2 * 3.0);  // saturated at D
+  EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 5.0, 0.0, 3.0), 1.2 * 3.0);    // saturated at D
   EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 1.5, 0.5, 2.0), 2.0 * 0.125);  // offset f_min
   p.normalize_feature = true;
   EXPECT_DOUBLE_EQ(StateRecognizer::feature(p, 2.4, 0.0, 3.0), 0.512 * 1.2);

@@ -13,8 +13,8 @@
 namespace pedicle_drilling::core {
 namespace {
 
-constexpr double kAmp = 5e-3;          // 5 mm
-constexpr double kFreq = 0.25;         // Hz
+constexpr double kAmp = 5e-3;   // 5 mm
+constexpr double kFreq = 0.25;  // Hz
 constexpr double kOmega = 2.0 * M_PI * kFreq;
 
 Eigen::Vector3d sine(double t) { return Eigen::Vector3d(kAmp * std::sin(kOmega * t), 0, 0); }
@@ -51,7 +51,7 @@ TEST(TrapezoidProfileTest, MinimumTimeRespectsLimits) {
   EXPECT_DOUBLE_EQ(a.t_acc, 0.1);
   EXPECT_NEAR(a.duration, 2.1, 1e-12);
   EXPECT_NEAR(a.distance(a.duration), 10e-3, 0);
-  EXPECT_NEAR(a.distance(1.05), 5e-3, 1e-15);  // symmetric
+  EXPECT_NEAR(a.distance(1.05), 5e-3, 1e-15);                                     // symmetric
   const TrapezoidProfile b = TrapezoidProfile::minimumTime(0.1e-3, 5e-3, 50e-3);  // triangular
   EXPECT_LT(b.v_peak, 5e-3);
   EXPECT_NEAR(b.distance(b.duration / 2), 0.05e-3, 1e-15);

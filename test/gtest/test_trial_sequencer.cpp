@@ -119,15 +119,15 @@ TEST(TrialSequencer, RegistrationThenSegmentsOnTheGridOfThePeriod) {
   ASSERT_EQ(out.start_timers.size(), 1u);
   EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kRegistrationTimeout);
   // A sample measured before the arm settled does not count.
-  seq.onMarker(12.55, 12.4, "world", Eigen::Vector3d(0.6, 0, 0.27),
-               Eigen::Quaterniond::Identity(), kNoLookup);
+  seq.onMarker(12.55, 12.4, "world", Eigen::Vector3d(0.6, 0, 0.27), Eigen::Quaterniond::Identity(),
+               kNoLookup);
   for (int i = 1; i <= 3; ++i) {
     seq.onMarker(12.5 + 0.125 * i, 12.5 + 0.125 * i, "world", Eigen::Vector3d(0.6, 0, 0.27),
                  Eigen::Quaterniond::Identity(), kNoLookup);
   }
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
-  seq.onMarker(13.0, 13.0, "world", Eigen::Vector3d(0.6, 0, 0.27),
-               Eigen::Quaterniond::Identity(), kNoLookup);
+  seq.onMarker(13.0, 13.0, "world", Eigen::Vector3d(0.6, 0, 0.27), Eigen::Quaterniond::Identity(),
+               kNoLookup);
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
   out = seq.takeOutput();
   ASSERT_EQ(out.start_timers.size(), 1u);
@@ -150,8 +150,8 @@ TEST(TrialSequencer, RegistrationThenSegmentsOnTheGridOfThePeriod) {
   ASSERT_EQ(out.trajectories.size(), 1u);
   EXPECT_DOUBLE_EQ(out.trajectories[0].start_time, 13.25);
   // Predicted marker poses for the safety monitor while drilling (stationary: the marker).
-  seq.onMarker(13.2, 13.2, "world", Eigen::Vector3d(0.6, 0, 0.27),
-               Eigen::Quaterniond::Identity(), kNoLookup);
+  seq.onMarker(13.2, 13.2, "world", Eigen::Vector3d(0.6, 0, 0.27), Eigen::Quaterniond::Identity(),
+               kNoLookup);
   out = seq.takeOutput();
   ASSERT_EQ(out.predicted.size(), 1u);
   EXPECT_NEAR((out.predicted[0].position - Eigen::Vector3d(0.6, 0, 0.27)).norm(), 0.0, 1e-12);

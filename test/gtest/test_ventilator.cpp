@@ -68,8 +68,7 @@ TEST(Ventilator, NoDriftOverOneThousandCycles) {
   EXPECT_NEAR(inspired, 500.0, 1e-6);
   EXPECT_NEAR(1000.0 * (inspired + expired), 0.0, 0.5);
   // And the volume the model reports mid-cycle is the integral of its flow.
-  EXPECT_NEAR(model.sample(999 * 5.0 + 3.0).volume_ml, inspired + integrate(5.0 / 3.0, 3.0),
-              1e-6);
+  EXPECT_NEAR(model.sample(999 * 5.0 + 3.0).volume_ml, inspired + integrate(5.0 / 3.0, 3.0), 1e-6);
 }
 
 TEST(Ventilator, EverySixShapeDeliversTvMaxWithinHalfPercent) {
@@ -190,8 +189,8 @@ TEST(BreathScheduler, SettingsChangeAtNextBreathOnly) {
   scheduler.requestSettings(faster);
   // Still the old breath: same flow, same period.
   EXPECT_NEAR(scheduler.sample(1.2).flow_ml_s, 300.0, 1e-6);
-  EXPECT_NEAR(scheduler.sample(4.99).volume_ml, VentilatorModel(paperSettings()).volumeInCycle(4.99),
-              1e-9);
+  EXPECT_NEAR(scheduler.sample(4.99).volume_ml,
+              VentilatorModel(paperSettings()).volumeInCycle(4.99), 1e-9);
   EXPECT_TRUE(scheduler.hasPendingSettings());
   // Next breath starts at t = 5 with the new settings: Ti = 4/3 s, flow = 400 / (4/3) = 300.
   const VentilatorSample s = scheduler.sample(5.0 + 1.0);
@@ -231,8 +230,7 @@ TEST(BreathScheduler, RestartAfterTimeJumpedBackStartsANewBreath) {
   EXPECT_NEAR(s.flow_ml_s, 360.0, 1e-6);  // 600 ml over 5/3 s
   EXPECT_NEAR(s.volume_ml, 180.0, 1e-6);
   EXPECT_NEAR(scheduler.breathStart(), 50.0, 1e-12);
-  EXPECT_THROW(scheduler.restart(std::numeric_limits<double>::quiet_NaN()),
-               std::invalid_argument);
+  EXPECT_THROW(scheduler.restart(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
 }
 
 }  // namespace

@@ -218,8 +218,8 @@ std::string breathingCsv(double seconds, const std::string& header = "t,tv,ap,si
   for (int i = 0; i < static_cast<int>(seconds * 8); ++i) {
     const double t = i / 8.0;
     const double tv = 250.0 * (1.0 - std::cos(2.0 * M_PI * t / 3.0));
-    std::snprintf(line, sizeof(line), "%.3f,%.3f,%.4f,%.4f,%.4f\n", t, tv, 0.01 * tv,
-                  0.004 * tv, 0.002 * tv);
+    std::snprintf(line, sizeof(line), "%.3f,%.3f,%.4f,%.4f,%.4f\n", t, tv, 0.01 * tv, 0.004 * tv,
+                  0.002 * tv);
     s += line;
   }
   return s;
@@ -279,10 +279,10 @@ TEST_F(CsvTest, EveryReaderError) {
                                        "'ap'");
   expectReadError<NonFiniteValueError>(write("inf.csv", replaceLine(good, 5, "0.5,inf,1,1,1")),
                                        "'tv'");
-  expectReadError<NonIncreasingTimeError>(
-      write("back.csv", replaceLine(good, 6, "0.2,1,1,1,1")), "not strictly increasing");
-  expectReadError<NonIncreasingTimeError>(
-      write("same.csv", replaceLine(good, 6, "0.5,1,1,1,1")), "not strictly increasing");
+  expectReadError<NonIncreasingTimeError>(write("back.csv", replaceLine(good, 6, "0.2,1,1,1,1")),
+                                          "not strictly increasing");
+  expectReadError<NonIncreasingTimeError>(write("same.csv", replaceLine(good, 6, "0.5,1,1,1,1")),
+                                          "not strictly increasing");
   expectReadError<MalformedRowError>(write("short.csv", replaceLine(good, 4, "0.375,1,1")),
                                      "fields");
   expectReadError<MalformedRowError>(write("text.csv", replaceLine(good, 4, "0.375,1,x,1,1")),

@@ -53,12 +53,12 @@ struct SpecimenDistribution {
   double cortical_field_cv = 0.03;             ///< within-layer relative SD (osteonal porosity)
   double cortical_corr_length_m = 0.3e-3;      ///< correlation length of the cortical field
 
-  double cancellous_fraction_mean = 0.25;      ///< trabecular BV/TV mean
-  double cancellous_fraction_sd = 0.04;        ///< per-specimen SD of the trabecular mean
-  double cancellous_field_cv = 0.35;           ///< within-layer relative SD (pores/trabeculae)
-  double cancellous_corr_length_m = 0.7e-3;    ///< ~ trabecular separation, 0.5-1 mm
-  double cancellous_fraction_min = 0.03;       ///< clamp of the random field (pore)
-  double cancellous_fraction_max = 0.70;       ///< clamp of the random field (dense strut)
+  double cancellous_fraction_mean = 0.25;    ///< trabecular BV/TV mean
+  double cancellous_fraction_sd = 0.04;      ///< per-specimen SD of the trabecular mean
+  double cancellous_field_cv = 0.35;         ///< within-layer relative SD (pores/trabeculae)
+  double cancellous_corr_length_m = 0.7e-3;  ///< ~ trabecular separation, 0.5-1 mm
+  double cancellous_fraction_min = 0.03;     ///< clamp of the random field (pore)
+  double cancellous_fraction_max = 0.70;     ///< clamp of the random field (dense strut)
 
   double grid_step_m = 10e-6;  ///< sampling step of the density field along depth (10 um)
 

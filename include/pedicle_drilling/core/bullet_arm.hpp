@@ -101,10 +101,10 @@ enum class ArmJointType { kRevolute, kContinuous, kPrismatic };
 struct ArmJointInfo {
   std::string name;
   ArmJointType type = ArmJointType::kRevolute;
-  double lower = 0.0;     ///< position limit [rad or m] (-inf for continuous)
-  double upper = 0.0;     ///< position limit [rad or m] (+inf for continuous)
-  double velocity = 0.0;  ///< velocity limit [rad/s or m/s] (inf if the URDF gives none)
-  double effort = 0.0;    ///< effort limit [Nm or N] (inf if the URDF gives none)
+  double lower = 0.0;      ///< position limit [rad or m] (-inf for continuous)
+  double upper = 0.0;      ///< position limit [rad or m] (+inf for continuous)
+  double velocity = 0.0;   ///< velocity limit [rad/s or m/s] (inf if the URDF gives none)
+  double effort = 0.0;     ///< effort limit [Nm or N] (inf if the URDF gives none)
   double stiffness = 0.0;  ///< servo stiffness [Nm/rad or N/m]
 };
 
@@ -118,8 +118,8 @@ class BulletArm {
   /// @param tip_link   last link of the chain (e.g. "drill_tip"); must descend from base_link.
   /// @throws std::runtime_error if the URDF does not parse, a link is missing, tip_link does
   ///         not descend from base_link, or the chain contains floating/planar joints.
-  BulletArm(const std::string& urdf_xml, const std::string& base_link,
-            const std::string& tip_link, const BulletArmParams& params = BulletArmParams());
+  BulletArm(const std::string& urdf_xml, const std::string& base_link, const std::string& tip_link,
+            const BulletArmParams& params = BulletArmParams());
   ~BulletArm();
   BulletArm(const BulletArm&) = delete;
   BulletArm& operator=(const BulletArm&) = delete;

@@ -38,16 +38,16 @@ struct EngineDelays {
 
 /** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
 struct EngineConfig {
-  std::string urdf_xml;                  ///< the workcell (urdf/workcell.urdf)
-  DrillingSimulationParams simulation;   ///< config/simulator.yaml
-  double tracker_rate_hz = 8.0;          ///< optical tracker (Sec. III-A)
-  double tidal_volume_rate_hz = 64.0;    ///< the simulated ventilator's tidal_volume stream
-  double ground_truth_rate_hz = 20.0;    ///< recorded ground truth (plus every layer change)
-  RecognizerParams recognizer;           ///< config/recognizer.yaml (thrust = +z of the sensor)
-  SupervisorParams safety;               ///< config/safety_monitor.yaml
-  double safety_check_rate_hz = 200.0;   ///< the monitor's watchdog timer
-  TrialSequencerParams sequencer;        ///< config/compensation_planner.yaml; joints from URDF
-  std::vector<double> drilling_pose;     ///< config/drilling_pose.yaml, arm joint order
+  std::string urdf_xml;                 ///< the workcell (urdf/workcell.urdf)
+  DrillingSimulationParams simulation;  ///< config/simulator.yaml
+  double tracker_rate_hz = 8.0;         ///< optical tracker (Sec. III-A)
+  double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume stream
+  double ground_truth_rate_hz = 20.0;   ///< recorded ground truth (plus every layer change)
+  RecognizerParams recognizer;          ///< config/recognizer.yaml (thrust = +z of the sensor)
+  SupervisorParams safety;              ///< config/safety_monitor.yaml
+  double safety_check_rate_hz = 200.0;  ///< the monitor's watchdog timer
+  TrialSequencerParams sequencer;       ///< config/compensation_planner.yaml; joints from URDF
+  std::vector<double> drilling_pose;    ///< config/drilling_pose.yaml, arm joint order
   double feed_home_m = 0.01;
   std::string arm_base_link = "world";
   std::string arm_tip_link = "device_base";
@@ -69,7 +69,7 @@ struct EngineTrialSpec {
   double spindle_rpm = 12000.0;
   double feed_rate_mm_s = 0.5;
   double max_duration_s = 60.0;
-  MotionModel model;                ///< the patient model the planner predicts with
+  MotionModel model;  ///< the patient model the planner predicts with
   /** @brief The paper's bench: the SPMS plays this model's AP displacement (else the patient). */
   std::optional<BoneMotionModel> bone_motion;
 };

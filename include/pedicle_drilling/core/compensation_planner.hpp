@@ -2,7 +2,8 @@
 //
 //   ventilator settings --VentilatorModel--> F(t), Tv(t)   (breath phase from the ventilator)
 //   Tv(t), dTv/dt      --patient MotionModel--> predicted vertebra displacement y(t) (AP/SI/LR)
-//   drill reference r(t) = feed_rate * (t - t_reg) * axis  +  [compensated] y(t + latency) - y(t_reg)
+//   drill reference r(t) = feed_rate * (t - t_reg) * axis
+//                          + [compensated] y(t + latency) - y(t_reg)
 //   r(t)               --TrapezoidSegmenter (125 ms, a = 10 v)--> segments sent to the arm
 //
 // Frames: everything is in the world frame (metres). The displacement axes map to world
@@ -132,11 +133,11 @@ struct PlannedPoint {
 
 /** @brief One 125 ms segment: start/end offsets and points sampled from its trapezoid. */
 struct PlannedSegment {
-  int index = 0;                 ///< k, counted from the registration time
-  double t0 = 0.0;               ///< start time [s]
-  double t1 = 0.0;               ///< end time [s]
-  double feed_start_m = 0.0;     ///< feed offset at t0 [m]
-  double feed_end_m = 0.0;       ///< feed offset at t1 [m]
+  int index = 0;                     ///< k, counted from the registration time
+  double t0 = 0.0;                   ///< start time [s]
+  double t1 = 0.0;                   ///< end time [s]
+  double feed_start_m = 0.0;         ///< feed offset at t0 [m]
+  double feed_end_m = 0.0;           ///< feed offset at t1 [m]
   std::vector<PlannedPoint> points;  ///< points at t0 + i T / n, i = 1..n
 };
 

@@ -51,21 +51,21 @@ namespace pedicle_drilling::core {
 struct DenoiseOptions {
   /// Candidate wavelet names; default: all 59 supported (db1-20, sym2-20, coif1-5, bior*).
   std::vector<std::string> candidates = allWaveletNames();
-  int level = 6;                        ///< DWT decomposition level (Fig. 5).
-  std::vector<int> kept_levels{3, 4, 5};  ///< Detail levels summed into s_de (Eq. 1).
-  bool include_approximation = false;   ///< Also add a_level to s_de (not in Eq. 1).
+  int level = 6;                                   ///< DWT decomposition level (Fig. 5).
+  std::vector<int> kept_levels{3, 4, 5};           ///< Detail levels summed into s_de (Eq. 1).
+  bool include_approximation = false;              ///< Also add a_level to s_de (not in Eq. 1).
   ExtensionMode mode = ExtensionMode::kSymmetric;  ///< DWT boundary mode.
-  double delta_tv = 5.0;                ///< Half-width dTv of U(Tv, dTv), same unit as Tv (ml).
+  double delta_tv = 5.0;  ///< Half-width dTv of U(Tv, dTv), same unit as Tv (ml).
   /// Weights of (NSR, W_max, W_mean) in the selection score.
   std::array<double, 3> weights{1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0};
 };
 
 /** @brief The three metrics of Eq. 3 for one de-noised signal. */
 struct DenoiseMetrics {
-  double nsr = 0.0;                 ///< var(s - s_de) / var(s_de).
-  double w_max = 0.0;               ///< max L_i.
-  double w_mean = 0.0;              ///< mean L_i.
-  std::size_t neighbourhoods = 0;   ///< Number of L_i used (neighbourhoods with >= 2 samples).
+  double nsr = 0.0;                ///< var(s - s_de) / var(s_de).
+  double w_max = 0.0;              ///< max L_i.
+  double w_mean = 0.0;             ///< mean L_i.
+  std::size_t neighbourhoods = 0;  ///< Number of L_i used (neighbourhoods with >= 2 samples).
 };
 
 /** @brief One row of the basis-selection table (Fig. 6). */
@@ -119,8 +119,7 @@ std::vector<double> denoise(const std::vector<double>& signal, const std::string
  * @brief NSR = var(s - s_de) / var(s_de) (see file comment); +inf if var(s_de) == 0.
  * @throws std::invalid_argument if the lengths differ or are zero.
  */
-double noiseToSignalRatio(const std::vector<double>& signal,
-                          const std::vector<double>& denoised);
+double noiseToSignalRatio(const std::vector<double>& signal, const std::vector<double>& denoised);
 
 /**
  * @brief L_i spread metrics of Eq. 2-3 (W_max, W_mean and the number of neighbourhoods).

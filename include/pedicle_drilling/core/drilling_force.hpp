@@ -32,18 +32,18 @@ struct DrillParameters {
   /// Thrust per metre of bit diameter per unit solid fraction at f_ref and n_ref [N/m].
   /// Calibrated to the paper's stationary peak thrusts (Fig. 16 medians 3.16 / 2.88 N).
   double thrust_coefficient_n_per_m = 1373.0;
-  double feed_exponent = 0.5;            ///< alpha: sub-linear size effect (assumption, see doc)
-  double speed_exponent = 0.1;           ///< beta: cutting-speed softening (assumption, see doc)
-  double ref_feed_per_rev_m = 2.5e-6;    ///< 0.5 mm/s at 12000 rpm
-  double ref_spindle_rpm = 12000.0;      ///< paper's chosen speed
-  double lag_revolutions = 1.0;          ///< thrust lag time constant in spindle revolutions
+  double feed_exponent = 0.5;          ///< alpha: sub-linear size effect (assumption, see doc)
+  double speed_exponent = 0.1;         ///< beta: cutting-speed softening (assumption, see doc)
+  double ref_feed_per_rev_m = 2.5e-6;  ///< 0.5 mm/s at 12000 rpm
+  double ref_spindle_rpm = 12000.0;    ///< paper's chosen speed
+  double lag_revolutions = 1.0;        ///< thrust lag time constant in spindle revolutions
 };
 
 /** @brief One output sample of the drilling process. */
 struct ForceSample {
-  double thrust_N = 0.0;      ///< thrust along the drill axis, >= 0 (bone pushes the drill back)
+  double thrust_N = 0.0;  ///< thrust along the drill axis, >= 0 (bone pushes the drill back)
   Material material = Material::kAir;  ///< material at the drill tip point
-  bool contact = false;       ///< true iff the lips are cutting in this step
+  bool contact = false;                ///< true iff the lips are cutting in this step
   double feed_per_rev_m = 0.0;         ///< actual feed per revolution this step
   double engaged_fraction = 0.0;       ///< phi_eff, radial mean solid fraction under the lips
 };

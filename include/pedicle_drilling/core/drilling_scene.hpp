@@ -35,11 +35,11 @@ struct Slab {
 
 /** @brief Everything the display draws along the drill axis. */
 struct DrillingScene {
-  Slab outer_cortical;   ///< [0, outer_cortical_end]
-  Slab cancellous;       ///< [outer_cortical_end, inner_cortical_start]
-  Slab inner_cortical;   ///< [inner_cortical_start, inner_cortical_end]
-  Slab hole;             ///< [0, max_depth_cut]; empty when nothing was cut
-  Slab residual;         ///< inner cortical left below the hole; empty when none is left
+  Slab outer_cortical;        ///< [0, outer_cortical_end]
+  Slab cancellous;            ///< [outer_cortical_end, inner_cortical_start]
+  Slab inner_cortical;        ///< [inner_cortical_start, inner_cortical_end]
+  Slab hole;                  ///< [0, max_depth_cut]; empty when nothing was cut
+  Slab residual;              ///< inner cortical left below the hole; empty when none is left
   bool has_hole = false;      ///< max_depth_cut > 0
   bool has_residual = false;  ///< residual thickness > 0
 };

@@ -25,8 +25,8 @@
 #define PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP
 
 #include <cstdint>
-#include <map>
 #include <limits>
+#include <map>
 #include <memory>
 #include <optional>
 #include <random>
@@ -48,12 +48,12 @@ namespace pedicle_drilling::core {
 
 /** @brief The virtual patient: how tidal volume moves the vertebra (and the SPMS) in AP. */
 struct VirtualPatient {
-  int volunteer_id = 1;             ///< virtual volunteer whose truth model is used (1..5)
-  double q1_ap_mm_per_ml = 0.01;    ///< AP slope [mm/ml] (5 mm peak-to-peak at 500 ml)
-  double lag_s = 0.08;              ///< hysteresis lag of displacement behind volume [s]
-  double drift_mm = 0.15;           ///< amplitude of the slow AP drift [mm]
-  double drift_period_s = 60.0;     ///< period of the slow AP drift [s]
-  double drift_phase_rad = 0.0;     ///< phase of the slow AP drift [rad]
+  int volunteer_id = 1;           ///< virtual volunteer whose truth model is used (1..5)
+  double q1_ap_mm_per_ml = 0.01;  ///< AP slope [mm/ml] (5 mm peak-to-peak at 500 ml)
+  double lag_s = 0.08;            ///< hysteresis lag of displacement behind volume [s]
+  double drift_mm = 0.15;         ///< amplitude of the slow AP drift [mm]
+  double drift_period_s = 60.0;   ///< period of the slow AP drift [s]
+  double drift_phase_rad = 0.0;   ///< phase of the slow AP drift [rad]
   /// Small unpredictable movements (AP component used), as the volunteers' recordings have.
   std::vector<PatientMovement> movements;
   /// Phase-lead term on the flow [mm s/ml] (d = q1 Tv + q2 dTv/dt), 0 for a virtual volunteer;
@@ -113,12 +113,12 @@ struct TrialVariability {
 
 /** @brief What reset(seed) drew for one trial (reported with the trial's results). */
 struct TrialConditions {
-  int volunteer_id = 1;                      ///< virtual volunteer of the patient (1..5)
-  double patient_amplitude_scale = 1.0;      ///< factor on the volunteer's AP slope q1
-  double ventilator_rate_bpm = 12.0;         ///< breathing rate of the trial [breaths/min]
-  double ventilator_tidal_volume_ml = 500.0; ///< Tv_max of the trial [ml]
-  double force_noise_sd_n = 0.03;            ///< sensor white noise per force axis [N]
-  double arm_stiffness_scale = 1.0;          ///< factor on every arm joint's servo stiffness
+  int volunteer_id = 1;                       ///< virtual volunteer of the patient (1..5)
+  double patient_amplitude_scale = 1.0;       ///< factor on the volunteer's AP slope q1
+  double ventilator_rate_bpm = 12.0;          ///< breathing rate of the trial [breaths/min]
+  double ventilator_tidal_volume_ml = 500.0;  ///< Tv_max of the trial [ml]
+  double force_noise_sd_n = 0.03;             ///< sensor white noise per force axis [N]
+  double arm_stiffness_scale = 1.0;           ///< factor on every arm joint's servo stiffness
 };
 
 /**
@@ -128,35 +128,34 @@ struct TrialConditions {
  * @throws std::invalid_argument if `variability` is out of range.
  */
 TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
-                                    const VentilatorSettings& ventilator,
-                                    double force_noise_sd_n);
+                                    const VentilatorSettings& ventilator, double force_noise_sd_n);
 
 /** @brief Parameters of the simulated workcell. Defaults and sources: simulator_physics.md. */
 struct DrillingSimulationParams {
-  std::string base_link = "world";      ///< root of the arm chain and of every pose
-  std::string tip_link = "drill_tip";   ///< end of the arm chain (drill point)
-  double physics_rate_hz = 1000.0;      ///< drilling physics and force-sensor rate
-  double arm_rate_hz = 250.0;           ///< Bullet arm rate; physics_rate / arm_rate integer
-  BulletArmParams arm;                  ///< servo model (substep is set from arm_rate_hz)
+  std::string base_link = "world";     ///< root of the arm chain and of every pose
+  std::string tip_link = "drill_tip";  ///< end of the arm chain (drill point)
+  double physics_rate_hz = 1000.0;     ///< drilling physics and force-sensor rate
+  double arm_rate_hz = 250.0;          ///< Bullet arm rate; physics_rate / arm_rate integer
+  BulletArmParams arm;                 ///< servo model (substep is set from arm_rate_hz)
   /// Home joint positions (joints not listed stay at 0); arm returns here on reset().
-  std::map<std::string, double> home_pose = {
-      {"rsssii_joint1", 0.0}, {"rsssii_joint2", 0.2},  {"rsssii_joint3", 1.2},
-      {"rsssii_joint4", 0.0}, {"rsssii_joint5", 1.741593}, {"rsssii_joint6", 0.0},
-      {"feed_joint", 0.0},    {"spindle_joint", 0.0}};
+  std::map<std::string, double> home_pose = {{"rsssii_joint1", 0.0},      {"rsssii_joint2", 0.2},
+                                             {"rsssii_joint3", 1.2},      {"rsssii_joint4", 0.0},
+                                             {"rsssii_joint5", 1.741593}, {"rsssii_joint6", 0.0},
+                                             {"feed_joint", 0.0},         {"spindle_joint", 0.0}};
   /// SPMS geometry. Defaults match urdf/workcell.urdf (checked against the URDF at startup).
   SpmsGeometry spms = urdfSpmsGeometry();
   double spms_slider_joint_offset_m = 0.05;  ///< URDF slider joint value = s - this offset
   double slider_max_speed_m_s = 0.05;        ///< lead-screw slider speed limit (URDF: 50 mm/s)
   double spindle_max_rpm = 21000.0;          ///< URDF spindle_joint limit 2200 rad/s
   double spindle_accel_rpm_s = 40000.0;      ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
-  double bone_half_x_m = 0.02;   ///< bone footprint half size along the bone frame x [m]
-  double bone_half_y_m = 0.015;  ///< bone footprint half size along the bone frame y [m]
-  bool moving_bone = true;           ///< initial trial: bone follows the patient (reset() sets)
-  VentilatorSettings ventilator;     ///< internal ventilator driving the patient
-  SpecimenDistribution specimen;     ///< specimen distribution for reset(seed)
-  TrialVariability variability;      ///< patient/ventilator/sensor/arm spread for reset(seed)
-  DrillParameters drill;             ///< drill and force-law constants
-  ForceSensorParams sensor;          ///< force/torque sensor model
+  double bone_half_x_m = 0.02;         ///< bone footprint half size along the bone frame x [m]
+  double bone_half_y_m = 0.015;        ///< bone footprint half size along the bone frame y [m]
+  bool moving_bone = true;             ///< initial trial: bone follows the patient (reset() sets)
+  VentilatorSettings ventilator;       ///< internal ventilator driving the patient
+  SpecimenDistribution specimen;       ///< specimen distribution for reset(seed)
+  TrialVariability variability;        ///< patient/ventilator/sensor/arm spread for reset(seed)
+  DrillParameters drill;               ///< drill and force-law constants
+  ForceSensorParams sensor;            ///< force/torque sensor model
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
@@ -192,40 +191,41 @@ std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const st
 
 /** @brief Output of one physics step. */
 struct SimulationStep {
-  double time_s = 0.0;           ///< simulation time at the end of the step
+  double time_s = 0.0;                      ///< simulation time at the end of the step
   Wrench measured_wrench = Wrench::Zero();  ///< force-sensor sample (sensor frame)
-  ForceSample force;             ///< true drilling output of the step
-  double tip_depth_m = 0.0;      ///< tip depth below the bone top surface (negative: above)
-  bool layer_changed = false;    ///< the layer at the deepest cut changed in this step
+  ForceSample force;                        ///< true drilling output of the step
+  double tip_depth_m = 0.0;    ///< tip depth below the bone top surface (negative: above)
+  bool layer_changed = false;  ///< the layer at the deepest cut changed in this step
 };
 
 /** @brief Ground truth of the simulated trial (what no sensor sees). */
 struct SimulationGroundTruth {
-  std::uint64_t seed = 0;            ///< seed of the current specimen / patient
-  Material layer = Material::kAir;   ///< material at the deepest cut (air before any cut)
-  double tip_depth_m = 0.0;          ///< current tip depth below the bone top surface [m]
-  double max_depth_cut_m = 0.0;      ///< deepest point cut [m]
-  double outer_cortical_end_m = 0.0;    ///< depth of the outer-cortical / cancellous boundary
-  double inner_cortical_start_m = 0.0;  ///< depth of the cancellous / inner-cortical boundary
-  double inner_cortical_end_m = 0.0;    ///< depth of the canal wall
+  std::uint64_t seed = 0;                  ///< seed of the current specimen / patient
+  Material layer = Material::kAir;         ///< material at the deepest cut (air before any cut)
+  double tip_depth_m = 0.0;                ///< current tip depth below the bone top surface [m]
+  double max_depth_cut_m = 0.0;            ///< deepest point cut [m]
+  double outer_cortical_end_m = 0.0;       ///< depth of the outer-cortical / cancellous boundary
+  double inner_cortical_start_m = 0.0;     ///< depth of the cancellous / inner-cortical boundary
+  double inner_cortical_end_m = 0.0;       ///< depth of the canal wall
   double residual_inner_cortical_m = 0.0;  ///< inner cortex left below the deepest cut
-  bool breakthrough = false;         ///< the tip passed the canal wall
-  double thrust_n = 0.0;             ///< true thrust [N]
-  bool contact = false;              ///< lips cutting
+  bool breakthrough = false;               ///< the tip passed the canal wall
+  double thrust_n = 0.0;                   ///< true thrust [N]
+  bool contact = false;                    ///< lips cutting
   /** @brief Separations of drill and bone since reset() or startTrial(): gaps of at least 10 ms
    *  without contact after a contact (shorter ones are the lips' chatter at first contact). */
   std::uint32_t contact_loss_count = 0;
-  double feed_per_rev_m = 0.0;       ///< actual feed per revolution [m]
+  double feed_per_rev_m = 0.0;  ///< actual feed per revolution [m]
   Eigen::Vector3d bone_displacement_m = Eigen::Vector3d::Zero();  ///< (LR, SI, AP) from home
-  double tidal_volume_ml = 0.0;      ///< patient tidal volume (unlagged) [ml]
-  double relative_ap_m = 0.0;        ///< AP motion of tip relative to bone since reset() or startTrial() [m]
+  double tidal_volume_ml = 0.0;  ///< patient tidal volume (unlagged) [ml]
+  double relative_ap_m =
+      0.0;  ///< AP motion of tip relative to bone since reset() or startTrial() [m]
 };
 
 /** @brief A parent -> child transform of the URDF tree. */
 struct FrameTransform {
-  std::string parent;             ///< parent frame (URDF link)
-  std::string child;              ///< child frame (URDF link)
-  Eigen::Isometry3d transform;    ///< child pose in the parent frame
+  std::string parent;           ///< parent frame (URDF link)
+  std::string child;            ///< child frame (URDF link)
+  Eigen::Isometry3d transform;  ///< child pose in the parent frame
 };
 
 /**

@@ -83,11 +83,11 @@ std::vector<double> idwt(const std::vector<double>& ca, const std::vector<double
  * Note that PyWavelets returns [cA_L, cD_L, ..., cD_1]; see toPywtOrder().
  */
 struct WaveletDecomposition {
-  std::string wavelet;                        ///< Wavelet name.
+  std::string wavelet;                             ///< Wavelet name.
   ExtensionMode mode = ExtensionMode::kSymmetric;  ///< Extension mode used.
-  std::size_t signal_length = 0;              ///< Length N of the decomposed signal.
-  std::vector<double> approximation;          ///< cA_level.
-  std::vector<std::vector<double>> details;   ///< details[j-1] = cD_j.
+  std::size_t signal_length = 0;                   ///< Length N of the decomposed signal.
+  std::vector<double> approximation;               ///< cA_level.
+  std::vector<std::vector<double>> details;        ///< details[j-1] = cD_j.
 
   /** @brief Decomposition level L. */
   int level() const { return static_cast<int>(details.size()); }

@@ -23,16 +23,16 @@ using Wrench = Eigen::Matrix<double, 6, 1>;
 
 /** @brief Sensor model parameters. Defaults and sources: doc/simulator_physics.md. */
 struct ForceSensorParams {
-  double rate_hz = 1000.0;              ///< output rate (one measure() call per sample)
-  double force_noise_sd_n = 0.03;       ///< white noise SD per force axis [N]
-  double torque_noise_sd_nm = 0.5e-3;   ///< white noise SD per torque axis [N m]
-  double force_bias_sd_n = 0.2;         ///< SD of the initial (untared) force bias [N]
-  double torque_bias_sd_nm = 5e-3;      ///< SD of the initial (untared) torque bias [N m]
-  double force_drift_n_per_sqrt_s = 1e-3;    ///< bias random-walk intensity, forces
-  double torque_drift_nm_per_sqrt_s = 2e-5;  ///< bias random-walk intensity, torques
-  double force_resolution_n = 1.0 / 320.0;   ///< quantisation step, forces (Nano17 SI-12-0.12)
+  double rate_hz = 1000.0;                      ///< output rate (one measure() call per sample)
+  double force_noise_sd_n = 0.03;               ///< white noise SD per force axis [N]
+  double torque_noise_sd_nm = 0.5e-3;           ///< white noise SD per torque axis [N m]
+  double force_bias_sd_n = 0.2;                 ///< SD of the initial (untared) force bias [N]
+  double torque_bias_sd_nm = 5e-3;              ///< SD of the initial (untared) torque bias [N m]
+  double force_drift_n_per_sqrt_s = 1e-3;       ///< bias random-walk intensity, forces
+  double torque_drift_nm_per_sqrt_s = 2e-5;     ///< bias random-walk intensity, torques
+  double force_resolution_n = 1.0 / 320.0;      ///< quantisation step, forces (Nano17 SI-12-0.12)
   double torque_resolution_nm = 1.0 / 64000.0;  ///< quantisation step, torques (1/64 N mm)
-  bool quantize = true;                 ///< round outputs to the resolution
+  bool quantize = true;                         ///< round outputs to the resolution
   /// Spindle-synchronous vibration amplitude on the axial force (sensor z) [N]; 0 disables.
   double spindle_vibration_axial_n = 0.05;
   /// Spindle-synchronous vibration amplitude on each lateral force (x, y, 90 deg apart) [N].

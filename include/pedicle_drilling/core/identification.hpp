@@ -143,11 +143,11 @@ struct FitResult {
  * confirms convergence. Ceres' default (1e4) spends 10-20 iterations growing the region.
  */
 struct CeresFitOptions {
-  int max_iterations = 100;            ///< Levenberg-Marquardt iterations
+  int max_iterations = 100;                   ///< Levenberg-Marquardt iterations
   double initial_trust_region_radius = 1e16;  ///< see struct doc
-  double function_tolerance = 1e-16;   ///< relative cost change
-  double gradient_tolerance = 1e-16;   ///< max-norm of the projected gradient
-  double parameter_tolerance = 1e-16;  ///< relative step size
+  double function_tolerance = 1e-16;          ///< relative cost change
+  double gradient_tolerance = 1e-16;          ///< max-norm of the projected gradient
+  double parameter_tolerance = 1e-16;         ///< relative step size
 };
 
 /**

@@ -6,10 +6,10 @@
 #include <string>
 #include <vector>
 
+#include <urdf_model/model.h>
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <kdl/chain.hpp>
-#include <urdf_model/model.h>
 
 namespace pedicle_drilling::core {
 
@@ -31,12 +31,12 @@ struct IkOptions {
 
 /** @brief Result of KinematicChain::inverse(). */
 struct IkResult {
-  bool success = false;              ///< Within tolerances and joint limits.
-  Eigen::VectorXd q;                 ///< Best joint vector found (within limits).
-  double position_error_m = 0.0;     ///< |p(q) - p_target| [m].
+  bool success = false;                ///< Within tolerances and joint limits.
+  Eigen::VectorXd q;                   ///< Best joint vector found (within limits).
+  double position_error_m = 0.0;       ///< |p(q) - p_target| [m].
   double orientation_error_rad = 0.0;  ///< Angle of R_target^T R(q) [rad].
-  int attempts = 0;                  ///< Attempts used.
-  std::string message;               ///< Explanation on failure.
+  int attempts = 0;                    ///< Attempts used.
+  std::string message;                 ///< Explanation on failure.
 };
 
 /** @brief A KDL serial chain between two links of a URDF model. */

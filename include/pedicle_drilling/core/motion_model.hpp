@@ -146,8 +146,7 @@ double siEquivalentAxialStiffness(double q1_mm_per_ml);
  * @brief Same as siEquivalentAxialStiffness() but with the CT disc length taken out:
  *        E A V0 / (p0 S) = 2 L / q1 with L = 2 m (Table I), in mm^3.
  */
-double siAxialRigidityGroup(double q1_mm_per_ml,
-                            const SpineGeometry& geometry = {});
+double siAxialRigidityGroup(double q1_mm_per_ml, const SpineGeometry& geometry = {});
 
 /**
  * @brief The equivalent disc stiffness an identified slope implies on its axis: AP

@@ -48,19 +48,19 @@ namespace pedicle_drilling::core {
 
 /** @brief One axis of the model file: coefficients plus fit and de-noising provenance. */
 struct AxisModelRecord {
-  AxisModel model;                     ///< kind and coefficients
-  double r2 = 0.0;                     ///< R^2 of the fit (Eq. 16)
-  double rmse = 0.0;                   ///< RMSE of the fit, mm
-  std::string wavelet = "none";        ///< wavelet basis used for de-noising
-  int level = 0;                       ///< DWT level (0: not de-noised)
-  std::vector<int> kept_levels;        ///< detail levels kept (Eq. 1)
+  AxisModel model;               ///< kind and coefficients
+  double r2 = 0.0;               ///< R^2 of the fit (Eq. 16)
+  double rmse = 0.0;             ///< RMSE of the fit, mm
+  std::string wavelet = "none";  ///< wavelet basis used for de-noising
+  int level = 0;                 ///< DWT level (0: not de-noised)
+  std::vector<int> kept_levels;  ///< detail levels kept (Eq. 1)
 };
 
 /** @brief Per-patient model file content. */
 struct PatientModel {
-  std::string patient_id;                                  ///< free-form id
-  std::array<AxisModelRecord, 3> axes;                     ///< indexed by Axis
-  std::vector<std::pair<std::string, std::string>> meta;   ///< optional extra key/values
+  std::string patient_id;                                 ///< free-form id
+  std::array<AxisModelRecord, 3> axes;                    ///< indexed by Axis
+  std::vector<std::pair<std::string, std::string>> meta;  ///< optional extra key/values
 
   /** @brief The prediction model (kinds and coefficients of the three axes). */
   MotionModel motionModel() const;

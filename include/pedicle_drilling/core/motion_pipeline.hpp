@@ -52,13 +52,13 @@ bool parseMethod(const std::string& name, IdentificationMethod* method);
 
 /** @brief Options of identifyPatient(); defaults follow the paper. */
 struct PipelineOptions {
-  ModelKind kind = ModelKind::kLinear;                          ///< model of every axis
+  ModelKind kind = ModelKind::kLinear;                         ///< model of every axis
   IdentificationMethod method = IdentificationMethod::kCeres;  ///< solver
-  bool denoise = true;         ///< de-noise the displacement (step 2); false fits raw data
-  bool denoise_tv = false;     ///< step 4 (needs denoise)
+  bool denoise = true;             ///< de-noise the displacement (step 2); false fits raw data
+  bool denoise_tv = false;         ///< step 4 (needs denoise)
   DenoiseOptions denoise_options;  ///< wavelet candidates, level, kept levels, dTv
-  CeresFitOptions ceres;       ///< Ceres settings
-  PsoOptions pso;              ///< PSO settings (paper: 24 particles, 2000 iterations)
+  CeresFitOptions ceres;           ///< Ceres settings
+  PsoOptions pso;                  ///< PSO settings (paper: 24 particles, 2000 iterations)
 
   /**
    * @brief Checks the options (level 1..16, kept levels in 1..level, known candidate wavelets,
@@ -70,21 +70,21 @@ struct PipelineOptions {
 
 /** @brief What happened on one axis. */
 struct AxisReport {
-  Axis axis = Axis::kAP;        ///< the axis
+  Axis axis = Axis::kAP;         ///< the axis
   std::string wavelet = "none";  ///< chosen basis ("none" without de-noising)
-  FitResult fit;                ///< coefficients, R^2 (vs the fitted data), RMSE, time
-  double r2_raw = 0.0;          ///< R^2 of the model against the raw displacement
-  AxisSamples samples;          ///< the data fitted (Tv, dTv/dt, d_fit)
-  std::vector<double> raw;      ///< the raw displacement
+  FitResult fit;                 ///< coefficients, R^2 (vs the fitted data), RMSE, time
+  double r2_raw = 0.0;           ///< R^2 of the model against the raw displacement
+  AxisSamples samples;           ///< the data fitted (Tv, dTv/dt, d_fit)
+  std::vector<double> raw;       ///< the raw displacement
 };
 
 /** @brief Result of identifyPatient(). */
 struct PipelineResult {
-  PatientModel model;                ///< ready to write with writeModelYaml()
-  std::array<AxisReport, 3> axes;    ///< indexed by Axis
-  int breaths = 0;                   ///< breaths counted in the tidal volume
-  std::size_t samples = 0;           ///< paired samples used
-  double duration_s = 0.0;           ///< time span of the samples
+  PatientModel model;              ///< ready to write with writeModelYaml()
+  std::array<AxisReport, 3> axes;  ///< indexed by Axis
+  int breaths = 0;                 ///< breaths counted in the tidal volume
+  std::size_t samples = 0;         ///< paired samples used
+  double duration_s = 0.0;         ///< time span of the samples
 };
 
 /**
@@ -108,8 +108,8 @@ PipelineResult identifyPatient(const PairedSamples& samples, const PipelineOptio
  * d_axis = sign[axis] * p[index[axis]] for a marker position p = (x, y, z) in the tracker frame.
  */
 struct AxisMapping {
-  std::array<int, 3> index{{2, 1, 0}};           ///< tracker component (0 x, 1 y, 2 z) per Axis
-  std::array<double, 3> sign{{1.0, 1.0, 1.0}};   ///< +1 or -1 per Axis
+  std::array<int, 3> index{{2, 1, 0}};          ///< tracker component (0 x, 1 y, 2 z) per Axis
+  std::array<double, 3> sign{{1.0, 1.0, 1.0}};  ///< +1 or -1 per Axis
 
   /** @brief (AP, SI, LR) of a tracker-frame position, same unit as p. */
   std::array<double, 3> map(double x, double y, double z) const;

@@ -49,10 +49,10 @@ struct SafetyParams {
 struct SafetyVerdict {
   /** @brief Cause of a stop. */
   enum Reason { kNone, kPositionError, kForceExceeded, kForceTimeout, kTrackerTimeout, kNaNInput };
-  bool stop = false;       ///< True: stop drilling and retreat.
-  Reason reason = kNone;   ///< First cause (latched).
-  double t = 0.0;          ///< Time of the trigger [s] (valid if stop).
-  std::string message;     ///< Human-readable explanation (empty if no stop).
+  bool stop = false;      ///< True: stop drilling and retreat.
+  Reason reason = kNone;  ///< First cause (latched).
+  double t = 0.0;         ///< Time of the trigger [s] (valid if stop).
+  std::string message;    ///< Human-readable explanation (empty if no stop).
 };
 
 /** @brief Name of a reason, e.g. "position_error". */

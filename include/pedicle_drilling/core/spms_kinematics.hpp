@@ -28,13 +28,13 @@ namespace pedicle_drilling::core {
 
 /** @brief SPMS geometry (metres / degrees). */
 struct SpmsGeometry {
-  double base_radius_m = 0.150;      ///< radius of the rail base points on the base plane
-  double platform_radius_m = 0.100;  ///< radius of the spherical-joint centres on the platform
-  double rod_length_m = 0.200;       ///< revolute-to-spherical joint distance
-  double rail_inclination_deg = 0.0;  ///< rail tilt from vertical, + = top leans toward centre
-  double slider_min_m = 0.050;       ///< lower end of slider travel along the rail
-  double slider_max_m = 0.250;       ///< upper end of slider travel along the rail
-  double home_slider_m = 0.150;      ///< slider position at the home pose (mid-stroke)
+  double base_radius_m = 0.150;          ///< radius of the rail base points on the base plane
+  double platform_radius_m = 0.100;      ///< radius of the spherical-joint centres on the platform
+  double rod_length_m = 0.200;           ///< revolute-to-spherical joint distance
+  double rail_inclination_deg = 0.0;     ///< rail tilt from vertical, + = top leans toward centre
+  double slider_min_m = 0.050;           ///< lower end of slider travel along the rail
+  double slider_max_m = 0.250;           ///< upper end of slider travel along the rail
+  double home_slider_m = 0.150;          ///< slider position at the home pose (mid-stroke)
   double leg_azimuth_offset_deg = 90.0;  ///< azimuth of leg 0
   double max_spherical_tilt_deg = 30.0;  ///< max angle between rod and platform normal
 };
@@ -48,12 +48,12 @@ struct PlatformPose {
 
 /** @brief Full 6-D platform pose: independent z, roll, pitch plus dependent x, y, yaw. */
 struct PlatformFullPose {
-  double x_m = 0.0;   ///< parasitic translation x (dependent)
-  double y_m = 0.0;   ///< parasitic translation y (dependent)
-  double z_m = 0.0;   ///< heave relative to the home height
+  double x_m = 0.0;        ///< parasitic translation x (dependent)
+  double y_m = 0.0;        ///< parasitic translation y (dependent)
+  double z_m = 0.0;        ///< heave relative to the home height
   double roll_rad = 0.0;   ///< rotation about base x
   double pitch_rad = 0.0;  ///< rotation about base y
-  double yaw_rad = 0.0;  ///< parasitic rotation about z (dependent)
+  double yaw_rad = 0.0;    ///< parasitic rotation about z (dependent)
   /** @brief Rotation Rz(yaw) Ry(pitch) Rx(roll). */
   Eigen::Matrix3d rotation() const;
   /** @brief Platform-centre position in the base frame (includes the home height). */
@@ -62,19 +62,19 @@ struct PlatformFullPose {
 
 /** @brief Result of an inverse-kinematics query. */
 struct SpmsIkResult {
-  bool reachable = false;     ///< all checks passed
-  std::string reason;         ///< empty if reachable, otherwise the first failed check
+  bool reachable = false;  ///< all checks passed
+  std::string reason;      ///< empty if reachable, otherwise the first failed check
   Eigen::Vector3d sliders = Eigen::Vector3d::Zero();  ///< slider positions along the rails [m]
-  PlatformFullPose pose;      ///< full pose including the dependent coordinates
+  PlatformFullPose pose;  ///< full pose including the dependent coordinates
 };
 
 /** @brief Result of a forward-kinematics query. */
 struct SpmsFkResult {
-  bool ok = false;            ///< converged and all checks passed
-  std::string reason;         ///< empty if ok
-  PlatformFullPose pose;      ///< solved pose
-  int iterations = 0;         ///< Newton iterations used
-  double residual_m = 0.0;    ///< max |rod length error| at the solution [m]
+  bool ok = false;          ///< converged and all checks passed
+  std::string reason;       ///< empty if ok
+  PlatformFullPose pose;    ///< solved pose
+  int iterations = 0;       ///< Newton iterations used
+  double residual_m = 0.0;  ///< max |rod length error| at the solution [m]
 };
 
 /**

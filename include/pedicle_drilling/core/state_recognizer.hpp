@@ -71,13 +71,13 @@ struct RecognizerParams {
 
 /** @brief Drilling state as seen by the recognizer. */
 enum class DrillingState {
-  kIdle,             ///< No bone contact yet (F_max has not exceeded F_th).
-  kOuterCortical,    ///< In the outer cortical layer; Algorithm 2 running.
-  kOuterPunctured,   ///< Key point 2 passed; waiting for the cancellous phase to be confirmed.
-  kCancellous,       ///< Key point 3 passed; watching for the inner cortical layer.
-  kInnerCortical,    ///< Key point 4 passed (stop is commanded in this state).
-  kBreakthrough,     ///< Key point 6 passed: the inner cortical layer has been perforated.
-  kStopped,          ///< The stop was commanded; reported until reset() (never a layer state).
+  kIdle,            ///< No bone contact yet (F_max has not exceeded F_th).
+  kOuterCortical,   ///< In the outer cortical layer; Algorithm 2 running.
+  kOuterPunctured,  ///< Key point 2 passed; waiting for the cancellous phase to be confirmed.
+  kCancellous,      ///< Key point 3 passed; watching for the inner cortical layer.
+  kInnerCortical,   ///< Key point 4 passed (stop is commanded in this state).
+  kBreakthrough,    ///< Key point 6 passed: the inner cortical layer has been perforated.
+  kStopped,         ///< The stop was commanded; reported until reset() (never a layer state).
 };
 
 /** @brief Human-readable name of a state. */
@@ -85,11 +85,11 @@ const char* toString(DrillingState s);
 
 /** @brief One recognised key point (1..6). */
 struct KeyPoint {
-  int id = 0;                         ///< Key point number 1..6.
-  std::size_t index = 0;              ///< Raw-sample index (0-based) where the event occurred.
-  double t = 0.0;                     ///< Time of that raw sample [s].
-  std::size_t recognized_index = 0;   ///< Raw-sample index at which it was recognised online.
-  double recognized_t = 0.0;          ///< Time of recognition [s].
+  int id = 0;                        ///< Key point number 1..6.
+  std::size_t index = 0;             ///< Raw-sample index (0-based) where the event occurred.
+  double t = 0.0;                    ///< Time of that raw sample [s].
+  std::size_t recognized_index = 0;  ///< Raw-sample index at which it was recognised online.
+  double recognized_t = 0.0;         ///< Time of recognition [s].
 };
 
 /** @brief Result of one push(); fixed size, no allocation. */
@@ -199,10 +199,10 @@ class StateRecognizer {
   std::vector<Record> records_;  // strictly increasing running maxima of fbar before k
 
   // State machine counters.
-  int run_ = 0;                 // length of the current confirming run
-  std::size_t run_start_ = 0;   // raw index of the first sample of that run
+  int run_ = 0;                // length of the current confirming run
+  std::size_t run_start_ = 0;  // raw index of the first sample of that run
   double run_start_t_ = 0.0;
-  int delay_left_ = -1;         // averaged samples until stop after key point 4 (-1: inactive)
+  int delay_left_ = -1;  // averaged samples until stop after key point 4 (-1: inactive)
   double inner_peak_ = 0.0;
   std::size_t inner_peak_index_ = 0;
   double inner_peak_t_ = 0.0;

@@ -44,18 +44,18 @@ struct TrialSequencerParams {
   /** @brief Segmentation and prediction; feed_rate_m_s is set per trial. drill_axis is set from
    *         the arm by the constructor. */
   CompensationParams compensation;
-  double default_feed_rate_mm_s = 0.5;   ///< StartTrial 0 means this, (0, 10]
-  double default_spindle_rpm = 12000.0;  ///< (0, 60000]
+  double default_feed_rate_mm_s = 0.5;    ///< StartTrial 0 means this, (0, 10]
+  double default_spindle_rpm = 12000.0;   ///< (0, 60000]
   double default_max_duration_s = 120.0;  ///< (0, 3600]
-  double move_duration_s = 2.0;          ///< arm motion to the drilling pose, (0, 60]
-  double settle_s = 0.5;                 ///< wait before the registration, [0, 60]
-  int registration_samples = 4;          ///< tracker samples averaged, [1, 100]
-  double registration_timeout_s = 3.0;   ///< (0, 60]
-  double stop_hold_s = 1.0;              ///< hold after a recognizer stop, [0, 60]
-  RetreatParams retreat;                 ///< retreat along the drill axis
-  std::vector<std::string> arm_joints;   ///< the arm's joints, in command order
+  double move_duration_s = 2.0;           ///< arm motion to the drilling pose, (0, 60]
+  double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
+  int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
+  double registration_timeout_s = 3.0;    ///< (0, 60]
+  double stop_hold_s = 1.0;               ///< hold after a recognizer stop, [0, 60]
+  RetreatParams retreat;                  ///< retreat along the drill axis
+  std::vector<std::string> arm_joints;    ///< the arm's joints, in command order
   std::string feed_joint = "feed_joint";
-  double feed_lower_m = 0.0;             ///< feed joint limits (URDF)
+  double feed_lower_m = 0.0;  ///< feed joint limits (URDF)
   double feed_upper_m = 0.06;
 
   /** @brief Check every field. @throws std::invalid_argument naming the field first. */
@@ -64,7 +64,7 @@ struct TrialSequencerParams {
 
 /** @brief What a trial is started with; 0 in a number means the parameter's default. */
 struct TrialRequest {
-  std::string mode;             ///< stationary | uncompensated | compensated
+  std::string mode;  ///< stationary | uncompensated | compensated
   double spindle_rpm = 0.0;
   double feed_rate_mm_s = 0.0;
   double max_duration_s = 0.0;

@@ -58,15 +58,15 @@ enum class ExpiratorySpec {
 
 /** @brief Ventilator settings, all in SI-like clinical units (ml, breaths/min, s). */
 struct VentilatorSettings {
-  double tv_max_ml = 500.0;        ///< set tidal volume, ml, (0, 3000]
-  double rate_bpm = 12.0;          ///< breaths per minute, (0, 60]
-  double ie_inspiratory = 1.0;     ///< I of the I:E ratio, > 0
-  double ie_expiratory = 2.0;      ///< E of the I:E ratio, > 0
+  double tv_max_ml = 500.0;     ///< set tidal volume, ml, (0, 3000]
+  double rate_bpm = 12.0;       ///< breaths per minute, (0, 60]
+  double ie_inspiratory = 1.0;  ///< I of the I:E ratio, > 0
+  double ie_expiratory = 2.0;   ///< E of the I:E ratio, > 0
   InspiratoryWaveform waveform = InspiratoryWaveform::kSquare;
-  double pause_fraction = 0.0;     ///< inspiratory pause as a fraction of Ti, [0, 0.5]
+  double pause_fraction = 0.0;  ///< inspiratory pause as a fraction of Ti, [0, 0.5]
   ExpiratorySpec expiratory_spec = ExpiratorySpec::kPeakRatio;
-  double peak_flow_ratio = 1.5;    ///< used with kPeakRatio, [0.2, 10]
-  double expiratory_tau_s = 0.4;   ///< used with kTimeConstant, (0, 10]
+  double peak_flow_ratio = 1.5;   ///< used with kPeakRatio, [0.2, 10]
+  double expiratory_tau_s = 0.4;  ///< used with kTimeConstant, (0, 10]
   /// Shape parameter of the ramps: flow at the low end as a fraction of the peak, [0, 1).
   double ramp_start_fraction = 0.0;
   /// Shape parameter of the exponential rise/decay: time constant as a fraction of the flow
@@ -89,10 +89,10 @@ struct VentilatorSample {
 
 /** @brief Residuals of a candidate set of constants against the balance constraints. */
 struct ConstraintResiduals {
-  double inspired_minus_tv_ml = 0.0;   ///< inspired volume - Tv_max
-  double expired_plus_tv_ml = 0.0;     ///< expired (negative) volume + Tv_max
-  double end_flow_jump_ml_s = 0.0;     ///< |flow just before the next breath| (continuity)
-  double peak_ratio_error = 0.0;       ///< peak expiratory / inspiratory flow - requested ratio
+  double inspired_minus_tv_ml = 0.0;  ///< inspired volume - Tv_max
+  double expired_plus_tv_ml = 0.0;    ///< expired (negative) volume + Tv_max
+  double end_flow_jump_ml_s = 0.0;    ///< |flow just before the next breath| (continuity)
+  double peak_ratio_error = 0.0;      ///< peak expiratory / inspiratory flow - requested ratio
 };
 
 /** @brief Ventilator model of one setting; immutable, cheap to evaluate. */
@@ -102,13 +102,13 @@ class VentilatorModel {
   explicit VentilatorModel(const VentilatorSettings& settings);
 
   const VentilatorSettings& settings() const { return settings_; }
-  double period() const { return period_; }                    ///< T, s
+  double period() const { return period_; }                     ///< T, s
   double inspiratoryTime() const { return inspiratory_time_; }  ///< Ti incl. pause, s
   double flowTime() const { return flow_time_; }                ///< Ti - pause, s
-  double inspiratoryAmplitude() const { return amplitude_; }   ///< A, ml/s
-  double expiratoryPeak() const { return expiratory_peak_; }   ///< P, ml/s
-  double expiratoryTau() const { return expiratory_tau_; }     ///< tau, s
-  double peakInspiratoryFlow() const;                          ///< max inspiratory flow, ml/s
+  double inspiratoryAmplitude() const { return amplitude_; }    ///< A, ml/s
+  double expiratoryPeak() const { return expiratory_peak_; }    ///< P, ml/s
+  double expiratoryTau() const { return expiratory_tau_; }      ///< tau, s
+  double peakInspiratoryFlow() const;                           ///< max inspiratory flow, ml/s
   int solverIterations() const { return solver_iterations_; }
 
   /** @brief Flow at time tau within a cycle, tau in [0, T). */

@@ -90,23 +90,23 @@ struct PairedSamples {
 
 /** @brief Parameters of one virtual volunteer (see file doc for the sources). */
 struct VolunteerParams {
-  int id = 0;                       ///< volunteer id
-  std::uint64_t seed = 0;           ///< std::mt19937_64 seed of all random parts
-  double duration_s = 30.0;         ///< recording length (paper: about 30 s)
-  double tv_rate_hz = 64.0;         ///< flow-sensor rate (paper)
-  double disp_rate_hz = 8.0;        ///< tracker rate (paper)
-  double breaths_per_min = 20.0;    ///< mean spontaneous rate
-  double rate_cv = 0.12;            ///< breath-to-breath CV of the breath duration
-  double tidal_volume_ml = 500.0;   ///< mean tidal volume
-  double tidal_volume_cv = 0.15;    ///< breath-to-breath CV of the tidal volume
+  int id = 0;                           ///< volunteer id
+  std::uint64_t seed = 0;               ///< std::mt19937_64 seed of all random parts
+  double duration_s = 30.0;             ///< recording length (paper: about 30 s)
+  double tv_rate_hz = 64.0;             ///< flow-sensor rate (paper)
+  double disp_rate_hz = 8.0;            ///< tracker rate (paper)
+  double breaths_per_min = 20.0;        ///< mean spontaneous rate
+  double rate_cv = 0.12;                ///< breath-to-breath CV of the breath duration
+  double tidal_volume_ml = 500.0;       ///< mean tidal volume
+  double tidal_volume_cv = 0.15;        ///< breath-to-breath CV of the tidal volume
   double breath_autocorrelation = 0.3;  ///< lag-1 correlation of breath components
-  double ti_over_ttot = 0.42;       ///< inspiratory fraction of a breath
-  double tv_noise_ml = 3.0;         ///< flow-sensor (integrated volume) white noise, ml
-  MotionModel truth;                ///< hysteresis-model truth per axis (q1, q2, q0)
-  std::array<double, 3> tracker_noise_mm{{0.2, 0.2, 0.2}};   ///< white noise sigma per axis
-  std::array<double, 3> drift_mm{{0.2, 0.2, 0.2}};           ///< drift amplitude per axis
-  double movements_per_min = 2.0;                            ///< Poisson rate of movements
-  std::array<double, 3> movement_mm{{0.1, 0.1, 0.25}};       ///< movement size sigma per axis
+  double ti_over_ttot = 0.42;           ///< inspiratory fraction of a breath
+  double tv_noise_ml = 3.0;             ///< flow-sensor (integrated volume) white noise, ml
+  MotionModel truth;                    ///< hysteresis-model truth per axis (q1, q2, q0)
+  std::array<double, 3> tracker_noise_mm{{0.2, 0.2, 0.2}};  ///< white noise sigma per axis
+  std::array<double, 3> drift_mm{{0.2, 0.2, 0.2}};          ///< drift amplitude per axis
+  double movements_per_min = 2.0;                           ///< Poisson rate of movements
+  std::array<double, 3> movement_mm{{0.1, 0.1, 0.25}};      ///< movement size sigma per axis
 
   /** @brief Same volunteer with no tracker / flow noise, no drift and no movements. */
   VolunteerParams noiseFree() const;
@@ -127,10 +127,10 @@ struct VolunteerData {
  *        `t`, either a step that persists (`hold` < 0) or a bump that returns after `hold` s.
  */
 struct PatientMovement {
-  double t = 0.0;                        ///< onset [s]
-  double ramp = 0.5;                     ///< transition time [s]
-  double hold = -1.0;                    ///< < 0: step; else time held before returning [s]
-  std::array<double, 3> size{{0, 0, 0}}; ///< displacement per axis (AP, SI, LR) [mm]
+  double t = 0.0;                         ///< onset [s]
+  double ramp = 0.5;                      ///< transition time [s]
+  double hold = -1.0;                     ///< < 0: step; else time held before returning [s]
+  std::array<double, 3> size{{0, 0, 0}};  ///< displacement per axis (AP, SI, LR) [mm]
 };
 
 /** @brief Sum of the movements' displacement along `axis` (0 AP, 1 SI, 2 LR) at time t [mm]. */

@@ -61,14 +61,14 @@ namespace detail {
 
 /** @brief Raw generated filter data (one row of the table in wavelet_filters.cpp). */
 struct RawWaveletFilters {
-  const char* name;        ///< PyWavelets name.
-  WaveletFamily family;    ///< Family.
-  bool orthogonal;         ///< pywt.Wavelet(name).orthogonal.
-  std::size_t length;      ///< Filter length.
-  const double* dec_lo;    ///< Decomposition low-pass.
-  const double* dec_hi;    ///< Decomposition high-pass.
-  const double* rec_lo;    ///< Reconstruction low-pass.
-  const double* rec_hi;    ///< Reconstruction high-pass.
+  const char* name;      ///< PyWavelets name.
+  WaveletFamily family;  ///< Family.
+  bool orthogonal;       ///< pywt.Wavelet(name).orthogonal.
+  std::size_t length;    ///< Filter length.
+  const double* dec_lo;  ///< Decomposition low-pass.
+  const double* dec_hi;  ///< Decomposition high-pass.
+  const double* rec_lo;  ///< Reconstruction low-pass.
+  const double* rec_hi;  ///< Reconstruction high-pass.
 };
 
 /**

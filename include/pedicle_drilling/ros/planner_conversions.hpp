@@ -53,8 +53,7 @@ geometry_msgs::PoseStamped toMsg(const core::PredictedMarker& marker);
  * @return false with the reason in *why when one is missing, fails or refuses; the answers of
  *         those that accepted are logged.
  */
-bool callTriggerChain(std::vector<ros::ServiceClient>* clients, double timeout_s,
-                      std::string* why);
+bool callTriggerChain(std::vector<ros::ServiceClient>* clients, double timeout_s, std::string* why);
 
 /** @brief Logs the sequencer's messages at their levels, prefixed with `who`. */
 void logSequencerMessages(const std::vector<core::SequencerLog>& log, const std::string& who);
