@@ -15,6 +15,21 @@ def good_csv(tmp_path_factory, bin_dir):
     return (d / 'volunteer_1.csv').read_text().splitlines()
 
 
+def identify(bin_dir, csv_path, model, *extra):
+    """Runs identify on csv_path, writing model; returns the finished process."""
+    return subprocess.run([os.path.join(bin_dir, 'identify'), '--input', str(csv_path),
+                           '--output', str(model)] + [str(e) for e in extra],
+                          capture_output=True, text=True, timeout=60)
+
+
+def prepared(tmp_path, good_csv):
+    """The recording written to tmp_path and an empty output folder."""
+    csv_path = write(tmp_path / 'rec.csv', good_csv)
+    out_dir = tmp_path / 'out'
+    out_dir.mkdir()
+    return csv_path, out_dir
+
+
 def write(path, lines):
     path.write_text('\n'.join(lines) + '\n')
     return str(path)
@@ -72,12 +87,8 @@ CASES = {
 @pytest.mark.parametrize('case', sorted(CASES))
 def test_bad_input_exit_2_names_problem_writes_nothing(tmp_path, bin_dir, good_csv, case):
     mutate, extra, names = CASES[case]
-    csv_path = write(tmp_path / 'rec.csv', mutate(good_csv))
-    out_dir = tmp_path / 'out'
-    out_dir.mkdir()
-    model = out_dir / 'model.yaml'
-    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
-                          str(model)] + extra, capture_output=True, text=True, timeout=60)
+    csv_path, out_dir = prepared(tmp_path, mutate(good_csv))
+    run = identify(bin_dir, csv_path, out_dir / 'model.yaml', *extra)
     assert run.returncode == 2, (run.stdout, run.stderr)
     for n in names:
         assert n in run.stderr, run.stderr
@@ -85,12 +96,8 @@ def test_bad_input_exit_2_names_problem_writes_nothing(tmp_path, bin_dir, good_c
 
 
 def test_good_input_writes_model_and_no_temp_file(tmp_path, bin_dir, good_csv):
-    csv_path = write(tmp_path / 'rec.csv', good_csv)
-    out_dir = tmp_path / 'out'
-    out_dir.mkdir()
-    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
-                          str(out_dir / 'model.yaml')], capture_output=True, text=True,
-                         timeout=60)
+    csv_path, out_dir = prepared(tmp_path, good_csv)
+    run = identify(bin_dir, csv_path, out_dir / 'model.yaml')
     assert run.returncode == 0, run.stderr
     assert os.listdir(out_dir) == ['model.yaml']
     for axis in ('ap:', 'si:', 'lr:'):
@@ -146,25 +153,17 @@ def test_report_prints_wavelet_coefficients_r2_time_and_stiffness(tmp_path, bin_
 def test_unwritable_fit_csv_leaves_no_output_at_all(tmp_path, bin_dir, good_csv):
     """--fit-csv into a folder that does not exist once wrote the model and then exited 1: every
     output's destination is checked before any is written, so nothing is kept."""
-    csv_path = write(tmp_path / 'rec.csv', good_csv)
-    out_dir = tmp_path / 'out'
-    out_dir.mkdir()
-    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
-                          str(out_dir / 'model.yaml'), '--fit-csv',
-                          str(tmp_path / 'missing' / 'fit.csv')],
-                         capture_output=True, text=True, timeout=60)
+    csv_path, out_dir = prepared(tmp_path, good_csv)
+    run = identify(bin_dir, csv_path, out_dir / 'model.yaml', '--fit-csv',
+                   tmp_path / 'missing' / 'fit.csv')
     assert run.returncode == 1, (run.stdout, run.stderr)
     assert 'fit.csv' in run.stderr and 'missing' in run.stderr, run.stderr
     assert os.listdir(out_dir) == []
 
 
 def test_fit_csv_and_model_are_written_together(tmp_path, bin_dir, good_csv):
-    csv_path = write(tmp_path / 'rec.csv', good_csv)
-    out_dir = tmp_path / 'out'
-    out_dir.mkdir()
-    run = subprocess.run([os.path.join(bin_dir, 'identify'), '--input', csv_path, '--output',
-                          str(out_dir / 'model.yaml'), '--fit-csv', str(out_dir / 'fit.csv')],
-                         capture_output=True, text=True, timeout=60)
+    csv_path, out_dir = prepared(tmp_path, good_csv)
+    run = identify(bin_dir, csv_path, out_dir / 'model.yaml', '--fit-csv', out_dir / 'fit.csv')
     assert run.returncode == 0, run.stderr
     assert sorted(os.listdir(out_dir)) == ['fit.csv', 'model.yaml']
     lines = (out_dir / 'fit.csv').read_text().splitlines()
@@ -182,10 +181,8 @@ def test_generate_volunteers_and_identify_count_the_same_breaths(tmp_path, bin_d
                              timeout=60)
         assert gen.returncode == 0, gen.stderr
         generated = int(re.search(r'volunteer %s: (\d+) breaths' % vid, gen.stdout).group(1))
-        ident = subprocess.run([os.path.join(bin_dir, 'identify'), '--input',
-                                str(tmp_path / ('volunteer_%s.csv' % vid)), '--output',
-                                str(tmp_path / ('model_%s.yaml' % vid))],
-                               capture_output=True, text=True, timeout=60)
+        ident = identify(bin_dir, tmp_path / ('volunteer_%s.csv' % vid),
+                         tmp_path / ('model_%s.yaml' % vid))
         assert ident.returncode == 0, ident.stderr
         identified = int(re.search(r'(\d+) breaths', ident.stdout).group(1))
         assert generated == identified, (vid, gen.stdout, ident.stdout)
