@@ -3,7 +3,6 @@
 Everything here is computed from the trial rows (and per-trial traces) alone, so a merge of
 shard directories produces the same report as a single run with the same design."""
 import csv
-import io
 import json
 import math
 import os
@@ -65,13 +64,12 @@ def _format(value):
 
 
 def write_trials_csv(rows, path):
-    rows = sorted(rows, key=sort_key)
+    """trials.csv of `rows`, sorted, written to a temporary file and renamed."""
     tmp = path + '.tmp'
-    with open(tmp, 'w', newline='') as handle:
-        writer = csv.DictWriter(handle, fieldnames=TRIAL_COLUMNS, extrasaction='ignore')
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
+    appender = TrialsAppender(tmp)
+    for row in sorted(rows, key=sort_key):
+        appender.append(row)
+    appender.close()
     os.replace(tmp, path)
 
 
@@ -83,21 +81,14 @@ class TrialsAppender:
 
     def __init__(self, path):
         self._handle = open(path, 'w', newline='')
-        self._buffer = io.StringIO()
-        self._writer = csv.DictWriter(self._buffer, fieldnames=TRIAL_COLUMNS,
+        self._writer = csv.DictWriter(self._handle, fieldnames=TRIAL_COLUMNS,
                                       extrasaction='ignore')
         self._writer.writeheader()
-        self._flush()
-
-    def _flush(self):
-        self._handle.write(self._buffer.getvalue())
         self._handle.flush()
-        self._buffer.seek(0)
-        self._buffer.truncate()
 
     def append(self, row):
         self._writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
-        self._flush()
+        self._handle.flush()
 
     def close(self):
         self._handle.close()

@@ -17,27 +17,24 @@ def tool(name):
 
 class _GivenOnce:
     """Refuses an option given twice on one command line (`--rpm 12000 ... --rpm 16000` would
-    otherwise silently keep the last): the same rule as the C++ tools (core::CliArgs)."""
+    otherwise silently keep the last): the same rule as the C++ tools (core::CliArgs). The
+    options seen are kept in the namespace being filled, so a parser can be used again."""
 
-    def _once(self, parser, namespace, option_string):
-        seen = getattr(self, '_seen', set())
-        if id(namespace) in seen:
+    def __call__(self, parser, namespace, values, option_string=None):
+        given = namespace.__dict__.setdefault('_options_given', set())
+        if self.dest in given:
             parser.error('option %s given more than once: give it once'
                          % (option_string or self.dest))
-        seen.add(id(namespace))
-        self._seen = seen
+        given.add(self.dest)
+        super().__call__(parser, namespace, values, option_string)
 
 
 class _StoreOnce(_GivenOnce, argparse._StoreAction):
-    def __call__(self, parser, namespace, values, option_string=None):
-        self._once(parser, namespace, option_string)
-        super().__call__(parser, namespace, values, option_string)
+    pass
 
 
 class _StoreTrueOnce(_GivenOnce, argparse._StoreTrueAction):
-    def __call__(self, parser, namespace, values, option_string=None):
-        self._once(parser, namespace, option_string)
-        super().__call__(parser, namespace, values, option_string)
+    pass
 
 
 def argument_parser(**kwargs):

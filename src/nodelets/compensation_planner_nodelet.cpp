@@ -60,7 +60,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
       sequencer_ = makeSequencer(params, nh, world_frame_);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
@@ -268,7 +268,6 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, ros::Time::now())); }
 
   std::mutex mutex_;
-  StartupStatus startup_status_;
   core::PatientModel patient_;
   std::unique_ptr<core::TrialSequencer> sequencer_;
   std::string world_frame_;

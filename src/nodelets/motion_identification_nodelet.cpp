@@ -54,7 +54,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       p_ = loadMotionIdentificationParams(ParamLoader(pnh));
       window_.emplace(p_.window_s);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     model_pub_ = nh.advertise<MotionModel>("motion_model", 1, true);
     tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume, this);
@@ -214,7 +214,6 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  StartupStatus startup_status_;
   MotionIdentificationParams p_;
   std::optional<core::IdentificationWindow> window_;
   std::string last_marker_error_;

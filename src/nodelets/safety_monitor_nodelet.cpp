@@ -57,7 +57,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       }
       supervisor_ = std::make_unique<core::SafetySupervisor>(sp);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, true);
@@ -181,7 +181,6 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  StartupStatus startup_status_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;

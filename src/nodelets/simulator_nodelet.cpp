@@ -76,7 +76,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
           tv_rate > 0.0 ? core::streamPeriodSteps(1000.0, tv_rate, "tidal_volume_rate_hz") : 0;
     } catch (const std::exception& e) {
       // Safe state: nothing is advertised, the error names the parameter or the file.
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     if (publish_clock_) {
       clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
@@ -284,7 +284,6 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::DrillingSimulation> sim_;
-  StartupStatus startup_status_;
   std::atomic<bool> running_{false};
   std::thread thread_;
   double real_time_factor_ = 1.0;

@@ -85,7 +85,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       }
       recognizer_ = std::make_unique<core::StateRecognizer>(p);
     } catch (const std::exception& e) {
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
@@ -161,7 +161,6 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  StartupStatus startup_status_;
   std::unique_ptr<core::StateRecognizer> recognizer_;
   int axis_index_ = 2;
   double axis_sign_ = 1.0;

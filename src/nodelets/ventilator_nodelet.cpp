@@ -33,7 +33,7 @@ class VentilatorNodelet : public nodelet::Nodelet {
       scheduler_ = std::make_unique<core::BreathScheduler>(settings, ros::Time::now().toSec());
     } catch (const std::exception& e) {
       // Safe state: nothing is published, the error names the parameter.
-      startup_status_.fail(nh, getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails
     }
     tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 100);
     settings_pub_ = pnh.advertise<VentilatorSettings>("settings", 1, true);
@@ -91,7 +91,6 @@ class VentilatorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  StartupStatus startup_status_;
   std::unique_ptr<core::BreathScheduler> scheduler_;
   std::string frame_id_;
   ros::Publisher tidal_volume_pub_;

@@ -29,10 +29,10 @@
  * rejects tabs, bad indentation, unknown model kinds, missing required keys and non-numeric
  * values with a ModelFileError naming the key and line.
  *
- * Atomic write: the text goes to a unique temporary file (mkstemp) in the destination's
- * directory, is flushed and fsync'ed, then rename()d over the destination (atomic on POSIX
- * within one file system). On any failure the temporary file is removed and ModelFileError is
- * thrown, so the destination is either the old file (or absent) or the complete new one.
+ * Atomic write (core::AtomicFile, atomic_file.hpp): the text goes to a temporary file beside
+ * the destination and is renamed over it. On any failure the temporary file is removed and
+ * ModelFileError is thrown, so the destination is either the old file (or absent) or the
+ * complete new one.
  */
 #pragma once
 

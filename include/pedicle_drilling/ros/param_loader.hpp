@@ -15,6 +15,8 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/cli_args.hpp"
+
 namespace pedicle_drilling {
 
 /** @brief Thrown when a parameter has the wrong type or is out of range. */
@@ -108,16 +110,10 @@ class ParamLoader {
           value.push_back(static_cast<int>(raw[i]));
         }
       } else if (raw.getType() == XmlRpc::XmlRpcValue::TypeString) {
-        std::stringstream items(static_cast<std::string>(raw));
-        std::string item;
-        while (std::getline(items, item, ',')) {
-          size_t used = 0;
-          try {
-            value.push_back(std::stoi(item, &used));
-          } catch (const std::exception&) {
-            fail(name, rule);
-          }
-          if (item.find_first_not_of(' ', used) != std::string::npos) fail(name, rule);
+        try {
+          value = core::parseIntList(static_cast<std::string>(raw), name);
+        } catch (const std::exception&) {
+          fail(name, rule);
         }
       } else {
         fail(name, rule);

@@ -19,55 +19,44 @@
 
 namespace pedicle_drilling {
 
-/** @brief The error a nodelet's onInit throws after StartupStatus::fail reported it. */
+/** @brief The error a nodelet's onInit throws after failStartup reported it. */
 class StartupError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-/** @brief Reports startup failures of the nodelets of this process. */
-class StartupStatus {
- public:
-  /**
-   * @brief Logs @p what as FATAL, adds an ERROR status named "<node_name>: startup" to the
-   *        process's latched /diagnostics array (every failure of this process so far, so that
-   *        two failed nodelets in one manager are both seen by a late subscriber), and throws.
-   * @throws StartupError always: the nodelet must not be loaded.
-   */
-  [[noreturn]] void fail(ros::NodeHandle& /*nh*/, const std::string& node_name,
-                         const std::string& what) {
-    ROS_FATAL_STREAM(node_name << " not started: " << what);
-    Registry& r = registry();
-    {
-      std::lock_guard<std::mutex> lock(r.mutex);
-      if (!r.publisher) {
-        // A global handle: the publisher and its latched message outlive the dropped nodelet.
-        ros::NodeHandle global;
-        r.publisher = global.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 1, true);
-      }
-      r.failures.header.stamp = ros::Time::now();
-      diagnostic_msgs::DiagnosticStatus status;
-      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
-      status.name = node_name + ": startup";
-      status.hardware_id = node_name;
-      status.message = "not started: " + what;
-      r.failures.status.push_back(status);
-      r.publisher.publish(r.failures);
-    }
-    throw StartupError(node_name + " not started: " + what);
-  }
-
- private:
+/**
+ * @brief Logs @p what as FATAL, adds an ERROR status named "<node_name>: startup" to the
+ *        process's latched /diagnostics array (every startup failure of this process so far, so
+ *        that two failed nodelets in one manager are both seen by a late subscriber), and throws.
+ * @throws StartupError always: the nodelet must not be loaded.
+ */
+[[noreturn]] inline void failStartup(const std::string& node_name, const std::string& what) {
+  ROS_FATAL_STREAM(node_name << " not started: " << what);
   struct Registry {
     std::mutex mutex;
     ros::Publisher publisher;
     diagnostic_msgs::DiagnosticArray failures;
   };
-  /** @brief Process-wide, never destroyed (no static destruction after ROS has shut down). */
-  static Registry& registry() {
-    static Registry* r = new Registry;
-    return *r;
+  // Process-wide and never destroyed (no static destruction after ROS has shut down); a global
+  // handle, so the publisher and its latched message outlive the dropped nodelet.
+  static Registry* registry = new Registry;
+  {
+    std::lock_guard<std::mutex> lock(registry->mutex);
+    if (!registry->publisher) {
+      registry->publisher =
+          ros::NodeHandle().advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 1, true);
+    }
+    registry->failures.header.stamp = ros::Time::now();
+    diagnostic_msgs::DiagnosticStatus status;
+    status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+    status.name = node_name + ": startup";
+    status.hardware_id = node_name;
+    status.message = "not started: " + what;
+    registry->failures.status.push_back(status);
+    registry->publisher.publish(registry->failures);
   }
-};
+  throw StartupError(node_name + " not started: " + what);
+}
 
 }  // namespace pedicle_drilling
