@@ -32,6 +32,9 @@ for scenario in exact virtual_patient hysteresis; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_${scenario}.yaml" \
     --trials 200 --jobs "${JOBS}" --out "${OUT}/campaign_${scenario}"
 done
+# 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 50 unseen seeds.
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/campaign_faults"
 # 3. The integration check: the first trials of the paper's design through the full ROS
 #    pipeline, twice, trial by trial beside the core engine (the same seeds). The virtual
 #    patient's agreement is measured by test_engine_agreement.py (opt-in; README).
@@ -57,5 +60,6 @@ echo "  ${OUT}/campaign/report.md"
 echo "  ${OUT}/campaign_exact/report.md"
 echo "  ${OUT}/campaign_virtual_patient/report.md"
 echo "  ${OUT}/campaign_hysteresis/report.md"
+echo "  ${OUT}/campaign_faults/report.md"
 echo "  ${OUT}/engine_agreement.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

@@ -12,7 +12,7 @@ import time
 import yaml
 
 from . import engine_core, plots, report, tools
-from .design import CASES, build_design, parse_shard, shard
+from .design import CASES, FAULTS, build_design, parse_shard, shard
 
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
@@ -35,6 +35,17 @@ SCENARIO_KEYS = {
     'bone_motion': (str, None, None),
     'compensation_profile': (str, None, None),
     'simulator': (dict, None, None),
+    'faults': (list, None, None),
+    'fault_params': (dict, None, None),
+}
+# fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
+FAULT_PARAMS = {
+    'spike_n': '--fault-spike-n',
+    'drift_n_per_s': '--fault-drift-n-per-s',
+    'tracker_jump_m': '--fault-tracker-jump-m',
+    'amplitude_factor': '--fault-amplitude-factor',
+    'rate_change_bpm': '--fault-rate-change-bpm',
+    'command_delay_s': '--fault-command-delay-s',
 }
 ENGINES = ('core', 'ros')
 # compensation_profile: the planner's segment profile (its ~segment_profile): the paper's 125 ms
@@ -125,6 +136,25 @@ def load_scenario(path):
                              % (path, value, ', '.join(COMPENSATION_PROFILES)))
         if key == 'model' and value not in ('linear', 'hysteresis'):
             raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
+        if key == 'faults':
+            if not value:
+                raise UsageError('--scenario %s: faults is empty' % path)
+            for fault in value:
+                if fault not in FAULTS:
+                    raise UsageError('--scenario %s: faults: unknown fault %r (known: %s)'
+                                     % (path, fault, ', '.join(FAULTS)))
+            twice = sorted({f for f in value if value.count(f) > 1})
+            if twice:
+                raise UsageError('--scenario %s: faults: %s listed twice'
+                                 % (path, ', '.join(twice)))
+        if key == 'fault_params':
+            for name, number in value.items():
+                if name not in FAULT_PARAMS:
+                    raise UsageError('--scenario %s: unknown key fault_params.%s (known: %s)'
+                                     % (path, name, ', '.join(sorted(FAULT_PARAMS))))
+                if isinstance(number, bool) or not isinstance(number, (int, float)):
+                    raise UsageError('--scenario %s: fault_params.%s must be a number'
+                                     % (path, name))
         if key == 'cases':
             for case in value:
                 if case not in CASES:
@@ -169,6 +199,9 @@ def parse_args(argv):
                              'core yet (use --engine ros)')
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+    elif scenario.get('faults') or scenario.get('fault_params'):
+        raise UsageError('scenario keys faults/fault_params: faults are injected by --engine core '
+                         'only (the ROS pipeline has one rostest per fault, README)')
     if args.case is None:
         cases = list(scenario.get('cases', CASES))
     elif args.case == 'all':
@@ -252,7 +285,9 @@ def write_outputs(rows, meta, out_dir, notes=''):
     # merge of shards, which can only read trials.csv, gives the very same summary and report.
     rows = report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
     summary = report.summarise(rows)
-    report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'))
+    faults = report.fault_summary(rows)
+    rows = [r for r in rows if r['fault'] == 'none']  # the paper's figures: fault-free trials
+    report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'), faults)
     figures = []
     for title, name in (
             ('Table III', plots.table3(summary, out_dir)),
@@ -268,7 +303,8 @@ def write_outputs(rows, meta, out_dir, notes=''):
         with open(table2) as handle:
             notes = notes + '\n\n## Table II (identification on the five virtual volunteers)\n\n' \
                 + handle.read()
-    report.write_report_md(summary, meta, figures, os.path.join(out_dir, 'report.md'), notes)
+    report.write_report_md(summary, meta, figures, os.path.join(out_dir, 'report.md'), notes,
+                           faults)
     return summary
 
 
@@ -278,7 +314,8 @@ def run_campaign(argv=None):
     except UsageError as error:
         sys.stderr.write('campaign: %s\n' % error)
         return 2
-    design = build_design(cases, rpms, trials, seed)
+    faults = scenario.get('faults')
+    design = build_design(cases, rpms, trials, seed, faults)
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
@@ -289,6 +326,10 @@ def run_campaign(argv=None):
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
             'engine': args.engine}
+    if faults:
+        meta['faults'] = list(faults)
+        meta['fault_params'] = {k: float(v) for k, v in
+                                sorted((scenario.get('fault_params') or {}).items())}
     with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
@@ -329,7 +370,9 @@ def run_campaign(argv=None):
                 scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
                 float(scenario.get('feed_rate_mm_s', 0.5)),
                 float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
-                COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')])))
+                COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
+                [(FAULT_PARAMS[k], float(v))
+                 for k, v in sorted((scenario.get('fault_params') or {}).items())])))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
@@ -440,7 +483,7 @@ def run_merge(argv=None):
                 with open(os.path.join(traces, name)) as src, \
                         open(os.path.join(out_dir, 'traces', name), 'w') as dst:
                     dst.write(src.read())
-    keys = ('cases', 'rpms', 'trials', 'seed', 'simulator')
+    keys = ('cases', 'rpms', 'trials', 'seed', 'simulator', 'faults', 'fault_params')
     if any(tuple(m.get(k) for k in keys) != tuple(metas[0].get(k) for k in keys)
            for m in metas):
         sys.stderr.write('campaign_merge: the directories come from different designs\n')

@@ -6,6 +6,10 @@ virtual patients (a paired design: differences between cases are not specimen lu
 import hashlib
 
 CASES = ('stationary', 'uncompensated', 'compensated')
+# Faults the core engine injects (core::FaultKind, `trial_engine --list-faults`), in its order.
+FAULTS = ('none', 'force_silent', 'force_nan', 'force_inf', 'force_spike', 'force_stuck',
+          'force_drift', 'tracker_silent', 'tracker_jump', 'tracker_stale', 'breathing_amplitude',
+          'breathing_rate_up', 'breathing_rate_down', 'command_lost', 'command_delayed')
 
 
 def trial_seed(base_seed, rpm, index):
@@ -14,9 +18,11 @@ def trial_seed(base_seed, rpm, index):
     return int.from_bytes(digest[:8], 'big') >> 1
 
 
-def build_design(cases, rpms, trials, base_seed):
-    """All trials in canonical order: by rpm, then index, then case. `trials` is the count per
-    case and speed, or a list of one count per rpm (a trial's seed does not depend on it)."""
+def build_design(cases, rpms, trials, base_seed, faults=None):
+    """All trials in canonical order: by rpm, then index, then case, then fault. `trials` is the
+    count per case and speed, or a list of one count per rpm (a trial's seed does not depend on
+    it). With `faults` (a fault campaign), every case runs once per fault on the same seed, so
+    that each fault is paired with the fault-free trial of the same specimen and patient."""
     counts = trials if isinstance(trials, list) else [trials] * len(rpms)
     if len(counts) != len(rpms):
         raise ValueError('%d trial counts for %d spindle speeds' % (len(counts), len(rpms)))
@@ -25,13 +31,24 @@ def build_design(cases, rpms, trials, base_seed):
         for index in range(count):
             seed = trial_seed(base_seed, rpm, index)
             for case in cases:
-                design.append({
-                    'trial_id': '%s-%d-%03d' % (case, int(rpm), index),
-                    'case': case,
-                    'rpm': float(rpm),
-                    'index': index,
-                    'seed': seed,
-                })
+                if not faults:
+                    design.append({
+                        'trial_id': '%s-%d-%03d' % (case, int(rpm), index),
+                        'case': case,
+                        'rpm': float(rpm),
+                        'index': index,
+                        'seed': seed,
+                    })
+                    continue
+                for fault in faults:
+                    design.append({
+                        'trial_id': '%s-%s-%d-%03d' % (case, fault, int(rpm), index),
+                        'case': case,
+                        'rpm': float(rpm),
+                        'index': index,
+                        'seed': seed,
+                        'fault': fault,
+                    })
     return design
 
 

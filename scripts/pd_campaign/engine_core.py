@@ -30,7 +30,9 @@ class RecordedTrial:
 
 
 def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
-                         feed_rate, max_duration, default_model, segment_profile='rest_to_rest'):
+                         feed_rate, max_duration, default_model, segment_profile='rest_to_rest',
+                         fault_options=()):
+    """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15)."""
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
                '--model', model, '--bone-motion', bone_motion,
@@ -38,7 +40,28 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                '--default-model', default_model, '--segment-profile', segment_profile]
     if models_dir:
         command += ['--models-dir', models_dir]
+    for option, value in fault_options:
+        command += [option, repr(value)]
     return command
+
+
+def fault_columns(row, record):
+    """fault, fault_time_s (from the start of drilling), stop_delay_s (fault to the first stop
+    command) and retreat_delay_s (fault to the start of the retreat) of a finished trial."""
+    fault = record.get('fault') or {}
+    row['fault'] = fault.get('name', 'none')
+    for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s'):
+        row[key] = None
+    if row['fault'] == 'none' or not fault.get('injected'):
+        return row
+    t_fault = fault['t']
+    t_drill = next((t for (t, s) in record['status'] if s == 'drilling'), None)
+    row['fault_time_s'] = t_fault - t_drill if t_drill is not None else None
+    stop = next((s for s in record['stops'] if s[0] >= t_fault), None)
+    row['stop_delay_s'] = stop[0] - t_fault if stop else None
+    retreat = next((t for (t, s) in record['status'] if s == 'retreating' and t >= t_fault), None)
+    row['retreat_delay_s'] = retreat - t_fault if retreat is not None else None
+    return row
 
 
 def row_from_line(line, trace_dir):
@@ -46,6 +69,7 @@ def row_from_line(line, trace_dir):
     result = json.loads(line)
     row = dict(result['trial'])
     row['engine'] = 'core'
+    row.setdefault('fault', 'none')
     if 'error' in result:
         row['success'] = False
         row['error'] = str(result['error']).replace('\n', ' ')[:300]
@@ -55,7 +79,8 @@ def row_from_line(line, trace_dir):
         row[key] = record['conditions'][key]
     row['wall_s'] = None  # trial_engine reports no wall time per trial: nothing to compare
     try:
-        return worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
+        row = worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
+        return fault_columns(row, record)
     except RuntimeError as error:
         row['success'] = False
         row['error'] = str(error)[:300]

@@ -8,11 +8,12 @@ import math
 import os
 
 from . import stats
-from .design import CASES
+from .design import CASES, FAULTS
 
 TRIAL_COLUMNS = [
-    'trial_id', 'case', 'rpm', 'index', 'seed', 'engine', 'success', 'residual_mm', 'f_out_n', 'f_in_n',
-    'stop_reason', 'stop_source', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
+    'trial_id', 'case', 'rpm', 'index', 'seed', 'fault', 'engine', 'success', 'residual_mm',
+    'f_out_n', 'f_in_n', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
+    'retreat_delay_s', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
@@ -42,7 +43,8 @@ def normalise_row(row):
     out['seed'] = int(row['seed'])
     out['success'] = str(row['success']).lower() in ('1', 'true')
     out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
-    for key in ('residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
+    out['fault'] = row.get('fault') or 'none'
+    for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s', 'residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
                 'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                 'force_noise_sd_n', 'arm_stiffness_scale',
                 'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
@@ -52,7 +54,9 @@ def normalise_row(row):
 
 
 def sort_key(row):
-    return (row['rpm'], row['index'], CASES.index(row['case']) if row['case'] in CASES else 9)
+    fault = row.get('fault') or 'none'
+    return (row['rpm'], row['index'], CASES.index(row['case']) if row['case'] in CASES else 9,
+            FAULTS.index(fault) if fault in FAULTS else len(FAULTS))
 
 
 def _format(value):
@@ -105,9 +109,12 @@ def read_trials_csv(path):
 
 
 def summarise(rows):
-    """Per case and rpm: trials, successes, success rate with its Wilson 95 % interval, medians."""
+    """Per case and rpm: trials, successes, success rate with its Wilson 95 % interval, medians.
+    Trials with an injected fault are left out (fault_summary reports them)."""
     groups = {}
     for row in rows:
+        if (row.get('fault') or 'none') != 'none':
+            continue
         groups.setdefault((row['case'], row['rpm']), []).append(row)
     summary = []
     for (case, rpm), group in sorted(groups.items(),
@@ -151,6 +158,79 @@ def summarise(rows):
     return summary
 
 
+def _maximum(values):
+    values = [v for v in values if v is not None]
+    return max(values) if values else None
+
+
+def _minimum(values):
+    values = [v for v in values if v is not None]
+    return min(values) if values else None
+
+
+def fault_summary(rows):
+    """Per case, rpm and fault (fault campaigns): trials, the faults injected, breakthroughs of
+    the inner cortical layer, who stopped the drill, fault-to-stop and fault-to-retreat delays,
+    and the residual thickness left. Empty when no trial had a fault."""
+    if all((r.get('fault') or 'none') == 'none' for r in rows):
+        return []
+    groups = {}
+    for row in rows:
+        groups.setdefault((row['case'], row['rpm'], row.get('fault') or 'none'), []).append(row)
+    out = []
+    for (case, rpm, fault), group in sorted(groups.items(), key=lambda kv: (
+            kv[0][1], CASES.index(kv[0][0]) if kv[0][0] in CASES else 9,
+            FAULTS.index(kv[0][2]) if kv[0][2] in FAULTS else len(FAULTS))):
+        valid = [r for r in group if not r.get('error')]
+        injected = [r for r in valid if fault == 'none' or r.get('fault_time_s') is not None]
+        stopped = [r for r in injected if r.get('stop_delay_s') is not None]
+        retreated = [r for r in injected if r.get('retreat_delay_s') is not None]
+        breakthroughs = sum(1 for r in valid if r['breakthrough'])
+        low, high = stats.wilson_interval(breakthroughs, len(valid))
+        out.append({
+            'case': case, 'rpm': rpm, 'fault': fault,
+            'trials': len(valid), 'errors': len(group) - len(valid),
+            'injected': len(injected) if fault != 'none' else None,
+            'breakthroughs': breakthroughs, 'breakthrough_wilson95': [low, high],
+            'successes': sum(1 for r in valid if r['success']),
+            'stopped_after_fault': len(stopped) if fault != 'none' else None,
+            'retreated_after_fault': len(retreated) if fault != 'none' else None,
+            'median_stop_delay_s': stats.median([r['stop_delay_s'] for r in stopped]),
+            'max_stop_delay_s': _maximum([r['stop_delay_s'] for r in stopped]),
+            'median_retreat_delay_s': stats.median([r['retreat_delay_s'] for r in retreated]),
+            'max_retreat_delay_s': _maximum([r['retreat_delay_s'] for r in retreated]),
+            'median_residual_mm': stats.median([r['residual_mm'] for r in valid]),
+            'min_residual_mm': _minimum([r['residual_mm'] for r in valid]),
+            'stop_reasons': _count(stop_category(r) for r in injected),
+        })
+    return out
+
+
+def fault_table(faults):
+    """The fault campaign's table (README "Fault campaign")."""
+    lines = ['| case | rpm | fault | trials | injected | breakthroughs (Wilson 95 % upper) '
+             '| stopped / retreated after the fault | fault to stop: median / max [s] '
+             '| fault to retreat: median / max [s] | residual: median / min [mm] | stops |',
+             '|---|---|---|---|---|---|---|---|---|---|---|']
+    for g in faults:
+        none = g['fault'] == 'none'
+        lines.append('| %s | %.0f | %s | %d%s | %s | %d (%s) | %s | %s / %s | %s / %s | %s / %s '
+                     '| %s |' % (
+                         g['case'], g['rpm'], g['fault'], g['trials'],
+                         ' (+%d errored)' % g['errors'] if g['errors'] else '',
+                         '-' if none else '%d' % g['injected'], g['breakthroughs'],
+                         _pct(g['breakthrough_wilson95'][1]),
+                         '-' if none else '%d / %d' % (g['stopped_after_fault'],
+                                                       g['retreated_after_fault']),
+                         _num(g['median_stop_delay_s'], '%.3f'),
+                         _num(g['max_stop_delay_s'], '%.3f'),
+                         _num(g['median_retreat_delay_s'], '%.3f'),
+                         _num(g['max_retreat_delay_s'], '%.3f'),
+                         _num(g['median_residual_mm']), _num(g['min_residual_mm']),
+                         ', '.join('%s %d' % kv for kv in g['stop_reasons'].items())))
+    return '\n'.join(lines)
+
+
 def stop_category(row):
     """Who stopped the drill and why, without the per-trial details of the message."""
     source = (row.get('stop_source') or '').rsplit('/', 1)[-1]
@@ -184,10 +264,13 @@ def _count(items):
     return dict(sorted(counts.items()))
 
 
-def write_summary_json(summary, meta, path):
+def write_summary_json(summary, meta, path, faults=None):
     tmp = path + '.tmp'
+    content = {'meta': meta, 'groups': summary}
+    if faults:
+        content['faults'] = faults
     with open(tmp, 'w') as handle:
-        json.dump({'meta': meta, 'groups': summary}, handle, indent=2, sort_keys=True)
+        json.dump(content, handle, indent=2, sort_keys=True)
         handle.write('\n')
     os.replace(tmp, path)
 
@@ -315,7 +398,7 @@ def _bone_motion(meta):
     return 'Prediction model: %s.' % model
 
 
-def write_report_md(summary, meta, figures, path, notes=''):
+def write_report_md(summary, meta, figures, path, notes='', faults=None):
     lines = ['# Campaign report', '',
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
@@ -354,6 +437,18 @@ def write_report_md(summary, meta, figures, path, notes=''):
     findings = analysis(summary)
     if findings:
         lines += [findings, '']
+    if faults:
+        lines += ['## Faults', '',
+                  'Each fault injected once per trial, when the deepest cut first reaches a depth '
+                  'drawn from the seed between the bone surface and the inner cortical layer '
+                  '(breathing faults from the next breath, command faults on the next command); '
+                  'every fault on the same seeds as the fault-free row. Fault sizes: %s.' % (
+                      ', '.join('%s = %g' % kv for kv in sorted(
+                          (meta.get('fault_params') or {}).items())) or 'the defaults'),
+                  'Stop delay: fault to the first stop command (recognizer or monitor); retreat '
+                  'delay: fault to the start of the retreat; residual: inner cortical thickness '
+                  'left at the end of the trial (negative: broken through).', '',
+                  fault_table(faults), '']
     if notes:
         lines += [notes.strip(), '']
     if figures:

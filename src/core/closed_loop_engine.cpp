@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -26,6 +27,85 @@ void EngineDelays::validate() const {
 }
 
 namespace {
+
+struct FaultName {
+  FaultKind kind;
+  const char* name;
+};
+
+constexpr FaultName kFaultNames[] = {
+    {FaultKind::kNone, "none"},
+    {FaultKind::kForceSilent, "force_silent"},
+    {FaultKind::kForceNaN, "force_nan"},
+    {FaultKind::kForceInf, "force_inf"},
+    {FaultKind::kForceSpike, "force_spike"},
+    {FaultKind::kForceStuck, "force_stuck"},
+    {FaultKind::kForceDrift, "force_drift"},
+    {FaultKind::kTrackerSilent, "tracker_silent"},
+    {FaultKind::kTrackerJump, "tracker_jump"},
+    {FaultKind::kTrackerStale, "tracker_stale"},
+    {FaultKind::kBreathingAmplitude, "breathing_amplitude"},
+    {FaultKind::kBreathingRateUp, "breathing_rate_up"},
+    {FaultKind::kBreathingRateDown, "breathing_rate_down"},
+    {FaultKind::kCommandLost, "command_lost"},
+    {FaultKind::kCommandDelayed, "command_delayed"},
+};
+
+}  // namespace
+
+const char* toString(FaultKind kind) {
+  for (const FaultName& f : kFaultNames) {
+    if (f.kind == kind) return f.name;
+  }
+  return "unknown";
+}
+
+std::vector<std::string> faultNames() {
+  std::vector<std::string> names;
+  for (const FaultName& f : kFaultNames) names.emplace_back(f.name);
+  return names;
+}
+
+FaultKind parseFaultKind(const std::string& name) {
+  std::string known;
+  for (const FaultName& f : kFaultNames) {
+    if (name == f.name) return f.kind;
+    known += (known.empty() ? "" : ", ") + std::string(f.name);
+  }
+  throw std::invalid_argument("fault '" + name + "' is not one of: " + known);
+}
+
+void FaultParams::validate() const {
+  const auto check = [](double v, double low, double high, const char* name) {
+    if (!(std::isfinite(v) && v >= low && v <= high)) {
+      std::ostringstream os;
+      os << name << ": must be in [" << low << ", " << high << "] (got " << v << ")";
+      throw std::invalid_argument(os.str());
+    }
+  };
+  check(spike_n, 0.0, 1e4, "spike_n");
+  check(drift_n_per_s, -100.0, 100.0, "drift_n_per_s");
+  check(tracker_jump_m, -0.1, 0.1, "tracker_jump_m");
+  check(amplitude_factor, 0.0, 10.0, "amplitude_factor");
+  check(rate_change_bpm, 0.0, 30.0, "rate_change_bpm");
+  check(command_delay_s, 0.0, 10.0, "command_delay_s");
+}
+
+namespace {
+
+/** @brief The fault's trigger depth as a fraction of the inner layer's start: its own stream. */
+double faultDepthFraction(std::uint64_t seed) {
+  return uniformFromSeed(seed + 0x2545f4914f6cdd1dULL);
+}
+
+bool isBreathingFault(FaultKind k) {
+  return k == FaultKind::kBreathingAmplitude || k == FaultKind::kBreathingRateUp ||
+         k == FaultKind::kBreathingRateDown;
+}
+
+bool isCommandFault(FaultKind k) {
+  return k == FaultKind::kCommandLost || k == FaultKind::kCommandDelayed;
+}
 
 /** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
 std::uint64_t periodSteps(double rate_hz, const char* name) {
@@ -72,6 +152,93 @@ struct ClosedLoopEngine::Impl {
   EngineTrialRecord record;
   long last_breath_index = -1;
   double now = 0.0;
+
+  // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
+  bool fault_armed = false;    // the trial has started: the trigger is watched
+  bool fault_pending = false;  // triggered, waiting for the next breath or command
+  long fault_breath_index = -1;
+  bool fault_spent = false;  // the one-sample spike or the one command is done
+  Eigen::Vector3d stuck_force = Eigen::Vector3d::Zero();
+  bool have_marker = false;
+  double last_marker_stamp = 0.0;
+  Eigen::Vector3d last_marker = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond last_marker_q = Eigen::Quaterniond::Identity();
+
+  bool faultActive(FaultKind kind) const {
+    return record.fault.injected && record.fault.kind == kind;
+  }
+
+  void injectFault() {
+    record.fault.injected = true;
+    record.fault.t = now;
+    fault_pending = false;
+  }
+
+  /** @brief Watches the trigger and applies the pending faults (once per step). */
+  void updateFault(const Eigen::Vector3d& measured_force) {
+    const FaultKind kind = record.fault.kind;
+    if (kind == FaultKind::kNone || !fault_armed || record.fault.injected) return;
+    if (!fault_pending) {
+      if (sim->groundTruth().max_depth_cut_m < record.fault.trigger_depth_m) return;
+      fault_pending = true;
+      fault_breath_index = sim->ventilator().breathIndex();
+      if (kind == FaultKind::kBreathingRateUp || kind == FaultKind::kBreathingRateDown) {
+        // The ventilator takes new settings at its next breath; its settings stream tells the
+        // planner then, as the Ventilator nodelet publishes them. The model is not re-fit.
+        VentilatorSettings v = sim->ventilator().model().settings();
+        const double change = config.faults.rate_change_bpm;
+        v.rate_bpm =
+            std::max(1.0, v.rate_bpm + (kind == FaultKind::kBreathingRateUp ? change : -change));
+        sim->requestVentilatorSettings(v);
+      }
+      if (!isBreathingFault(kind) && !isCommandFault(kind)) {
+        injectFault();
+        stuck_force = measured_force;  // the frozen sensor repeats this very sample
+      }
+      return;
+    }
+    if (isBreathingFault(kind) && sim->ventilator().breathIndex() != fault_breath_index) {
+      if (kind == FaultKind::kBreathingAmplitude) {
+        sim->setPatientAmplitudeFactor(config.faults.amplitude_factor);
+      }
+      injectFault();
+    }
+  }
+
+  /** @brief The force sample as the faulty sensor delivers it; false: nothing delivered. */
+  bool faultyForce(Eigen::Vector3d* force) {
+    if (!record.fault.injected) return true;
+    switch (record.fault.kind) {
+      case FaultKind::kForceSilent:
+        return false;
+      case FaultKind::kForceNaN:
+        force->setConstant(std::numeric_limits<double>::quiet_NaN());
+        return true;
+      case FaultKind::kForceInf:
+        force->z() = std::numeric_limits<double>::infinity();
+        return true;
+      case FaultKind::kForceSpike:
+        if (!fault_spent) force->z() = config.faults.spike_n;
+        fault_spent = true;
+        return true;
+      case FaultKind::kForceStuck:
+        *force = stuck_force;
+        return true;
+      case FaultKind::kForceDrift:
+        force->z() += config.faults.drift_n_per_s * (now - record.fault.t);
+        return true;
+      default:
+        return true;
+    }
+  }
+
+  /** @brief Extra delay of a trajectory command, or < 0 when the command is lost. */
+  double commandFault() {
+    if (!fault_pending || !isCommandFault(record.fault.kind) || fault_spent) return 0.0;
+    injectFault();
+    fault_spent = true;
+    return record.fault.kind == FaultKind::kCommandLost ? -1.0 : config.faults.command_delay_s;
+  }
 
   void send(double delay, std::function<void()> fn) {
     events.push_back({now + delay, event_seq++, std::move(fn)});
@@ -130,13 +297,15 @@ struct ClosedLoopEngine::Impl {
       send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
     }
     for (JointTrajectoryCommand& c : out.trajectories) {
+      const double extra = commandFault();
+      if (extra < 0.0) continue;  // lost
       TrajectoryCommand command;
       command.joint_names = c.joint_names;
       command.start_time_s = c.start_time;  // the header stamp: takes over then
       for (const JointTrajectoryCommand::Point& p : c.points) {
         command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities});
       }
-      send(delay, [this, command]() { sim->commandTrajectory(command); });
+      send(delay + extra, [this, command]() { sim->commandTrajectory(command); });
     }
     for (const PredictedMarker& m : out.predicted) {
       monitor->onPredicted(now, {m.stamp, m.frame, m.position});  // paired by the supervisor
@@ -191,8 +360,21 @@ struct ClosedLoopEngine::Impl {
 
   void onMarker() {
     const Eigen::Isometry3d pose = sim->measureMarkerPose();
-    const Eigen::Vector3d marker = pose.translation();
-    monitor->onTracked(now, {now, "tracker_camera", marker});
+    Eigen::Vector3d marker = pose.translation();
+    Eigen::Quaterniond orientation(pose.linear());
+    double stamp = now;
+    if (faultActive(FaultKind::kTrackerSilent)) return;
+    if (faultActive(FaultKind::kTrackerJump)) marker.x() += config.faults.tracker_jump_m;
+    if (faultActive(FaultKind::kTrackerStale) && have_marker) {
+      stamp = last_marker_stamp;  // the last pose again, with its old stamp
+      marker = last_marker;
+      orientation = last_marker_q;
+    }
+    have_marker = true;
+    last_marker_stamp = stamp;
+    last_marker = marker;
+    last_marker_q = orientation;
+    monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
     const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
@@ -200,8 +382,7 @@ struct ClosedLoopEngine::Impl {
       *r = r_cam_world;
       return true;
     };
-    sequencer->onMarker(now, now, "tracker_camera", marker, Eigen::Quaterniond(pose.linear()),
-                        lookup);
+    sequencer->onMarker(now, stamp, "tracker_camera", marker, orientation, lookup);
     carryOut();
   }
 
@@ -227,17 +408,22 @@ struct ClosedLoopEngine::Impl {
   void step(std::uint64_t n) {
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
-    const Eigen::Vector3d force = s.measured_wrench.head<3>();
-    const double thrust = force.z();  // config/recognizer.yaml axis: z
-    const double t = now;
-    if (config.delays.force_to_recognizer_s > 0.0) {
-      send(config.delays.force_to_recognizer_s,
-           [this, t, thrust]() { onRecognizerSample(t, thrust); });
-    } else {
-      onRecognizerSample(t, thrust);
+    Eigen::Vector3d force = s.measured_wrench.head<3>();
+    updateFault(force);
+    if (faultyForce(&force)) {
+      const double thrust = force.z();  // config/recognizer.yaml axis: z
+      const double t = now;
+      // The StateRecognizer nodelet drops a non-finite sample (counted, warned); the monitor
+      // stops on it.
+      if (std::isfinite(thrust) && config.delays.force_to_recognizer_s > 0.0) {
+        send(config.delays.force_to_recognizer_s,
+             [this, t, thrust]() { onRecognizerSample(t, thrust); });
+      } else if (std::isfinite(thrust)) {
+        onRecognizerSample(t, thrust);
+      }
+      monitor->onForce(now, force);
+      evaluateMonitor();
     }
-    monitor->onForce(now, force);
-    evaluateMonitor();
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
     if (sim->trackerDue(tracker_period)) onMarker();
     if (n % tidal_period == 0) onTidalVolume();
@@ -256,6 +442,7 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   config.delays.validate();
   config.recognizer.validate();
   config.safety.validate();
+  config.faults.validate();
   s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
   s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
   s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
@@ -300,12 +487,22 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.timers.clear();
   s.record = EngineTrialRecord();
   s.last_breath_index = -1;
+  s.fault_armed = false;
+  s.fault_pending = false;
+  s.fault_breath_index = -1;
+  s.fault_spent = false;
+  s.have_marker = false;
   s.now = s.sim->time();
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();
   s.record.outer_cortical_thickness_m = specimen.outerCorticalThickness();
   s.record.cancellous_thickness_m = specimen.cancellousThickness();
   s.record.inner_cortical_thickness_m = specimen.innerCorticalThickness();
+  s.record.fault.kind = spec.fault;
+  if (spec.fault != FaultKind::kNone) {
+    s.record.fault.trigger_depth_m =
+        faultDepthFraction(spec.seed) * s.sim->groundTruth().inner_cortical_start_m;
+  }
 
   std::uint64_t n = 0;
   // Before the trial: the ventilator's settings and breath phase reach the planner. Then the
@@ -325,6 +522,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   request.max_duration_s = spec.max_duration_s;
   const std::string refused = s.sequencer->start(request, spec.model, s.now);
   if (!refused.empty()) throw std::runtime_error("start_trial refused: " + refused);
+  s.fault_armed = true;
   s.carryOut();
   const double deadline = s.now + s.config.trial_timeout_s;
   while (s.sequencer->phase() != TrialPhase::kDone) {

@@ -212,6 +212,8 @@ struct DrillingSimulation::Impl {
   double time = 0.0;
   std::uint64_t seed = 1;
   bool moving_bone = true;
+  // Fault injection: factor on the patient's AP displacement (1 after every reset).
+  double amplitude_factor = 1.0;
 
   std::vector<std::string> arm_joints;
   std::vector<std::string> commandable;
@@ -346,7 +348,8 @@ struct DrillingSimulation::Impl {
     // Earlier times than the last call are clamped by the scheduler (lag change on reset).
     const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
     desired_heave = moving_bone
-                        ? 1e-3 * patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
+                        ? 1e-3 * amplitude_factor *
+                              patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
                         : 0.0;
     const SpmsIkResult ik = spms.inverseHeave(desired_heave);
     if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
@@ -464,6 +467,7 @@ struct DrillingSimulation::Impl {
 
     seed = new_seed;
     moving_bone = moving;
+    amplitude_factor = 1.0;
     conditions = drawn;
     patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
     if (bone_motion_model) {
@@ -806,6 +810,13 @@ void DrillingSimulation::setTrialDistribution(const SpecimenDistribution& specim
   variability.validate();
   impl_->params.specimen = specimen;
   impl_->params.variability = variability;
+}
+
+void DrillingSimulation::setPatientAmplitudeFactor(double factor) {
+  if (!(std::isfinite(factor) && factor >= 0.0 && factor <= 10.0)) {
+    throw std::invalid_argument("patient amplitude factor: must be in [0, 10]");
+  }
+  impl_->amplitude_factor = factor;
 }
 
 void DrillingSimulation::setBoneMotionModel(const std::optional<BoneMotionModel>& model) {

@@ -34,6 +34,8 @@ void SafetyParams::validate() const {
           "must be > 0 (+inf disables)", force_timeout_s);
   require(!std::isnan(tracker_timeout_s) && tracker_timeout_s > 0.0, "tracker_timeout_s",
           "must be > 0 (+inf disables)", tracker_timeout_s);
+  require(!std::isnan(force_stuck_s) && force_stuck_s > 0.0, "force_stuck_s",
+          "must be > 0 (+inf disables)", force_stuck_s);
 }
 
 std::string describe(const SafetyVerdict& v) {
@@ -54,6 +56,8 @@ const char* toString(SafetyVerdict::Reason r) {
       return "tracker_timeout";
     case SafetyVerdict::kNaNInput:
       return "nan_input";
+    case SafetyVerdict::kForceStuck:
+      return "force_stuck";
   }
   return "unknown";
 }
@@ -87,8 +91,15 @@ void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
     return;
   }
   arm(t);
+  if (!have_force_ || force != last_force_) same_force_since_ = t;
   have_force_ = true;
   last_force_t_ = t;
+  last_force_ = force;
+  if (t - same_force_since_ > params_.force_stuck_s) {
+    trigger(SafetyVerdict::kForceStuck, t,
+            fmt("force unchanged (%.4f N) for %.3f s > %.3f s: sensor frozen", force.norm(),
+                t - same_force_since_, params_.force_stuck_s));
+  }
   const double n = force.norm();
   if (n > params_.force_threshold_N) {
     trigger(SafetyVerdict::kForceExceeded, t,
@@ -98,13 +109,19 @@ void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
 
 void SafetyMonitor::onTracked(double t, const Eigen::Vector3d& predicted_bone_pos,
                               const Eigen::Vector3d& tracked_bone_pos) {
+  comparePositions(t, predicted_bone_pos, tracked_bone_pos);
+  if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) return;
+  have_tracker_ = true;
+  last_tracker_t_ = t;
+}
+
+void SafetyMonitor::comparePositions(double t, const Eigen::Vector3d& predicted_bone_pos,
+                                     const Eigen::Vector3d& tracked_bone_pos) {
   if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) {
     trigger(SafetyVerdict::kNaNInput, t, "non-finite tracker sample, prediction or time stamp");
     return;
   }
   arm(t);
-  have_tracker_ = true;
-  last_tracker_t_ = t;
   const double e = (predicted_bone_pos - tracked_bone_pos).norm();
   if (e > params_.position_threshold_m) {
     trigger(SafetyVerdict::kPositionError, t,
@@ -128,7 +145,7 @@ const SafetyVerdict& SafetyMonitor::check(double t) {
                 params_.force_timeout_s, t));
   } else if (tracker_age > params_.tracker_timeout_s) {
     trigger(SafetyVerdict::kTrackerTimeout, t,
-            fmt("no tracker sample for %.3f s > %.3f s at t=%.3f s", tracker_age,
+            fmt("no fresh tracker sample for %.3f s > %.3f s at t=%.3f s", tracker_age,
                 params_.tracker_timeout_s, t));
   }
   return verdict_;

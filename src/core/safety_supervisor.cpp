@@ -26,6 +26,12 @@ void SafetySupervisor::onForce(double now, const Eigen::Vector3d& force) {
 }
 
 PairResult SafetySupervisor::onTracked(double now, const StampedPosition& tracked) {
+  const bool finite = tracked.position.allFinite() && std::isfinite(tracked.stamp);
+  if (finite && have_tracker_ && !(tracked.stamp > last_tracked_stamp_)) {
+    ++stale_tracked_;
+    return PairResult::kStale;
+  }
+  if (finite) last_tracked_stamp_ = tracked.stamp;
   have_tracker_ = true;
   // The watchdog and the NaN check, whether or not a prediction exists (no trial running).
   monitor_.onTracked(now, tracked.position, tracked.position);
@@ -35,7 +41,7 @@ PairResult SafetySupervisor::onTracked(double now, const StampedPosition& tracke
 
 PairResult SafetySupervisor::onPredicted(double now, const StampedPosition& predicted) {
   if (!predicted.position.allFinite() || !std::isfinite(predicted.stamp)) {
-    monitor_.onTracked(now, predicted.position, predicted.position);  // NaN prediction: stop
+    monitor_.comparePositions(now, predicted.position, predicted.position);  // NaN: stop
     return PairResult::kUnpaired;
   }
   remember(&predicted_, predicted);
@@ -58,7 +64,7 @@ PairResult SafetySupervisor::pair(double now, const StampedPosition& sample,
   if (best->frame != sample.frame) return PairResult::kFrameMismatch;
   const StampedPosition& predicted = sample_is_predicted ? sample : *best;
   const StampedPosition& tracked = sample_is_predicted ? *best : sample;
-  monitor_.onTracked(now, predicted.position, tracked.position);
+  monitor_.comparePositions(now, predicted.position, tracked.position);
   return PairResult::kCompared;
 }
 
@@ -86,6 +92,8 @@ void SafetySupervisor::reset() {
   predicted_.clear();
   have_force_ = false;
   have_tracker_ = false;
+  last_tracked_stamp_ = 0.0;
+  stale_tracked_ = 0;
   stop_reported_ = false;
 }
 

@@ -72,6 +72,10 @@ void RecognizerParams::validate() const {
   requireFinite("c3", c3);
   if (!(c3 > 0.0 && c3 < 1.0)) fail("c3", "must be in (0, 1)", c3);
   if (cancellous_confirm < 1) fail("cancellous_confirm", "must be >= 1", cancellous_confirm);
+  if (cancellous_timeout < 0) fail("cancellous_timeout", "must be >= 0", cancellous_timeout);
+  if (cancellous_timeout > 0 && cancellous_timeout <= cancellous_confirm) {
+    fail("cancellous_timeout", "must be 0 or > cancellous_confirm", cancellous_timeout);
+  }
   if (inner_confirm < 1) fail("inner_confirm", "must be >= 1", inner_confirm);
   if (stop_delay < 0) fail("stop_delay", "must be >= 0", stop_delay);
 }
@@ -97,6 +101,8 @@ void RecognizerParams::set(const std::string& name, const std::string& value) {
     c3 = parseDouble(name, value);
   } else if (name == "cancellous_confirm") {
     cancellous_confirm = parseInt(name, value);
+  } else if (name == "cancellous_timeout") {
+    cancellous_timeout = parseInt(name, value);
   } else if (name == "inner_confirm") {
     inner_confirm = parseInt(name, value);
   } else if (name == "stop_delay") {
@@ -131,6 +137,13 @@ const char* toString(DrillingState s) {
 std::string stopReason(const RecognizerOutput& out) {
   if (!out.stop) return "";
   char reason[200];
+  if (out.stop_implausible) {
+    std::snprintf(reason, sizeof(reason),
+                  "implausible force: cancellous bone not confirmed after the outer cortical "
+                  "layer (sensor drift?); stop after key point %d at t=%.3f s, raw sample %lu",
+                  out.stop_key_point, out.stop_t, static_cast<unsigned long>(out.stop_index));
+    return reason;
+  }
   std::snprintf(reason, sizeof(reason),
                 "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
                 "raw sample %lu",
@@ -154,6 +167,7 @@ void StateRecognizer::reset() {
   ring_pos_ = 0;
   ring_fill_ = 0;
   filtered_count_ = 0;
+  since_punctured_ = 0;
   cur_raw_index_ = 0;
   cur_t_ = 0.0;
   f_max_ = -std::numeric_limits<double>::infinity();
@@ -288,6 +302,7 @@ void StateRecognizer::onFiltered(double fbar) {
     records_.shrink_to_fit();
     setLayerState(DrillingState::kOuterPunctured);
     run_ = 0;
+    since_punctured_ = 0;
     out_.feature = feature(p, fbar, out_.f_min, out_.d);
     return;  // the cancellous dwell starts with the next sample
   }
@@ -297,6 +312,10 @@ void StateRecognizer::onFiltered(double fbar) {
 
   switch (out_.layer_state) {
     case DrillingState::kOuterPunctured:
+      if (p.cancellous_timeout > 0 && ++since_punctured_ > p.cancellous_timeout && !out_.stop) {
+        commandStop();
+        out_.stop_implausible = true;
+      }
       if (a < p.c1) {
         // Key point 3 is placed where the dwell is confirmed: the first sample known to be in
         // cancellous bone (the start of the dwell would coincide with key point 2).

@@ -47,6 +47,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       p.force_timeout_s = params.getDouble("force_timeout_s", p.force_timeout_s, 0.0, 60.0, true);
       p.tracker_timeout_s =
           params.getDouble("tracker_timeout_s", p.tracker_timeout_s, 0.0, 60.0, true);
+      p.force_stuck_s = params.getDouble("force_stuck_s", p.force_stuck_s, 0.0, 3600.0, true);
       check_rate_hz = params.getDouble("check_rate_hz", 200.0, 0.0, 10000.0, true);
       sp.pair_tolerance_s = params.getDouble("pair_tolerance_s", sp.pair_tolerance_s, 0.0, 1.0);
       diagnostic_period_s = params.getDouble("diagnostic_period_s", 1.0, 0.0, 60.0, true);
@@ -111,6 +112,13 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   void warnIfMismatch(core::PairResult r) {
+    if (r == core::PairResult::kStale) {
+      NODELET_WARN_THROTTLE(1.0,
+                            "SafetyMonitor: stale tracker sample (stamp not newer than the last) "
+                            "ignored; %ld so far",
+                            supervisor_->staleTrackedCount());
+      return;
+    }
     if (r != core::PairResult::kFrameMismatch) return;
     NODELET_WARN_THROTTLE(1.0,
                           "SafetyMonitor: the predicted and the tracked marker pose are in "

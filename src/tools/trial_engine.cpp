@@ -6,7 +6,10 @@
 //
 //   trial_engine --trials FILE --drilling-pose q1,..,q6 [--models-dir DIR --model linear]
 //                [--default-model FILE] [--bone-motion model|virtual_patient]
-//                [--feed-rate 0.5] [--max-duration 60] [--urdf FILE]
+//                [--feed-rate 0.5] [--max-duration 60] [--urdf FILE] [--fault-* VALUE]
+//
+// A trial may name a fault to inject ("fault": "force_silent", ...; README "Fault campaign");
+// its record then says when it took effect.
 //
 // Command-line parsing: CLI11 (Debian libcli11-dev): header-only, typed options with ranges,
 // --help, and a repeated single-value option is an error rather than silently ignored.
@@ -75,7 +78,12 @@ json recordToJson(const pd::EngineTrialRecord& r) {
           {"key_points", key_points},
           {"truth", truth},
           {"stops", stops},
-          {"status", status}};
+          {"status", status},
+          {"fault",
+           {{"name", pd::toString(r.fault.kind)},
+            {"injected", r.fault.injected},
+            {"t", r.fault.injected ? json(r.fault.t) : json(nullptr)},
+            {"trigger_depth_m", r.fault.trigger_depth_m}}}};
 }
 
 }  // namespace
@@ -127,6 +135,27 @@ int main(int argc, char** argv) {
   app.add_option("--feed-rate", feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
   app.add_option("--max-duration", max_duration, "sim time after which a trial is ended, s")
       ->check(CLI::Range(1.0, 3600.0));
+  // Sizes of the injected faults (a trial's "fault" key names the fault; README).
+  pd::FaultParams& faults = config.faults;
+  app.add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N");
+  app.add_option("--fault-drift-n-per-s", faults.drift_n_per_s, "force_drift rate, N/s");
+  app.add_option("--fault-tracker-jump-m", faults.tracker_jump_m, "tracker_jump size, m");
+  app.add_option("--fault-amplitude-factor", faults.amplitude_factor,
+                 "breathing_amplitude factor on the AP displacement");
+  app.add_option("--fault-rate-change-bpm", faults.rate_change_bpm,
+                 "breathing_rate_up/down change, breaths/min");
+  app.add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s");
+  bool list_faults = false;
+  app.add_flag("--list-faults", list_faults, "print the faults a trial may name, one per line");
+  app.footer("Faults: " + [] {
+    std::string names;
+    for (const std::string& n : pd::faultNames()) names += (names.empty() ? "" : ", ") + n;
+    return names;
+  }());
+  if (argc == 2 && std::string(argv[1]) == "--list-faults") {
+    for (const std::string& n : pd::faultNames()) std::cout << n << "\n";
+    return 0;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -149,6 +178,14 @@ int main(int argc, char** argv) {
       for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
         if (!t.contains(key)) {
           throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
+        }
+      }
+      if (t.contains("fault")) {
+        if (!t.at("fault").is_string()) throw UsageError("--trials: fault must be a string");
+        try {
+          pd::parseFaultKind(t.at("fault").get<std::string>());
+        } catch (const std::invalid_argument& e) {
+          throw UsageError(std::string("--trials: ") + e.what());
         }
       }
       if (!t.at("seed").is_number_unsigned()) {
@@ -183,6 +220,7 @@ int main(int argc, char** argv) {
       spec.spindle_rpm = t.at("rpm").get<double>();
       spec.feed_rate_mm_s = feed_rate;
       spec.max_duration_s = max_duration;
+      spec.fault = pd::parseFaultKind(t.value("fault", std::string("none")));
       const bool moving = spec.mode != "stationary";
       pd::PatientModel patient = stationary_model;
       if (moving) {

@@ -14,10 +14,12 @@ namespace {
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 const Eigen::Vector3d kZero = Eigen::Vector3d::Zero();
 
-// Feeds healthy data at 1 kHz force / 8 Hz tracker from t0 to t1, checking each ms.
+// Feeds healthy data at 1 kHz force / 8 Hz tracker from t0 to t1, checking each ms. The force
+// changes by one count of a Nano17 (1/320 N) every sample, as a live sensor's noise does.
 void healthy(SafetyMonitor& m, double t0, double t1) {
+  int n = 0;
   for (double t = t0; t < t1; t += 1e-3) {
-    m.onForce(t, Eigen::Vector3d(0.1, -0.2, 3.0));
+    m.onForce(t, Eigen::Vector3d(0.1, -0.2, 3.0 + (n++ % 2) / 320.0));
     if (std::fmod(t - t0, 0.125) < 1e-3) {
       m.onTracked(t, Eigen::Vector3d(0.01, 0.02, 0.03), Eigen::Vector3d(0.0105, 0.02, 0.03));
     }
@@ -63,6 +65,42 @@ TEST(SafetyMonitorTest, ForceTriggersOnNormAboveH2) {
   EXPECT_EQ(m.verdict().reason, SafetyVerdict::kForceExceeded);
 }
 
+TEST(SafetyMonitorTest, ABitIdenticalForceLongerThanForceStuckSIsAFrozenSensor) {
+  SafetyMonitor m;  // force_stuck_s = 0.05
+  const Eigen::Vector3d f(0.1, 0.2, 3.0);
+  for (int i = 0; i <= 50; ++i) m.onForce(i * 1e-3, f);  // 0 .. 50 ms: not longer than 50 ms
+  EXPECT_FALSE(m.stopped());
+  m.onForce(0.0505, f + Eigen::Vector3d(0, 0, 1.0 / 320));  // one count changes: a new run
+  for (int i = 1; i <= 50; ++i) m.onForce(0.0505 + i * 1e-3, f + Eigen::Vector3d(0, 0, 1.0 / 320));
+  EXPECT_FALSE(m.stopped());
+  m.onForce(0.0505 + 0.051, f + Eigen::Vector3d(0, 0, 1.0 / 320));
+  ASSERT_TRUE(m.stopped());
+  EXPECT_EQ(m.verdict().reason, SafetyVerdict::kForceStuck);
+  EXPECT_STREQ(toString(SafetyVerdict::kForceStuck), "force_stuck");
+}
+
+TEST(SafetyMonitorTest, ForceStuckInfinityDisablesTheCheck) {
+  SafetyParams p;
+  p.force_stuck_s = std::numeric_limits<double>::infinity();
+  SafetyMonitor m(p);
+  for (int i = 0; i < 5000; ++i) m.onForce(i * 1e-3, Eigen::Vector3d::Zero());
+  EXPECT_FALSE(m.stopped());
+  p.force_stuck_s = 0.0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+}
+
+TEST(SafetyMonitorTest, ComparingPositionsDoesNotFeedTheTrackerWatchdog) {
+  SafetyMonitor m;  // tracker_timeout_s = 0.5
+  m.onTracked(0.0, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+  for (int i = 1; i <= 10; ++i) {
+    m.comparePositions(i * 0.1, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero());
+    m.onForce(i * 0.1, Eigen::Vector3d(0, 0, i * 0.01));
+  }
+  m.check(0.6);
+  ASSERT_TRUE(m.stopped());
+  EXPECT_EQ(m.verdict().reason, SafetyVerdict::kTrackerTimeout);
+}
+
 TEST(SafetyMonitorTest, ForceTimeout) {
   SafetyMonitor m;  // force timeout 0.1 s, tracker 0.5 s
   m.onTracked(0.0, kZero, kZero);
@@ -78,10 +116,10 @@ TEST(SafetyMonitorTest, TrackerTimeout) {
   SafetyMonitor m;
   m.onTracked(0.0, kZero, kZero);
   for (double t = 0; t <= 0.5; t += 1e-3) {
-    m.onForce(t, kZero);
+    m.onForce(t, Eigen::Vector3d(0, 0, t));  // a live force (never bit-identical)
     EXPECT_FALSE(m.check(t).stop) << t;
   }
-  m.onForce(0.51, kZero);
+  m.onForce(0.51, Eigen::Vector3d(0, 0, 0.51));
   EXPECT_TRUE(m.check(0.51).stop);
   EXPECT_EQ(m.verdict().reason, SafetyVerdict::kTrackerTimeout);
 }

@@ -30,6 +30,23 @@ TEST(SafetySupervisorTest, PairsPredictionWithTheTrackedSampleOfTheSameStamp) {
   EXPECT_EQ(s.verdict().reason, SafetyVerdict::kPositionError);
 }
 
+TEST(SafetySupervisorTest, ATrackerRepeatingAnOldStampIsStaleAndTimesOut) {
+  SafetySupervisor s;  // tracker_timeout_s = 0.5
+  EXPECT_EQ(s.onTracked(1.0, at(1.0, kBone)), PairResult::kUnpaired);
+  double t = 1.0;
+  for (int i = 0; i < 8; ++i) {  // 1 s of a stale tf: the same pose and stamp, 8 Hz
+    t += 0.125;
+    EXPECT_EQ(s.onTracked(t, at(1.0, kBone)), PairResult::kStale);
+    // The planner's prediction for that stale stamp pairs, but is no sign of a live tracker.
+    s.onPredicted(t, at(1.0, kBone));
+    s.onForce(t, Eigen::Vector3d(0, 0, t));
+    s.check(t);
+  }
+  EXPECT_EQ(s.staleTrackedCount(), 8);
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kTrackerTimeout);
+}
+
 TEST(SafetySupervisorTest, SamplesFurtherApartThanTheToleranceAreNotCompared) {
   SupervisorParams p;
   p.pair_tolerance_s = 0.02;
@@ -85,7 +102,7 @@ TEST(SafetySupervisorTest, WatchdogArmsOnBothStreamsOrOnARunningTrial) {
     SafetySupervisor s(p);
     s.onTracked(0.0, at(0.0, kBone));
     for (double t = 0.0; t < 0.7; t += 0.001) {
-      s.onForce(t, Eigen::Vector3d(0, 0, 1.0));
+      s.onForce(t, Eigen::Vector3d(0, 0, 1.0 + t));  // live: never bit-identical
       s.check(t);
     }
     EXPECT_TRUE(s.heardBoth());

@@ -187,6 +187,36 @@ TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
   EXPECT_FALSE(o.stop);
 }
 
+TEST(StateRecognizerTransitions, NoCancellousWithinTheTimeoutIsAnImplausibleForceStop) {
+  RecognizerParams p = directParams();
+  p.cancellous_confirm = 3;
+  p.cancellous_timeout = 6;
+  StateRecognizer rec(p);
+  int i = 0;
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2
+  ASSERT_EQ(rec.output().last_key_point, 2);
+  // A drifting sensor: A* stays above C1 after the outer layer.
+  for (int k = 0; k < 6; ++k) rec.push(i++, 2.5);
+  EXPECT_FALSE(rec.output().stop) << "the timeout is 6 samples: not yet";
+  const RecognizerOutput& o = rec.push(i++, 2.5);
+  ASSERT_TRUE(o.stop);
+  EXPECT_TRUE(o.stop_implausible);
+  EXPECT_EQ(o.stop_key_point, 2);
+  EXPECT_EQ(o.state, DrillingState::kStopped);
+  EXPECT_NE(stopReason(o).find("implausible force"), std::string::npos) << stopReason(o);
+}
+
+TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
+  RecognizerParams p = directParams();
+  p.cancellous_timeout = 0;
+  StateRecognizer rec(p);
+  int i = 0;
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);
+  for (int k = 0; k < 1000; ++k) rec.push(i++, 2.5);
+  EXPECT_FALSE(rec.output().stop);
+  EXPECT_EQ(rec.output().state, DrillingState::kOuterPunctured);
+}
+
 // Drive to the cancellous state with direct parameters; returns next time index.
 int toCancellous(StateRecognizer& rec) {
   int i = 0;
@@ -462,6 +492,9 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
   bad("c3", [](RecognizerParams& p) { p.c3 = 1.0; });
   bad("c3", [](RecognizerParams& p) { p.c3 = std::numeric_limits<double>::infinity(); });
   bad("cancellous_confirm", [](RecognizerParams& p) { p.cancellous_confirm = 0; });
+  bad("cancellous_timeout", [](RecognizerParams& p) { p.cancellous_timeout = -1; });
+  bad("cancellous_timeout",
+      [](RecognizerParams& p) { p.cancellous_timeout = p.cancellous_confirm; });
   bad("inner_confirm", [](RecognizerParams& p) { p.inner_confirm = 0; });
   bad("stop_delay", [](RecognizerParams& p) { p.stop_delay = -1; });
 }

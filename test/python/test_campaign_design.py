@@ -234,6 +234,10 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('trials: 1\nbone_motion: wobbly\n', ['bone_motion', 'wobbly']),
     ('trials: [3, 0, 3]\n', ['trials']),
     ('trials: three\n', ['trials']),
+    ('trials: 1\nfaults: [gremlins]\n', ['faults', 'gremlins']),
+    ('trials: 1\nfaults: [none, none]\n', ['faults']),
+    ('trials: 1\nfaults: [none]\nfault_params: {spike: 3}\n', ['fault_params.spike']),
+    ('trials: 1\nfaults: [none]\nfault_params: {spike_n: big}\n', ['fault_params.spike_n']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'
@@ -293,3 +297,26 @@ def test_agreement_pairs_by_trial_and_counts_outcomes():
     assert 'the same success in 2 of 2' in text
     with pytest.raises(ValueError):
         agreement.compare(a, [_row('x', True, 1.0)])
+
+
+def test_fault_names_are_the_engines():
+    """design.FAULTS is what trial_engine injects (core::FaultKind), in the same order."""
+    from pd_campaign.design import FAULTS
+    out = subprocess.run(['rosrun', 'pedicle_drilling', 'trial_engine', '--list-faults'],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert tuple(out.stdout.split()) == FAULTS
+
+
+def test_fault_design_pairs_every_fault_with_the_fault_free_trial_of_the_same_seed():
+    from pd_campaign.design import build_design
+    design = build_design(['compensated'], [12000], 3, 7, ['none', 'force_nan', 'command_lost'])
+    assert len(design) == 9
+    by_index = {}
+    for trial in design:
+        by_index.setdefault(trial['index'], set()).add(trial['seed'])
+    assert all(len(seeds) == 1 for seeds in by_index.values())
+    assert len({t['trial_id'] for t in design}) == 9
+    plain = build_design(['compensated'], [12000], 3, 7)
+    assert [t['seed'] for t in plain] == [t['seed'] for t in design if t['fault'] == 'none']
+    assert all('fault' not in t for t in plain)

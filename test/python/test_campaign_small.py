@@ -197,3 +197,48 @@ def test_core_engine_refuses_what_it_does_not_support(tmp_path):
     assert result.returncode == 2, result.stderr
     assert 'identification' in result.stderr and '--engine ros' in result.stderr
     assert not (tmp_path / 'out').exists()
+
+
+# What the safety monitor must say for each sensor fault, and its worst fault-to-stop delay [s]
+# (the watchdogs' timeouts plus one check period and the 1 ms transport).
+MONITORED_FAULTS = {
+    'force_silent': ('force_timeout', 0.11), 'force_nan': ('nan_input', 0.002),
+    'force_inf': ('nan_input', 0.002), 'force_spike': ('force_exceeded', 0.002),
+    'force_stuck': ('force_stuck', 0.06), 'tracker_silent': ('tracker_timeout', 0.51),
+    'tracker_stale': ('tracker_timeout', 0.51), 'tracker_jump': ('position_error', 0.13),
+}
+
+
+def test_fault_campaign_stops_every_sensor_fault_and_breaks_through_nowhere(tmp_path):
+    """The shipped fault scenario, 3 seeds per fault: every fault injected while drilling, the
+    monitor stops each sensor fault with its reason within its timeout, nothing breaks through,
+    the fault-free trials are the campaign's ordinary ones, and the report has the fault table."""
+    out = tmp_path / 'faults'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario',
+         os.path.join(ROOT, 'config', 'scenario_faults.yaml'), '--trials', '3', '--jobs', '2',
+         '--out', str(out)], capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    from pd_campaign.design import FAULTS
+    assert sorted(r['fault'] for r in rows) == sorted(list(FAULTS) * 3)
+    assert all(r['error'] == '' for r in rows), [r['error'] for r in rows if r['error']]
+    assert [r['trial_id'] for r in rows if r['breakthrough'] == 'true'] == []
+    for row in rows:
+        if row['fault'] == 'none':
+            assert row['fault_time_s'] == row['stop_delay_s'] == ''
+            continue
+        assert float(row['fault_time_s']) >= 0.0, row
+        assert float(row['stop_delay_s']) >= 0.0, row
+        if row['fault'] in MONITORED_FAULTS:
+            reason, worst = MONITORED_FAULTS[row['fault']]
+            assert row['stop_source'].endswith('safety_monitor'), row
+            assert row['stop_reason'].startswith(reason), row
+            assert float(row['stop_delay_s']) <= worst, row
+            assert float(row['retreat_delay_s']) <= worst + 0.01, row
+    with open(out / 'summary.json') as handle:
+        summary = json.load(handle)
+    assert {g['fault'] for g in summary['faults']} == set(FAULTS)
+    assert sum(g['trials'] for g in summary['groups']) == 3  # Table III: fault-free only
+    assert '## Faults' in (out / 'report.md').read_text()

@@ -266,6 +266,12 @@ class DrillingSimulation {
    * @throws std::invalid_argument for a non-finite coefficient; nothing changes then.
    */
   void setBoneMotionModel(const std::optional<BoneMotionModel>& model);
+  /**
+   * @brief Fault injection: the patient's AP displacement is multiplied by `factor` from the
+   *        next step until the next reset (a change of the patient's breathing that the
+   *        identified model does not know). @throws std::invalid_argument outside [0, 10].
+   */
+  void setPatientAmplitudeFactor(double factor);
   /** @brief What the last reset (or the constructor) drew. */
   const TrialConditions& trialConditions() const;
 

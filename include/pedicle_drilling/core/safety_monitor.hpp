@@ -5,6 +5,7 @@
 //   * force           ||F_rec|| > H2 = 10 N
 //   * force timeout   no force sample for more than force_timeout_s
 //   * tracker timeout no tracker sample for more than tracker_timeout_s
+//   * force stuck     the same force vector, bit for bit, for longer than force_stuck_s
 //   * NaN / inf in any input (including its time stamp)
 // Timeouts are measured from the last sample of that stream or, if none has arrived since
 // reset(), from the first call of any method after reset() (arming time).
@@ -37,6 +38,13 @@ struct SafetyParams {
    * paper's breathing amplitude, so losing the tracker longer is not acceptable.
    */
   double tracker_timeout_s = 0.5;
+  /**
+   * @brief Max time [s] the force vector may stay bit-identical. Default 0.05 s: a live sensor's
+   * noise (0.03 N, about 10 counts of the Nano17's 1/320 N per axis) changes at least one axis in
+   * almost every sample (three axes repeating: p ~ 2e-5), so 50 identical 1 kHz samples mean a
+   * frozen driver or DAQ that still publishes. +inf disables (a noise-free sensor).
+   */
+  double force_stuck_s = 0.05;
 
   /**
    * @brief Check all fields (thresholds finite and > 0; timeouts > 0, +inf disables).
@@ -48,7 +56,15 @@ struct SafetyParams {
 /** @brief Monitor result. */
 struct SafetyVerdict {
   /** @brief Cause of a stop. */
-  enum Reason { kNone, kPositionError, kForceExceeded, kForceTimeout, kTrackerTimeout, kNaNInput };
+  enum Reason {
+    kNone,
+    kPositionError,
+    kForceExceeded,
+    kForceTimeout,
+    kTrackerTimeout,
+    kNaNInput,
+    kForceStuck,
+  };
   bool stop = false;      ///< True: stop drilling and retreat.
   Reason reason = kNone;  ///< First cause (latched).
   double t = 0.0;         ///< Time of the trigger [s] (valid if stop).
@@ -80,6 +96,13 @@ class SafetyMonitor {
   void onTracked(double t, const Eigen::Vector3d& predicted_bone_pos,
                  const Eigen::Vector3d& tracked_bone_pos);
 
+  /**
+   * @brief H1 and the NaN check on a predicted / tracked pair at time t, without feeding the
+   *        tracker watchdog: a prediction is not a sign that the tracker is alive.
+   */
+  void comparePositions(double t, const Eigen::Vector3d& predicted_bone_pos,
+                        const Eigen::Vector3d& tracked_bone_pos);
+
   /** @brief Evaluate timeouts at time t and return the (latched) verdict. */
   const SafetyVerdict& check(double t);
 
@@ -105,6 +128,8 @@ class SafetyMonitor {
   double armed_t_ = 0.0;
   bool have_force_ = false;
   double last_force_t_ = 0.0;
+  Eigen::Vector3d last_force_ = Eigen::Vector3d::Zero();
+  double same_force_since_ = 0.0;  ///< time of the first sample of the current identical run
   bool have_tracker_ = false;
   double last_tracker_t_ = 0.0;
 };

@@ -45,6 +45,7 @@ enum class PairResult {
   kUnpaired,       ///< No sample of the other stream within the tolerance (yet).
   kCompared,       ///< Compared with H1.
   kFrameMismatch,  ///< The partner is in another frame: not compared (a configuration error).
+  kStale,          ///< A tracked sample whose stamp is not newer than the last: ignored.
 };
 
 /** @brief Streams in, one stop out: SafetyMonitor plus pairing, arming and the stop report. */
@@ -56,7 +57,12 @@ class SafetySupervisor {
   /** @brief A force sample [N] received at `now` (H2 acts on this very sample). */
   void onForce(double now, const Eigen::Vector3d& force);
 
-  /** @brief A tracked marker position received at `now`; feeds the watchdog and the NaN check. */
+  /**
+   * @brief A tracked marker position received at `now`; feeds the watchdog and the NaN check.
+   *        A sample whose stamp is not newer than the last fresh one (a stale tf or a tracker
+   *        driver repeating its last pose) is ignored: it neither feeds the watchdog nor is
+   *        compared, so a tracker that only repeats itself times out like a silent one.
+   */
   PairResult onTracked(double now, const StampedPosition& tracked);
 
   /** @brief A predicted marker position received at `now`; a non-finite one is a stop. */
@@ -80,6 +86,9 @@ class SafetySupervisor {
   /** @brief True once both sensor streams were heard since construction or reset(). */
   bool heardBoth() const { return have_force_ && have_tracker_; }
 
+  /** @brief Tracked samples ignored as stale since construction or reset(). */
+  long staleTrackedCount() const { return stale_tracked_; }
+
   /** @brief Clears the latch, the streams and the report. */
   void reset();
 
@@ -97,6 +106,8 @@ class SafetySupervisor {
   std::deque<StampedPosition> predicted_;
   bool have_force_ = false;
   bool have_tracker_ = false;
+  double last_tracked_stamp_ = 0.0;
+  long stale_tracked_ = 0;
   bool trial_running_ = false;
   bool stop_reported_ = false;
 };
