@@ -152,16 +152,19 @@ int main(int argc, char** argv) {
     for (const std::string& n : pd::faultNames()) names += (names.empty() ? "" : ", ") + n;
     return names;
   }());
-  if (argc == 2 && std::string(argv[1]) == "--list-faults") {
+  const auto print_faults = [] {
     for (const std::string& n : pd::faultNames()) std::cout << n << "\n";
     return 0;
-  }
+  };
+  // Alone, --list-faults needs none of the required options.
+  if (argc == 2 && std::string(argv[1]) == "--list-faults") return print_faults();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
+  if (list_faults) return print_faults();  // never silently ignored beside other options
 
   pd::parseSegmentProfile(segment_profile, &config.sequencer.compensation.segment_profile);
   config.draw_start_phase = !fixed_start;
