@@ -392,7 +392,7 @@ struct DrillingSimulation::Impl {
       *v = knots.front().v;
       return;
     }
-    if (t >= knots.back().t) {
+    if (t > knots.back().t) {  // at the last knot: its velocity (the state a takeover starts from)
       *q = knots.back().q;
       *v = Eigen::VectorXd::Zero(n);
       return;

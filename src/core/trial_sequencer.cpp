@@ -351,7 +351,14 @@ double TrialSequencer::feedCommandAt(double t, double segmented_feed) const {
 
 void TrialSequencer::sendDueSegments(double now) {
   const double period = planner_->params().period_s;
-  while (planner_->registrationTime() + next_k_ * period <= now + period) {
+  // Segment k goes out one period ahead of its start, when the timer tick of t_k - T fires. The
+  // half-period margin makes that tick send it whatever the rounding of the two clocks (the
+  // timer's accumulated due time and the grid t_reg + k T differ in the last bits) and a timer
+  // that fires a little early: without it, about every other tick missed its segment by 1e-12 s,
+  // which then went out at its own start and reached the controller after it; the arm held the
+  // last point for the transport delay (a 4 um stall at the bone's 4 mm/s) at every such
+  // boundary.
+  while (planner_->registrationTime() + next_k_ * period <= now + 1.5 * period) {
     const PlannedSegment seg = planner_->segment(next_k_);
     ++next_k_;
     if (seg.t1 <= now) continue;  // late timer: skip segments already over

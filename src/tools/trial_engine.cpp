@@ -129,6 +129,9 @@ int main(int argc, char** argv) {
   app.add_option("--pre-trial-s", config.pre_trial_s,
                  "sim time from the reset to the earliest trial start, s")
       ->check(CLI::Range(0.0, 60.0));
+  app.add_option("--truth-rate-hz", config.ground_truth_rate_hz,
+                 "rate of the recorded ground truth (plus every layer change), Hz")
+      ->check(CLI::Range(1.0, 1000.0));
   bool fixed_start = false;
   app.add_flag("--fixed-start", fixed_start,
                "start exactly --pre-trial-s after the reset (no breath phase drawn from the seed)");

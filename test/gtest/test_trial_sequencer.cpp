@@ -158,6 +158,22 @@ TEST(TrialSequencer, RegistrationThenSegmentsOnTheGridOfThePeriod) {
   EXPECT_EQ(out.predicted[0].stamp, 13.2);
 }
 
+TEST(TrialSequencer, ATimerTickAHairEarlyStillSendsTheNextSegmentOnePeriodAhead) {
+  // The engine's timer accumulates its due time and the grid is t_reg + k T: the two differ in
+  // the last bits. A tick that came 1e-12 s early once missed its segment, which then went out at
+  // its own start and reached the controller after it (the arm held for the transport delay).
+  pd::TrialSequencer seq(params(), workcellArm());
+  const double t_drill = toDrilling(&seq);
+  seq.takeOutput();
+  for (int k = 1; k <= 40; ++k) {
+    const double tick = t_drill + 0.125 * k - 1e-12;
+    seq.onSegmentTimer(tick);
+    const pd::SequencerOutput out = seq.takeOutput();
+    ASSERT_EQ(out.trajectories.size(), 1u) << "tick " << k;
+    EXPECT_NEAR(out.trajectories[0].start_time, t_drill + 0.125 * (k + 1), 1e-9) << "tick " << k;
+  }
+}
+
 TEST(TrialSequencer, RegistrationTimeoutFails) {
   pd::TrialSequencer seq(params(), workcellArm());
   ASSERT_EQ(seq.start(request("stationary"), apModel(), 0.0), "");
