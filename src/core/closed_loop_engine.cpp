@@ -303,7 +303,7 @@ struct ClosedLoopEngine::Impl {
       command.joint_names = c.joint_names;
       command.start_time_s = c.start_time;  // the header stamp: takes over then
       for (const JointTrajectoryCommand::Point& p : c.points) {
-        command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities});
+        command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities, {}});
       }
       send(delay + extra, [this, command]() { sim->commandTrajectory(command); });
     }

@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "pedicle_drilling/core/normal_source.hpp"
+#include "pedicle_drilling/core/trajectory_executor.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
@@ -50,28 +51,6 @@ Eigen::Isometry3d jointMotion(const urdf::Joint& joint, double q) {
   }
   return m;
 }
-
-// Cubic Hermite interpolation on [0, h] at s.
-double hermite(double p0, double v0, double p1, double v1, double h, double s, double* velocity) {
-  const double u = s / h;
-  const double u2 = u * u, u3 = u2 * u;
-  const double h00 = 2 * u3 - 3 * u2 + 1, h10 = u3 - 2 * u2 + u;
-  const double h01 = -2 * u3 + 3 * u2, h11 = u3 - u2;
-  if (velocity) {
-    const double d00 = 6 * u2 - 6 * u, d10 = 3 * u2 - 4 * u + 1;
-    const double d01 = -6 * u2 + 6 * u, d11 = 3 * u2 - 2 * u;
-    *velocity = (d00 * p0 + d01 * p1) / h + d10 * v0 + d11 * v1;
-  }
-  return h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1;
-}
-
-// Knot of the active trajectory: absolute time, position and velocity per commandable joint.
-struct Knot {
-  double t = 0.0;
-  Eigen::VectorXd q;
-  Eigen::VectorXd v;
-  bool cubic = false;  // segment ending at this knot uses velocities
-};
 
 }  // namespace
 
@@ -220,9 +199,8 @@ struct DrillingSimulation::Impl {
   std::vector<int> commandable_index;  // index in arm joints
   Eigen::VectorXd home;                // all arm joints
 
-  // Trajectory (commandable joints only).
-  std::vector<Knot> knots;  // empty: hold
-  Eigen::VectorXd hold_q;
+  // The arm controller's trajectory (commandable joints only), JointTrajectoryController rules.
+  std::unique_ptr<JointTrajectoryExecutor> arm_trajectory;
   // The displacement model the bone plays from the next reset on (none: virtual patient).
   std::optional<BoneMotionModel> bone_motion_model;
   // The joint controllers' position setpoint: the commanded reference, moved at most at each
@@ -379,53 +357,11 @@ struct DrillingSimulation::Impl {
     return t;
   }
 
-  // Trajectory reference (position, velocity) of the commandable joints at time t.
-  void reference(double t, Eigen::VectorXd* q, Eigen::VectorXd* v) const {
-    const int n = static_cast<int>(commandable.size());
-    if (knots.empty()) {
-      *q = hold_q;
-      *v = Eigen::VectorXd::Zero(n);
-      return;
-    }
-    if (t <= knots.front().t) {
-      *q = knots.front().q;
-      *v = knots.front().v;
-      return;
-    }
-    if (t > knots.back().t) {  // at the last knot: its velocity (the state a takeover starts from)
-      *q = knots.back().q;
-      *v = Eigen::VectorXd::Zero(n);
-      return;
-    }
-    size_t k = 1;
-    while (knots[k].t < t) ++k;
-    const Knot& a = knots[k - 1];
-    const Knot& b = knots[k];
-    const double h = b.t - a.t;
-    const double s = t - a.t;
-    q->resize(n);
-    v->resize(n);
-    for (int j = 0; j < n; ++j) {
-      if (b.cubic) {
-        double vel = 0.0;
-        (*q)[j] = hermite(a.q[j], a.v[j], b.q[j], b.v[j], h, s, &vel);
-        (*v)[j] = vel;
-      } else {
-        (*q)[j] = a.q[j] + (b.q[j] - a.q[j]) * s / h;
-        (*v)[j] = (b.q[j] - a.q[j]) / h;
-      }
-    }
-  }
-
   void advanceArmBlock() {
     const double block = steps_per_arm_block * dt;
-    Eigen::VectorXd q0, v0, q1, v1;
-    reference(time, &q0, &v0);
-    reference(time + block, &q1, &v1);
-    if (!knots.empty() && time + block >= knots.back().t) {
-      hold_q = knots.back().q;
-      knots.clear();
-    }
+    const Eigen::VectorXd q0 = arm_trajectory->sample(time).position;
+    const Eigen::VectorXd q1 = arm_trajectory->sample(time + block).position;
+    arm_trajectory->prune(time);
     std::map<std::string, double> pos, vel;
     for (size_t j = 0; j < commandable.size(); ++j) {
       const double limit = arm->jointInfo()[commandable_index[j]].velocity * block;
@@ -497,9 +433,9 @@ struct DrillingSimulation::Impl {
     arm->applyTipForce(Eigen::Vector3d::Zero());
     const TargetResult r = arm->resetJointState(home);
     if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
-    knots.clear();
-    hold_q.resize(static_cast<int>(commandable.size()));
+    Eigen::VectorXd hold_q(static_cast<int>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
+    arm_trajectory->hold(hold_q);
     servo_ref = hold_q;
     spindle_cmd_rpm = 0.0;
     spindle_rpm = 0.0;
@@ -558,6 +494,18 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
                                   "'");
     }
     s.home[it - s.arm_joints.begin()] = kv.second;
+  }
+  {
+    std::vector<JointLimit> limits;
+    Eigen::VectorXd hold_q(static_cast<int>(s.commandable.size()));
+    for (size_t j = 0; j < s.commandable.size(); ++j) {
+      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[j]];
+      limits.push_back(
+          {info.lower, info.upper,
+           info.velocity > 0.0 ? info.velocity : std::numeric_limits<double>::infinity()});
+      hold_q[static_cast<int>(j)] = s.home[s.commandable_index[j]];
+    }
+    s.arm_trajectory = std::make_unique<JointTrajectoryExecutor>(s.commandable, limits, hold_q);
   }
   s.checkSpmsAgainstUrdf();
   s.sliders = Eigen::Vector3d::Constant(params.spms.home_slider_m);
@@ -640,148 +588,14 @@ int DrillingSimulation::step(double dt) {
 }
 
 TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& command) {
-  Impl& s = *impl_;
-  const int n = static_cast<int>(s.commandable.size());
-  if (command.joint_names.empty()) return {TargetStatus::kRejected, "no joint names"};
-  if (command.points.empty()) return {TargetStatus::kRejected, "no trajectory points"};
-  std::vector<int> map;
-  std::set<std::string> seen;
   for (const std::string& name : command.joint_names) {
-    auto it = std::find(s.commandable.begin(), s.commandable.end(), name);
-    if (it == s.commandable.end()) {
+    if (name == "spindle_joint") {
       return {TargetStatus::kRejected,
-              "unknown or non-commandable joint '" + name +
-                  "' (spindle_joint is commanded through the spindle speed)"};
-    }
-    if (!seen.insert(name).second) {
-      return {TargetStatus::kRejected, "joint '" + name + "' appears twice"};
-    }
-    map.push_back(static_cast<int>(it - s.commandable.begin()));
-  }
-  const size_t m = command.joint_names.size();
-  double last_t = -std::numeric_limits<double>::infinity();
-  for (size_t p = 0; p < command.points.size(); ++p) {
-    const TrajectoryPoint& pt = command.points[p];
-    std::ostringstream where;
-    where << "point " << p;
-    if (!std::isfinite(pt.time_s)) return {TargetStatus::kRejected, where.str() + ": bad time"};
-    if (pt.time_s <= last_t) {
-      return {TargetStatus::kRejected, where.str() + ": times must strictly increase"};
-    }
-    last_t = pt.time_s;
-    if (pt.positions.size() != m) {
-      return {TargetStatus::kRejected, where.str() + ": positions size differs from names"};
-    }
-    if (!pt.velocities.empty() && pt.velocities.size() != m) {
-      return {TargetStatus::kRejected, where.str() + ": velocities size differs from names"};
-    }
-    for (double x : pt.positions) {
-      if (!std::isfinite(x)) return {TargetStatus::kRejected, where.str() + ": NaN/inf position"};
-    }
-    for (double x : pt.velocities) {
-      if (!std::isfinite(x)) return {TargetStatus::kRejected, where.str() + ": NaN/inf velocity"};
+              "spindle_joint is not commandable by trajectory: it is commanded through the "
+              "spindle speed"};
     }
   }
-  if (last_t <= s.time) {
-    // A streamed command that arrived after its own end (a late message, e.g. when sim time
-    // runs faster than the planner can follow): go to its final point over the duration of its
-    // last interval, instead of dropping it and leaving the joints on an outdated reference.
-    TrajectoryCommand late = command;
-    const double span =
-        command.points.size() > 1 ? last_t - command.points[command.points.size() - 2].time_s : 0.0;
-    late.points = {command.points.back()};
-    late.points.front().time_s = s.time + std::max(0.01, span);
-    late.points.front().velocities.clear();
-    TargetResult result = commandTrajectory(late);
-    if (result.status != TargetStatus::kRejected) {
-      result.status = TargetStatus::kClamped;
-      result.message = "every point lies in the past (last at " + std::to_string(last_t) +
-                       " s, now " + std::to_string(s.time) + " s): going to the final point" +
-                       (result.message.empty() ? "" : "; " + result.message);
-    }
-    return result;
-  }
-  // JointTrajectoryController semantics: the running trajectory is kept until the new one's
-  // start time (its header stamp; now when zero or past), then the new one goes from the old
-  // reference at that time to its first point not yet due.
-  const double takeover = std::isfinite(command.start_time_s) && command.start_time_s > s.time
-                              ? std::min(command.start_time_s, last_t)
-                              : s.time;
-  Knot start;
-  start.t = s.time;
-  s.reference(s.time, &start.q, &start.v);
-  std::vector<Knot> knots{start};
-  if (takeover > s.time) {
-    for (const Knot& k : s.knots) {
-      if (k.t > s.time && k.t < takeover) knots.push_back(k);
-    }
-    Knot at;
-    at.t = takeover;
-    s.reference(takeover, &at.q, &at.v);
-    // The old segment that contains the takeover keeps its interpolation up to it.
-    at.cubic = false;
-    for (const Knot& k : s.knots) {
-      if (k.t >= takeover) {
-        at.cubic = k.cubic;
-        break;
-      }
-    }
-    knots.push_back(at);
-  }
-  TargetResult result;
-  Eigen::VectorXd prev_q = knots.back().q;
-  for (const TrajectoryPoint& pt : command.points) {
-    if (pt.time_s <= takeover) continue;
-    Knot k;
-    k.t = pt.time_s;
-    k.q = prev_q;  // joints not named keep their reference
-    k.v = Eigen::VectorXd::Zero(n);
-    k.cubic = !pt.velocities.empty();
-    for (size_t j = 0; j < m; ++j) {
-      const int c = map[j];
-      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[c]];
-      double q = pt.positions[j];
-      if (q < info.lower || q > info.upper) {
-        std::ostringstream os;
-        os << "joint '" << info.name << "' target " << q << " clamped to [" << info.lower << ", "
-           << info.upper << "]";
-        result.status = TargetStatus::kClamped;
-        if (!result.message.empty()) result.message += "; ";
-        result.message += os.str();
-        q = std::clamp(q, info.lower, info.upper);
-      }
-      k.q[c] = q;
-      if (k.cubic) k.v[c] = pt.velocities[j];
-    }
-    prev_q = k.q;
-    knots.push_back(k);
-  }
-  // Speeds above the URDF velocity limits: the joint servos cap the speed (BulletArm), so the
-  // joint falls behind the command; say so (the first offence) instead of lagging silently.
-  bool too_fast = false;
-  for (size_t i = 1; i < knots.size() && !too_fast; ++i) {
-    const double dt = knots[i].t - knots[i - 1].t;
-    for (size_t j = 0; j < m && !too_fast; ++j) {
-      const int c = map[j];
-      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[c]];
-      const double mean_speed = std::abs(knots[i].q[c] - knots[i - 1].q[c]) / dt;
-      const double speed = std::max(mean_speed, knots[i].cubic ? std::abs(knots[i].v[c]) : 0.0);
-      too_fast = speed > info.velocity * (1.0 + 1e-6);
-      if (too_fast) {
-        std::ostringstream os;
-        os << "joint '" << info.name << "' commanded at " << speed
-           << " between t = " << knots[i - 1].t << " and " << knots[i].t
-           << " s, above its velocity limit " << info.velocity
-           << ": it follows at the limit and lags the command";
-        result.status = TargetStatus::kClamped;
-        if (!result.message.empty()) result.message += "; ";
-        result.message += os.str();
-      }
-    }
-  }
-  // A cubic segment needs the start velocity; a linear first segment ignores it.
-  s.knots = std::move(knots);
-  return result;
+  return impl_->arm_trajectory->command(command, impl_->time);
 }
 
 TargetResult DrillingSimulation::commandSpindle(double rpm) {

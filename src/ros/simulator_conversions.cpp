@@ -54,7 +54,8 @@ core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, dou
   // The new trajectory takes over at its stamp (JointTrajectoryController); zero: now.
   if (!msg.header.stamp.isZero()) command.start_time_s = start;
   for (const trajectory_msgs::JointTrajectoryPoint& p : msg.points) {
-    command.points.push_back({start + p.time_from_start.toSec(), p.positions, p.velocities});
+    command.points.push_back(
+        {start + p.time_from_start.toSec(), p.positions, p.velocities, p.accelerations});
   }
   return command;
 }

@@ -49,6 +49,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "pedicle_drilling/core/target_result.hpp"
+
 class btMultiBody;
 class btMultiBodyDynamicsWorld;
 
@@ -81,17 +83,6 @@ struct BulletArmParams {
   bool enforce_effort_limits = true;
   /// @brief Add Bullet joint-limit constraints (hard stops) at the URDF position limits.
   bool hard_joint_limits = true;
-};
-
-/// @brief Outcome of a joint target command.
-enum class TargetStatus { kAccepted, kClamped, kRejected };
-
-/// @brief Status plus a human-readable message of a joint target command.
-struct TargetResult {
-  TargetStatus status = TargetStatus::kAccepted;
-  std::string message;
-  /// @brief True unless the command was rejected.
-  bool ok() const { return status != TargetStatus::kRejected; }
 };
 
 /// @brief Type of a simulated (moving) joint.

@@ -41,6 +41,7 @@
 #include "pedicle_drilling/core/drilling_force.hpp"
 #include "pedicle_drilling/core/force_sensor.hpp"
 #include "pedicle_drilling/core/spms_kinematics.hpp"
+#include "pedicle_drilling/core/trajectory_executor.hpp"
 #include "pedicle_drilling/core/ventilator.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
 
@@ -159,26 +160,6 @@ struct DrillingSimulationParams {
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
-};
-
-/** @brief One point of a joint trajectory (absolute sim time). */
-struct TrajectoryPoint {
-  double time_s = 0.0;             ///< absolute simulation time of the point [s]
-  std::vector<double> positions;   ///< one per joint name
-  std::vector<double> velocities;  ///< empty (linear interpolation) or one per joint (cubic)
-};
-
-/** @brief A joint trajectory command: names plus time-ordered points. */
-struct TrajectoryCommand {
-  std::vector<std::string> joint_names;  ///< subset of the commandable joints
-  std::vector<TrajectoryPoint> points;   ///< strictly increasing times
-  /**
-   * @brief When the new trajectory takes over (the message's header stamp), as ros_control's
-   *        JointTrajectoryController does: the running trajectory is followed until then, and
-   *        the new one goes from that trajectory's state at this time to its first point not in
-   *        the past. NaN (a zero stamp) or a time not after now: it takes over now.
-   */
-  double start_time_s = std::numeric_limits<double>::quiet_NaN();
 };
 
 /**
