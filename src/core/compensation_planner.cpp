@@ -223,20 +223,6 @@ PlannedSegment CompensationPlanner::segment(int k) const {
   out.t1 = out.t0 + params_.period_s;
   const int n = params_.points_per_segment;
   out.points.reserve(n);
-  if (params_.segment_profile == SegmentProfile::kBlended) {
-    out.feed_start_m = segmentedSample(out.t0).position.dot(axis_);
-    for (int i = 1; i <= n; ++i) {
-      PlannedPoint pt;
-      pt.t = pointTime(out, params_.period_s, i, n);
-      const SegmentSample sample = segmentedSample(pt.t);
-      pt.feed_m = sample.position.dot(axis_);
-      pt.feed_velocity_m_s = sample.velocity.dot(axis_);
-      pt.lateral_m = sample.position - pt.feed_m * axis_;
-      out.points.push_back(pt);
-    }
-    out.feed_end_m = out.points.back().feed_m;
-    return out;
-  }
   const Eigen::Vector3d p0 = reference(out.t0);
   const Eigen::Vector3d p1 = reference(out.t1);
   const Segment seg = segmenter_.plan(out.t0, p0, p1);
@@ -261,9 +247,6 @@ Eigen::Vector3d CompensationPlanner::segmentedReference(double t) const {
 SegmentSample CompensationPlanner::segmentedSample(double t) const {
   if (params_.segment_profile == SegmentProfile::kExact) {
     return {reference(t), referenceVelocity(t, false)};
-  }
-  if (params_.segment_profile == SegmentProfile::kBlended) {
-    return segmenter_.sampleBlended([this](double time) { return reference(time); }, t_reg_, t);
   }
   const int k = segmentIndexAt(t);
   const double t0 = t_reg_ + k * params_.period_s;

@@ -8,6 +8,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <set>
@@ -15,6 +16,7 @@
 #include <stdexcept>
 
 #include "pedicle_drilling/core/normal_source.hpp"
+#include "pedicle_drilling/core/stage_axis.hpp"
 #include "pedicle_drilling/core/trajectory_executor.hpp"
 #include "pedicle_drilling/core/virtual_volunteer.hpp"
 
@@ -25,6 +27,9 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 // A separation of drill and bone: no contact for this many 1 ms steps (10 ms).
 constexpr int kSeparationSteps = 10;
+// Points of the bench's SPMS stream per period (every 5 ms at 125 ms): the cubic between them
+// is within 1e-9 m of the model's displacement on the expiration's exponential.
+constexpr int kBenchPointsPerPeriod = 25;
 
 // The tracker's sample phase of a trial, uniform in [0, 1): its own stream of the seed, so that
 // it changes nothing else the seed draws.
@@ -201,6 +206,9 @@ struct DrillingSimulation::Impl {
 
   // The arm controller's trajectory (commandable joints only), JointTrajectoryController rules.
   std::unique_ptr<JointTrajectoryExecutor> arm_trajectory;
+  // The feed joint's drive (index in the commandable joints, -1: none in the chain).
+  int feed_index = -1;
+  StageAxis feed_drive;
   // The displacement model the bone plays from the next reset on (none: virtual patient).
   std::optional<BoneMotionModel> bone_motion_model;
   // The joint controllers' position setpoint: the commanded reference, moved at most at each
@@ -219,6 +227,14 @@ struct DrillingSimulation::Impl {
   Eigen::Isometry3d camera_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d sliders;
   Eigen::Vector3d slider_targets;
+  // The sliders' drives (lead-screw servo axes) and, on the paper's bench, the trajectory the
+  // SPMS controller streams (slider joints, the SpmsKinematics convention).
+  std::array<StageAxis, 3> slider_axes;
+  std::unique_ptr<JointTrajectoryExecutor> spms_trajectory;
+  std::uint64_t bench_period_steps = 125;
+  std::uint64_t bench_stream_due = 0;  // 0: stream from now at the next step (after a reset)
+  Eigen::Vector3d previous_targets = Eigen::Vector3d::Zero();
+  bool have_previous_targets = false;
   PlatformFullPose platform;
   double desired_heave = 0.0;
   Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();
@@ -321,20 +337,118 @@ struct DrillingSimulation::Impl {
     }
   }
 
+  // The patient's AP heave [m] at time t when the bone plays a model (the paper's bench): a
+  // copy of the internal ventilator sampled ahead (pending settings take effect at their
+  // breath, as on the ventilator itself), q1 Tv + q2 dTv/dt, and the fault's amplitude factor.
+  double benchHeave(BreathScheduler* vent, double t) const {
+    const VentilatorSample v = vent->sample(t);
+    return 1e-3 * amplitude_factor *
+           (patient.q1_ap_mm_per_ml * v.volume_ml + patient.q2_ap_mm_s_per_ml * v.flow_ml_s);
+  }
+
+  // Times in (t0, t1] where the ventilator's flow steps (breath start, end of the inspiratory
+  // flow, end of the pause), breath by breath on a copy of the ventilator.
+  std::vector<double> benchFlowSteps(double t0, double t1) const {
+    std::vector<double> out;
+    BreathScheduler vent = ventilator;
+    double t = t0;
+    for (int guard = 0; guard < 100; ++guard) {
+      vent.sample(t);
+      const double start = vent.breathStart();
+      const VentilatorModel& m = vent.model();
+      for (double tau : {0.0, m.flowTime(), m.inspiratoryTime(), m.period()}) {
+        const double ts = start + tau;
+        if (ts > t0 && ts <= t1 && (out.empty() || ts > out.back() + 1e-9)) out.push_back(ts);
+      }
+      t = start + m.period();
+      if (t > t1) break;
+    }
+    return out;
+  }
+
+  // The SPMS controller of the paper's bench plays the model: every bench_period_s it streams
+  // the next period, one period ahead, as a trajectory of the slider joints (points every
+  // period / bench_points, knots on both sides of each flow step, velocities from one-sided
+  // differences), executed like the arm's (JointTrajectoryExecutor).
+  void streamBench(bool first) {
+    const double period = bench_period_steps * dt;
+    const double t0 = first ? time : time + period;
+    const double t1 = time + 2.0 * period;
+    struct Knot {
+      double t;
+      bool left;
+    };
+    std::vector<Knot> knots;
+    const int n = static_cast<int>(std::lround((t1 - t0) / period * kBenchPointsPerPeriod));
+    for (int i = 1; i <= n; ++i) knots.push_back({t0 + (t1 - t0) * i / n, true});
+    constexpr double kStepWidth = 1e-3;
+    for (double ts : benchFlowSteps(t0, t1)) {
+      knots.push_back({ts, true});
+      if (ts + kStepWidth < t1) knots.push_back({ts + kStepWidth, false});
+    }
+    std::sort(knots.begin(), knots.end(), [](const Knot& a, const Knot& b) { return a.t < b.t; });
+    TrajectoryCommand command;
+    command.joint_names = spms_trajectory->jointNames();
+    command.start_time_s = first ? std::numeric_limits<double>::quiet_NaN() : t0;
+    BreathScheduler vent = ventilator;
+    constexpr double h = 1e-6;  // exact on the linear pieces of a square flow
+    constexpr double dz = 1e-7;
+    for (std::size_t i = 0; i < knots.size(); ++i) {
+      if (i > 0 && knots[i].t <= knots[i - 1].t + 1e-9) continue;
+      const double ta = knots[i].left ? knots[i].t - h : knots[i].t;
+      const double za = benchHeave(&vent, ta);
+      const double zb = benchHeave(&vent, ta + h);
+      const double z = knots[i].left ? zb : za;
+      const double zdot = (zb - za) / h;
+      const SpmsIkResult ik = spms.inverseHeave(z);
+      const SpmsIkResult ik2 = spms.inverseHeave(z + dz);
+      if (!ik.reachable || !ik2.reachable) break;  // outside the stroke: hold the last point
+      TrajectoryPoint pt;
+      pt.time_s = knots[i].t;
+      for (int j = 0; j < 3; ++j) {
+        pt.positions.push_back(ik.sliders[j]);
+        pt.velocities.push_back((ik2.sliders[j] - ik.sliders[j]) / dz * zdot);
+      }
+      command.points.push_back(pt);
+    }
+    if (!command.points.empty()) spms_trajectory->command(command, time);
+  }
+
   void updatePlatform() {
-    const double t_lag = std::max(0.0, time - patient.lag_s);
-    // Earlier times than the last call are clamped by the scheduler (lag change on reset).
-    const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
-    desired_heave = moving_bone
-                        ? 1e-3 * amplitude_factor *
-                              patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
-                        : 0.0;
-    const SpmsIkResult ik = spms.inverseHeave(desired_heave);
-    if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
-    const double max_step = params.slider_max_speed_m_s * dt;
+    Eigen::Vector3d ref_velocity = Eigen::Vector3d::Zero();
+    Eigen::Vector3d set_point = slider_targets;
+    if (moving_bone && bone_motion_model) {
+      if (bench_stream_due == 0 || step_index >= bench_stream_due) {
+        streamBench(bench_stream_due == 0);
+        bench_stream_due = step_index + bench_period_steps;
+      }
+      BreathScheduler vent = ventilator;
+      desired_heave = benchHeave(&vent, time);
+      // The drives read the set-point at the start of the step (time - dt).
+      const TrajectoryState ref = spms_trajectory->sample(time - dt);
+      spms_trajectory->prune(time - dt);
+      set_point = ref.position;
+      slider_targets = spms_trajectory->sample(time).position;
+      ref_velocity = ref.velocity;
+    } else {
+      const double t_lag = std::max(0.0, time - patient.lag_s);
+      // Earlier times than the last call are clamped by the scheduler (lag change on reset).
+      const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
+      desired_heave = moving_bone
+                          ? 1e-3 * amplitude_factor *
+                                patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
+                          : 0.0;
+      const SpmsIkResult ik = spms.inverseHeave(desired_heave);
+      if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
+      // The drive streams the patient's motion as position set-points, each with the velocity to
+      // the next as feed-forward: over this step, from the last set-point to this one.
+      set_point = have_previous_targets ? previous_targets : slider_targets;
+      if (have_previous_targets) ref_velocity = (slider_targets - previous_targets) / dt;
+      previous_targets = slider_targets;
+      have_previous_targets = true;
+    }
     for (int i = 0; i < 3; ++i) {
-      const double e = slider_targets[i] - sliders[i];
-      sliders[i] += std::clamp(e, -max_step, max_step);
+      sliders[i] = slider_axes[static_cast<std::size_t>(i)].step(dt, set_point[i], ref_velocity[i]);
     }
     PlatformPose guess;
     guess.z_m = platform.z_m;
@@ -359,8 +473,18 @@ struct DrillingSimulation::Impl {
 
   void advanceArmBlock() {
     const double block = steps_per_arm_block * dt;
-    const Eigen::VectorXd q0 = arm_trajectory->sample(time).position;
-    const Eigen::VectorXd q1 = arm_trajectory->sample(time + block).position;
+    Eigen::VectorXd q0 = arm_trajectory->sample(time).position;
+    Eigen::VectorXd q1 = arm_trajectory->sample(time + block).position;
+    if (feed_index >= 0) {
+      // The drill device's feed drive (a lead-screw axis like the SPMS sliders) follows the
+      // trajectory with its own limits, stepped at the physics rate over the coming block.
+      q0[feed_index] = feed_drive.position();
+      for (int k = 0; k < steps_per_arm_block; ++k) {
+        const TrajectoryState ref = arm_trajectory->sample(time + k * dt);
+        feed_drive.step(dt, ref.position[feed_index], ref.velocity[feed_index]);
+      }
+      q1[feed_index] = feed_drive.position();
+    }
     arm_trajectory->prune(time);
     std::map<std::string, double> pos, vel;
     for (size_t j = 0; j < commandable.size(); ++j) {
@@ -425,6 +549,10 @@ struct DrillingSimulation::Impl {
       lagged_ventilator.requestSettings(breathing);
     }
     sensor->tare();  // standard practice before drilling
+    // The SPMS controller starts its stream from where the sliders are.
+    spms_trajectory->hold(sliders);
+    bench_stream_due = 0;
+    have_previous_targets = false;
     tracker_rng.seed(seed * 40503ULL + 3ULL);
     tracker_phase = trackerPhaseFraction(seed);
     was_in_contact = false;
@@ -436,6 +564,7 @@ struct DrillingSimulation::Impl {
     Eigen::VectorXd hold_q(static_cast<int>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
     arm_trajectory->hold(hold_q);
+    if (feed_index >= 0) feed_drive.reset(hold_q[feed_index]);
     servo_ref = hold_q;
     spindle_cmd_rpm = 0.0;
     spindle_rpm = 0.0;
@@ -461,6 +590,14 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
   if (std::abs(ratio - s.steps_per_arm_block) > 1e-9) {
     throw std::invalid_argument(
         "DrillingSimulation: physics_rate_hz / arm_rate_hz must be an integer");
+  }
+  if (!(params.slider_max_accel_m_s2 > 0.0) || !std::isfinite(params.slider_max_accel_m_s2) ||
+      !(params.slider_bandwidth_hz > 0.0) || !std::isfinite(params.slider_bandwidth_hz)) {
+    throw std::invalid_argument(
+        "DrillingSimulation: slider_max_accel_m_s2 and slider_bandwidth_hz must be finite and > 0");
+  }
+  if (!(params.bench_period_s >= 0.01 && params.bench_period_s <= 1.0)) {
+    throw std::invalid_argument("DrillingSimulation: bench_period_s must be in [0.01, 1] s");
   }
   if (!(params.slider_max_speed_m_s > 0.0) || !(params.spindle_accel_rpm_s > 0.0) ||
       !(params.spindle_max_rpm > 0.0) || !(params.tracker_noise_rms_mm >= 0.0)) {
@@ -506,10 +643,33 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
       hold_q[static_cast<int>(j)] = s.home[s.commandable_index[j]];
     }
     s.arm_trajectory = std::make_unique<JointTrajectoryExecutor>(s.commandable, limits, hold_q);
+    const auto feed = std::find(s.commandable.begin(), s.commandable.end(), "feed_joint");
+    if (feed != s.commandable.end()) {
+      s.feed_index = static_cast<int>(feed - s.commandable.begin());
+      StageAxisParams drive;
+      drive.max_speed_m_s = limits[static_cast<std::size_t>(s.feed_index)].velocity;
+      drive.max_accel_m_s2 = params.feed_max_accel_m_s2;
+      drive.bandwidth_hz = params.feed_bandwidth_hz;
+      s.feed_drive = StageAxis(drive, hold_q[s.feed_index]);
+    }
   }
   s.checkSpmsAgainstUrdf();
   s.sliders = Eigen::Vector3d::Constant(params.spms.home_slider_m);
   s.slider_targets = s.sliders;
+  {
+    StageAxisParams drive;
+    drive.max_speed_m_s = params.slider_max_speed_m_s;
+    drive.max_accel_m_s2 = params.slider_max_accel_m_s2;
+    drive.bandwidth_hz = params.slider_bandwidth_hz;
+    for (StageAxis& axis : s.slider_axes) axis = StageAxis(drive, params.spms.home_slider_m);
+    const SpmsGeometry& g = params.spms;
+    const JointLimit stroke{g.slider_min_m, g.slider_max_m, params.slider_max_speed_m_s};
+    s.spms_trajectory = std::make_unique<JointTrajectoryExecutor>(
+        std::vector<std::string>{"slider1_joint", "slider2_joint", "slider3_joint"},
+        std::vector<JointLimit>{stroke, stroke, stroke}, s.sliders);
+    s.bench_period_steps = streamPeriodSteps(params.physics_rate_hz, 1.0 / params.bench_period_s,
+                                             "bench_period_s (as a rate)");
+  }
   s.updatePlatform();  // home pose at t = 0 (platform not moving yet)
   {
     Eigen::Isometry3d home = Eigen::Isometry3d::Identity();

@@ -134,8 +134,6 @@ Eigen::Vector3d TrapezoidSegmenter::sample(const Reference& ref, double t_start,
 
 const char* toString(SegmentProfile profile) {
   switch (profile) {
-    case SegmentProfile::kBlended:
-      return "blended";
     case SegmentProfile::kExact:
       return "exact";
     case SegmentProfile::kRestToRest:
@@ -145,10 +143,6 @@ const char* toString(SegmentProfile profile) {
 }
 
 bool parseSegmentProfile(const std::string& name, SegmentProfile* profile) {
-  if (name == "blended") {
-    *profile = SegmentProfile::kBlended;
-    return true;
-  }
   if (name == "exact") {
     *profile = SegmentProfile::kExact;
     return true;
@@ -158,65 +152,6 @@ bool parseSegmentProfile(const std::string& name, SegmentProfile* profile) {
     return true;
   }
   return false;
-}
-
-SegmentSample TrapezoidSegmenter::sampleBlended(const Reference& ref, double t_start,
-                                                double t) const {
-  if (!std::isfinite(t_start) || !std::isfinite(t)) {
-    throw std::invalid_argument("sampleBlended: t_start and t must be finite");
-  }
-  const double T = period_;
-  const double r = accel_ratio_;
-  SegmentSample out;
-  if (t <= t_start) {
-    out.position = ref(t_start);
-    return out;
-  }
-  const int k = static_cast<int>(std::floor((t - t_start) / T));
-  const auto knotTime = [&](int j) { return t_start + j * T; };
-  // Knots k - 1 .. k + 2 (those that exist).
-  Eigen::Vector3d P[4];
-  for (int i = 0; i < 4; ++i) {
-    const int j = k - 1 + i;
-    P[i] = j >= 0 ? ref(knotTime(j)) : Eigen::Vector3d::Zero();
-  }
-  const auto knot = [&](int j) -> const Eigen::Vector3d& { return P[j - (k - 1)]; };
-  const double tau0 = std::min(1.0 / r, 0.5 * T);
-  const auto chordVelocity = [&](int j) -> Eigen::Vector3d {
-    if (j == 0) return (knot(1) - knot(0)) / (T - 0.5 * tau0);
-    return (knot(j + 1) - knot(j)) / T;
-  };
-  // Blend duration at knot j >= 1.
-  const auto blendTime = [&](const Eigen::Vector3d& v_in, const Eigen::Vector3d& v_out) {
-    const double v_max = std::max(v_in.norm(), v_out.norm());
-    if (v_max <= 0.0) return 0.0;
-    return std::min(T, (v_out - v_in).norm() / (r * v_max));
-  };
-  const double tk = knotTime(k);
-  const double tk1 = knotTime(k + 1);
-  const Eigen::Vector3d v_k = chordVelocity(k);
-  if (k == 0 && t < tk + tau0) {  // start from rest
-    const double s = t - tk;
-    out.position = knot(0) + v_k * (0.5 * s * s / tau0);
-    out.velocity = v_k * (s / tau0);
-    return out;
-  }
-  // The parabolic blend from v_in to v_out centred on knot j, if t lies within it.
-  const auto inBlend = [&](int j, const Eigen::Vector3d& v_in, const Eigen::Vector3d& v_out) {
-    const double tau = blendTime(v_in, v_out);
-    const double tj = knotTime(j);
-    if (!(tau > 0.0 && std::abs(t - tj) < 0.5 * tau)) return false;
-    const double s = t - tj + 0.5 * tau;
-    out.position = knot(j) + v_in * (t - tj) + (v_out - v_in) * (0.5 * s * s / tau);
-    out.velocity = v_in + (v_out - v_in) * (s / tau);
-    return true;
-  };
-  if (k >= 1 && inBlend(k, chordVelocity(k - 1), v_k)) return out;
-  if (inBlend(k + 1, v_k, chordVelocity(k + 1))) return out;
-  // On the chord polyline, which passes through P_k+1 at t_k+1.
-  out.position = knot(k + 1) + v_k * (t - tk1);
-  out.velocity = v_k;
-  return out;
 }
 
 double TrapezoidSegmenter::trackingErrorBound(double v_max, double a_max) const {

@@ -372,20 +372,13 @@ void TrialSequencer::sendDueSegments(double now) {
       feed_velocities.push_back(pt.feed_velocity_m_s);
       lateral.push_back(pt.lateral_m);
     };
-    // A trajectory message takes over at its start time (JointTrajectoryController). Blended:
-    // it repeats the rest of the running segment, so that the velocity-continuous path runs as
-    // planned. Rest to rest (the paper's default) and exact: segment k alone.
-    const bool blended = planner_->params().segment_profile == SegmentProfile::kBlended;
-    if (blended && seg.index > 0) {
-      for (const PlannedPoint& pt : planner_->segment(seg.index - 1).points) {
-        if (pt.t > now) add(pt);
-      }
-    }
+    // A trajectory message takes over at its start time (JointTrajectoryController): segment
+    // k alone, from t_k.
     for (const PlannedPoint& pt : seg.points) add(pt);
     // While drilling every point carries its planned velocity (the trapezoid's, or the
     // reference's for the exact profile), so that the controller's cubic spline runs the plan;
     // a hold or a retreat adds to the feed, and its velocities come from the points.
-    emitTrajectory(blended ? seg.t0 - period : seg.t0, times, feeds, lateral,
+    emitTrajectory(seg.t0, times, feeds, lateral,
                    phase_ == TrialPhase::kDrilling ? &feed_velocities : nullptr);
     if (phase_ == TrialPhase::kDrilling &&
         arm_.feedHome() + seg.feed_end_m > params_.feed_upper_m - 1e-3) {

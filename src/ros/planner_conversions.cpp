@@ -33,7 +33,7 @@ core::TrialSequencerParams loadSequencerParams(const ParamLoader& params) {
   cp.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
   const std::string profile = params.getString("segment_profile", "rest_to_rest");
   if (!core::parseSegmentProfile(profile, &cp.segment_profile)) {
-    params.fail("segment_profile", "= '" + profile + "' is not rest_to_rest, blended or exact");
+    params.fail("segment_profile", "= '" + profile + "' is not rest_to_rest or exact");
   }
   cp.compensate_lateral = params.getBool("compensate_si_lr", false);
   cp.predict_axis = {{false, false, false}};

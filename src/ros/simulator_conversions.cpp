@@ -14,11 +14,16 @@ namespace pedicle_drilling {
 core::DrillingSimulationParams loadSimulationParams(const ros::NodeHandle& private_nh) {
   const ParamLoader params(private_nh);
   core::DrillingSimulationParams sp;
-  sp.arm_rate_hz = params.getDouble("arm_rate_hz", 250.0, 1.0, 1000.0);
+  sp.arm_rate_hz = params.getDouble("arm_rate_hz", 1000.0, 1.0, 1000.0);
   if (std::abs(1000.0 / sp.arm_rate_hz - std::round(1000.0 / sp.arm_rate_hz)) > 1e-9) {
     params.fail("arm_rate_hz", "must divide the 1000 Hz physics rate (e.g. 1000, 500, 250)");
   }
   sp.slider_max_speed_m_s = params.getDouble("slider_max_speed_m_s", 0.05, 0.0, 1.0, true);
+  sp.slider_max_accel_m_s2 = params.getDouble("slider_max_accel_m_s2", 2.0, 0.0, 100.0, true);
+  sp.slider_bandwidth_hz = params.getDouble("slider_bandwidth_hz", 20.0, 0.0, 500.0, true);
+  sp.feed_max_accel_m_s2 = params.getDouble("feed_max_accel_m_s2", 2.0, 0.0, 100.0, true);
+  sp.feed_bandwidth_hz = params.getDouble("feed_bandwidth_hz", 20.0, 0.0, 500.0, true);
+  sp.bench_period_s = params.getDouble("bench_period_s", 0.125, 0.01, 1.0);
   sp.spindle_accel_rpm_s = params.getDouble("spindle_accel_rpm_s", 40000.0, 0.0, 1.0e6, true);
   sp.tracker_noise_rms_mm = params.getDouble("tracker_noise_rms_mm", 0.25, 0.0, 10.0);
   sp.sensor.force_noise_sd_n = params.getDouble("force_noise_sd_n", 0.03, 0.0, 10.0);

@@ -118,8 +118,8 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"model", "virtual_patient"}));
   std::string segment_profile = "rest_to_rest";
   app.add_option("--segment-profile", segment_profile,
-                 "the planner's ~segment_profile: rest_to_rest (the paper's) | blended | exact")
-      ->check(CLI::IsMember({"rest_to_rest", "blended", "exact"}));
+                 "the planner's ~segment_profile: rest_to_rest (the paper's) | exact")
+      ->check(CLI::IsMember({"rest_to_rest", "exact"}));
   app.add_option("--command-delay-s", config.delays.command_to_arm_s,
                  "planner command -> arm controller transport delay, s")
       ->check(CLI::Range(0.0, 1.0));

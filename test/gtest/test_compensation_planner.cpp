@@ -150,35 +150,6 @@ TEST(CompensationPlanner, SegmentsAreContinuousTrapezoidsOfThePeriod) {
   }
 }
 
-TEST(CompensationPlanner, BlendedSegmentsAreVelocityContinuous) {
-  pd::CompensationParams p;
-  p.segment_profile = pd::SegmentProfile::kBlended;
-  pd::CompensationPlanner planner = readyPlanner(p);
-  planner.start(pd::CompensationMode::kCompensated, 1.0);
-  double max_dev = 0.0;
-  for (int k = 0; k < 80; ++k) {
-    const pd::PlannedSegment s = planner.segment(k);
-    const pd::PlannedSegment next = planner.segment(k + 1);
-    EXPECT_NEAR(s.feed_end_m, next.feed_start_m, 1e-15);
-    ASSERT_EQ(s.points.size(), 5u);
-    // Points are samples of the one blended path, velocities included (no stop at the end).
-    for (const auto& pt : s.points) {
-      const pd::SegmentSample at = planner.segmentedSample(pt.t);
-      EXPECT_NEAR(pt.feed_m, at.position.dot(planner.axis()), 1e-15);
-      EXPECT_NEAR(pt.feed_velocity_m_s, at.velocity.dot(planner.axis()), 1e-15);
-      max_dev = std::max(max_dev, std::abs(pt.feed_m - planner.referenceFeed(pt.t)));
-    }
-  }
-  // Inspiration moves the bone at up to 3 mm/s: the end of a segment is not at rest.
-  int moving_ends = 0;
-  for (int k = 1; k < 40; ++k) {
-    moving_ends += std::abs(planner.segment(k).points.back().feed_velocity_m_s) > 1e-3;
-  }
-  EXPECT_GT(moving_ends, 5);
-  // The path leaves the reference by at most the corner cut at the flow steps (dV T / 4).
-  EXPECT_LT(max_dev, 7.5e-3 * 0.125 / 4.0);
-}
-
 TEST(CompensationPlanner, LateralPartOnlyWhenRequested) {
   pd::CompensationParams p;
   p.predict_axis = {{true, true, true}};

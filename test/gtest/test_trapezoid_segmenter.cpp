@@ -178,63 +178,12 @@ TEST(TrapezoidSegmenterTest, FeedPlusDisplacement3D) {
   EXPECT_NEAR((s.sample(ref, 0.0, 5.0) - ref(5.0)).norm(), 0.0, 1e-15);
 }
 
-// A reference like the compensated feed: 0.5 mm/s feed plus a breathing-like displacement whose
-// velocity steps from +3 to -4.5 mm/s at t = 1.6 s (a square-wave ventilator's flow step).
-Eigen::Vector3d steppedReference(double t) {
-  const double feed = 0.5e-3 * t;
-  const double bone = t < 1.6 ? 3e-3 * t : 3e-3 * 1.6 - 4.5e-3 * (t - 1.6);
-  return Eigen::Vector3d(0.0, 0.0, feed + bone);
-}
-
-TEST(TrapezoidSegmenterTest, BlendedIsVelocityContinuousAndFollowsTheChords) {
-  const TrapezoidSegmenter s(0.125, 10.0);
-  const TrapezoidSegmenter::Reference ref = steppedReference;
-  const double t0 = 0.3;
-  // Before the start: at rest at the first knot; the start from rest reaches the chord at P1.
-  EXPECT_NEAR((s.sampleBlended(ref, t0, t0 - 0.1).position - ref(t0)).norm(), 0.0, 1e-15);
-  EXPECT_EQ(s.sampleBlended(ref, t0, t0).velocity.norm(), 0.0);
-  double max_jump_v = 0.0;
-  double max_accel = 0.0;
-  double max_dev = 0.0;
-  SegmentSample prev = s.sampleBlended(ref, t0, t0);
-  const double dt = 1e-5;
-  for (double t = t0 + dt; t < t0 + 3.0; t += dt) {
-    const SegmentSample now = s.sampleBlended(ref, t0, t);
-    // Position is the integral of the velocity (trapezoid rule), velocity has no jump.
-    EXPECT_NEAR((now.position - prev.position - 0.5 * dt * (now.velocity + prev.velocity)).norm(),
-                0.0, 1e-10)
-        << "t = " << t;
-    max_jump_v = std::max(max_jump_v, (now.velocity - prev.velocity).norm());
-    max_accel = std::max(max_accel, (now.velocity - prev.velocity).norm() / dt);
-    max_dev = std::max(max_dev, (now.position - ref(t)).norm());
-    prev = now;
-  }
-  // Acceleration: at the start, from rest to (P1 - P0) / (T - tau0 / 2) within tau0 = T / 2
-  // (r = 10 gives 1 / r > T / 2, as for the rest-to-rest profile); at the flow step, the change
-  // from +3.5 to -4.0 mm/s over a whole period (|dV| / (r v_max) > T); elsewhere none.
-  const double v_start = 3.5e-3 * 0.125 / (0.125 - 0.5 * 0.0625);
-  const double a_start = v_start / 0.0625;
-  const double a_step = (3.5e-3 + 4.0e-3) / 0.125;
-  EXPECT_NEAR(max_accel, std::max(a_start, a_step), 1e-3 * a_start);
-  EXPECT_LT(max_jump_v, std::max(a_start, a_step) * dt * 1.01);
-  // It leaves the reference only around the velocity step (corner cutting, <= |dV| T / 4).
-  EXPECT_LT(max_dev, 7.5e-3 * 0.125 / 4.0);
-  EXPECT_GT(max_dev, 0.05e-3);
-  // Away from the step, on a straight reference, it is on the reference with its velocity.
-  for (double t : {t0 + 0.5, t0 + 0.77, 2.5, 3.1}) {
-    const SegmentSample at = s.sampleBlended(ref, t0, t);
-    EXPECT_NEAR((at.position - ref(t)).norm(), 0.0, 1e-12) << t;
-    EXPECT_NEAR(at.velocity.z(), t < 1.6 ? 3.5e-3 : -4.0e-3, 1e-12) << t;
-  }
-  // The rest-to-rest profile of the same reference stops at every knot.
-  EXPECT_EQ(s.segmentAt(ref, t0, t0 + 0.5).velocity(t0 + 0.5).norm(), 0.0);
-}
-
 TEST(TrapezoidSegmenterTest, SegmentProfileNames) {
   SegmentProfile p = SegmentProfile::kRestToRest;
-  EXPECT_TRUE(parseSegmentProfile("blended", &p));
-  EXPECT_EQ(p, SegmentProfile::kBlended);
-  EXPECT_STREQ(toString(p), "blended");
+  EXPECT_TRUE(parseSegmentProfile("exact", &p));
+  EXPECT_EQ(p, SegmentProfile::kExact);
+  EXPECT_STREQ(toString(p), "exact");
+  EXPECT_FALSE(parseSegmentProfile("blended", &p));  // retired (README)
   EXPECT_TRUE(parseSegmentProfile("rest_to_rest", &p));
   EXPECT_EQ(p, SegmentProfile::kRestToRest);
   EXPECT_FALSE(parseSegmentProfile("smooth", &p));

@@ -59,8 +59,7 @@ struct CompensationParams {
   int points_per_segment = 5;
   /**
    * @brief How the 125 ms segments join: kRestToRest (default, the paper's; each segment a
-   *        trapezoid from rest to rest), kBlended (velocity-continuous, each period at its chord
-   *        velocity, ramps of accel_ratio x velocity at the boundaries) or kExact (beyond the
+   *        trapezoid from rest to rest) or kExact (beyond the
    *        paper: the reference itself, points_per_segment samples per period with analytic
    *        velocities, plus knots at the flow steps).
    */
@@ -191,7 +190,7 @@ class CompensationPlanner {
   /**
    * @brief Segment k (t_k = t_reg + k T to t_k + T): points_per_segment samples of the segmented
    *        trajectory with their velocities; rest-to-rest segments go from reference(t_k) to
-   *        reference(t_k + T) and end at rest, blended ones follow sampleBlended().
+   *        reference(t_k + T) and end at rest; exact ones sample the reference itself.
    */
   PlannedSegment segment(int k) const;
 

@@ -136,7 +136,7 @@ struct DrillingSimulationParams {
   std::string base_link = "world";     ///< root of the arm chain and of every pose
   std::string tip_link = "drill_tip";  ///< end of the arm chain (drill point)
   double physics_rate_hz = 1000.0;     ///< drilling physics and force-sensor rate
-  double arm_rate_hz = 250.0;          ///< Bullet arm rate; physics_rate / arm_rate integer
+  double arm_rate_hz = 1000.0;         ///< Bullet arm rate; physics_rate / arm_rate integer
   BulletArmParams arm;                 ///< servo model (substep is set from arm_rate_hz)
   /// Home joint positions (joints not listed stay at 0); arm returns here on reset().
   std::map<std::string, double> home_pose = {{"rsssii_joint1", 0.0},      {"rsssii_joint2", 0.2},
@@ -147,17 +147,26 @@ struct DrillingSimulationParams {
   SpmsGeometry spms = urdfSpmsGeometry();
   double spms_slider_joint_offset_m = 0.05;  ///< URDF slider joint value = s - this offset
   double slider_max_speed_m_s = 0.05;        ///< lead-screw slider speed limit (URDF: 50 mm/s)
-  double spindle_max_rpm = 21000.0;          ///< URDF spindle_joint limit 2200 rad/s
-  double spindle_accel_rpm_s = 40000.0;      ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
-  double bone_half_x_m = 0.02;         ///< bone footprint half size along the bone frame x [m]
-  double bone_half_y_m = 0.015;        ///< bone footprint half size along the bone frame y [m]
-  bool moving_bone = true;             ///< initial trial: bone follows the patient (reset() sets)
-  VentilatorSettings ventilator;       ///< internal ventilator driving the patient
-  SpecimenDistribution specimen;       ///< specimen distribution for reset(seed)
-  TrialVariability variability;        ///< patient/ventilator/sensor/arm spread for reset(seed)
-  DrillParameters drill;               ///< drill and force-law constants
-  ForceSensorParams sensor;            ///< force/torque sensor model
-  double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
+  double slider_max_accel_m_s2 = 2.0;        ///< slider drive's acceleration limit [m/s^2]
+  double slider_bandwidth_hz = 20.0;         ///< slider drive's position-loop bandwidth [Hz]
+  /// The drill device's feed drive (feed_joint; speed: its URDF limit): acceleration [m/s^2]
+  /// and position-loop bandwidth [Hz] of a lead-screw axis like the sliders'.
+  double feed_max_accel_m_s2 = 2.0;
+  double feed_bandwidth_hz = 20.0;  ///< see feed_max_accel_m_s2
+  /// Paper's bench (a BoneMotionModel): the SPMS controller streams the model's displacement
+  /// one period ahead, every bench_period_s (the planner's 125 ms), to the slider trajectory.
+  double bench_period_s = 0.125;
+  double spindle_max_rpm = 21000.0;      ///< URDF spindle_joint limit 2200 rad/s
+  double spindle_accel_rpm_s = 40000.0;  ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
+  double bone_half_x_m = 0.02;           ///< bone footprint half size along the bone frame x [m]
+  double bone_half_y_m = 0.015;          ///< bone footprint half size along the bone frame y [m]
+  bool moving_bone = true;               ///< initial trial: bone follows the patient (reset() sets)
+  VentilatorSettings ventilator;         ///< internal ventilator driving the patient
+  SpecimenDistribution specimen;         ///< specimen distribution for reset(seed)
+  TrialVariability variability;          ///< patient/ventilator/sensor/arm spread for reset(seed)
+  DrillParameters drill;                 ///< drill and force-law constants
+  ForceSensorParams sensor;              ///< force/torque sensor model
+  double tracker_noise_rms_mm = 0.25;    ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
 };

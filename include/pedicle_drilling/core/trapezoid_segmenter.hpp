@@ -94,18 +94,15 @@ class Segment {
 enum class SegmentProfile {
   /// Each segment is a trapezoid (triangle at the paper's numbers) from rest to rest.
   kRestToRest,
-  /// Velocity-continuous: each segment cruises at its chord velocity and the velocity changes
-  /// at the segment boundaries with trapezoid ramps of acceleration r times the larger chord
-  /// speed ("linear segments with parabolic blends").
-  kBlended,
   /// Beyond the paper: the reference itself, sampled densely with its analytic velocities and
   /// with knots at the ventilator's flow steps (CompensationPlanner), no trapezoids.
   kExact,
 };
 
-/** @brief Name of a profile: "rest_to_rest", "blended" or "exact". */
+/** @brief Name of a profile: "rest_to_rest" or "exact". */
 const char* toString(SegmentProfile profile);
-/** @brief Parses "rest_to_rest", "blended" or "exact"; false otherwise. */
+/** @brief Parses "rest_to_rest" or "exact"; false otherwise (also for "blended", a
+ *         velocity-continuous profile retired once "exact" beat it: README). */
 bool parseSegmentProfile(const std::string& name, SegmentProfile* profile);
 
 /** @brief Position and velocity of a segmented trajectory at one time. */
@@ -140,19 +137,6 @@ class TrapezoidSegmenter {
 
   /** @brief Position of the segmented version of `ref` at time t (see segmentAt). */
   Eigen::Vector3d sample(const Reference& ref, double t_start, double t) const;
-
-  /**
-   * @brief The velocity-continuous (SegmentProfile::kBlended) version of `ref` at time t.
-   *
-   * Knots P_j = ref(t_start + j T). Segment j (j >= 1) cruises along the chord P_j -> P_j+1 at
-   * V_j = (P_j+1 - P_j) / T. At each knot j >= 1 the velocity changes from V_j-1 to V_j at a
-   * constant acceleration over tau_j = min(T, |V_j - V_j-1| / (r max(|V_j-1|, |V_j|))),
-   * centred on the knot, so the path leaves the chord polyline only within tau_j / 2 of a knot
-   * (by at most |V_j - V_j-1| tau_j / 8, at the knot). Segment 0 starts from rest at t_start:
-   * it accelerates for tau_0 = min(1 / r, T / 2) and cruises at (P_1 - P_0) / (T - tau_0 / 2),
-   * reaching the polyline at P_1. Before t_start: P_0 at rest. Uses ref at up to four knots.
-   */
-  SegmentSample sampleBlended(const Reference& ref, double t_start, double t) const;
 
   /**
    * @brief Upper bound of |segmented(t) - ref(t)| for a reference with speed <= v_max and
