@@ -7,6 +7,8 @@ import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 
+from pd_campaign.atomic import atomic_savefig  # noqa: E402
+
 
 def main(csv_path, png_path):
     t, flow, volume = [], [], []
@@ -24,7 +26,10 @@ def main(csv_path, png_path):
     ax_volume.set_xlabel('t [s]')
     fig.suptitle('Ventilator: volume control, square inspiration, exponential expiration')
     fig.tight_layout()
-    fig.savefig(png_path, dpi=110)
+    try:
+        atomic_savefig(fig, png_path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 if __name__ == '__main__':

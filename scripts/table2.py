@@ -24,6 +24,7 @@ import sys
 
 import yaml
 
+from pd_campaign.atomic import atomic_savefig, atomic_write
 from pd_campaign.tools import argument_parser, tool
 
 IDS = [1, 2, 3, 4, 5]
@@ -79,8 +80,10 @@ def plot(fit_csvs, vid, png):
     fig.suptitle('Virtual volunteer %d: de-noised displacement and identified models '
                  '(cf. paper Fig. 14)' % vid)
     fig.tight_layout()
-    fig.savefig(png, dpi=90)
-    plt.close(fig)
+    try:
+        atomic_savefig(fig, png, dpi=90)
+    finally:
+        plt.close(fig)
 
 
 def main(argv):
@@ -137,7 +140,7 @@ def main(argv):
                          'q1_true': t['q1'], 'q2_true': t['q2'],
                          'q1_rel_err': a['q1'] / t['q1'] - 1.0})
 
-    with open(os.path.join(args.out, 'table2.csv'), 'w', newline='') as f:
+    with atomic_write(os.path.join(args.out, 'table2.csv'), newline='') as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
         w.writeheader()
         for r in rows:
@@ -171,7 +174,7 @@ def main(argv):
             cells += ['%.6f' % q1, '%.6f' % q1t, '%+.1f %%' % (100.0 * (q1 / q1t - 1.0))]
         md.append('| %d | %s |' % (vid, ' | '.join(cells)))
     text = '\n'.join(md) + '\n'
-    with open(os.path.join(args.out, 'table2.md'), 'w') as f:
+    with atomic_write(os.path.join(args.out, 'table2.md')) as f:
         f.write(text)
     print(text)
 

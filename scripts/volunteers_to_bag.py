@@ -32,6 +32,7 @@ from geometry_msgs.msg import PoseStamped, TransformStamped
 from tf2_msgs.msg import TFMessage
 
 from pedicle_drilling.msg import TidalVolume
+from pd_campaign.atomic import atomic_path
 from pd_campaign.tools import argument_parser, tool
 
 AXIS_RE = re.compile(r'^([+-]?)([xyz])$')
@@ -98,47 +99,41 @@ def write_bag(csv_path, tv_path, bag_path, start, offset, mapping):
     disp = read_columns(csv_path, ['t', 'ap', 'si', 'lr'])
     tv = read_columns(tv_path, ['t', 'tv'])
     # Written to a temporary file and renamed: a failed run leaves no partial bag behind.
-    tmp_path = bag_path + '.tmp'
-    try:
-        count = _write_messages(tmp_path, disp, tv, start, offset, mapping)
-        os.replace(tmp_path, bag_path)
-    finally:
-        if os.path.exists(tmp_path):
-            os.remove(tmp_path)
-    return count
+    with atomic_path(bag_path) as tmp_path:
+        with rosbag.Bag(tmp_path, 'w') as bag:
+            return _write_messages(bag, disp, tv, start, offset, mapping)
 
 
-def _write_messages(bag_path, disp, tv, start, offset, mapping):
-    with rosbag.Bag(bag_path, 'w') as bag:
-        t, v = tv['t'], tv['tv']
-        n = len(t)
-        for i in range(n):
-            lo, hi = max(i - 1, 0), min(i + 1, n - 1)
-            msg = TidalVolume()
-            msg.header.stamp = rospy.Time.from_sec(start + t[i])
-            msg.header.frame_id = 'ventilator'
-            msg.volume_ml = v[i]
-            msg.flow_ml_s = (v[hi] - v[lo]) / (t[hi] - t[lo])
-            bag.write('tidal_volume', msg, msg.header.stamp)
-        for i, ti in enumerate(disp['t']):
-            stamp = rospy.Time.from_sec(start + ti)
-            p = list(offset)
-            for (index, sign), axis in zip(mapping, ('ap', 'si', 'lr')):
-                p[index] += sign * disp[axis][i] / 1000.0
-            tf = TransformStamped()
-            tf.header.stamp = stamp
-            tf.header.frame_id = 'tracker_camera'
-            tf.child_frame_id = 'tracker_marker'
-            tf.transform.translation.x, tf.transform.translation.y, \
-                tf.transform.translation.z = p
-            tf.transform.rotation.w = 1.0
-            bag.write('/tf', TFMessage(transforms=[tf]), stamp)
-            pose = PoseStamped()
-            pose.header.stamp = stamp
-            pose.header.frame_id = 'tracker_camera'
-            pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = p
-            pose.pose.orientation.w = 1.0
-            bag.write('tracker/marker_pose', pose, stamp)
+def _write_messages(bag, disp, tv, start, offset, mapping):
+    t, v = tv['t'], tv['tv']
+    n = len(t)
+    for i in range(n):
+        lo, hi = max(i - 1, 0), min(i + 1, n - 1)
+        msg = TidalVolume()
+        msg.header.stamp = rospy.Time.from_sec(start + t[i])
+        msg.header.frame_id = 'ventilator'
+        msg.volume_ml = v[i]
+        msg.flow_ml_s = (v[hi] - v[lo]) / (t[hi] - t[lo])
+        bag.write('tidal_volume', msg, msg.header.stamp)
+    for i, ti in enumerate(disp['t']):
+        stamp = rospy.Time.from_sec(start + ti)
+        p = list(offset)
+        for (index, sign), axis in zip(mapping, ('ap', 'si', 'lr')):
+            p[index] += sign * disp[axis][i] / 1000.0
+        tf = TransformStamped()
+        tf.header.stamp = stamp
+        tf.header.frame_id = 'tracker_camera'
+        tf.child_frame_id = 'tracker_marker'
+        tf.transform.translation.x, tf.transform.translation.y, \
+            tf.transform.translation.z = p
+        tf.transform.rotation.w = 1.0
+        bag.write('/tf', TFMessage(transforms=[tf]), stamp)
+        pose = PoseStamped()
+        pose.header.stamp = stamp
+        pose.header.frame_id = 'tracker_camera'
+        pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = p
+        pose.pose.orientation.w = 1.0
+        bag.write('tracker/marker_pose', pose, stamp)
     return len(tv['t']), len(disp['t'])
 
 

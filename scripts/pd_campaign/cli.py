@@ -12,6 +12,7 @@ import time
 import yaml
 
 from . import engine_core, plots, report, tools
+from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS, build_design, parse_shard, shard
 
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
@@ -330,7 +331,7 @@ def run_campaign(argv=None):
         meta['faults'] = list(faults)
         meta['fault_params'] = {k: float(v) for k, v in
                                 sorted((scenario.get('fault_params') or {}).items())}
-    with open(os.path.join(out_dir, 'design.json'), 'w') as handle:
+    with atomic_write(os.path.join(out_dir, 'design.json')) as handle:
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
     models_dir = ''
@@ -348,7 +349,8 @@ def run_campaign(argv=None):
                              % (result.stderr or result.stdout))
             return 1
         for name in TABLE2_FILES:
-            shutil.copyfile(os.path.join(ident_dir, name), os.path.join(out_dir, name))
+            with atomic_path(os.path.join(out_dir, name)) as tmp:
+                shutil.copyfile(os.path.join(ident_dir, name), tmp)
         models_dir = os.path.join(ident_dir, 'models')
     jobs = min(args.jobs, len(selected))
     slices = [selected[i::jobs] for i in range(jobs)]
@@ -362,7 +364,7 @@ def run_campaign(argv=None):
     pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
     for k, part in enumerate(slices):
         trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
-        with open(trial_file, 'w') as handle:
+        with atomic_write(trial_file) as handle:
             json.dump(part, handle)
         if args.engine == 'core':
             workers.append(engine_core.start(engine_core.trial_engine_command(
@@ -476,12 +478,13 @@ def run_merge(argv=None):
         for name in TABLE2_FILES:
             source = os.path.join(directory, name)
             if os.path.exists(source) and not os.path.exists(os.path.join(out_dir, name)):
-                shutil.copyfile(source, os.path.join(out_dir, name))
+                with atomic_path(os.path.join(out_dir, name)) as tmp:
+                    shutil.copyfile(source, tmp)
         traces = os.path.join(directory, 'traces')
         if os.path.isdir(traces):
             for name in os.listdir(traces):
                 with open(os.path.join(traces, name)) as src, \
-                        open(os.path.join(out_dir, 'traces', name), 'w') as dst:
+                        atomic_write(os.path.join(out_dir, 'traces', name)) as dst:
                     dst.write(src.read())
     keys = ('cases', 'rpms', 'trials', 'seed', 'simulator', 'faults', 'fault_params')
     if any(tuple(m.get(k) for k in keys) != tuple(metas[0].get(k) for k in keys)

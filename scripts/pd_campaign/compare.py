@@ -16,6 +16,7 @@ import os
 import sys
 
 from . import report, stats, tools
+from .atomic import atomic_savefig, atomic_write
 
 # Design keys (design.json "meta") that name the algorithm under comparison: they may differ.
 COMPARED_KEYS = ('compensation_profile', 'recognizer', 'compensator', 'engine')
@@ -176,17 +177,15 @@ def figure(groups, label_a, label_b, path):
                                                                                  label_b))
     ax.set_title('%s vs %s on the same specimens' % (label_a, label_b), fontsize=9)
     fig.tight_layout()
-    tmp = path + '.tmp.png'
-    fig.savefig(tmp, dpi=100)
-    plt.close(fig)
-    os.replace(tmp, path)
+    try:
+        atomic_savefig(fig, path, dpi=100)
+    finally:
+        plt.close(fig)
 
 
 def _write_text(path, text):
-    tmp = path + '.tmp'
-    with open(tmp, 'w') as handle:
+    with atomic_write(path) as handle:
         handle.write(text)
-    os.replace(tmp, path)
 
 
 def main(argv=None):

@@ -6,6 +6,7 @@ import matplotlib
 matplotlib.use('Agg')
 import matplotlib.pyplot as plt  # noqa: E402
 
+from .atomic import atomic_savefig  # noqa: E402
 from .design import CASES  # noqa: E402
 from .report import PAPER_TABLE_III  # noqa: E402
 
@@ -17,8 +18,10 @@ PAPER_FIG15 = {  # Sec. V-C, compensated case; the others are given only as "hig
 
 def _save(fig, out_dir, name):
     fig.tight_layout()
-    fig.savefig(os.path.join(out_dir, name), dpi=100)
-    plt.close(fig)
+    try:
+        atomic_savefig(fig, os.path.join(out_dir, name), dpi=100)
+    finally:
+        plt.close(fig)
     return name
 
 

@@ -5,9 +5,9 @@ shard directories produces the same report as a single run with the same design.
 import csv
 import json
 import math
-import os
 
 from . import stats
+from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS
 
 TRIAL_COLUMNS = [
@@ -69,12 +69,13 @@ def _format(value):
 
 def write_trials_csv(rows, path):
     """trials.csv of `rows`, sorted, written to a temporary file and renamed."""
-    tmp = path + '.tmp'
-    appender = TrialsAppender(tmp)
-    for row in sorted(rows, key=sort_key):
-        appender.append(row)
-    appender.close()
-    os.replace(tmp, path)
+    with atomic_path(path) as tmp:
+        appender = TrialsAppender(tmp)
+        try:
+            for row in sorted(rows, key=sort_key):
+                appender.append(row)
+        finally:
+            appender.close()
 
 
 class TrialsAppender:
@@ -84,7 +85,7 @@ class TrialsAppender:
     atomically, when the campaign ends."""
 
     def __init__(self, path):
-        self._handle = open(path, 'w', newline='')
+        self._handle = open(path, 'w', newline='')  # not atomic: appended while running
         self._writer = csv.DictWriter(self._handle, fieldnames=TRIAL_COLUMNS,
                                       extrasaction='ignore')
         self._writer.writeheader()
@@ -265,14 +266,12 @@ def _count(items):
 
 
 def write_summary_json(summary, meta, path, faults=None):
-    tmp = path + '.tmp'
     content = {'meta': meta, 'groups': summary}
     if faults:
         content['faults'] = faults
-    with open(tmp, 'w') as handle:
+    with atomic_write(path) as handle:
         json.dump(content, handle, indent=2, sort_keys=True)
         handle.write('\n')
-    os.replace(tmp, path)
 
 
 def _pct(x):
@@ -455,7 +454,5 @@ def write_report_md(summary, meta, figures, path, notes='', faults=None):
         lines += ['## Figures', '']
         for title, name in figures:
             lines += ['### %s' % title, '', '![%s](%s)' % (title, name), '']
-    tmp = path + '.tmp'
-    with open(tmp, 'w') as handle:
+    with atomic_write(path) as handle:
         handle.write('\n'.join(lines) + '\n')
-    os.replace(tmp, path)

@@ -16,6 +16,8 @@ import time
 
 import numpy as np
 
+from pd_campaign.atomic import atomic_write
+
 PIPELINE_SERVICES = {
     'reset': '/simulator/reset',
     'identify': '/motion_identification/identify',
@@ -234,7 +236,7 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row['contact_loss_count'] = at_stop[-1][7] if at_stop else None
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
-    with open(os.path.join(trace_dir, trial['trial_id'] + '.json'), 'w') as handle:
+    with atomic_write(os.path.join(trace_dir, trial['trial_id'] + '.json')) as handle:
         json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
                    'feature': [s[2] for s in states],
                    'key_points': [{'id': k, 't': t - t_drill} for k, t in recorder.key_points
@@ -289,8 +291,12 @@ def main(argv=None):
     args = parser.parse_args(argv)
     with open(args.trials) as handle:
         trials = json.load(handle)
+    # Loopback only, whatever the shell exported (README, "Network: loopback by default"): the
+    # master, rosout, the launch's nodes, rosbag and this node. ROS_HOSTNAME names the host in
+    # the URIs; roscpp keeps its topics and services on loopback only with ROS_IP=127.x.
     os.environ['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % args.port
     os.environ['ROS_HOSTNAME'] = '127.0.0.1'
+    os.environ['ROS_IP'] = '127.0.0.1'
     log_dir = os.path.join(args.out, 'logs', 'worker-%d' % args.port)
     os.makedirs(log_dir, exist_ok=True)
     os.environ['ROS_LOG_DIR'] = log_dir
@@ -313,7 +319,7 @@ def main(argv=None):
                 os.killpg(child.pid, signal.SIGKILL)
 
     signal.signal(signal.SIGTERM, lambda *_: (shutdown(), sys.exit(143)))
-    devnull = open(os.path.join(log_dir, 'children.log'), 'w')
+    devnull = open(os.path.join(log_dir, 'children.log'), 'w')  # not atomic: a live log
     try:
         children.append(subprocess.Popen(['roscore', '-p', str(args.port)], stdout=devnull,
                                          stderr=subprocess.STDOUT, start_new_session=True))
