@@ -57,11 +57,12 @@ DrillingScene layoutDrillingScene(const SpecimenDepths& depths, double max_depth
     throw std::invalid_argument(out.str());
   }
   const double inner_thickness = depths.inner_cortical_end_m - depths.inner_cortical_start_m;
-  if (depths.residual_inner_cortical_m < 0.0 ||
-      depths.residual_inner_cortical_m > inner_thickness + kTolerance) {
+  // GroundTruth.msg: the distance from the deepest cut to the far side of the inner layer.
+  const double expected = std::max(0.0, depths.inner_cortical_end_m - depths.max_depth_cut_m);
+  if (std::abs(depths.residual_inner_cortical_m - expected) > kTolerance) {
     std::ostringstream out;
     out << "residual_inner_cortical_m (" << depths.residual_inner_cortical_m
-        << " m) is outside [0, inner cortical thickness " << inner_thickness << " m]";
+        << " m) is not max(0, inner_cortical_end_m - max_depth_cut_m) = " << expected << " m";
     throw std::invalid_argument(out.str());
   }
 

@@ -390,7 +390,7 @@ std::string DrillingDisplay::overlayText() const {
     text += "ground truth invalid: " + layout_error_;
   } else {
     text += format("thrust: %.2f N", ground_truth_->thrust_n) + "\n" +
-            format("residual inner cortical: %.2f mm",
+            format("left to the canal wall: %.2f mm (the residual once in the inner layer)",
                    1000.0 * ground_truth_->residual_inner_cortical_m) +
             "\nbreakthrough: " + (ground_truth_->breakthrough ? "YES" : "no");
   }

@@ -8,6 +8,8 @@
 #include <string>
 
 #include "pedicle_drilling/core/drilling_scene.hpp"
+#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "support.hpp"
 
 namespace pd = pedicle_drilling::core;
 
@@ -67,7 +69,7 @@ TEST(DrillingScene, ResidualIsTheBottomOfTheInnerCortex) {
 TEST(DrillingScene, UntouchedAndBrokenThroughSpecimens) {
   pd::SpecimenDepths fresh = typical();
   fresh.max_depth_cut_m = 0.0;
-  fresh.residual_inner_cortical_m = fresh.inner_cortical_end_m - fresh.inner_cortical_start_m;
+  fresh.residual_inner_cortical_m = fresh.inner_cortical_end_m;  // down to the canal wall
   const pd::DrillingScene a = pd::layoutDrillingScene(fresh);
   EXPECT_FALSE(a.has_hole);
   EXPECT_TRUE(a.has_residual);
@@ -101,9 +103,55 @@ TEST(DrillingScene, RejectsBrokenMessagesNamingTheField) {
   negative_cut.max_depth_cut_m = -0.001;
   EXPECT_NE(errorOf(negative_cut).find("max_depth_cut_m"), std::string::npos);
 
-  pd::SpecimenDepths too_much_residual = typical();
-  too_much_residual.residual_inner_cortical_m = 0.005;
-  EXPECT_NE(errorOf(too_much_residual).find("residual_inner_cortical_m"), std::string::npos);
+  pd::SpecimenDepths inconsistent = typical();  // not inner_cortical_end - max_depth_cut
+  inconsistent.residual_inner_cortical_m = 0.005;
+  EXPECT_NE(errorOf(inconsistent).find("residual_inner_cortical_m"), std::string::npos);
+  inconsistent.residual_inner_cortical_m = -0.0001;
+  EXPECT_NE(errorOf(inconsistent).find("residual_inner_cortical_m"), std::string::npos);
 
   EXPECT_EQ(errorOf(typical()), "");
+}
+
+// What the real simulator publishes over a whole trial, from above the bone through the canal
+// wall, every 10 ms: the display lays every message out (a user once saw the display turn red
+// for a whole trial: it bounded the residual by the layer's thickness, the simulator sent the
+// distance to the canal wall; GroundTruth.msg now states that one definition).
+TEST(DrillingScene, LaysOutEveryGroundTruthOfASimulatedTrial) {
+  pd::DrillingSimulationParams params;
+  pd::DrillingSimulation sim(pedicle_drilling::test::workcellUrdf(), params, 4);
+  sim.reset(4, false);
+  sim.commandSpindle(12000.0);
+  pd::TrajectoryCommand pose;
+  pose.joint_names = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3", "rsssii_joint4",
+                      "rsssii_joint5", "rsssii_joint6", "feed_joint"};
+  pose.points.push_back(  // config/drilling_pose.yaml
+      {sim.time() + 1.0, {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0, 0.0}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(pose).ok());
+  sim.step(1.5);
+  pd::TrajectoryCommand feed;  // 5 mm above the bone, through about 9 mm of bone, at 2 mm/s
+  feed.joint_names = {"feed_joint"};
+  feed.points.push_back({sim.time() + 9.0, {0.018}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(feed).ok());
+  int laid_out = 0, with_residual_above_the_layer = 0;
+  bool broke_through = false;
+  for (int i = 0; i < 950; ++i) {
+    sim.step(0.01);
+    const pd::SimulationGroundTruth g = sim.groundTruth();
+    pd::SpecimenDepths d;
+    d.outer_cortical_end_m = g.outer_cortical_end_m;
+    d.inner_cortical_start_m = g.inner_cortical_start_m;
+    d.inner_cortical_end_m = g.inner_cortical_end_m;
+    d.max_depth_cut_m = g.max_depth_cut_m;
+    d.residual_inner_cortical_m = g.residual_inner_cortical_m;
+    ASSERT_EQ(errorOf(d), "") << "t = " << g.max_depth_cut_m;
+    const pd::DrillingScene s = pd::layoutDrillingScene(d);
+    EXPECT_LE(s.residual.thickness(), s.inner_cortical.thickness() + 1e-12);
+    ++laid_out;
+    with_residual_above_the_layer +=
+        g.residual_inner_cortical_m > g.inner_cortical_end_m - g.inner_cortical_start_m ? 1 : 0;
+    broke_through = broke_through || g.breakthrough;
+  }
+  EXPECT_EQ(laid_out, 950);
+  EXPECT_GT(with_residual_above_the_layer, 100);  // before the inner layer: more than its thickness
+  EXPECT_TRUE(broke_through);                     // and the whole way through
 }

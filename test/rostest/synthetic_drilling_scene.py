@@ -106,7 +106,7 @@ def main():
         gt.outer_cortical_end_m = outer_end
         gt.inner_cortical_start_m = inner_start
         gt.inner_cortical_end_m = inner_end
-        gt.residual_inner_cortical_m = max(0.0, inner_end - max(cut, inner_start))
+        gt.residual_inner_cortical_m = max(0.0, inner_end - cut)  # GroundTruth.msg
         gt.breakthrough = cut >= inner_end
         gt.thrust_n = 2.8 + 0.1 * math.sin(2.0 * math.pi * t)
         gt.contact = True

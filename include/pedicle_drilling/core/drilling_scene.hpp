@@ -16,11 +16,13 @@ namespace pedicle_drilling::core {
 
 /** @brief Depths (m, below the bone top surface) from one GroundTruth message. */
 struct SpecimenDepths {
-  double outer_cortical_end_m = 0.0;       ///< bottom of the outer cortical layer
-  double inner_cortical_start_m = 0.0;     ///< top of the inner cortical layer
-  double inner_cortical_end_m = 0.0;       ///< bottom of the inner cortical layer (canal below)
-  double max_depth_cut_m = 0.0;            ///< deepest point cut so far (0 = untouched)
-  double residual_inner_cortical_m = 0.0;  ///< inner cortical thickness left below the cut
+  double outer_cortical_end_m = 0.0;    ///< bottom of the outer cortical layer
+  double inner_cortical_start_m = 0.0;  ///< top of the inner cortical layer
+  double inner_cortical_end_m = 0.0;    ///< bottom of the inner cortical layer (canal below)
+  double max_depth_cut_m = 0.0;         ///< deepest point cut so far (0 = untouched)
+  /// max(0, inner_cortical_end - max_depth_cut) (GroundTruth.msg): the inner cortical thickness
+  /// left once the cut is in the inner layer, more than the layer before.
+  double residual_inner_cortical_m = 0.0;
 };
 
 /** @brief A slab between two heights of the bone frame (top_z_m >= bottom_z_m). */
@@ -47,11 +49,12 @@ struct DrillingScene {
 /**
  * @brief Lays out the scene from the ground-truth depths.
  *
- * The residual slab is the bottom `residual_inner_cortical_m` of the inner cortical layer, as
- * the simulator reports it. Requirements (else std::invalid_argument naming the field): every
- * value finite; 0 <= outer_cortical_end <= inner_cortical_start <= inner_cortical_end <=
- * max_depth_m; 0 <= max_depth_cut <= max_depth_m; 0 <= residual <= inner cortical thickness
- * (+1 um tolerance for rounding).
+ * The residual slab is the part of the inner cortical layer left below the cut: its bottom
+ * min(residual, inner cortical thickness). Requirements (else std::invalid_argument naming the
+ * field): every value finite; 0 <= outer_cortical_end <= inner_cortical_start <=
+ * inner_cortical_end <= max_depth_m; 0 <= max_depth_cut <= max_depth_m; residual =
+ * max(0, inner_cortical_end - max_depth_cut) (GroundTruth.msg's definition; +1 um tolerance for
+ * rounding).
  * @param depths values of one GroundTruth message
  * @param max_depth_m largest plausible depth (m), guards against unit mistakes (mm sent as m)
  */
