@@ -28,83 +28,9 @@ void EngineDelays::validate() const {
 
 namespace {
 
-struct FaultName {
-  FaultKind kind;
-  const char* name;
-};
-
-constexpr FaultName kFaultNames[] = {
-    {FaultKind::kNone, "none"},
-    {FaultKind::kForceSilent, "force_silent"},
-    {FaultKind::kForceNaN, "force_nan"},
-    {FaultKind::kForceInf, "force_inf"},
-    {FaultKind::kForceSpike, "force_spike"},
-    {FaultKind::kForceStuck, "force_stuck"},
-    {FaultKind::kForceDrift, "force_drift"},
-    {FaultKind::kTrackerSilent, "tracker_silent"},
-    {FaultKind::kTrackerJump, "tracker_jump"},
-    {FaultKind::kTrackerStale, "tracker_stale"},
-    {FaultKind::kBreathingAmplitude, "breathing_amplitude"},
-    {FaultKind::kBreathingRateUp, "breathing_rate_up"},
-    {FaultKind::kBreathingRateDown, "breathing_rate_down"},
-    {FaultKind::kCommandLost, "command_lost"},
-    {FaultKind::kCommandDelayed, "command_delayed"},
-};
-
-}  // namespace
-
-const char* toString(FaultKind kind) {
-  for (const FaultName& f : kFaultNames) {
-    if (f.kind == kind) return f.name;
-  }
-  return "unknown";
-}
-
-std::vector<std::string> faultNames() {
-  std::vector<std::string> names;
-  for (const FaultName& f : kFaultNames) names.emplace_back(f.name);
-  return names;
-}
-
-FaultKind parseFaultKind(const std::string& name) {
-  std::string known;
-  for (const FaultName& f : kFaultNames) {
-    if (name == f.name) return f.kind;
-    known += (known.empty() ? "" : ", ") + std::string(f.name);
-  }
-  throw std::invalid_argument("fault '" + name + "' is not one of: " + known);
-}
-
-void FaultParams::validate() const {
-  const auto check = [](double v, double low, double high, const char* name) {
-    if (!(std::isfinite(v) && v >= low && v <= high)) {
-      std::ostringstream os;
-      os << name << ": must be in [" << low << ", " << high << "] (got " << v << ")";
-      throw std::invalid_argument(os.str());
-    }
-  };
-  check(spike_n, 0.0, 1e4, "spike_n");
-  check(drift_n_per_s, -100.0, 100.0, "drift_n_per_s");
-  check(tracker_jump_m, -0.1, 0.1, "tracker_jump_m");
-  check(amplitude_factor, 0.0, 10.0, "amplitude_factor");
-  check(rate_change_bpm, 0.0, 30.0, "rate_change_bpm");
-  check(command_delay_s, 0.0, 10.0, "command_delay_s");
-}
-
-namespace {
-
 /** @brief The fault's trigger depth as a fraction of the inner layer's start: its own stream. */
 double faultDepthFraction(std::uint64_t seed) {
   return uniformFromSeed(seed + 0x2545f4914f6cdd1dULL);
-}
-
-bool isBreathingFault(FaultKind k) {
-  return k == FaultKind::kBreathingAmplitude || k == FaultKind::kBreathingRateUp ||
-         k == FaultKind::kBreathingRateDown;
-}
-
-bool isCommandFault(FaultKind k) {
-  return k == FaultKind::kCommandLost || k == FaultKind::kCommandDelayed;
 }
 
 /** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
@@ -157,16 +83,7 @@ struct ClosedLoopEngine::Impl {
   bool fault_armed = false;    // the trial has started: the trigger is watched
   bool fault_pending = false;  // triggered, waiting for the next breath or command
   long fault_breath_index = -1;
-  bool fault_spent = false;  // the one-sample spike or the one command is done
-  Eigen::Vector3d stuck_force = Eigen::Vector3d::Zero();
-  bool have_marker = false;
-  double last_marker_stamp = 0.0;
-  Eigen::Vector3d last_marker = Eigen::Vector3d::Zero();
-  Eigen::Quaterniond last_marker_q = Eigen::Quaterniond::Identity();
-
-  bool faultActive(FaultKind kind) const {
-    return record.fault.injected && record.fault.kind == kind;
-  }
+  FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
 
   void injectFault() {
     record.fault.injected = true;
@@ -175,7 +92,7 @@ struct ClosedLoopEngine::Impl {
   }
 
   /** @brief Watches the trigger and applies the pending faults (once per step). */
-  void updateFault(const Eigen::Vector3d& measured_force) {
+  void updateFault() {
     const FaultKind kind = record.fault.kind;
     if (kind == FaultKind::kNone || !fault_armed || record.fault.injected) return;
     if (!fault_pending) {
@@ -191,10 +108,8 @@ struct ClosedLoopEngine::Impl {
             std::max(1.0, v.rate_bpm + (kind == FaultKind::kBreathingRateUp ? change : -change));
         sim->requestVentilatorSettings(v);
       }
-      if (!isBreathingFault(kind) && !isCommandFault(kind)) {
-        injectFault();
-        stuck_force = measured_force;  // the frozen sensor repeats this very sample
-      }
+      injector.inject(now);  // a command fault waits for the next command
+      if (!isBreathingFault(kind) && !isCommandFault(kind)) injectFault();
       return;
     }
     if (isBreathingFault(kind) && sim->ventilator().breathIndex() != fault_breath_index) {
@@ -206,38 +121,14 @@ struct ClosedLoopEngine::Impl {
   }
 
   /** @brief The force sample as the faulty sensor delivers it; false: nothing delivered. */
-  bool faultyForce(Eigen::Vector3d* force) {
-    if (!record.fault.injected) return true;
-    switch (record.fault.kind) {
-      case FaultKind::kForceSilent:
-        return false;
-      case FaultKind::kForceNaN:
-        force->setConstant(std::numeric_limits<double>::quiet_NaN());
-        return true;
-      case FaultKind::kForceInf:
-        force->z() = std::numeric_limits<double>::infinity();
-        return true;
-      case FaultKind::kForceSpike:
-        if (!fault_spent) force->z() = config.faults.spike_n;
-        fault_spent = true;
-        return true;
-      case FaultKind::kForceStuck:
-        *force = stuck_force;
-        return true;
-      case FaultKind::kForceDrift:
-        force->z() += config.faults.drift_n_per_s * (now - record.fault.t);
-        return true;
-      default:
-        return true;
-    }
-  }
+  bool faultyForce(Eigen::Vector3d* force) { return injector.force(now, force); }
 
   /** @brief Extra delay of a trajectory command, or < 0 when the command is lost. */
   double commandFault() {
-    if (!fault_pending || !isCommandFault(record.fault.kind) || fault_spent) return 0.0;
+    if (!fault_pending || !isCommandFault(record.fault.kind)) return 0.0;
+    const double extra = injector.command(now);
     injectFault();
-    fault_spent = true;
-    return record.fault.kind == FaultKind::kCommandLost ? -1.0 : config.faults.command_delay_s;
+    return extra;
   }
 
   void send(double delay, std::function<void()> fn) {
@@ -363,17 +254,7 @@ struct ClosedLoopEngine::Impl {
     Eigen::Vector3d marker = pose.translation();
     Eigen::Quaterniond orientation(pose.linear());
     double stamp = now;
-    if (faultActive(FaultKind::kTrackerSilent)) return;
-    if (faultActive(FaultKind::kTrackerJump)) marker.x() += config.faults.tracker_jump_m;
-    if (faultActive(FaultKind::kTrackerStale) && have_marker) {
-      stamp = last_marker_stamp;  // the last pose again, with its old stamp
-      marker = last_marker;
-      orientation = last_marker_q;
-    }
-    have_marker = true;
-    last_marker_stamp = stamp;
-    last_marker = marker;
-    last_marker_q = orientation;
+    if (!injector.trackedPose(&marker, &orientation, &stamp)) return;  // silent tracker
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
@@ -409,7 +290,7 @@ struct ClosedLoopEngine::Impl {
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
     Eigen::Vector3d force = s.measured_wrench.head<3>();
-    updateFault(force);
+    updateFault();
     if (faultyForce(&force)) {
       const double thrust = force.z();  // config/recognizer.yaml axis: z
       const double t = now;
@@ -490,8 +371,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.fault_armed = false;
   s.fault_pending = false;
   s.fault_breath_index = -1;
-  s.fault_spent = false;
-  s.have_marker = false;
+  s.injector = FaultInjector(s.config.faults);
+  s.injector.arm(spec.fault);
   s.now = s.sim->time();
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();

@@ -72,6 +72,9 @@ void RecognizerParams::validate() const {
   requireFinite("c3", c3);
   if (!(c3 > 0.0 && c3 < 1.0)) fail("c3", "must be in (0, 1)", c3);
   if (cancellous_confirm < 1) fail("cancellous_confirm", "must be >= 1", cancellous_confirm);
+  if (outer_cortical_timeout < 0) {
+    fail("outer_cortical_timeout", "must be >= 0", outer_cortical_timeout);
+  }
   if (cancellous_timeout < 0) fail("cancellous_timeout", "must be >= 0", cancellous_timeout);
   if (cancellous_timeout > 0 && cancellous_timeout <= cancellous_confirm) {
     fail("cancellous_timeout", "must be 0 or > cancellous_confirm", cancellous_timeout);
@@ -101,6 +104,8 @@ void RecognizerParams::set(const std::string& name, const std::string& value) {
     c3 = parseDouble(name, value);
   } else if (name == "cancellous_confirm") {
     cancellous_confirm = parseInt(name, value);
+  } else if (name == "outer_cortical_timeout") {
+    outer_cortical_timeout = parseInt(name, value);
   } else if (name == "cancellous_timeout") {
     cancellous_timeout = parseInt(name, value);
   } else if (name == "inner_confirm") {
@@ -137,6 +142,13 @@ const char* toString(DrillingState s) {
 std::string stopReason(const RecognizerOutput& out) {
   if (!out.stop) return "";
   char reason[200];
+  if (out.stop_implausible && out.stop_key_point == 0) {
+    std::snprintf(reason, sizeof(reason),
+                  "implausible force: the outer cortical layer did not end after the contact "
+                  "(sensor drift?); stop before key point 1 at t=%.3f s, raw sample %lu",
+                  out.stop_t, static_cast<unsigned long>(out.stop_index));
+    return reason;
+  }
   if (out.stop_implausible) {
     std::snprintf(reason, sizeof(reason),
                   "implausible force: cancellous bone not confirmed after the outer cortical "
@@ -168,6 +180,7 @@ void StateRecognizer::reset() {
   ring_fill_ = 0;
   filtered_count_ = 0;
   since_punctured_ = 0;
+  since_contact_ = 0;
   cur_raw_index_ = 0;
   cur_t_ = 0.0;
   f_max_ = -std::numeric_limits<double>::infinity();
@@ -272,6 +285,12 @@ void StateRecognizer::onFiltered(double fbar) {
     }
     if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
       out_.feature = 0.0;
+      // The contact sample counts as the first one (the outer layer's dwell starts with it).
+      if (contact_ && p.outer_cortical_timeout > 0 && ++since_contact_ > p.outer_cortical_timeout &&
+          !out_.stop) {
+        commandStop();
+        out_.stop_implausible = true;
+      }
       return;
     }
     out_.params_ready = true;

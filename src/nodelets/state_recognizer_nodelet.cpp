@@ -72,6 +72,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       p.c2 = params.getDouble("c2", p.c2, 0.0, 1000.0, true);
       p.c3 = params.getDouble("c3", p.c3, 0.0, 1.0, true, true);
       p.cancellous_confirm = params.getInt("cancellous_confirm", p.cancellous_confirm, 1, 100000);
+      p.outer_cortical_timeout =
+          params.getInt("outer_cortical_timeout", p.outer_cortical_timeout, 0, 100000);
       p.cancellous_timeout = params.getInt("cancellous_timeout", p.cancellous_timeout, 0, 100000);
       p.inner_confirm = params.getInt("inner_confirm", p.inner_confirm, 1, 100000);
       p.stop_delay = params.getInt("stop_delay", p.stop_delay, 0, 100000);

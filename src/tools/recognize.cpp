@@ -28,7 +28,7 @@ const char kUsage[] =
     "usage: recognize --input force.csv [--json] [--param name=value ...]\n"
     "  parameters: pre_average window k_ratio f_th gain h_g c1 c2 c3 cancellous_confirm "
     "cancellous_timeout\n"
-    "              inner_confirm stop_delay normalize_feature\n";
+    "              outer_cortical_timeout inner_confirm stop_delay normalize_feature\n";
 
 struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;

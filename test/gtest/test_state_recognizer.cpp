@@ -217,6 +217,51 @@ TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
   EXPECT_EQ(rec.output().state, DrillingState::kOuterPunctured);
 }
 
+TEST(StateRecognizerTransitions, NoEndOfTheOuterLayerWithinTheTimeoutIsAnImplausibleForceStop) {
+  RecognizerParams p = directParams();
+  p.outer_cortical_timeout = 5;
+  StateRecognizer rec(p);
+  int i = 0;
+  rec.push(i++, 0.0);
+  // Contact (F_max 1.5 N > F_th), then a force that drifts upwards and never falls below
+  // K F_max: Algorithm 2 never fixes k, no key point comes.
+  double f = 1.5;
+  for (int k = 0; k < 5; ++k, f += 0.1) rec.push(i++, f);  // contact sample + 4
+  EXPECT_FALSE(rec.output().stop) << "5 samples since the contact: not yet";
+  EXPECT_EQ(rec.output().state, DrillingState::kOuterCortical);
+  const RecognizerOutput& o = rec.push(i++, f);
+  ASSERT_TRUE(o.stop);
+  EXPECT_TRUE(o.stop_implausible);
+  EXPECT_EQ(o.stop_key_point, 0);
+  EXPECT_EQ(o.last_key_point, 0);
+  EXPECT_FALSE(o.params_ready);
+  EXPECT_EQ(o.state, DrillingState::kStopped);
+  EXPECT_EQ(o.layer_state, DrillingState::kOuterCortical);
+  EXPECT_NE(stopReason(o).find("implausible force: the outer cortical layer"), std::string::npos)
+      << stopReason(o);
+  // Nothing counts before the contact: a long approach in air is not a timeout.
+  StateRecognizer air(p);
+  for (int k = 0; k < 100; ++k) air.push(k, 0.2);
+  EXPECT_FALSE(air.output().stop);
+  EXPECT_EQ(air.output().state, DrillingState::kIdle);
+  // And a timely end of the outer layer is not one: KP2 on the 5th sample after the contact.
+  StateRecognizer timely(p);
+  i = 0;
+  for (double v : {0.0, 1.5, 1.6, 1.7, 1.8, 0.5}) timely.push(i++, v);
+  EXPECT_FALSE(timely.output().stop);
+  EXPECT_EQ(timely.output().last_key_point, 2);
+}
+
+TEST(StateRecognizerTransitions, OuterCorticalTimeoutZeroDisablesIt) {
+  RecognizerParams p = directParams();
+  p.outer_cortical_timeout = 0;
+  StateRecognizer rec(p);
+  double f = 1.5;
+  for (int k = 0; k < 1000; ++k, f += 0.01) rec.push(k, f);
+  EXPECT_FALSE(rec.output().stop);
+  EXPECT_EQ(rec.output().state, DrillingState::kOuterCortical);
+}
+
 // Drive to the cancellous state with direct parameters; returns next time index.
 int toCancellous(StateRecognizer& rec) {
   int i = 0;
@@ -492,6 +537,7 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
   bad("c3", [](RecognizerParams& p) { p.c3 = 1.0; });
   bad("c3", [](RecognizerParams& p) { p.c3 = std::numeric_limits<double>::infinity(); });
   bad("cancellous_confirm", [](RecognizerParams& p) { p.cancellous_confirm = 0; });
+  bad("outer_cortical_timeout", [](RecognizerParams& p) { p.outer_cortical_timeout = -1; });
   bad("cancellous_timeout", [](RecognizerParams& p) { p.cancellous_timeout = -1; });
   bad("cancellous_timeout",
       [](RecognizerParams& p) { p.cancellous_timeout = p.cancellous_confirm; });

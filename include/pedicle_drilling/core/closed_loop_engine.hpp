@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/fault_injector.hpp"
 #include "pedicle_drilling/core/motion_model.hpp"
 #include "pedicle_drilling/core/safety_supervisor.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
@@ -33,58 +34,6 @@ struct EngineDelays {
   double stop_to_planner_s = 1e-3;     ///< drill/stop and drilling_state -> CompensationPlanner
   double command_to_arm_s = 1e-3;      ///< arm_controller/command and spindle -> controller
   /** @brief Check every field (finite, in [0, 1] s). @throws std::invalid_argument naming it. */
-  void validate() const;
-};
-
-/**
- * @brief A fault the engine injects into one trial (README "Fault campaign"). Each acts where
- *        the real fault would: on the force stream both the recognizer and the monitor receive,
- *        on the tracker stream, on the patient, or on the planner's trajectory commands.
- */
-enum class FaultKind {
-  kNone,                ///< no fault
-  kForceSilent,         ///< the F/T sensor stops publishing
-  kForceNaN,            ///< every force sample NaN from then on
-  kForceInf,            ///< the thrust +inf from then on
-  kForceSpike,          ///< one sample with the thrust at FaultParams::spike_n
-  kForceStuck,          ///< the sensor repeats its last sample (frozen driver)
-  kForceDrift,          ///< the thrust gains a bias growing at FaultParams::drift_n_per_s
-  kTrackerSilent,       ///< the optical tracker stops publishing
-  kTrackerJump,         ///< the tracked marker jumps by FaultParams::tracker_jump_m and stays
-  kTrackerStale,        ///< the tracker repeats its last pose with its old stamp (stale tf)
-  kBreathingAmplitude,  ///< the patient's AP displacement x amplitude_factor (model not re-fit)
-  kBreathingRateUp,     ///< the ventilator rate + rate_change_bpm (settings reach the planner)
-  kBreathingRateDown,   ///< the ventilator rate - rate_change_bpm
-  kCommandLost,         ///< the next trajectory command to the arm is lost
-  kCommandDelayed,      ///< the next trajectory command reaches the arm command_delay_s late
-};
-
-/** @brief The fault's name in scenario files and trials.csv ("none", "force_silent", ...). */
-const char* toString(FaultKind kind);
-
-/** @brief Every fault's name, kNone first, in declaration order. */
-std::vector<std::string> faultNames();
-
-/** @brief The fault of a name. @throws std::invalid_argument listing the known names. */
-FaultKind parseFaultKind(const std::string& name);
-
-/** @brief Sizes of the injected faults (scenario key `fault_params`). */
-struct FaultParams {
-  /** @brief Thrust of the spike [N]: 1.5 x H2, one 1 ms sample (an electrical glitch). */
-  double spike_n = 15.0;
-  /** @brief Bias drift [N/s]: 2 N over a 10 s drilling, the size of the cancellous thrust; a
-   *         fault far beyond a sensor's thermal drift, chosen to disturb the recognition. */
-  double drift_n_per_s = 0.2;
-  /** @brief Tracker jump [m] along the camera's x axis: 5 mm ("several mm", a marker knocked
-   *         or a re-registration), well above H1 = 1.2 mm. */
-  double tracker_jump_m = 5e-3;
-  /** @brief Factor on the patient's AP displacement (+30 %). */
-  double amplitude_factor = 1.3;
-  /** @brief Change of the ventilator rate [breaths/min] (+-4 /min). */
-  double rate_change_bpm = 4.0;
-  /** @brief Delay of the delayed trajectory command [s] (200 ms). */
-  double command_delay_s = 0.2;
-  /** @brief Check every field. @throws std::invalid_argument naming it. */
   void validate() const;
 };
 

@@ -1,0 +1,166 @@
+/**
+ * @file fault_injector_nodelet.cpp
+ * @brief pedicle_drilling/FaultInjector: relays the force sensor, the tracker and the arm's
+ *        trajectory commands, and injects one fault into them on request (`~inject`), as the
+ *        core engine's fault campaign does (core::FaultInjector, the same class). Put it between
+ *        a real or simulated sensor and the pipeline to prove that the pipeline fails safe.
+ *        Relays: ft_sensor/wrench_raw -> ft_sensor/wrench, tracker/marker_pose_raw ->
+ *        tracker/marker_pose, arm_controller/command -> arm_controller/command_delivered.
+ */
+#include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
+#include <nodelet/nodelet.h>
+#include <ros/ros.h>
+#include <trajectory_msgs/JointTrajectory.h>
+#include <pluginlib/class_list_macros.hpp>
+
+#include <cmath>
+#include <list>
+#include <memory>
+#include <mutex>
+#include <string>
+
+#include "pedicle_drilling/InjectFault.h"
+#include "pedicle_drilling/core/fault_injector.hpp"
+#include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/startup_status.hpp"
+
+namespace pedicle_drilling {
+
+/** @brief Nodelet wrapper of core::FaultInjector on three ROS streams. */
+class FaultInjectorNodelet : public nodelet::Nodelet {
+ private:
+  void onInit() override {
+    ros::NodeHandle nh = getNodeHandle();
+    ros::NodeHandle pnh = getPrivateNodeHandle();
+    try {
+      const ParamLoader params(pnh);
+      core::FaultParams p;
+      p.spike_n = params.getDouble("spike_n", p.spike_n, 0.0, 1e4);
+      p.drift_n_per_s = params.getDouble("drift_n_per_s", p.drift_n_per_s, -100.0, 100.0);
+      p.tracker_jump_m = params.getDouble("tracker_jump_m", p.tracker_jump_m, -0.1, 0.1);
+      p.command_delay_s = params.getDouble("command_delay_s", p.command_delay_s, 0.0, 10.0);
+      injector_ = std::make_unique<core::FaultInjector>(p);
+    } catch (const std::exception& e) {
+      failStartup(getName(), e.what());  // throws: the load fails
+    }
+    wrench_pub_ = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 2000);
+    marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
+    command_pub_ =
+        nh.advertise<trajectory_msgs::JointTrajectory>("arm_controller/command_delivered", 10);
+    const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
+    wrench_sub_ =
+        nh.subscribe("ft_sensor/wrench_raw", 2000, &FaultInjectorNodelet::onWrench, this, hints);
+    marker_sub_ =
+        nh.subscribe("tracker/marker_pose_raw", 20, &FaultInjectorNodelet::onMarker, this, hints);
+    command_sub_ =
+        nh.subscribe("arm_controller/command", 10, &FaultInjectorNodelet::onCommand, this, hints);
+    inject_srv_ = pnh.advertiseService("inject", &FaultInjectorNodelet::onInject, this);
+    NODELET_INFO(
+        "FaultInjector: relaying ft_sensor/wrench_raw, tracker/marker_pose_raw and "
+        "arm_controller/command; faults through %s",
+        inject_srv_.getService().c_str());
+  }
+
+  void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
+    geometry_msgs::WrenchStamped out = *msg;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      Eigen::Vector3d f(msg->wrench.force.x, msg->wrench.force.y, msg->wrench.force.z);
+      if (!injector_->force(msg->header.stamp.toSec(), &f)) return;  // silent sensor
+      out.wrench.force.x = f.x();
+      out.wrench.force.y = f.y();
+      out.wrench.force.z = f.z();
+      if (!std::isfinite(f.x())) {  // a NaN sensor gives NaN on every axis
+        out.wrench.torque.x = out.wrench.torque.y = out.wrench.torque.z = f.x();
+      }
+    }
+    wrench_pub_.publish(out);
+  }
+
+  void onMarker(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+    geometry_msgs::PoseStamped out = *msg;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const auto& p = msg->pose.position;
+      const auto& q = msg->pose.orientation;
+      Eigen::Vector3d position(p.x, p.y, p.z);
+      Eigen::Quaterniond orientation(q.w, q.x, q.y, q.z);
+      double stamp = msg->header.stamp.toSec();
+      if (!injector_->trackedPose(&position, &orientation, &stamp)) return;  // silent tracker
+      out.header.stamp = ros::Time(stamp);
+      out.pose.position.x = position.x();
+      out.pose.position.y = position.y();
+      out.pose.position.z = position.z();
+      out.pose.orientation.w = orientation.w();
+      out.pose.orientation.x = orientation.x();
+      out.pose.orientation.y = orientation.y();
+      out.pose.orientation.z = orientation.z();
+    }
+    marker_pub_.publish(out);
+  }
+
+  void onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
+    double extra = 0.0;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      extra = injector_->command(ros::Time::now().toSec());
+    }
+    if (extra < 0.0) {
+      NODELET_WARN("FaultInjector: command_lost: a trajectory command was dropped");
+      return;
+    }
+    if (extra == 0.0) {
+      command_pub_.publish(msg);
+      return;
+    }
+    // Delivered late with its own stamp: the controller treats its points as a late message's.
+    NODELET_WARN("FaultInjector: command_delayed: a trajectory command held %.3f s", extra);
+    std::lock_guard<std::mutex> lock(mutex_);
+    delayed_.push_back(getNodeHandle().createTimer(
+        ros::Duration(extra), [this, msg](const ros::TimerEvent&) { command_pub_.publish(msg); },
+        true));
+  }
+
+  bool onInject(InjectFault::Request& req, InjectFault::Response& res) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    core::FaultKind kind = core::FaultKind::kNone;
+    try {
+      kind = core::parseFaultKind(req.fault);
+    } catch (const std::exception& e) {
+      res.success = false;
+      res.message = e.what();
+      return true;
+    }
+    if (core::isBreathingFault(kind)) {
+      res.success = false;
+      res.message = "fault '" + req.fault +
+                    "' is the patient's, not a stream's: the FaultInjector relays the force, "
+                    "tracker and command streams only";
+      return true;
+    }
+    if (kind != core::FaultKind::kNone && injector_->kind() == kind &&
+        (injector_->injected() || injector_->pending())) {
+      res.success = false;
+      res.message = "fault '" + req.fault + "' is already injected; inject 'none' to clear it";
+      return true;
+    }
+    injector_->arm(kind);
+    injector_->inject(ros::Time::now().toSec());
+    res.success = true;
+    res.message = kind == core::FaultKind::kNone ? "faults cleared" : "injected " + req.fault;
+    NODELET_WARN("FaultInjector: %s", res.message.c_str());
+    return true;
+  }
+
+  std::mutex mutex_;
+  std::unique_ptr<core::FaultInjector> injector_;
+  ros::Publisher wrench_pub_, marker_pub_, command_pub_;
+  ros::Subscriber wrench_sub_, marker_sub_, command_sub_;
+  ros::ServiceServer inject_srv_;
+  std::list<ros::Timer> delayed_;
+};
+
+}  // namespace pedicle_drilling
+
+PLUGINLIB_EXPORT_CLASS(pedicle_drilling::FaultInjectorNodelet, nodelet::Nodelet)
