@@ -183,6 +183,9 @@ struct ClosedLoopEngine::Impl {
   /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
   void carryOut() {
     SequencerOutput out = sequencer->takeOutput();
+    for (const std::string& why : out.stops) {
+      record.stops.push_back({now, "/compensation_planner", why, true});
+    }
     const double delay = config.delays.command_to_arm_s;
     for (double rpm : out.spindle_rpm) {
       send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
@@ -290,6 +293,7 @@ struct ClosedLoopEngine::Impl {
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
     Eigen::Vector3d force = s.measured_wrench.head<3>();
+    sequencer->onMonitorAlive(now);  // the monitor runs in this process, every step
     updateFault();
     if (faultyForce(&force)) {
       const double thrust = force.z();  // config/recognizer.yaml axis: z

@@ -57,6 +57,10 @@ void TrialSequencerParams::validate() const {
   require(registration_timeout_s > 0.0 && registration_timeout_s <= 60.0, "registration_timeout_s",
           "must be in (0, 60] s");
   require(stop_hold_s >= 0.0 && stop_hold_s <= 60.0, "stop_hold_s", "must be in [0, 60] s");
+  require(recognizer_timeout_s >= 0.0 && recognizer_timeout_s <= 60.0, "recognizer_timeout_s",
+          "must be in [0, 60] s (0: off)");
+  require(monitor_timeout_s >= 0.0 && monitor_timeout_s <= 60.0, "monitor_timeout_s",
+          "must be in [0, 60] s (0: off)");
   retreat.validate();
   require(!arm_joints.empty(), "arm_joints", "must not be empty");
   require(!feed_joint.empty(), "feed_joint", "must not be empty");
@@ -66,7 +70,7 @@ void TrialSequencerParams::validate() const {
 
 bool SequencerOutput::empty() const {
   return trajectories.empty() && spindle_rpm.empty() && phases.empty() && predicted.empty() &&
-         start_timers.empty() && !stop_timers && log.empty();
+         start_timers.empty() && !stop_timers && log.empty() && stops.empty();
 }
 
 TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
@@ -297,6 +301,7 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
 void TrialSequencer::onRecognizerState(double now, bool stop, const std::string& state_name,
                                        int key_point) {
   recognizer_reports_stop_ = stop;
+  last_recognizer_t_ = now;
   if (stop && phase_ == TrialPhase::kDrilling) {
     handleStop(now, false,
                "drilling_state reports a recognizer stop (state " + state_name + ", key point " +
@@ -319,6 +324,7 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   t_end_ = t_reg + max_duration_s_;
   next_k_ = 0;
   retreat_.reset();
+  drilling_since_ = now;
   setPhase(TrialPhase::kDrilling);
   log(SequencerLog::Level::kInfo, "marker registered (" + std::to_string(reg_count_) +
                                       " samples), drilling (" + toString(mode_) + ")");
@@ -326,7 +332,28 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   out_.start_timers.push_back({TimerRequest::Kind::kSegment, planner_->params().period_s, true});
 }
 
+void TrialSequencer::onMonitorAlive(double now) { last_monitor_t_ = now; }
+
 void TrialSequencer::onSegmentTimer(double now) {
+  if (phase_ == TrialPhase::kDrilling) {
+    // A component that falls silent while the drill feeds: its nodelet was unloaded or died.
+    const auto silent = [this, now](double last, double timeout) {
+      return timeout > 0.0 && now - std::max(last, drilling_since_) > timeout;
+    };
+    std::string why;
+    if (silent(last_recognizer_t_, params_.recognizer_timeout_s)) {
+      why = "recognizer silent: no drilling_state for more than " +
+            std::to_string(params_.recognizer_timeout_s) + " s while drilling";
+    } else if (silent(last_monitor_t_, params_.monitor_timeout_s)) {
+      why = "safety monitor silent: not heard for more than " +
+            std::to_string(params_.monitor_timeout_s) + " s while drilling";
+    }
+    if (!why.empty()) {
+      log(SequencerLog::Level::kError, why + "; stopping and retracting");
+      out_.stops.push_back(why);
+      handleStop(now, true, why);
+    }
+  }
   if (phase_ == TrialPhase::kDrilling && now >= t_end_) {
     log(SequencerLog::Level::kWarn, "max duration reached, retracting");
     startRetreat(now, "max duration");

@@ -8,6 +8,7 @@
  *        Thin ROS adapter of core::TrialSequencer (the trial logic, shared with the closed-loop
  *        engine): parameters, message conversion, timers and the component resets.
  */
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/callback_queue.h>
@@ -58,6 +59,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       trial_start_services_ = params.getStringList(
           "trial_start_services", {"state_recognizer/reset", "safety_monitor/reset"});
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
+      monitor_status_name_ = params.getString("monitor_status_name", "/safety_monitor: monitor");
       sequencer_ = makeSequencer(params, nh, world_frame_);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
@@ -79,6 +81,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
     state_sub_ = nh.subscribe("drilling_state", 100, &CompensationPlannerNodelet::onDrillingState,
                               this, hints);
+    stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    diagnostics_sub_ =
+        nh.subscribe("/diagnostics", 50, &CompensationPlannerNodelet::onDiagnostics, this);
     for (const std::string& name : trial_start_services_) {
       trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
     }
@@ -158,6 +163,16 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     carryOut();
   }
 
+  /** @brief The safety monitor's /diagnostics status: it is alive. */
+  void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
+    for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
+      if (status.name != monitor_status_name_) continue;
+      std::lock_guard<std::mutex> lock(mutex_);
+      sequencer_->onMonitorAlive(now());
+      return;
+    }
+  }
+
   void onDrillingState(const DrillingState::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     sequencer_->onRecognizerState(now(), msg->stop, msg->state_name, msg->last_key_point);
@@ -220,6 +235,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
     for (const core::PredictedMarker& m : out.predicted) predicted_pub_.publish(toMsg(m));
     for (core::TrialPhase p : out.phases) publishStatus(p);
+    for (const std::string& why : out.stops) {
+      StopCommand stop;
+      stop.header.stamp = ros::Time::now();
+      stop.source = getName();
+      stop.reason = why;
+      stop.retreat = true;
+      stop_pub_.publish(stop);
+    }
     if (out.stop_timers) {
       pose_timer_.stop();
       registration_timer_.stop();
@@ -285,6 +308,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber marker_sub_;
   ros::Subscriber stop_sub_;
   ros::Subscriber state_sub_;
+  ros::Subscriber diagnostics_sub_;
+  ros::Publisher stop_pub_;
+  std::string monitor_status_name_;
   std::vector<ros::ServiceClient> trial_start_clients_;
   ros::Timer pose_timer_;
   ros::Timer registration_timer_;

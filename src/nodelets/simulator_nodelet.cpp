@@ -57,6 +57,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     try {
       const ParamLoader params(pnh);
       sim_ = makeSimulation(pnh);
+      // Re-read at every reset; checked here too, so that a bad value refuses the start.
+      loadBoneMotionModel(pnh);
       urdf_path = params.getString("urdf_path", "", true);
       real_time_factor_ = params.getDouble("real_time_factor", 1.0, 0.0, 1000.0);
       publish_clock_ = params.getBool("publish_clock", true);

@@ -51,6 +51,9 @@ core::TrialSequencerParams loadSequencerParams(const ParamLoader& params) {
   sp.registration_samples = params.getInt("registration_samples", 4, 1, 100);
   sp.registration_timeout_s = params.getDouble("registration_timeout_s", 3.0, 0.0, 60.0, true);
   sp.stop_hold_s = params.getDouble("stop_hold_s", 1.0, 0.0, 60.0);
+  sp.recognizer_timeout_s =
+      params.getDouble("recognizer_timeout_s", sp.recognizer_timeout_s, 0.0, 60.0);
+  sp.monitor_timeout_s = params.getDouble("monitor_timeout_s", sp.monitor_timeout_s, 0.0, 60.0);
   sp.retreat.distance_m = params.getDouble("retreat_distance_m", 0.025, 0.0, 0.1, true);
   sp.retreat.speed_m_s = params.getDouble("retreat_speed_m_s", 0.005, 0.0, 0.05, true);
   sp.retreat.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <string>
+#include <vector>
 
 #include "support.hpp"
 
@@ -27,6 +28,10 @@ pd::TrialSequencerParams params() {
   p.feed_lower_m = 0.0;
   p.feed_upper_m = 0.06;
   p.retreat.distance_m = 0.025;
+  // Most tests drive the sequence without a recognizer or a monitor: their watchdogs off here,
+  // on in the watchdog tests.
+  p.recognizer_timeout_s = 0.0;
+  p.monitor_timeout_s = 0.0;
   return p;
 }
 
@@ -278,6 +283,72 @@ TEST(TrialSequencer, MaxDurationRetracts) {
   }
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
   EXPECT_NEAR(now, 4.0, 1e-9);
+}
+
+// A component unloaded or dead mid-trial (issue 15): its silence stops the feed and retracts,
+// with a StopCommand the driver publishes. Timed from the start of the drilling.
+TEST(TrialSequencer, SilentRecognizerOrMonitorWhileDrillingRetreats) {
+  pd::TrialSequencerParams p = params();
+  p.recognizer_timeout_s = 0.5;
+  p.monitor_timeout_s = 2.5;
+  for (const bool recognizer_dies : {true, false}) {
+    pd::TrialSequencer seq(p, workcellArm());
+    const double t0 = toDrilling(&seq);
+    seq.takeOutput();
+    double now = t0;
+    double last_recognizer = t0, last_monitor = t0;
+    std::vector<std::string> stops;
+    while (seq.phase() == pd::TrialPhase::kDrilling && now < t0 + 10.0) {
+      now += 0.125;
+      if (!recognizer_dies || now < t0 + 1.0) {
+        seq.onRecognizerState(now, false, "outer_cortical", 0);  // 20 Hz in life; 8 Hz here
+        last_recognizer = now;
+      }
+      if (recognizer_dies || now < t0 + 1.0) {
+        if (now - last_monitor >= 1.0) {
+          seq.onMonitorAlive(now);  // /diagnostics at 1 Hz
+          last_monitor = now;
+        }
+      }
+      seq.onSegmentTimer(now);
+      for (const std::string& s : seq.takeOutput().stops) stops.push_back(s);
+    }
+    EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+    ASSERT_EQ(stops.size(), 1u);
+    if (recognizer_dies) {
+      EXPECT_NE(stops[0].find("recognizer silent"), std::string::npos) << stops[0];
+      EXPECT_GT(now - last_recognizer, 0.5);
+      EXPECT_LE(now - last_recognizer, 0.5 + 0.125 + 1e-9);
+    } else {
+      EXPECT_NE(stops[0].find("safety monitor silent"), std::string::npos) << stops[0];
+      EXPECT_GT(now - last_monitor, 2.5);
+      EXPECT_LE(now - last_monitor, 2.5 + 0.125 + 1e-9);
+    }
+  }
+}
+
+TEST(TrialSequencer, WatchdogsCountFromTheDrillingAndZeroTurnsThemOff) {
+  pd::TrialSequencerParams p = params();
+  p.recognizer_timeout_s = 0.5;
+  p.monitor_timeout_s = 0.0;
+  pd::TrialSequencer seq(p, workcellArm());
+  seq.onRecognizerState(0.0, false, "idle", 0);  // long before: does not count as silence
+  const double t0 = toDrilling(&seq);
+  seq.onSegmentTimer(t0 + 0.375);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling) << "0.375 s since the drilling began";
+  seq.onSegmentTimer(t0 + 0.625);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+
+  p.recognizer_timeout_s = 0.0;
+  pd::TrialSequencer quiet(p, workcellArm());
+  const double t1 = toDrilling(&quiet);
+  for (double now = t1; now < t1 + 30.0; now += 0.125) quiet.onSegmentTimer(now);
+  EXPECT_NE(quiet.phase(), pd::TrialPhase::kRetreating);
+  for (const double bad : {-0.1, 61.0}) {
+    pd::TrialSequencerParams q = params();
+    q.monitor_timeout_s = bad;
+    EXPECT_THROW(pd::TrialSequencer(q, workcellArm()), std::invalid_argument);
+  }
 }
 
 TEST(TrialSequencer, ParametersAreValidatedNamingTheField) {

@@ -5,7 +5,8 @@ simulator's ground truth), the test injects the fault ~fault through /fault_inje
 the core engine's fault campaign does. The trial must end safely: a stop after the fault (from
 the source and with the reason ~expect names, when given), a retreat, the phase 'done', and no
 breakthrough of the inner cortical layer. Reports the time from the fault to the stop and the
-residual at the stop, to stdout and the test artifacts directory."""
+residual at the stop, to stdout and the test artifacts directory. With ~unload instead of
+~fault, the fault is that nodelet unloaded from the manager (~manager) mid-trial."""
 import os
 import sys
 import threading
@@ -13,6 +14,8 @@ import unittest
 
 import rospy
 import rostest
+
+from nodelet.srv import NodeletUnload
 
 from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import InjectFault, StartTrial
@@ -22,7 +25,8 @@ INJECT_DEPTH_M = 1.0e-3  # the deepest cut when the fault is injected: in the ou
 
 class FaultInjectionTest(unittest.TestCase):
     def test_fault(self):
-        fault = rospy.get_param('~fault')
+        unload = rospy.get_param('~unload', '')  # a nodelet's name, e.g. /state_recognizer
+        fault = rospy.get_param('~fault', '') or 'unloaded_' + unload.strip('/')
         expect = rospy.get_param('~expect', '')  # substring of the first stop's reason
         lock = threading.Lock()
         truth, stops, status = [], [], []
@@ -41,9 +45,14 @@ class FaultInjectionTest(unittest.TestCase):
         rospy.Subscriber('/drill/stop', StopCommand, keep(stops), queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, keep(status), queue_size=100)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
-        rospy.wait_for_service('/fault_injector/inject', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
-        inject = rospy.ServiceProxy('/fault_injector/inject', InjectFault)
+        if unload:
+            manager = rospy.get_param('~manager', '/pedicle_drilling_manager')
+            rospy.wait_for_service(manager + '/unload_nodelet', 60.0)
+            unloader = rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)
+        else:
+            rospy.wait_for_service('/fault_injector/inject', 60.0)
+            inject = rospy.ServiceProxy('/fault_injector/inject', InjectFault)
         # The moving modes need the ventilator's settings and phase: retry until accepted.
         res = None
         for _ in range(100):
@@ -58,8 +67,11 @@ class FaultInjectionTest(unittest.TestCase):
                         (INJECT_DEPTH_M * 1e3))
         with lock:
             self.assertEqual(stops, [], 'a stop before the fault')
-        answer = inject(fault=fault)
-        self.assertTrue(answer.success, answer.message)
+        if unload:
+            self.assertTrue(unloader(name=unload).success, 'could not unload ' + unload)
+        else:
+            answer = inject(fault=fault)
+            self.assertTrue(answer.success, answer.message)
         t_fault = rospy.Time.now().to_sec()
         injected.set()
         while not rospy.is_shutdown():

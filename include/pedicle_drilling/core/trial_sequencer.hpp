@@ -52,8 +52,20 @@ struct TrialSequencerParams {
   int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
   double registration_timeout_s = 3.0;    ///< (0, 60]
   double stop_hold_s = 1.0;               ///< hold after a recognizer stop, [0, 60]
-  RetreatParams retreat;                  ///< retreat along the drill axis
-  std::vector<std::string> arm_joints;    ///< the arm's joints, in command order
+  /**
+   * @brief While drilling, the recognizer's drilling_state (every averaged sample, 20 Hz) must
+   *        not be silent longer than this, else stop and retreat (its nodelet was unloaded or
+   *        died: nothing would stop the feed at the inner layer). [0 (off), 60] s.
+   */
+  double recognizer_timeout_s = 0.5;
+  /**
+   * @brief While drilling, the safety monitor must have been heard (onMonitorAlive: its
+   *        /diagnostics, every 1 s and at once on a stop) within this, else stop and retreat.
+   *        [0 (off), 60] s.
+   */
+  double monitor_timeout_s = 2.5;
+  RetreatParams retreat;                ///< retreat along the drill axis
+  std::vector<std::string> arm_joints;  ///< the arm's joints, in command order
   std::string feed_joint = "feed_joint";
   double feed_lower_m = 0.0;  ///< feed joint limits (URDF)
   double feed_upper_m = 0.06;
@@ -115,6 +127,9 @@ struct SequencerOutput {
   std::vector<TimerRequest> start_timers;
   bool stop_timers = false;  ///< stop every timer started before (applied before start_timers)
   std::vector<SequencerLog> log;
+  /** @brief Stops the sequencer itself decided (a silent component): the driver announces each
+   *         as a StopCommand with retreat = true. */
+  std::vector<std::string> stops;
 
   /** @brief True if nothing was produced. */
   bool empty() const;
@@ -168,6 +183,9 @@ class TrialSequencer {
    *        trial before the first feed.
    */
   void onRecognizerState(double now, bool stop, const std::string& state_name, int key_point);
+
+  /** @brief The safety monitor is alive (a /diagnostics status of it, or in-process). */
+  void onMonitorAlive(double now);
 
   /** @brief TimerRequest::kPoseReached fired. */
   void onPoseReached(double now);
@@ -234,6 +252,9 @@ class TrialSequencer {
   double breath_start_ = 0.0;
   bool have_phase_ = false;
   bool recognizer_reports_stop_ = false;
+  double last_recognizer_t_ = -1e300;  // last drilling_state
+  double last_monitor_t_ = -1e300;     // last sign of the safety monitor
+  double drilling_since_ = 0.0;        // start of the drilling phase (the watchdogs' origin)
 
   double spindle_rpm_ = 0.0;
   double max_duration_s_ = 0.0;
