@@ -32,6 +32,8 @@
 #include <vector>
 
 #include "pedicle_drilling/ResetSimulation.h"
+#include "pedicle_drilling/SetPatientAmplitude.h"
+#include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
@@ -102,6 +104,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
     reset_srv_ = nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
     start_trial_srv_ =
         nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
+    set_ventilator_srv_ = nh.advertiseService("simulator/set_ventilator_settings",
+                                              &SimulatorNodelet::onSetVentilatorSettings, this);
+    set_amplitude_srv_ = nh.advertiseService("simulator/set_patient_amplitude",
+                                             &SimulatorNodelet::onSetPatientAmplitude, this);
     publishStaticTransforms();
     NODELET_INFO(
         "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
@@ -134,6 +140,12 @@ class SimulatorNodelet : public nodelet::Nodelet {
         std::lock_guard<std::mutex> lock(mutex_);
         const core::SimulationStep step = sim_->stepOnce();
         t = step.time_s;
+        if (pending_amplitude_ && sim_->ventilator().breathIndex() != amplitude_breath_) {
+          sim_->setPatientAmplitudeFactor(*pending_amplitude_);  // from this breath's start
+          NODELET_WARN("Simulator: the patient's AP displacement x %.3f from now",
+                       *pending_amplitude_);
+          pending_amplitude_.reset();
+        }
         ++n;
         publishWrench(step);
         if (n % joint_state_period_ == 0) publishJointStates(t);
@@ -221,6 +233,40 @@ class SimulatorNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  /** @brief The simulated ventilator takes new settings at its next breath (the settings
+   *         stream tells the planner then); the identified model is not re-fit. */
+  bool onSetVentilatorSettings(SetVentilatorSettings::Request& request,
+                               SetVentilatorSettings::Response& response) {
+    try {
+      const core::VentilatorSettings settings = fromMsg(request.settings);
+      std::lock_guard<std::mutex> lock(mutex_);
+      sim_->requestVentilatorSettings(settings);
+      response.success = true;
+      response.message = "settings accepted; they take effect at the next breath";
+    } catch (const std::exception& e) {
+      response.success = false;
+      response.message = std::string("settings rejected, previous settings kept: ") + e.what();
+    }
+    return true;
+  }
+
+  /** @brief The patient's AP displacement x factor from the next breath until the next reset. */
+  bool onSetPatientAmplitude(SetPatientAmplitude::Request& request,
+                             SetPatientAmplitude::Response& response) {
+    if (!(std::isfinite(request.factor) && request.factor >= 0.0 && request.factor <= 10.0)) {
+      response.success = false;
+      response.message = "factor must be in [0, 10] (got " + std::to_string(request.factor) + ")";
+      return true;
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
+    pending_amplitude_ = request.factor;
+    amplitude_breath_ = sim_->ventilator().breathIndex();
+    response.success = true;
+    response.message = "the patient's AP displacement x " + std::to_string(request.factor) +
+                       " from the next breath until the next reset";
+    return true;
+  }
+
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
@@ -272,6 +318,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       sim_->setTrialDistribution(distribution.specimen, distribution.variability);
       sim_->setBoneMotionModel(bone_motion);
       sim_->reset(req.seed, req.moving_bone);
+      pending_amplitude_.reset();
     } catch (const std::exception& e) {
       res.success = false;
       res.message = std::string("reset failed: ") + e.what();
@@ -299,6 +346,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::uint64_t tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
   long last_breath_index_ = -1;
   VentilatorSettings last_settings_msg_;
+  std::optional<double> pending_amplitude_;  // set_patient_amplitude, from the next breath
+  long amplitude_breath_ = 0;
+  ros::ServiceServer set_ventilator_srv_, set_amplitude_srv_;
   ros::Publisher tidal_volume_pub_;
   ros::Publisher ventilator_settings_pub_;
   ros::Publisher clock_pub_;

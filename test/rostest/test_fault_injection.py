@@ -6,7 +6,9 @@ the core engine's fault campaign does. The trial must end safely: a stop after t
 the source and with the reason ~expect names, when given), a retreat, the phase 'done', and no
 breakthrough of the inner cortical layer. Reports the time from the fault to the stop and the
 residual at the stop, to stdout and the test artifacts directory. With ~unload instead of
-~fault, the fault is that nodelet unloaded from the manager (~manager) mid-trial."""
+~fault, the fault is that nodelet unloaded from the manager (~manager) mid-trial. The breathing
+faults (breathing_amplitude, breathing_rate_up / _down) go through the simulator's
+set_patient_amplitude and set_ventilator_settings services and take effect at the next breath."""
 import os
 import sys
 import threading
@@ -17,8 +19,14 @@ import rostest
 
 from nodelet.srv import NodeletUnload
 
-from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
-from pedicle_drilling.srv import InjectFault, StartTrial
+from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus, VentilatorSettings
+from pedicle_drilling.srv import (InjectFault, SetPatientAmplitude, SetVentilatorSettings,
+                                  StartTrial)
+
+# The breathing faults are the patient's: the simulator's services, with the core engine's sizes
+# (core::FaultParams: amplitude x 1.3, rate +-4 /min).
+AMPLITUDE_FACTOR = 1.3
+RATE_CHANGE_BPM = 4.0
 
 INJECT_DEPTH_M = 1.0e-3  # the deepest cut when the fault is injected: in the outer cortex
 
@@ -44,12 +52,21 @@ class FaultInjectionTest(unittest.TestCase):
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, keep(truth), queue_size=1000)
         rospy.Subscriber('/drill/stop', StopCommand, keep(stops), queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, keep(status), queue_size=100)
+        settings = []
+        rospy.Subscriber('/ventilator/settings', VentilatorSettings, settings.append,
+                         queue_size=10)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
         if unload:
             manager = rospy.get_param('~manager', '/pedicle_drilling_manager')
             rospy.wait_for_service(manager + '/unload_nodelet', 60.0)
             unloader = rospy.ServiceProxy(manager + '/unload_nodelet', NodeletUnload)
+        elif fault.startswith('breathing_'):
+            rospy.wait_for_service('/simulator/set_patient_amplitude', 60.0)
+            amplitude = rospy.ServiceProxy('/simulator/set_patient_amplitude',
+                                           SetPatientAmplitude)
+            ventilator = rospy.ServiceProxy('/simulator/set_ventilator_settings',
+                                            SetVentilatorSettings)
         else:
             rospy.wait_for_service('/fault_injector/inject', 60.0)
             inject = rospy.ServiceProxy('/fault_injector/inject', InjectFault)
@@ -69,6 +86,15 @@ class FaultInjectionTest(unittest.TestCase):
             self.assertEqual(stops, [], 'a stop before the fault')
         if unload:
             self.assertTrue(unloader(name=unload).success, 'could not unload ' + unload)
+        elif fault == 'breathing_amplitude':
+            answer = amplitude(factor=AMPLITUDE_FACTOR)
+            self.assertTrue(answer.success, answer.message)
+        elif fault.startswith('breathing_rate_'):
+            self.assertTrue(settings, 'no ventilator/settings heard')  # latched
+            new = settings[-1]
+            new.rate_bpm += RATE_CHANGE_BPM if fault.endswith('_up') else -RATE_CHANGE_BPM
+            answer = ventilator(settings=new)
+            self.assertTrue(answer.success, answer.message)
         else:
             answer = inject(fault=fault)
             self.assertTrue(answer.success, answer.message)
