@@ -38,7 +38,9 @@ SCENARIO_KEYS = {
     'simulator': (dict, None, None),
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
+    'version': (int, 1, 1),  # SCENARIO_VERSION; optional (a file without it is version 1)
 }
+SCENARIO_VERSION = 1
 # fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
 FAULT_PARAMS = {
     'spike_n': '--fault-spike-n',
@@ -94,9 +96,17 @@ def load_scenario(path):
         with open(path) as handle:
             data = yaml.safe_load(handle) or {}
     except (OSError, yaml.YAMLError) as error:
-        raise UsageError('--scenario %s: cannot read: %s' % (path, error))
+        # One line: YAML's message spans several (the problem, then its place).
+        raise UsageError('--scenario %s: cannot read: %s' % (path, ' '.join(str(error).split())))
     if not isinstance(data, dict):
         raise UsageError('--scenario %s: not a mapping' % path)
+    if not data:
+        raise UsageError('--scenario %s: holds no setting (empty, only comments, or cut short?)'
+                         % path)
+    if 'version' in data and (data['version'] != SCENARIO_VERSION
+                              or isinstance(data['version'], bool)):
+        raise UsageError('--scenario %s: version %r is not supported (this campaign reads '
+                         'version %d)' % (path, data['version'], SCENARIO_VERSION))
     for key, value in data.items():
         if key not in SCENARIO_KEYS:
             raise UsageError('--scenario %s: unknown key %r (known: %s)'

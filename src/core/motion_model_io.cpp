@@ -214,6 +214,7 @@ MotionModel PatientModel::motionModel() const {
 std::string modelToYaml(const PatientModel& model) {
   std::ostringstream os;
   os << "# pedicle_drilling vertebra displacement model, d = q1*Tv + q2*dTv/dt + q0\n";
+  os << "format_version: " << kModelFormatVersion << "\n";
   os << "patient_id: " << quote(model.patient_id) << "\n";
   os << "units: " << quote("Tv ml, dTv/dt ml/s, d mm; q1 mm/ml, q2 mm*s/ml, q0 mm") << "\n";
   os << "axes:\n";
@@ -266,6 +267,15 @@ std::string modelToYaml(const PatientModel& model) {
 
 PatientModel modelFromYaml(const std::string& text, const std::string& source) {
   const Fields f(parseFlat(text, source), source);
+  // Files written before the key existed are version 1; a newer one is refused, never guessed.
+  if (f.has("format_version")) {
+    const int version = f.getInt("format_version");
+    if (version != kModelFormatVersion) {
+      throw ModelFileError(source + ": format_version " + std::to_string(version) +
+                           " is not supported (this build reads format_version " +
+                           std::to_string(kModelFormatVersion) + ")");
+    }
+  }
   PatientModel m;
   m.patient_id = f.get("patient_id").value;
   for (Axis a : kAllAxes) {

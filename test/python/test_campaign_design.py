@@ -238,15 +238,35 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('trials: 1\nfaults: [none, none]\n', ['faults']),
     ('trials: 1\nfaults: [none]\nfault_params: {spike: 3}\n', ['fault_params.spike']),
     ('trials: 1\nfaults: [none]\nfault_params: {spike_n: big}\n', ['fault_params.spike_n']),
+    # Corrupt, truncated, empty or of another version (issue 15): exit 2, nothing written.
+    ('', ['holds no setting']),
+    ('# a scenario whose settings were cut off\n# cases: [compensated]\n', ['holds no setting']),
+    ('cases: [stationary, compen', ['cannot read']),
+    ('trials: 3\nrpms: [12000\nseed: 1\n', ['cannot read']),
+    ('version: 2\ntrials: 3\n', ['version 2 is not supported']),
+    ('version: one\ntrials: 3\n', ['version']),
+    ('\x00\x01binary', ['--scenario']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'
     bad.write_text(text)
+    out_dir = tmp_path / 'out'
     out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
-                          '--scenario', str(bad)], capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2
+                          '--scenario', str(bad), '--out', str(out_dir)],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stderr
     for name in named:
-        assert name in out.stderr
+        assert name in out.stderr, out.stderr
+    assert len(out.stderr.strip().splitlines()) <= 2, out.stderr  # an error, not a traceback
+    assert not out_dir.exists(), 'a refused scenario left output behind'
+
+
+def test_a_scenario_of_this_version_is_accepted(tmp_path):
+    scenario = tmp_path / 'v1.yaml'
+    scenario.write_text('version: 1\ncases: [stationary]\nrpms: [12000]\ntrials: 1\n')
+    sys.path.insert(0, os.path.join(ROOT, 'scripts'))
+    from pd_campaign import cli
+    assert cli.load_scenario(str(scenario))['trials'] == 1
 
 
 @pytest.mark.parametrize('section, named', [

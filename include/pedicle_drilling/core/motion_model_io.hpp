@@ -46,6 +46,10 @@
 
 namespace pedicle_drilling::core {
 
+/** @brief The model file format this build writes and reads (`format_version`; a file without
+ *         the key is version 1). */
+constexpr int kModelFormatVersion = 1;
+
 /** @brief One axis of the model file: coefficients plus fit and de-noising provenance. */
 struct AxisModelRecord {
   AxisModel model;               ///< kind and coefficients
