@@ -308,8 +308,7 @@ TEST(ModelYaml, ReaderRejectsBadFiles) {
   EXPECT_NE(good.find("format_version: 1\n"), std::string::npos);
   expectYamlError(replaceFirst(good, "format_version: 1", "format_version: 2"),
                   "format_version 2 is not supported");
-  expectYamlError(replaceFirst(good, "format_version: 1", "format_version: one"),
-                  "format_version");
+  expectYamlError(replaceFirst(good, "format_version: 1", "format_version: one"), "format_version");
   ASSERT_NO_THROW(modelFromYaml(replaceFirst(good, "format_version: 1\n", "")));  // older file
   expectYamlError(good.substr(0, good.find("  lr:")), "axes.lr");
 }
