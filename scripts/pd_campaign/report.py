@@ -17,7 +17,7 @@ TRIAL_COLUMNS = [
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
-    'sim_duration_s', 'wall_s', 'error',
+    'sim_duration_s', 'wall_s', 'bag_lost', 'error',
 ]
 
 PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}

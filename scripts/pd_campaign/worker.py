@@ -150,18 +150,38 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
                                    max_duration_s=args.max_duration)
         if not reply.success:
             raise RuntimeError('start_trial failed: %s' % reply.message)
-        return finish_trial(recorder, row, trial, args, trace_dir, wall_start)
+        row = finish_trial(recorder, row, trial, args, trace_dir, wall_start)
     finally:
         if bag is not None:
             stop_bag(bag)
+    if bag is not None:
+        # A kept recording says what it lost: <trial>.bag.json beside it, and the row.
+        bag_path = os.path.join(args.out, 'bags', trial['trial_id'] + '.bag')
+        try:
+            check = check_bag(bag_path)
+        except Exception as error:  # a bag the recorder did not close (killed) or cannot read
+            check = {'bag': os.path.basename(bag_path), 'complete': False,
+                     'summary': 'unreadable bag: %s' % ' '.join(str(error).split())}
+        with atomic_write(bag_path + '.json') as handle:
+            json.dump(check, handle, indent=1)
+        row['bag_lost'] = check['summary'] if check['summary'] else 'nothing'
+    return row
 
 
 # Topics kept in a trial's rosbag (--bags): enough to replay the trial in rviz
-# (rviz/drilling.rviz) and to re-run a recognizer on the raw force.
+# (rviz/drilling.rviz) and to re-run a recognizer on the raw force. No /clock: `rosbag play
+# --clock` publishes one from the recorded times (a recorded /clock would be a second clock).
 BAG_TOPICS = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tracker/marker_pose',
               '/tidal_volume', '/simulator/ground_truth', '/drilling_state', '/drill/stop',
               '/compensation/status', '/compensation/predicted_marker_pose',
-              '/arm_controller/command', '/clock']
+              '/arm_controller/command', '/spindle/command', '/ventilator/settings',
+              '/diagnostics']
+# Published in every trial, so a bag without them lost them (the others may stay silent).
+BAG_REQUIRED = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tracker/marker_pose',
+                '/simulator/ground_truth', '/drilling_state', '/compensation/status',
+                '/arm_controller/command', '/spindle/command', '/ventilator/settings',
+                '/diagnostics']
+FORCE_PERIOD_S = 1e-3  # the sensor's sample period (the Simulator's 1 kHz)
 
 
 def start_bag(args, trial):
@@ -176,11 +196,48 @@ def start_bag(args, trial):
 
 
 def stop_bag(process):
+    """Stops the recorder and returns once its whole process group has exited: `rosbag` is a
+    wrapper whose `record` child renames <trial>.bag.active to <trial>.bag when it closes."""
     try:
         os.killpg(process.pid, signal.SIGINT)  # rosbag closes the file cleanly on SIGINT
         process.wait(timeout=30)
-    except (ProcessLookupError, subprocess.TimeoutExpired):
+        deadline = time.time() + 30
+        while time.time() < deadline:
+            os.killpg(process.pid, 0)  # raises ProcessLookupError once the group is gone
+            time.sleep(0.05)
         os.killpg(process.pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
+
+
+def check_bag(path):
+    """What a trial's bag holds and what it lost: message counts per topic, required topics
+    with no message, and the gaps in the force stream (consecutive header stamps more than 1.5
+    sample periods apart: samples the recorder dropped). Returns the report (a dict)."""
+    import rosbag
+    counts = {topic: 0 for topic in BAG_TOPICS}
+    stamps = []
+    with rosbag.Bag(path) as bag:
+        for topic, msg, _ in bag.read_messages(topics=BAG_TOPICS):
+            counts[topic] += 1
+            if topic == '/ft_sensor/wrench':
+                stamps.append(msg.header.stamp.to_sec())
+    gaps = [(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * FORCE_PERIOD_S]
+    lost = sum(int(round(dt / FORCE_PERIOD_S)) - 1 for _, dt in gaps)
+    missing = [topic for topic in BAG_REQUIRED if counts[topic] == 0]
+    summary = []
+    if missing:
+        summary.append('no message on ' + ', '.join(missing))
+    if gaps:
+        summary.append('%d force samples lost in %d gaps (longest %.0f ms at t=%.3f s)' % (
+            lost, len(gaps), 1e3 * max(dt for _, dt in gaps),
+            max(gaps, key=lambda g: g[1])[0]))
+    return {'bag': os.path.basename(path), 'messages': counts, 'missing_topics': missing,
+            'force_samples': len(stamps), 'force_samples_lost': lost,
+            'force_gaps': [{'t': t, 'dt_s': dt} for t, dt in gaps],
+            'complete': not summary, 'summary': '; '.join(summary)}
 
 
 def finish_trial(recorder, row, trial, args, trace_dir, wall_start):

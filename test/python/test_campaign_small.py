@@ -69,8 +69,18 @@ def test_bags_keep_each_trial_for_replay(tmp_path):
     import rosbag
     with rosbag.Bag(str(bag)) as handle:
         topics = handle.get_type_and_topic_info().topics
-    for topic in ('/ft_sensor/wrench', '/simulator/ground_truth', '/drilling_state', '/tf'):
+    for topic in ('/ft_sensor/wrench', '/simulator/ground_truth', '/drilling_state', '/tf',
+                  '/spindle/command', '/ventilator/settings', '/diagnostics'):
         assert topic in topics and topics[topic].message_count > 0, topic
+    assert '/clock' not in topics  # rosbag play --clock makes the clock from the recorded times
+    # The recording says what it lost, beside the bag and in trials.csv (whatever the machine's
+    # load made the recorder drop, the report must agree with the bag).
+    with open(str(bag) + '.json') as handle:
+        check = json.load(handle)
+    assert check['force_samples'] == topics['/ft_sensor/wrench'].message_count
+    with open(out / 'trials.csv') as handle:
+        row = next(csv.DictReader(handle))
+    assert row['bag_lost'] == (check['summary'] or 'nothing')
 
 
 def test_scenario_simulator_section_reaches_the_trials(tmp_path):
