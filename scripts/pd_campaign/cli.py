@@ -95,7 +95,7 @@ def load_scenario(path):
     try:
         with open(path) as handle:
             data = yaml.safe_load(handle) or {}
-    except (OSError, yaml.YAMLError) as error:
+    except (OSError, yaml.YAMLError, UnicodeDecodeError) as error:
         # One line: YAML's message spans several (the problem, then its place).
         raise UsageError('--scenario %s: cannot read: %s' % (path, ' '.join(str(error).split())))
     if not isinstance(data, dict):
