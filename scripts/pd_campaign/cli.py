@@ -38,9 +38,11 @@ SCENARIO_KEYS = {
     'simulator': (dict, None, None),
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
+    'recognizer': (str, None, None),  # a recognizer class (pluginlib name); --recognizer wins
     'version': (int, 1, 1),  # SCENARIO_VERSION; optional (a file without it is version 1)
 }
 SCENARIO_VERSION = 1
+DEFAULT_RECOGNIZER = 'pedicle_drilling/PaperRecognizer'
 # fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
 FAULT_PARAMS = {
     'spike_n': '--fault-spike-n',
@@ -184,6 +186,10 @@ def parse_args(argv):
                         help='trials per case and speed: N, or one count per --rpm (N1,N2,...)')
     parser.add_argument('--seed', type=int, default=None)
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO)
+    parser.add_argument('--recognizer', default=None,
+                        help='drilling-state recognizer class (default: the scenario\'s, else '
+                        'pedicle_drilling/PaperRecognizer; pedicle_drilling/'
+                        'ForceDifferenceRecognizer is the literature baseline)')
     parser.add_argument('--engine', default='core',
                         help='core (default): trial_engine, the ROS-free closed-loop engine, '
                         'deterministic; ros: the full nodelet pipeline on ROS masters')
@@ -326,6 +332,17 @@ def run_campaign(argv=None):
         sys.stderr.write('campaign: %s\n' % error)
         return 2
     faults = scenario.get('faults')
+    recognizer = args.recognizer or scenario.get('recognizer') or DEFAULT_RECOGNIZER
+    if recognizer != DEFAULT_RECOGNIZER:
+        # A class that does not load is exit 2 before anything is written (both engines load it
+        # through the same loader).
+        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-recognizer',
+                                                                   recognizer],
+                               capture_output=True, text=True)
+        if check.returncode != 0:
+            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
+                                                 ['--recognizer %s does not load' % recognizer])[-1])
+            return 2
     design = build_design(cases, rpms, trials, seed, faults)
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
@@ -336,6 +353,7 @@ def run_campaign(argv=None):
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
+            'recognizer': recognizer,
             'engine': args.engine}
     if faults:
         meta['faults'] = list(faults)
@@ -384,7 +402,8 @@ def run_campaign(argv=None):
                 float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
                 COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                 [(FAULT_PARAMS[k], float(v))
-                 for k, v in sorted((scenario.get('fault_params') or {}).items())])))
+                 for k, v in sorted((scenario.get('fault_params') or {}).items())],
+                recognizer)))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
@@ -400,7 +419,8 @@ def run_campaign(argv=None):
                    '--bone-motion', scenario.get('bone_motion', 'virtual_patient'),
                    '--segment-profile',
                    COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
-                   '--simulator-overrides', json.dumps(scenario.get('simulator') or {})]
+                   '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
+                   '--recognizer', recognizer]
         if args.bags:
             command.append('--bags')
         env = dict(os.environ)

@@ -333,6 +333,8 @@ def main(argv=None):
                         help='identified volunteer models (volunteer_<id>_<model>.yaml); '
                         'empty: identify online on the simulator')
     parser.add_argument('--model', default='linear')
+    parser.add_argument('--recognizer', default='pedicle_drilling/PaperRecognizer',
+                        help='the StateRecognizer nodelet\'s ~recognizer class')
     parser.add_argument('--segment-profile', default='rest_to_rest',
                         help="the planner's ~segment_profile (scenario key compensation_profile)")
     parser.add_argument('--bone-motion', default='virtual_patient',
@@ -398,7 +400,8 @@ def main(argv=None):
             ['roslaunch', 'pedicle_drilling', args.launch,
              'patient_model:=%s' % args.default_model,
              'real_time_factor:=%g' % args.real_time_factor,
-             'segment_profile:=%s' % args.segment_profile],
+             'segment_profile:=%s' % args.segment_profile,
+             'recognizer:=%s' % args.recognizer],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial}
         srv = {}

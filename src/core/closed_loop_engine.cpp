@@ -70,7 +70,7 @@ struct ClosedLoopEngine::Impl {
   // Per trial (all rebuilt by run(), so that no trial depends on another).
   std::unique_ptr<DrillingSimulation> sim;
   std::unique_ptr<TrialSequencer> sequencer;
-  std::unique_ptr<StateRecognizer> recognizer;
+  std::unique_ptr<RecognizerInterface> recognizer;
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
@@ -243,7 +243,7 @@ struct ClosedLoopEngine::Impl {
       });
     }
     if (out.stop && !was_stopped) {
-      const std::string text = stopReason(out);
+      const std::string text = recognizer->stopReason();
       record.stops.push_back({t, "/state_recognizer", text, false});
       send(config.delays.stop_to_planner_s, [this, text]() {
         sequencer->onStop(now, false, text);
@@ -365,7 +365,9 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
   s.sim->reset(spec.seed, moving);
   s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
-  s.recognizer = std::make_unique<StateRecognizer>(s.config.recognizer);
+  s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
+                                          : std::make_unique<PaperRecognizer>(s.config.recognizer);
+  if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
   s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;

@@ -15,12 +15,15 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <sstream>
 #include <string>
 
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StopCommand.h"
+#include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/recognizer_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
@@ -86,7 +89,23 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
         const std::string what = e.what();
         params.fail(what.substr(0, what.find(':')), what.substr(what.find(':') + 1));
       }
-      recognizer_ = std::make_unique<core::StateRecognizer>(p);
+      const std::string recognizer_class =
+          params.getString("recognizer", "pedicle_drilling/PaperRecognizer");
+      const core::RecognizerSettings settings = loadSettings(pnh, params);
+      if (recognizer_class == "pedicle_drilling/PaperRecognizer") {
+        if (!settings.empty()) {
+          params.fail("recognizer_params",
+                      "is for other recognizer classes; the paper recognizer's parameters are "
+                      "this node's own (~pre_average, ~window, ...)");
+        }
+        recognizer_ = std::make_unique<core::PaperRecognizer>(p);
+      } else {
+        try {
+          recognizer_ = loader_.create(recognizer_class, settings);
+        } catch (const std::exception& e) {
+          params.fail("recognizer", "= '" + recognizer_class + "': " + e.what());
+        }
+      }
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -95,12 +114,45 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
     wrench_sub_ = nh.subscribe("ft_sensor/wrench", queue_size, &StateRecognizerNodelet::onWrench,
                                this, ros::TransportHints().tcpNoDelay());
-    const core::RecognizerParams& p = recognizer_->params();
-    NODELET_INFO(
-        "StateRecognizer: axis %s%c, pre-average %d, window %d, K %.2f, F_th %.2f N, "
-        "G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
-        axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_], p.pre_average, p.window, p.k_ratio, p.f_th,
-        p.gain, p.h_g, p.c1, p.c2, p.c3);
+    NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
+                 recognizer_ -> describe().c_str());
+  }
+
+  /** @brief ~recognizer_params (a mapping name: value) as text settings for the class. */
+  static core::RecognizerSettings loadSettings(const ros::NodeHandle& pnh,
+                                               const ParamLoader& params) {
+    core::RecognizerSettings settings;
+    if (!pnh.hasParam("recognizer_params")) return settings;
+    XmlRpc::XmlRpcValue raw;
+    pnh.getParam("recognizer_params", raw);
+    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
+      params.fail("recognizer_params", "must be a mapping {name: value}");
+    }
+    for (auto& [name, value] : raw) {
+      std::string text;
+      switch (value.getType()) {
+        case XmlRpc::XmlRpcValue::TypeInt:
+          text = std::to_string(static_cast<int>(value));
+          break;
+        case XmlRpc::XmlRpcValue::TypeDouble: {
+          std::ostringstream os;
+          os.precision(17);
+          os << static_cast<double>(value);
+          text = os.str();
+          break;
+        }
+        case XmlRpc::XmlRpcValue::TypeBoolean:
+          text = static_cast<bool>(value) ? "true" : "false";
+          break;
+        case XmlRpc::XmlRpcValue::TypeString:
+          text = static_cast<std::string>(value);
+          break;
+        default:
+          params.fail("recognizer_params/" + name, "must be a number, a bool or a string");
+      }
+      settings.emplace_back(name, text);
+    }
+    return settings;
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
@@ -128,7 +180,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       stop.header.frame_id = msg->header.frame_id;
       stop.source = getName();
       stop.retreat = false;
-      stop.reason = core::stopReason(out);
+      stop.reason = recognizer_->stopReason();
       stop_pub_.publish(stop);
       NODELET_WARN("StateRecognizer: STOP: %s", stop.reason.c_str());
     }
@@ -164,7 +216,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  std::unique_ptr<core::StateRecognizer> recognizer_;
+  RecognizerLoader loader_;  // before recognizer_: outlives the instance it made
+  std::unique_ptr<core::RecognizerInterface> recognizer_;
   int axis_index_ = 2;
   double axis_sign_ = 1.0;
   std::size_t non_finite_count_ = 0;

@@ -1,6 +1,6 @@
 // recognize: offline run of the drilling-state recognizer over a raw force recording.
 //
-//   recognize --input force.csv [--json] [--param name=value ...]
+//   recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]
 //
 // force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
 // key points and the stop. Exit codes: 0 ok, 2 bad input or parameters.
@@ -15,17 +15,21 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/ros/recognizer_loader.hpp"
 
 namespace {
 
 using pedicle_drilling::core::KeyPoint;
 using pedicle_drilling::core::RecognizerOutput;
-using pedicle_drilling::core::RecognizerParams;
-using pedicle_drilling::core::StateRecognizer;
 
 const char kUsage[] =
-    "usage: recognize --input force.csv [--json] [--param name=value ...]\n"
+    "usage: recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]\n"
+    "  --recognizer  pedicle_drilling/PaperRecognizer (default), "
+    "pedicle_drilling/ForceDifferenceRecognizer\n"
+    "                or any pluginlib class of base pedicle_drilling::core::RecognizerInterface\n"
+    "  the paper recognizer's parameters:\n"
     "  parameters: pre_average window k_ratio f_th gain h_g c1 c2 c3 cancellous_confirm "
     "cancellous_timeout\n"
     "              outer_cortical_timeout inner_confirm stop_delay normalize_feature\n";
@@ -107,7 +111,10 @@ std::vector<Sample> readCsv(const std::string& path) {
 int main(int argc, char** argv) {
   std::string input;
   bool json = false;
-  RecognizerParams params;
+  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
+  pedicle_drilling::core::RecognizerSettings settings;
+  pedicle_drilling::RecognizerLoader loader;  // outlives the recognizer
+  std::unique_ptr<pedicle_drilling::core::RecognizerInterface> rec;
   try {
     std::set<std::string> given;  // an option or --param name given twice is refused
     const auto once = [&given](const std::string& what) {
@@ -117,9 +124,11 @@ int main(int argc, char** argv) {
     };
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
-      if (a == "--input" || a == "--json") once(a);
+      if (a == "--input" || a == "--json" || a == "--recognizer") once(a);
       if (a == "--input" && i + 1 < argc) {
         input = argv[++i];
+      } else if (a == "--recognizer" && i + 1 < argc) {
+        recognizer_class = argv[++i];
       } else if (a == "--json") {
         json = true;
       } else if (a == "--param" && i + 1 < argc) {
@@ -129,7 +138,7 @@ int main(int argc, char** argv) {
           throw std::invalid_argument("--param '" + kv + "': expected name=value");
         }
         once("--param " + kv.substr(0, eq));
-        params.set(kv.substr(0, eq), kv.substr(eq + 1));
+        settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
       } else if (a == "--help" || a == "-h") {
         std::cout << kUsage;
         return 0;
@@ -138,7 +147,12 @@ int main(int argc, char** argv) {
       }
     }
     if (input.empty()) throw std::invalid_argument("missing --input");
-    params.validate();
+    try {
+      rec = loader.create(recognizer_class, settings);
+    } catch (const std::runtime_error& e) {
+      std::cerr << "recognize: --recognizer " << recognizer_class << ": " << e.what() << "\n";
+      return 2;
+    }
   } catch (const std::invalid_argument& e) {
     std::cerr << "recognize: bad parameter: " << e.what() << "\n" << kUsage;
     return 2;
@@ -152,9 +166,8 @@ int main(int argc, char** argv) {
     return 2;
   }
 
-  StateRecognizer rec(params);
-  for (const Sample& s : samples) rec.push(s.t, s.f);
-  const RecognizerOutput& o = rec.output();
+  for (const Sample& s : samples) rec->push(s.t, s.f);
+  const RecognizerOutput& o = rec->output();
 
   if (json) {
     std::ostringstream os;

@@ -28,6 +28,7 @@
 #include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/ros/recognizer_loader.hpp"
 
 namespace pd = pedicle_drilling::core;
 using nlohmann::json;
@@ -148,6 +149,14 @@ int main(int argc, char** argv) {
   app.add_option("--fault-rate-change-bpm", faults.rate_change_bpm,
                  "breathing_rate_up/down change, breaths/min");
   app.add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s");
+  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
+  app.add_option("--recognizer", recognizer_class,
+                 "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
+                 "own recognizer\")");
+  std::vector<std::string> recognizer_params;
+  app.add_option("--recognizer-param", recognizer_params,
+                 "name=value for the recognizer (repeatable; the paper recognizer's default: "
+                 "config/recognizer.yaml's values are its defaults)");
   bool list_faults = false;
   app.add_flag("--list-faults", list_faults, "print the faults a trial may name, one per line");
   app.footer("Faults: " + [] {
@@ -161,6 +170,27 @@ int main(int argc, char** argv) {
   };
   // Alone, --list-faults needs none of the required options.
   if (argc == 2 && std::string(argv[1]) == "--list-faults") return print_faults();
+  // --check-recognizer CLASS [name=value ...]: load and configure it, nothing run (the
+  // campaign asks before it writes anything).
+  if (argc >= 3 && std::string(argv[1]) == "--check-recognizer") {
+    try {
+      pd::RecognizerSettings settings;
+      for (int i = 3; i < argc; ++i) {
+        const std::string kv = argv[i];
+        const auto eq = kv.find('=');
+        if (eq == std::string::npos || eq == 0) {
+          throw std::invalid_argument("'" + kv + "' is not name=value");
+        }
+        settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+      }
+      pedicle_drilling::RecognizerLoader loader;
+      std::cout << loader.create(argv[2], settings)->describe() << "\n";
+      return 0;
+    } catch (const std::exception& e) {
+      std::cerr << "trial_engine: --recognizer " << argv[2] << ": " << e.what() << "\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -208,6 +238,28 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: --default-model: " << e.what() << "\n";
     return 2;
+  }
+  // The recognizer class, loaded and configured once here so that a bad one is exit 2 before any
+  // trial; each trial then gets a fresh instance.
+  pedicle_drilling::RecognizerLoader recognizer_loader;
+  pd::RecognizerSettings recognizer_settings;
+  try {
+    for (const std::string& p : recognizer_params) {
+      const auto eq = p.find('=');
+      if (eq == std::string::npos || eq == 0) {
+        throw std::invalid_argument("--recognizer-param '" + p + "' is not name=value");
+      }
+      recognizer_settings.emplace_back(p.substr(0, eq), p.substr(eq + 1));
+    }
+    recognizer_loader.create(recognizer_class, recognizer_settings);
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: --recognizer " << recognizer_class << ": " << e.what() << "\n";
+    return 2;
+  }
+  if (recognizer_class != "pedicle_drilling/PaperRecognizer" || !recognizer_settings.empty()) {
+    config.make_recognizer = [&recognizer_loader, recognizer_class, recognizer_settings]() {
+      return recognizer_loader.create(recognizer_class, recognizer_settings);
+    };
   }
   std::unique_ptr<pd::ClosedLoopEngine> engine;
   try {

@@ -103,6 +103,8 @@ def bad_values(kind, name):
         return [('wrong type', 'maybe')]
     if kind in ('string', 'string list'):
         return [('wrong type', 42)]
+    if kind == 'mapping':
+        return [('wrong type', 42)]
     if kind == 'integers':
         return [('wrong type', 'three'), ('out of range', [0])]
     raise AssertionError('README type %r of %s is unknown to the walk' % (kind, name))

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -17,6 +18,7 @@
 #include "pedicle_drilling/core/drilling_simulation.hpp"
 #include "pedicle_drilling/core/fault_injector.hpp"
 #include "pedicle_drilling/core/motion_model.hpp"
+#include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/safety_supervisor.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
 #include "pedicle_drilling/core/trial_sequencer.hpp"
@@ -45,6 +47,11 @@ struct EngineConfig {
   double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume stream
   double ground_truth_rate_hz = 20.0;   ///< recorded ground truth (plus every layer change)
   RecognizerParams recognizer;          ///< config/recognizer.yaml (thrust = +z of the sensor)
+  /**
+   * @brief The recognizer of each trial (issue 17): empty = the paper's (PaperRecognizer with
+   *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.
+   */
+  std::function<std::unique_ptr<RecognizerInterface>()> make_recognizer;
   SupervisorParams safety;              ///< config/safety_monitor.yaml
   double safety_check_rate_hz = 200.0;  ///< the monitor's watchdog timer
   TrialSequencerParams sequencer;       ///< config/compensation_planner.yaml; joints from URDF

@@ -1,0 +1,118 @@
+// The recognizer plugin interface (issue 17): the paper recognizer behind it behaves as
+// StateRecognizer itself, the force-difference baseline stops at the second breakthrough, the
+// factory refuses unknown names and bad settings naming them.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/recognizer_interface.hpp"
+
+namespace pd = pedicle_drilling::core;
+
+namespace {
+
+// A vertebra-like thrust profile at 1 kHz and 0.5 mm/s: air, outer cortex (rising to 3.5 N),
+// cancellous (about 1.2 N), inner cortex (rising to 4 N), then the breakthrough (to 0).
+std::vector<double> profile() {
+  std::vector<double> f;
+  const auto ramp = [&f](double from, double to, int n) {
+    for (int i = 0; i < n; ++i) f.push_back(from + (to - from) * i / n);
+  };
+  ramp(0.0, 0.0, 1000);
+  ramp(0.2, 3.5, 4000);
+  ramp(3.5, 1.2, 1000);
+  ramp(1.2, 1.2, 6000);
+  ramp(1.2, 4.0, 3000);
+  ramp(4.0, 0.0, 1500);
+  ramp(0.0, 0.0, 1000);
+  return f;
+}
+
+}  // namespace
+
+TEST(RecognizerInterface, ThePaperRecognizerBehindTheInterfaceIsStateRecognizer) {
+  pd::StateRecognizer direct;
+  const auto plugin = pd::makeBuiltinRecognizer("pedicle_drilling/PaperRecognizer", {});
+  const std::vector<double> f = profile();
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const double t = 1e-3 * static_cast<double>(i);
+    const pd::RecognizerOutput& a = direct.push(t, f[i]);
+    const pd::RecognizerOutput& b = plugin->push(t, f[i]);
+    ASSERT_EQ(a.state, b.state) << i;
+    ASSERT_EQ(a.stop, b.stop) << i;
+    ASSERT_EQ(a.averaged_force, b.averaged_force) << i;
+  }
+  EXPECT_TRUE(plugin->output().stop);
+  EXPECT_EQ(plugin->stopReason(), pd::stopReason(direct.output()));
+  // Settings by name, as text; a bad one names itself.
+  const auto tuned = pd::makeBuiltinRecognizer("pedicle_drilling/PaperRecognizer",
+                                               {{"window", "5"}, {"c2", "0.8"}});
+  EXPECT_EQ(dynamic_cast<const pd::PaperRecognizer&>(*tuned).params().window, 5);
+  try {
+    pd::makeBuiltinRecognizer("pedicle_drilling/PaperRecognizer", {{"c3", "1.5"}});
+    FAIL() << "accepted c3 = 1.5";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("c3", 0), 0u) << e.what();
+  }
+}
+
+TEST(RecognizerInterface, UnknownNamesAreRefusedListingTheBuiltInOnes) {
+  try {
+    pd::makeBuiltinRecognizer("someone/Else", {});
+    FAIL() << "accepted an unknown class";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("someone/Else"), std::string::npos);
+    EXPECT_NE(what.find("pedicle_drilling/ForceDifferenceRecognizer"), std::string::npos);
+  }
+}
+
+TEST(ForceDifferenceRecognizer, StopsAtTheSecondBreakthroughNotTheFirst) {
+  const auto r = pd::makeBuiltinRecognizer("pedicle_drilling/ForceDifferenceRecognizer", {});
+  const std::vector<double> f = profile();
+  double first_cancellous_t = -1.0;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const double t = 1e-3 * static_cast<double>(i);
+    const pd::RecognizerOutput& o = r->push(t, f[i]);
+    if (first_cancellous_t < 0.0 && o.layer_state == pd::DrillingState::kCancellous) {
+      first_cancellous_t = t;
+      EXPECT_FALSE(o.stop) << "stopped at the outer cortex's breakthrough";
+    }
+  }
+  const pd::RecognizerOutput& o = r->output();
+  // The outer cortex ends at 5.0 s (drop to 6.0 s): the first breakthrough inside that drop.
+  EXPECT_GT(first_cancellous_t, 5.0);
+  EXPECT_LT(first_cancellous_t, 6.0);
+  ASSERT_TRUE(o.stop);
+  // The inner cortex's force falls from 15.0 s: the stop within that fall, not before it.
+  EXPECT_GT(o.stop_t, 15.0);
+  EXPECT_LT(o.stop_t, 16.5);
+  EXPECT_EQ(o.state, pd::DrillingState::kStopped);
+  EXPECT_NE(r->stopReason().find("breakthrough 2"), std::string::npos) << r->stopReason();
+  // reset() forgets the trial.
+  r->reset();
+  EXPECT_FALSE(r->output().stop);
+  EXPECT_EQ(r->output().state, pd::DrillingState::kIdle);
+}
+
+TEST(ForceDifferenceRecognizer, SettingsAreCheckedNamingThem) {
+  for (const auto& [name, value] :
+       std::vector<std::pair<std::string, std::string>>{{"drop_threshold_n", "-1"},
+                                                        {"drop_confirm", "0"},
+                                                        {"pre_average", "x"},
+                                                        {"stop_at_breakthrough", "11"},
+                                                        {"no_such_parameter", "1"}}) {
+    try {
+      pd::makeBuiltinRecognizer("pedicle_drilling/ForceDifferenceRecognizer", {{name, value}});
+      FAIL() << "accepted " << name << " = " << value;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()).rfind(name, 0), 0u) << e.what();
+    }
+  }
+  pd::ForceDifferenceRecognizer r;
+  EXPECT_THROW(r.push(0.0, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+}

@@ -1,0 +1,103 @@
+"""Bring your own recognizer (issue 17): the built-in recognizers are pluginlib classes that
+rospack lists; the offline `recognize` tool and the campaign run whichever class is named; a
+plugin defined only in the test tree (test/plugin/, built with the tests) is loaded by its name,
+which proves that an outside class plugs in; a class that does not load is exit 2 naming it."""
+import json
+import os
+import subprocess
+import xml.etree.ElementTree as ET
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+TEST_PLUGIN_XML = os.path.join(ROOT, 'test', 'plugin', 'test_recognizer_plugins.xml')
+
+
+def write_trace(path, levels):
+    """t,force at 1 kHz: `levels` a list of (seconds, N) plateaus."""
+    with open(path, 'w') as handle:
+        handle.write('t,force\n')
+        t = 0.0
+        for seconds, level in levels:
+            for _ in range(int(seconds * 1000)):
+                handle.write('%.3f,%.4f\n' % (t, level))
+                t += 1e-3
+
+
+def recognize(bin_dir, *args, plugin_xml=None):
+    env = dict(os.environ)
+    env.pop('PEDICLE_DRILLING_PLUGIN_XML', None)
+    if plugin_xml:
+        env['PEDICLE_DRILLING_PLUGIN_XML'] = plugin_xml
+    return subprocess.run([os.path.join(bin_dir, 'recognize')] + list(args),
+                          capture_output=True, text=True, timeout=60, env=env)
+
+
+def test_rospack_lists_both_recognizers_of_the_package():
+    out = subprocess.run(['rospack', 'plugins', '--attrib=plugin', 'pedicle_drilling'],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    xmls = [line.split(' ', 1)[1] for line in out.stdout.splitlines()
+            if line.startswith('pedicle_drilling ')]
+    assert xmls, out.stdout
+    classes = [c.get('name') for x in xmls for c in ET.parse(x).getroot().iter('class')]
+    assert 'pedicle_drilling/PaperRecognizer' in classes
+    assert 'pedicle_drilling/ForceDifferenceRecognizer' in classes
+
+
+def test_a_plugin_of_the_test_tree_is_loaded_by_name(bin_dir, tmp_path):
+    trace = tmp_path / 'trace.csv'
+    write_trace(trace, [(1.0, 0.0), (1.0, 2.0)])
+    out = recognize(bin_dir, '--input', str(trace), '--json', '--recognizer',
+                    'test_plugins/StopAfterSamples', '--param', 'samples=250',
+                    plugin_xml=TEST_PLUGIN_XML)
+    assert out.returncode == 0, out.stderr
+    stop = json.loads(out.stdout)['stop']
+    assert stop['index'] == 1000 + 249  # its 250th sample above 1 N
+    # The same name without its plugin file: exit 2, the class named.
+    out = recognize(bin_dir, '--input', str(trace), '--recognizer',
+                    'test_plugins/StopAfterSamples')
+    assert out.returncode == 2
+    assert 'test_plugins/StopAfterSamples' in out.stderr
+    # Its own parameters are checked by it: a bad one is exit 2 naming it.
+    out = recognize(bin_dir, '--input', str(trace), '--recognizer',
+                    'test_plugins/StopAfterSamples', '--param', 'samples=0',
+                    plugin_xml=TEST_PLUGIN_XML)
+    assert out.returncode == 2 and 'samples' in out.stderr, out.stderr
+
+
+def test_the_baseline_judges_a_recorded_trace(bin_dir, tmp_path):
+    trace = tmp_path / 'vertebra.csv'
+    # Air, outer cortex 3.5 N, cancellous 1.2 N, inner cortex 4 N, canal 0 N (steps: the
+    # force-difference detector sees each fall as a breakthrough).
+    write_trace(trace, [(1.0, 0.0), (4.0, 3.5), (4.0, 1.2), (3.0, 4.0), (1.0, 0.0)])
+    out = recognize(bin_dir, '--input', str(trace), '--json', '--recognizer',
+                    'pedicle_drilling/ForceDifferenceRecognizer')
+    assert out.returncode == 0, out.stderr
+    stop = json.loads(out.stdout)['stop']
+    assert stop is not None and 12.0 <= stop['t'] <= 12.5, stop  # the second fall, at 12 s
+    out = recognize(bin_dir, '--input', str(trace), '--recognizer',
+                    'pedicle_drilling/ForceDifferenceRecognizer', '--param', 'drop_confirm=0')
+    assert out.returncode == 2 and 'drop_confirm' in out.stderr
+
+
+def test_the_campaign_runs_the_named_recognizer(tmp_path):
+    out_dir = tmp_path / 'baseline'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'stationary', '--rpm', '12000',
+         '--trials', '2', '--jobs', '1', '--seed', '77', '--out', str(out_dir),
+         '--recognizer', 'pedicle_drilling/ForceDifferenceRecognizer'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out_dir / 'design.json') as handle:
+        assert json.load(handle)['meta']['recognizer'] == \
+            'pedicle_drilling/ForceDifferenceRecognizer'
+    import csv
+    with open(out_dir / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2 and all(r['error'] == '' for r in rows), rows
+    assert all('force-difference' in r['stop_reason'] or r['stop_source'] != '/state_recognizer'
+               for r in rows), [r['stop_reason'] for r in rows]
+    bad = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'stationary', '--rpm', '12000',
+         '--trials', '1', '--out', str(tmp_path / 'bad'), '--recognizer', 'nobody/Nothing'],
+        capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and 'nobody/Nothing' in bad.stderr, bad.stderr[-2000:]
