@@ -39,8 +39,14 @@ def node_environments(path, argv=(), **environment):
     return {node.namespace + node.name: dict(node.env_args) for node in nodes}
 
 
+def required_args(path):
+    """name:=placeholder for every arg without a default (replay.launch's bag)."""
+    return ['%s:=placeholder' % a.get('name') for a in ET.parse(path).getroot().iter('arg')
+            if a.get('default') is None and a.get('value') is None]
+
+
 def cases():
-    return [(path, []) for path in LAUNCH_FILES] + [
+    return [(path, required_args(path)) for path in LAUNCH_FILES] + [
         (os.path.join(ROOT, 'launch_scripts', 'drilling_pipeline.launch'), ['sim:=true'])]
 
 
