@@ -15,6 +15,10 @@
 #include <string>
 #include <vector>
 
+#include <geometry_msgs/WrenchStamped.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
 #include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
 #include "pedicle_drilling/ros/recognizer_loader.hpp"
@@ -25,7 +29,12 @@ using pedicle_drilling::core::KeyPoint;
 using pedicle_drilling::core::RecognizerOutput;
 
 const char kUsage[] =
-    "usage: recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]\n"
+    "usage: recognize (--input force.csv | --bag trial.bag [--topic /ft_sensor/wrench] "
+    "[--axis z])\n"
+    "                 [--json] [--recognizer CLASS] [--param name=value ...]\n"
+    "  --bag         a recording (a campaign bag): the raw force of --topic "
+    "(geometry_msgs/WrenchStamped),\n"
+    "                its --axis component, at the header stamps\n"
     "  --recognizer  pedicle_drilling/PaperRecognizer (default), "
     "pedicle_drilling/ForceDifferenceRecognizer\n"
     "                or any pluginlib class of base pedicle_drilling::core::RecognizerInterface\n"
@@ -70,6 +79,49 @@ struct Sample {
   double f;
 };
 
+/** @brief The raw force of a recording (a campaign bag): `topic`'s WrenchStamped, the `axis`
+ *         component (x, y, z, -x, -y, -z), at the header stamps. */
+std::vector<Sample> readBag(const std::string& path, const std::string& topic,
+                            const std::string& axis) {
+  int index = 2;
+  double sign = 1.0;
+  std::string a = axis;
+  if (!a.empty() && a[0] == '-') {
+    sign = -1.0;
+    a = a.substr(1);
+  }
+  if (a == "x") {
+    index = 0;
+  } else if (a == "y") {
+    index = 1;
+  } else if (a != "z") {
+    throw InputError("--axis '" + axis + "' must be one of x, y, z, -x, -y, -z");
+  }
+  std::vector<Sample> samples;
+  try {
+    rosbag::Bag bag(path, rosbag::bagmode::Read);
+    rosbag::View view(bag, rosbag::TopicQuery(std::vector<std::string>{topic}));
+    for (const rosbag::MessageInstance& m : view) {
+      const geometry_msgs::WrenchStamped::ConstPtr w =
+          m.instantiate<geometry_msgs::WrenchStamped>();
+      if (!w) throw InputError(topic + " is not geometry_msgs/WrenchStamped");
+      const geometry_msgs::Vector3& f = w->wrench.force;
+      const double v = sign * (index == 0 ? f.x : (index == 1 ? f.y : f.z));
+      const double t = w->header.stamp.toSec();
+      if (!std::isfinite(v) || !std::isfinite(t)) continue;  // as the nodelet: skipped
+      if (!samples.empty() && !(t > samples.back().t)) {
+        throw InputError("time " + num(t) + " does not increase (previous " +
+                         num(samples.back().t) + ")");
+      }
+      samples.push_back({t, v});
+    }
+  } catch (const rosbag::BagException& e) {
+    throw InputError("bag '" + path + "': " + e.what());
+  }
+  if (samples.empty()) throw InputError("bag '" + path + "' has no message on " + topic);
+  return samples;
+}
+
 std::vector<Sample> readCsv(const std::string& path) {
   std::ifstream in(path);
   if (!in) throw InputError("cannot open input file '" + path + "'");
@@ -112,6 +164,7 @@ int main(int argc, char** argv) {
   std::string input;
   bool json = false;
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
+  std::string bag, topic = "/ft_sensor/wrench", axis = "z";
   pedicle_drilling::core::RecognizerSettings settings;
   pedicle_drilling::RecognizerLoader loader;  // outlives the recognizer
   std::unique_ptr<pedicle_drilling::core::RecognizerInterface> rec;
@@ -124,9 +177,18 @@ int main(int argc, char** argv) {
     };
     for (int i = 1; i < argc; ++i) {
       const std::string a = argv[i];
-      if (a == "--input" || a == "--json" || a == "--recognizer") once(a);
+      if (a == "--input" || a == "--json" || a == "--recognizer" || a == "--bag" ||
+          a == "--topic" || a == "--axis") {
+        once(a);
+      }
       if (a == "--input" && i + 1 < argc) {
         input = argv[++i];
+      } else if (a == "--bag" && i + 1 < argc) {
+        bag = argv[++i];
+      } else if (a == "--topic" && i + 1 < argc) {
+        topic = argv[++i];
+      } else if (a == "--axis" && i + 1 < argc) {
+        axis = argv[++i];
       } else if (a == "--recognizer" && i + 1 < argc) {
         recognizer_class = argv[++i];
       } else if (a == "--json") {
@@ -146,7 +208,9 @@ int main(int argc, char** argv) {
         throw std::invalid_argument("unknown or incomplete argument '" + a + "'");
       }
     }
-    if (input.empty()) throw std::invalid_argument("missing --input");
+    if (input.empty() == bag.empty()) {
+      throw std::invalid_argument("give one of --input (CSV t,force) and --bag (a recording)");
+    }
     try {
       rec = loader.create(recognizer_class, settings);
     } catch (const std::runtime_error& e) {
@@ -160,7 +224,7 @@ int main(int argc, char** argv) {
 
   std::vector<Sample> samples;
   try {
-    samples = readCsv(input);
+    samples = bag.empty() ? readCsv(input) : readBag(bag, topic, axis);
   } catch (const InputError& e) {
     std::cerr << "recognize: bad input: " << e.what() << "\n";
     return 2;

@@ -101,3 +101,37 @@ def test_the_campaign_runs_the_named_recognizer(tmp_path):
          '--trials', '1', '--out', str(tmp_path / 'bad'), '--recognizer', 'nobody/Nothing'],
         capture_output=True, text=True, timeout=600)
     assert bad.returncode == 2 and 'nobody/Nothing' in bad.stderr, bad.stderr[-2000:]
+
+
+def test_recognize_reads_a_recording_as_the_project_records_it(bin_dir, tmp_path):
+    """`recognize --bag` judges the raw force of a campaign bag (/ft_sensor/wrench at 1 kHz),
+    with exactly the result of the same samples given as CSV."""
+    import rosbag
+    import rospy
+    from geometry_msgs.msg import WrenchStamped
+    levels = [(1.0, 0.0), (4.0, 3.5), (4.0, 1.2), (3.0, 4.0), (1.0, 0.0)]
+    trace = tmp_path / 'trace.csv'
+    write_trace(trace, levels)
+    bag_path = tmp_path / 'trial.bag'
+    with open(trace) as handle, rosbag.Bag(str(bag_path), 'w') as bag:  # not atomic: a fixture
+        next(handle)
+        for line in handle:
+            t, f = (float(v) for v in line.split(','))
+            msg = WrenchStamped()
+            msg.header.stamp = rospy.Time.from_sec(100.0 + t)
+            msg.wrench.force.z = f
+            bag.write('/ft_sensor/wrench', msg, msg.header.stamp)
+    for recognizer in ('pedicle_drilling/PaperRecognizer',
+                       'pedicle_drilling/ForceDifferenceRecognizer'):
+        from_csv = recognize(bin_dir, '--input', str(trace), '--json', '--recognizer', recognizer)
+        from_bag = recognize(bin_dir, '--bag', str(bag_path), '--json', '--recognizer', recognizer)
+        assert from_csv.returncode == 0 and from_bag.returncode == 0, from_bag.stderr
+        a, b = json.loads(from_csv.stdout), json.loads(from_bag.stdout)
+        assert (a['stop'] is None) == (b['stop'] is None), (a, b)
+        if a['stop']:
+            assert a['stop']['index'] == b['stop']['index']
+            assert abs((b['stop']['t'] - 100.0) - a['stop']['t']) < 1e-6
+    out = recognize(bin_dir, '--bag', str(bag_path), '--topic', '/nothing')
+    assert out.returncode == 2 and '/nothing' in out.stderr
+    out = recognize(bin_dir, '--bag', str(bag_path), '--input', str(trace))
+    assert out.returncode == 2
