@@ -12,34 +12,6 @@ namespace {
 const char* const kPaperRecognizer = "pedicle_drilling/PaperRecognizer";
 const char* const kForceDifferenceRecognizer = "pedicle_drilling/ForceDifferenceRecognizer";
 
-double parseDouble(const std::string& name, const std::string& text) {
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size()) {
-    throw std::invalid_argument(name + ": '" + text + "' is not a number");
-  }
-  return v;
-}
-
-int parseInt(const std::string& name, const std::string& text) {
-  std::size_t used = 0;
-  long v = 0;
-  try {
-    v = std::stol(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || v < -1000000000L || v > 1000000000L) {
-    throw std::invalid_argument(name + ": '" + text + "' is not an integer");
-  }
-  return static_cast<int>(v);
-}
-
 }  // namespace
 
 // ----------------------------------------------------------------------- PaperRecognizer
@@ -114,21 +86,21 @@ void ForceDifferenceRecognizer::configure(const RecognizerSettings& settings) {
   ForceDifferenceParams p;
   for (const auto& [name, value] : settings) {
     if (name == "pre_average") {
-      p.pre_average = parseInt(name, value);
+      p.pre_average = parseSettingInt(name, value);
     } else if (name == "contact_force_n") {
-      p.contact_force_n = parseDouble(name, value);
+      p.contact_force_n = parseSettingDouble(name, value);
     } else if (name == "process_noise") {
-      p.process_noise = parseDouble(name, value);
+      p.process_noise = parseSettingDouble(name, value);
     } else if (name == "measurement_noise") {
-      p.measurement_noise = parseDouble(name, value);
+      p.measurement_noise = parseSettingDouble(name, value);
     } else if (name == "drop_threshold_n") {
-      p.drop_threshold_n = parseDouble(name, value);
+      p.drop_threshold_n = parseSettingDouble(name, value);
     } else if (name == "drop_confirm") {
-      p.drop_confirm = parseInt(name, value);
+      p.drop_confirm = parseSettingInt(name, value);
     } else if (name == "stop_at_breakthrough") {
-      p.stop_at_breakthrough = parseInt(name, value);
+      p.stop_at_breakthrough = parseSettingInt(name, value);
     } else if (name == "rearm_rise_n") {
-      p.rearm_rise_n = parseDouble(name, value);
+      p.rearm_rise_n = parseSettingDouble(name, value);
     } else {
       throw std::invalid_argument(name + ": not a parameter of " +
                                   std::string(kForceDifferenceRecognizer));

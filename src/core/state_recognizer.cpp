@@ -23,7 +23,15 @@ void requireFinite(const std::string& name, double v) {
   if (!std::isfinite(v)) fail(name, "must be finite", v);
 }
 
-double parseDouble(const std::string& name, const std::string& text) {
+bool parseBool(const std::string& name, const std::string& text) {
+  if (text == "1" || text == "true") return true;
+  if (text == "0" || text == "false") return false;
+  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
+}
+
+}  // namespace
+
+double parseSettingDouble(const std::string& name, const std::string& text) {
   const char* begin = text.c_str();
   char* end = nullptr;
   errno = 0;
@@ -34,7 +42,7 @@ double parseDouble(const std::string& name, const std::string& text) {
   return v;
 }
 
-int parseInt(const std::string& name, const std::string& text) {
+int parseSettingInt(const std::string& name, const std::string& text) {
   const char* begin = text.c_str();
   char* end = nullptr;
   errno = 0;
@@ -45,14 +53,6 @@ int parseInt(const std::string& name, const std::string& text) {
   }
   return static_cast<int>(v);
 }
-
-bool parseBool(const std::string& name, const std::string& text) {
-  if (text == "1" || text == "true") return true;
-  if (text == "0" || text == "false") return false;
-  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
-}
-
-}  // namespace
 
 void RecognizerParams::validate() const {
   if (pre_average < 1) fail("pre_average", "must be >= 1", pre_average);
@@ -85,33 +85,33 @@ void RecognizerParams::validate() const {
 
 void RecognizerParams::set(const std::string& name, const std::string& value) {
   if (name == "pre_average") {
-    pre_average = parseInt(name, value);
+    pre_average = parseSettingInt(name, value);
   } else if (name == "window") {
-    window = parseInt(name, value);
+    window = parseSettingInt(name, value);
   } else if (name == "k_ratio") {
-    k_ratio = parseDouble(name, value);
+    k_ratio = parseSettingDouble(name, value);
   } else if (name == "f_th") {
-    f_th = parseDouble(name, value);
+    f_th = parseSettingDouble(name, value);
   } else if (name == "gain") {
-    gain = parseDouble(name, value);
+    gain = parseSettingDouble(name, value);
   } else if (name == "h_g") {
-    h_g = parseDouble(name, value);
+    h_g = parseSettingDouble(name, value);
   } else if (name == "c1") {
-    c1 = parseDouble(name, value);
+    c1 = parseSettingDouble(name, value);
   } else if (name == "c2") {
-    c2 = parseDouble(name, value);
+    c2 = parseSettingDouble(name, value);
   } else if (name == "c3") {
-    c3 = parseDouble(name, value);
+    c3 = parseSettingDouble(name, value);
   } else if (name == "cancellous_confirm") {
-    cancellous_confirm = parseInt(name, value);
+    cancellous_confirm = parseSettingInt(name, value);
   } else if (name == "outer_cortical_timeout") {
-    outer_cortical_timeout = parseInt(name, value);
+    outer_cortical_timeout = parseSettingInt(name, value);
   } else if (name == "cancellous_timeout") {
-    cancellous_timeout = parseInt(name, value);
+    cancellous_timeout = parseSettingInt(name, value);
   } else if (name == "inner_confirm") {
-    inner_confirm = parseInt(name, value);
+    inner_confirm = parseSettingInt(name, value);
   } else if (name == "stop_delay") {
-    stop_delay = parseInt(name, value);
+    stop_delay = parseSettingInt(name, value);
   } else if (name == "normalize_feature") {
     normalize_feature = parseBool(name, value);
   } else {

@@ -237,16 +237,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
    *         stream tells the planner then); the identified model is not re-fit. */
   bool onSetVentilatorSettings(SetVentilatorSettings::Request& request,
                                SetVentilatorSettings::Response& response) {
-    try {
-      const core::VentilatorSettings settings = fromMsg(request.settings);
+    serveSetVentilatorSettings(request, response, [this](const core::VentilatorSettings& s) {
       std::lock_guard<std::mutex> lock(mutex_);
-      sim_->requestVentilatorSettings(settings);
-      response.success = true;
-      response.message = "settings accepted; they take effect at the next breath";
-    } catch (const std::exception& e) {
-      response.success = false;
-      response.message = std::string("settings rejected, previous settings kept: ") + e.what();
-    }
+      sim_->requestVentilatorSettings(s);
+    });
     return true;
   }
 

@@ -76,17 +76,11 @@ class VentilatorNodelet : public nodelet::Nodelet {
 
   bool onSetSettings(SetVentilatorSettings::Request& request,
                      SetVentilatorSettings::Response& response) {
-    try {
-      const core::VentilatorSettings settings = fromMsg(request.settings);
+    serveSetVentilatorSettings(request, response, [this](const core::VentilatorSettings& s) {
       std::lock_guard<std::mutex> lock(mutex_);
-      scheduler_->requestSettings(settings);
-      response.success = true;
-      response.message = "settings accepted; they take effect at the next breath";
-    } catch (const std::exception& e) {
-      response.success = false;
-      response.message = std::string("settings rejected, previous settings kept: ") + e.what();
-      NODELET_WARN("Ventilator: %s", response.message.c_str());
-    }
+      scheduler_->requestSettings(s);
+    });
+    if (!response.success) NODELET_WARN("Ventilator: %s", response.message.c_str());
     return true;
   }
 

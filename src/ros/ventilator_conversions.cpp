@@ -83,4 +83,17 @@ core::VentilatorSettings fromMsg(const VentilatorSettings& msg) {
   return s;
 }
 
+void serveSetVentilatorSettings(
+    const SetVentilatorSettings::Request& request, SetVentilatorSettings::Response& response,
+    const std::function<void(const core::VentilatorSettings&)>& request_settings) {
+  try {
+    request_settings(fromMsg(request.settings));
+    response.success = true;
+    response.message = "settings accepted; they take effect at the next breath";
+  } catch (const std::exception& e) {
+    response.success = false;
+    response.message = std::string("settings rejected, previous settings kept: ") + e.what();
+  }
+}
+
 }  // namespace pedicle_drilling

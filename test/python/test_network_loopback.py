@@ -7,6 +7,7 @@ import os
 import signal
 import socket
 import subprocess
+import sys
 import time
 import xml.etree.ElementTree as ET
 import xmlrpc.client
@@ -16,6 +17,8 @@ from roslaunch.config import ROSLaunchConfig
 from roslaunch.xmlloader import XmlLoader
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'test'))
+from shipped_docs import required_launch_args  # noqa: E402
 LAUNCH_FILES = sorted(glob.glob(os.path.join(ROOT, 'launch_scripts', '*.launch')))
 
 
@@ -39,14 +42,8 @@ def node_environments(path, argv=(), **environment):
     return {node.namespace + node.name: dict(node.env_args) for node in nodes}
 
 
-def required_args(path):
-    """name:=placeholder for every arg without a default (replay.launch's bag)."""
-    return ['%s:=placeholder' % a.get('name') for a in ET.parse(path).getroot().iter('arg')
-            if a.get('default') is None and a.get('value') is None]
-
-
 def cases():
-    return [(path, required_args(path)) for path in LAUNCH_FILES] + [
+    return [(path, required_launch_args(path)) for path in LAUNCH_FILES] + [
         (os.path.join(ROOT, 'launch_scripts', 'drilling_pipeline.launch'), ['sim:=true'])]
 
 

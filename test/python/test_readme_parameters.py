@@ -3,12 +3,14 @@ nodelet's config/*.yaml sets is documented in that nodelet's README table (a wil
 `~trial_distribution/specimen/*` covers a group). The other direction, that every documented
 parameter is checked by the code, is the rostest parameter_walk."""
 import os
-import re
+import sys
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'test'))
+from shipped_docs import readme_parameter_tables  # noqa: E402
 CONFIGS = {
     'pedicle_drilling/Ventilator': 'ventilator.yaml',
     'pedicle_drilling/Simulator': 'simulator.yaml',
@@ -21,18 +23,8 @@ CONFIGS = {
 
 
 def readme_tables():
-    tables, node = {}, None
-    with open(os.path.join(ROOT, 'README.md')) as handle:
-        for line in handle:
-            heading = re.match(r'^### (pedicle_drilling/\w+)', line)
-            if heading:
-                node = heading.group(1)
-            elif line.startswith('## '):
-                node = None
-            row = re.match(r'^\| (`~[^|]+) \|', line)
-            if node and row:
-                tables.setdefault(node, []).extend(re.findall(r'`~([^`]+)`', row.group(1)))
-    return tables
+    return {node: [name for name, _, _ in rows] for node, rows in
+            readme_parameter_tables(os.path.join(ROOT, 'README.md')).items()}
 
 
 def flat_keys(data, prefix=''):

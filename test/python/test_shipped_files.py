@@ -2,12 +2,15 @@
 import glob
 import os
 import subprocess
+import sys
 import xml.etree.ElementTree as ET
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'test'))
+from shipped_docs import required_launch_args  # noqa: E402
 
 
 def files(pattern):
@@ -19,9 +22,7 @@ def files(pattern):
 def test_launch_file_parses_with_roslaunch(path):
     # `roslaunch --nodes` resolves every include, $(find) and arg and lists the nodes; an arg
     # without a default (replay.launch's bag) is given a placeholder.
-    required = [a.get('name') for a in ET.parse(path).getroot().iter('arg')
-                if a.get('default') is None and a.get('value') is None]
-    out = subprocess.run(['roslaunch', '--nodes', path] + ['%s:=placeholder' % a for a in required],
+    out = subprocess.run(['roslaunch', '--nodes', path] + required_launch_args(path),
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr + out.stdout
 

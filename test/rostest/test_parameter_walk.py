@@ -10,7 +10,6 @@ here; the nodes' good parameters come from roslaunch's own loader reading the sh
 files. A few parameters accept any value of their type by design; they are listed in
 NOT_RANGED with the reason."""
 import os
-import re
 import subprocess
 import sys
 import unittest
@@ -22,6 +21,8 @@ from roslaunch.config import ROSLaunchConfig
 from roslaunch.xmlloader import XmlLoader
 
 ROOT = rospkg.RosPack().get_path('pedicle_drilling')
+sys.path.insert(0, os.path.join(ROOT, 'test'))
+from shipped_docs import readme_parameter_tables  # noqa: E402
 
 # node type -> (launch file, node name in it, extra launch args)
 NODES = {
@@ -62,21 +63,7 @@ SKIPPED = {
 
 def readme_parameters():
     """{node type: [(name, type, range text)]} from the README's parameter tables."""
-    tables, node = {}, None
-    with open(os.path.join(ROOT, 'README.md')) as handle:
-        for line in handle:
-            heading = re.match(r'^### (pedicle_drilling/\w+)', line)
-            if heading:
-                node = heading.group(1)
-            elif line.startswith('#'):
-                node = None if line.startswith('## ') else node
-            row = re.match(r'^\| (`~[^|]+) \| ([^|]*) \| ([^|]*) \| (.*)\|\s*$', line)
-            if node and row:
-                names = re.findall(r'`~([^`]+)`', row.group(1))
-                for name in names:
-                    tables.setdefault(node, []).append(
-                        (name, row.group(2).strip(), row.group(4).strip()))
-    return tables
+    return readme_parameter_tables(os.path.join(ROOT, 'README.md'))
 
 
 def launch_params(launch, node_name):

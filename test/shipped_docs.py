@@ -1,0 +1,33 @@
+"""What the tests read from the shipped files, read once for all of them: the README's
+per-node parameter tables and the launch files' required arguments. Imported by the python
+tests (test/python) and the rostest scripts (test/rostest) with test/ on sys.path."""
+import re
+import xml.etree.ElementTree as ET
+
+
+def readme_parameter_tables(readme_path):
+    """{node type: [(parameter name without ~, type, range text)]} from the README's tables under
+    each `### pedicle_drilling/<Node>` heading (rows `| `~name` [, `~name`] | type | default |
+    range |`; a row naming several parameters gives one entry per name)."""
+    tables, node = {}, None
+    with open(readme_path) as handle:
+        for line in handle:
+            heading = re.match(r'^### (pedicle_drilling/\w+)', line)
+            if heading:
+                node = heading.group(1)
+            elif line.startswith('## '):
+                node = None
+            # Cells may be empty (a row of several parameters of mixed types leaves `type` blank).
+            row = re.match(r'^\|\s*(`~[^|]+?)\s*\|([^|]*)\|([^|]*)\|(.*)\|\s*$', line)
+            if node and row:
+                for name in re.findall(r'`~([^`]+)`', row.group(1)):
+                    tables.setdefault(node, []).append(
+                        (name, row.group(2).strip(), row.group(4).strip()))
+    return tables
+
+
+def required_launch_args(path):
+    """name:=placeholder for every <arg> of a launch file without a default or value
+    (replay.launch's bag), so that it loads without a real value."""
+    return ['%s:=placeholder' % a.get('name') for a in ET.parse(path).getroot().iter('arg')
+            if a.get('default') is None and a.get('value') is None]
