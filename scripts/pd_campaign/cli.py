@@ -39,10 +39,12 @@ SCENARIO_KEYS = {
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
     'recognizer': (str, None, None),  # a recognizer class (pluginlib name); --recognizer wins
+    'compensator': (str, None, None),  # a compensator class (pluginlib name); --compensator wins
     'version': (int, 1, 1),  # SCENARIO_VERSION; optional (a file without it is version 1)
 }
 SCENARIO_VERSION = 1
 DEFAULT_RECOGNIZER = 'pedicle_drilling/PaperRecognizer'
+DEFAULT_COMPENSATOR = 'pedicle_drilling/PaperCompensator'
 # fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
 FAULT_PARAMS = {
     'spike_n': '--fault-spike-n',
@@ -190,6 +192,10 @@ def parse_args(argv):
                         help='drilling-state recognizer class (default: the scenario\'s, else '
                         'pedicle_drilling/PaperRecognizer; pedicle_drilling/'
                         'ForceDifferenceRecognizer is the literature baseline)')
+    parser.add_argument('--compensator', default=None,
+                        help='motion compensator class (default: the scenario\'s, else '
+                        'pedicle_drilling/PaperCompensator; pedicle_drilling/'
+                        'TrackedMarkerCompensator is the tracker-feedback baseline)')
     parser.add_argument('--engine', default='core',
                         help='core (default): trial_engine, the ROS-free closed-loop engine, '
                         'deterministic; ros: the full nodelet pipeline on ROS masters')
@@ -333,15 +339,18 @@ def run_campaign(argv=None):
         return 2
     faults = scenario.get('faults')
     recognizer = args.recognizer or scenario.get('recognizer') or DEFAULT_RECOGNIZER
-    if recognizer != DEFAULT_RECOGNIZER:
+    compensator = args.compensator or scenario.get('compensator') or DEFAULT_COMPENSATOR
+    for kind, name, default in (('recognizer', recognizer, DEFAULT_RECOGNIZER),
+                                ('compensator', compensator, DEFAULT_COMPENSATOR)):
+        if name == default:
+            continue
         # A class that does not load is exit 2 before anything is written (both engines load it
         # through the same loader).
-        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-recognizer',
-                                                                   recognizer],
+        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-' + kind, name],
                                capture_output=True, text=True)
         if check.returncode != 0:
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
-                                                 ['--recognizer %s does not load' % recognizer])[-1])
+                                                 ['--%s %s does not load' % (kind, name)])[-1])
             return 2
     design = build_design(cases, rpms, trials, seed, faults)
     selected = shard(design, *shard_spec) if shard_spec else design
@@ -354,6 +363,7 @@ def run_campaign(argv=None):
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
             'recognizer': recognizer,
+            'compensator': compensator,
             'engine': args.engine}
     if faults:
         meta['faults'] = list(faults)
@@ -403,7 +413,7 @@ def run_campaign(argv=None):
                 COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                 [(FAULT_PARAMS[k], float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
-                recognizer)))
+                recognizer, compensator)))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
@@ -420,7 +430,8 @@ def run_campaign(argv=None):
                    '--segment-profile',
                    COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                    '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
-                   '--recognizer', recognizer]
+                   '--recognizer', recognizer,
+                   '--compensator', compensator]
         if args.bags:
             command.append('--bags')
         env = dict(os.environ)

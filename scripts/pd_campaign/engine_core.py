@@ -31,7 +31,8 @@ class RecordedTrial:
 
 def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
                          feed_rate, max_duration, default_model, segment_profile='rest_to_rest',
-                         fault_options=(), recognizer='pedicle_drilling/PaperRecognizer'):
+                         fault_options=(), recognizer='pedicle_drilling/PaperRecognizer',
+                         compensator='pedicle_drilling/PaperCompensator'):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15)."""
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
@@ -44,6 +45,8 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
         command += [option, repr(value)]
     if recognizer != 'pedicle_drilling/PaperRecognizer':
         command += ['--recognizer', recognizer]
+    if compensator != 'pedicle_drilling/PaperCompensator':
+        command += ['--compensator', compensator]
     return command
 
 

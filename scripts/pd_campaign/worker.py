@@ -335,6 +335,8 @@ def main(argv=None):
     parser.add_argument('--model', default='linear')
     parser.add_argument('--recognizer', default='pedicle_drilling/PaperRecognizer',
                         help='the StateRecognizer nodelet\'s ~recognizer class')
+    parser.add_argument('--compensator', default='pedicle_drilling/PaperCompensator',
+                        help='the CompensationPlanner nodelet\'s ~compensator class')
     parser.add_argument('--segment-profile', default='rest_to_rest',
                         help="the planner's ~segment_profile (scenario key compensation_profile)")
     parser.add_argument('--bone-motion', default='virtual_patient',
@@ -401,7 +403,7 @@ def main(argv=None):
              'patient_model:=%s' % args.default_model,
              'real_time_factor:=%g' % args.real_time_factor,
              'segment_profile:=%s' % args.segment_profile,
-             'recognizer:=%s' % args.recognizer],
+             'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial}
         srv = {}

@@ -365,6 +365,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
   s.sim->reset(spec.seed, moving);
   s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
+  s.sequencer->setCompensatorFactory(s.config.make_compensator);
   s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
                                           : std::make_unique<PaperRecognizer>(s.config.recognizer);
   if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");

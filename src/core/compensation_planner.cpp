@@ -119,24 +119,31 @@ Eigen::Vector3d DisplacementPredictor::displacement(double t) const {
 // ---------------------------------------------------------------------------------------------
 
 CompensationPlanner::CompensationPlanner(const CompensationParams& params, const MotionModel& model)
+    : CompensationPlanner(params, model, std::make_unique<PaperCompensator>()) {}
+
+CompensationPlanner::CompensationPlanner(const CompensationParams& params, const MotionModel& model,
+                                         std::unique_ptr<CompensatorInterface> compensator)
     : params_(params),
       axis_(params.drill_axis),
-      predictor_((params.validate(), model), params),
-      segmenter_(params.period_s, params.accel_ratio) {
+      compensator_(std::move(compensator)),
+      segmenter_((params.validate(), params.period_s), params.accel_ratio) {
   axis_.normalize();
+  if (!compensator_) throw std::invalid_argument("compensator: none given");
+  compensator_->setPatient(model, params_);
 }
 
 void CompensationPlanner::start(CompensationMode mode, double t_reg) {
   if (!std::isfinite(t_reg)) throw std::invalid_argument("registration time must be finite");
-  if (mode != CompensationMode::kStationary && !predictor_.ready()) {
-    throw std::logic_error(std::string(toString(mode)) +
-                           " mode needs the ventilator settings and breath phase");
+  if (mode != CompensationMode::kStationary && !compensator_->ready()) {
+    throw std::logic_error(std::string(toString(mode)) + " mode: the compensator is not ready (" +
+                           compensator_->describe() +
+                           "; the paper's needs the ventilator settings and breath phase)");
   }
   mode_ = mode;
   t_reg_ = t_reg;
   feed_held_ = false;
   y_reg_ = mode == CompensationMode::kStationary ? Eigen::Vector3d::Zero()
-                                                 : predictor_.displacement(t_reg);
+                                                 : compensator_->displacement(t_reg);
 }
 
 void CompensationPlanner::holdFeed(double t) {
@@ -148,7 +155,7 @@ void CompensationPlanner::holdFeed(double t) {
 
 Eigen::Vector3d CompensationPlanner::boneDisplacementSinceStart(double t) const {
   if (mode_ == CompensationMode::kStationary) return Eigen::Vector3d::Zero();
-  return predictor_.displacement(t) - y_reg_;
+  return compensator_->displacement(t) - y_reg_;
 }
 
 Eigen::Vector3d CompensationPlanner::reference(double t) const {
@@ -156,7 +163,7 @@ Eigen::Vector3d CompensationPlanner::reference(double t) const {
   const double elapsed = std::max(0.0, t_feed - t_reg_);
   Eigen::Vector3d r = params_.feed_rate_m_s * elapsed * axis_;
   if (mode_ != CompensationMode::kCompensated) return r;
-  const Eigen::Vector3d y = predictor_.displacement(t + params_.latency_s) - y_reg_;
+  const Eigen::Vector3d y = compensator_->displacement(t + params_.latency_s) - y_reg_;
   const double along = y.dot(axis_);
   r += along * axis_;
   if (params_.compensate_lateral) r += y - along * axis_;
@@ -190,10 +197,10 @@ PlannedSegment CompensationPlanner::exactSegment(int k) const {
   std::vector<Knot> knots;
   const int n = params_.points_per_segment;
   for (int i = 1; i <= n; ++i) knots.push_back({pointTime(out, params_.period_s, i, n), true});
-  if (mode_ == CompensationMode::kCompensated && predictor_.ready()) {
+  if (mode_ == CompensationMode::kCompensated && compensator_->ready()) {
     constexpr double kStepWidth = 1e-3;
     const double lat = params_.latency_s;
-    for (double step : predictor_.flowSteps(out.t0 + lat, out.t1 + lat)) {
+    for (double step : compensator_->velocitySteps(out.t0 + lat, out.t1 + lat)) {
       const double s = step - lat;
       knots.push_back({s, true});
       if (s + kStepWidth < out.t1) knots.push_back({s + kStepWidth, false});

@@ -23,12 +23,6 @@ void requireFinite(const std::string& name, double v) {
   if (!std::isfinite(v)) fail(name, "must be finite", v);
 }
 
-bool parseBool(const std::string& name, const std::string& text) {
-  if (text == "1" || text == "true") return true;
-  if (text == "0" || text == "false") return false;
-  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
-}
-
 }  // namespace
 
 double parseSettingDouble(const std::string& name, const std::string& text) {
@@ -40,6 +34,12 @@ double parseSettingDouble(const std::string& name, const std::string& text) {
     throw std::invalid_argument(name + ": cannot parse number '" + text + "'");
   }
   return v;
+}
+
+bool parseSettingBool(const std::string& name, const std::string& text) {
+  if (text == "1" || text == "true") return true;
+  if (text == "0" || text == "false") return false;
+  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
 }
 
 int parseSettingInt(const std::string& name, const std::string& text) {
@@ -113,7 +113,7 @@ void RecognizerParams::set(const std::string& name, const std::string& value) {
   } else if (name == "stop_delay") {
     stop_delay = parseSettingInt(name, value);
   } else if (name == "normalize_feature") {
-    normalize_feature = parseBool(name, value);
+    normalize_feature = parseSettingBool(name, value);
   } else {
     throw std::invalid_argument(name + ": unknown recognizer parameter");
   }

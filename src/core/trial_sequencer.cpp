@@ -87,14 +87,14 @@ TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmComp
 void TrialSequencer::setVentilator(const VentilatorSettings& settings) {
   settings_ = settings;
   have_settings_ = true;
-  if (planner_) planner_->predictor().setVentilator(settings_);
+  if (planner_) planner_->compensator().setVentilator(settings_);
 }
 
 void TrialSequencer::setBreathStart(double t) {
   if (!std::isfinite(t)) return;
   breath_start_ = t;
   have_phase_ = true;
-  if (planner_) planner_->predictor().setBreathStart(t);
+  if (planner_) planner_->compensator().setBreathStart(t);
 }
 
 SequencerOutput TrialSequencer::takeOutput() {
@@ -172,9 +172,11 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   CompensationParams cp = params_.compensation;
   cp.feed_rate_m_s = feed_mm_s * 1e-3;
   try {
-    auto planner = std::make_unique<CompensationPlanner>(cp, model);
-    if (have_settings_) planner->predictor().setVentilator(settings_);
-    if (have_phase_) planner->predictor().setBreathStart(breath_start_);
+    auto planner = make_compensator_
+                       ? std::make_unique<CompensationPlanner>(cp, model, make_compensator_())
+                       : std::make_unique<CompensationPlanner>(cp, model);
+    if (have_settings_) planner->compensator().setVentilator(settings_);
+    if (have_phase_) planner->compensator().setBreathStart(breath_start_);
     planner_ = std::move(planner);
   } catch (const std::exception& e) {
     return e.what();
@@ -235,7 +237,7 @@ void TrialSequencer::onRegistrationTimeout(double) {
 Eigen::Vector3d TrialSequencer::boneDisplacementSinceMarker(double t) const {
   // mode_, not planner_->mode(): the planner only starts after the registration.
   if (mode_ == CompensationMode::kStationary) return Eigen::Vector3d::Zero();
-  return planner_->predictor().displacement(t) - y_marker_reg_;
+  return planner_->compensator().displacement(t) - y_marker_reg_;
 }
 
 void TrialSequencer::onMarker(double now, double stamp, const std::string& frame,
@@ -257,6 +259,9 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
   m.position = marker_reg_ + rotation_ * boneDisplacementSinceMarker(stamp);
   m.orientation = marker_orientation_;
   out_.predicted.push_back(m);
+  // Then the compensator hears the sample (a tracker-feedback one): the prediction above was
+  // made without it, so that the monitor judges a prediction, not the measurement itself.
+  if (p.allFinite()) planner_->compensator().observeMarker(stamp, rotation_.transpose() * p);
 }
 
 void TrialSequencer::registerSample(double now, double stamp, const std::string& frame,
@@ -281,14 +286,22 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
           "waiting for the rotation " + world_frame_ + " -> " + marker_frame_);
       return;
     }
+    planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
+    if (mode_ != CompensationMode::kStationary && !planner_->compensator().ready()) {
+      fail("the compensator is not ready at the registration (" +
+           planner_->compensator().describe() + ")");
+      return;
+    }
     y_marker_reg_ = mode_ == CompensationMode::kStationary
                         ? Eigen::Vector3d::Zero()
-                        : planner_->predictor().displacement(stamp);
+                        : planner_->compensator().displacement(stamp);
     marker_orientation_ = orientation;
     marker_sum_.setZero();
   } else if (frame != marker_frame_) {
     fail("marker frame changed during registration");
     return;
+  } else {
+    planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
   }
   // Average the samples, each moved back to the first sample's time by the prediction.
   marker_sum_ += pos - rotation_ * boneDisplacementSinceMarker(stamp);

@@ -35,6 +35,7 @@
 #include "pedicle_drilling/core/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/planner_conversions.hpp"
+#include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
@@ -61,6 +62,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
       monitor_status_name_ = params.getString("monitor_status_name", "/safety_monitor: monitor");
       sequencer_ = makeSequencer(params, nh, world_frame_);
+      loadCompensator(params);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -97,10 +99,28 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     start_spinner_->start();
     publishStatus(core::TrialPhase::kIdle);
     const core::TrialSequencerParams& p = sequencer_->params();
-    NODELET_INFO("CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s",
-                 patient_.patient_id.c_str(), p.compensation.drill_axis.x(),
-                 p.compensation.drill_axis.y(), p.compensation.drill_axis.z(),
-                 p.compensation.latency_s);
+    NODELET_INFO(
+        "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
+        "compensator %s",
+        patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
+        p.compensation.drill_axis.z(), p.compensation.latency_s, compensator_class_.c_str());
+  }
+
+  /**
+   * @brief ~compensator and ~compensator_params (issue 17): the class is loaded and configured
+   *        once here (a bad one fails the load), then made afresh for every trial.
+   */
+  void loadCompensator(const ParamLoader& params) {
+    compensator_class_ = params.getString("compensator", "pedicle_drilling/PaperCompensator");
+    compensator_settings_ = params.getTextMap("compensator_params");
+    try {
+      compensator_loader_.create(compensator_class_, compensator_settings_);
+    } catch (const std::exception& e) {
+      params.fail("compensator", "= '" + compensator_class_ + "': " + e.what());
+    }
+    if (compensator_class_ == "pedicle_drilling/PaperCompensator") return;  // the default
+    sequencer_->setCompensatorFactory(
+        [this]() { return compensator_loader_.create(compensator_class_, compensator_settings_); });
   }
 
   /** @brief ~patient_model_path, read at start and again for every trial. */
@@ -292,6 +312,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   core::PatientModel patient_;
+  CompensatorLoader compensator_loader_;  // before sequencer_: outlives what it made
+  std::string compensator_class_;
+  core::CompensatorSettings compensator_settings_;
   std::unique_ptr<core::TrialSequencer> sequencer_;
   std::string world_frame_;
   std::vector<std::string> trial_start_services_;

@@ -23,7 +23,7 @@
 #include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
-#include "pedicle_drilling/ros/recognizer_loader.hpp"
+#include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
@@ -91,7 +91,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       }
       const std::string recognizer_class =
           params.getString("recognizer", "pedicle_drilling/PaperRecognizer");
-      const core::RecognizerSettings settings = loadSettings(pnh, params);
+      const core::RecognizerSettings settings = params.getTextMap("recognizer_params");
       if (recognizer_class == "pedicle_drilling/PaperRecognizer") {
         if (!settings.empty()) {
           params.fail("recognizer_params",
@@ -116,43 +116,6 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
                                this, ros::TransportHints().tcpNoDelay());
     NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
                  recognizer_ -> describe().c_str());
-  }
-
-  /** @brief ~recognizer_params (a mapping name: value) as text settings for the class. */
-  static core::RecognizerSettings loadSettings(const ros::NodeHandle& pnh,
-                                               const ParamLoader& params) {
-    core::RecognizerSettings settings;
-    if (!pnh.hasParam("recognizer_params")) return settings;
-    XmlRpc::XmlRpcValue raw;
-    pnh.getParam("recognizer_params", raw);
-    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
-      params.fail("recognizer_params", "must be a mapping {name: value}");
-    }
-    for (auto& [name, value] : raw) {
-      std::string text;
-      switch (value.getType()) {
-        case XmlRpc::XmlRpcValue::TypeInt:
-          text = std::to_string(static_cast<int>(value));
-          break;
-        case XmlRpc::XmlRpcValue::TypeDouble: {
-          std::ostringstream os;
-          os.precision(17);
-          os << static_cast<double>(value);
-          text = os.str();
-          break;
-        }
-        case XmlRpc::XmlRpcValue::TypeBoolean:
-          text = static_cast<bool>(value) ? "true" : "false";
-          break;
-        case XmlRpc::XmlRpcValue::TypeString:
-          text = static_cast<std::string>(value);
-          break;
-        default:
-          params.fail("recognizer_params/" + name, "must be a number, a bool or a string");
-      }
-      settings.emplace_back(name, text);
-    }
-    return settings;
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {

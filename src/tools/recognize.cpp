@@ -21,7 +21,7 @@
 
 #include "pedicle_drilling/core/recognizer_interface.hpp"
 #include "pedicle_drilling/core/state_recognizer.hpp"
-#include "pedicle_drilling/ros/recognizer_loader.hpp"
+#include "pedicle_drilling/ros/plugin_loader.hpp"
 
 namespace {
 

@@ -28,7 +28,7 @@
 #include "pedicle_drilling/core/cli_args.hpp"
 #include "pedicle_drilling/core/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/motion_model_io.hpp"
-#include "pedicle_drilling/ros/recognizer_loader.hpp"
+#include "pedicle_drilling/ros/plugin_loader.hpp"
 
 namespace pd = pedicle_drilling::core;
 using nlohmann::json;
@@ -85,6 +85,22 @@ json recordToJson(const pd::EngineTrialRecord& r) {
             {"injected", r.fault.injected},
             {"t", r.fault.injected ? json(r.fault.t) : json(nullptr)},
             {"trigger_depth_m", r.fault.trigger_depth_m}}}};
+}
+
+/** @brief Settings of a recognizer or compensator class, name -> value as text. */
+using PluginSettings = std::vector<std::pair<std::string, std::string>>;
+
+/** @brief name=value strings as settings; @throws std::invalid_argument naming the bad one. */
+PluginSettings parseSettings(const std::vector<std::string>& items, const std::string& option) {
+  PluginSettings out;
+  for (const std::string& kv : items) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos || eq == 0) {
+      throw std::invalid_argument(option + "'" + kv + "' is not name=value");
+    }
+    out.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  return out;
 }
 
 }  // namespace
@@ -157,6 +173,13 @@ int main(int argc, char** argv) {
   app.add_option("--recognizer-param", recognizer_params,
                  "name=value for the recognizer (repeatable; the paper recognizer's default: "
                  "config/recognizer.yaml's values are its defaults)");
+  std::string compensator_class = "pedicle_drilling/PaperCompensator";
+  app.add_option("--compensator", compensator_class,
+                 "motion compensator class (built-in or pluginlib; README \"Bring your own "
+                 "recognizer or compensator\")");
+  std::vector<std::string> compensator_params;
+  app.add_option("--compensator-param", compensator_params,
+                 "name=value for the compensator (repeatable)");
   bool list_faults = false;
   app.add_flag("--list-faults", list_faults, "print the faults a trial may name, one per line");
   app.footer("Faults: " + [] {
@@ -170,24 +193,25 @@ int main(int argc, char** argv) {
   };
   // Alone, --list-faults needs none of the required options.
   if (argc == 2 && std::string(argv[1]) == "--list-faults") return print_faults();
-  // --check-recognizer CLASS [name=value ...]: load and configure it, nothing run (the
-  // campaign asks before it writes anything).
-  if (argc >= 3 && std::string(argv[1]) == "--check-recognizer") {
+  // --check-recognizer / --check-compensator CLASS [name=value ...]: load and configure it,
+  // nothing run (the campaign asks before it writes anything).
+  if (argc >= 3 && (std::string(argv[1]) == "--check-recognizer" ||
+                    std::string(argv[1]) == "--check-compensator")) {
+    const bool recognizer = std::string(argv[1]) == "--check-recognizer";
     try {
-      pd::RecognizerSettings settings;
-      for (int i = 3; i < argc; ++i) {
-        const std::string kv = argv[i];
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos || eq == 0) {
-          throw std::invalid_argument("'" + kv + "' is not name=value");
-        }
-        settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+      const PluginSettings settings =
+          parseSettings(std::vector<std::string>(argv + 3, argv + argc), "");
+      if (recognizer) {
+        pedicle_drilling::RecognizerLoader loader;
+        std::cout << loader.create(argv[2], settings)->describe() << "\n";
+      } else {
+        pedicle_drilling::CompensatorLoader loader;
+        std::cout << loader.create(argv[2], settings)->describe() << "\n";
       }
-      pedicle_drilling::RecognizerLoader loader;
-      std::cout << loader.create(argv[2], settings)->describe() << "\n";
       return 0;
     } catch (const std::exception& e) {
-      std::cerr << "trial_engine: --recognizer " << argv[2] << ": " << e.what() << "\n";
+      std::cerr << "trial_engine: --" << (recognizer ? "recognizer " : "compensator ") << argv[2]
+                << ": " << e.what() << "\n";
       return 2;
     }
   }
@@ -239,26 +263,31 @@ int main(int argc, char** argv) {
     std::cerr << "trial_engine: --default-model: " << e.what() << "\n";
     return 2;
   }
-  // The recognizer class, loaded and configured once here so that a bad one is exit 2 before any
-  // trial; each trial then gets a fresh instance.
+  // The recognizer and compensator classes, loaded and configured once here so that a bad one is
+  // exit 2 before any trial; each trial then gets fresh instances.
   pedicle_drilling::RecognizerLoader recognizer_loader;
-  pd::RecognizerSettings recognizer_settings;
+  pedicle_drilling::CompensatorLoader compensator_loader;
+  PluginSettings recognizer_settings;
+  PluginSettings compensator_settings;
+  std::string option = "--recognizer " + recognizer_class;
   try {
-    for (const std::string& p : recognizer_params) {
-      const auto eq = p.find('=');
-      if (eq == std::string::npos || eq == 0) {
-        throw std::invalid_argument("--recognizer-param '" + p + "' is not name=value");
-      }
-      recognizer_settings.emplace_back(p.substr(0, eq), p.substr(eq + 1));
-    }
+    recognizer_settings = parseSettings(recognizer_params, "--recognizer-param ");
     recognizer_loader.create(recognizer_class, recognizer_settings);
+    option = "--compensator " + compensator_class;
+    compensator_settings = parseSettings(compensator_params, "--compensator-param ");
+    compensator_loader.create(compensator_class, compensator_settings);
   } catch (const std::exception& e) {
-    std::cerr << "trial_engine: --recognizer " << recognizer_class << ": " << e.what() << "\n";
+    std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";
     return 2;
   }
   if (recognizer_class != "pedicle_drilling/PaperRecognizer" || !recognizer_settings.empty()) {
     config.make_recognizer = [&recognizer_loader, recognizer_class, recognizer_settings]() {
       return recognizer_loader.create(recognizer_class, recognizer_settings);
+    };
+  }
+  if (compensator_class != "pedicle_drilling/PaperCompensator") {
+    config.make_compensator = [&compensator_loader, compensator_class, compensator_settings]() {
+      return compensator_loader.create(compensator_class, compensator_settings);
     };
   }
   std::unique_ptr<pd::ClosedLoopEngine> engine;

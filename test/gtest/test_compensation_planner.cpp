@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 namespace pd = pedicle_drilling::core;
@@ -26,9 +27,16 @@ pd::MotionModel apModel() {
 
 pd::CompensationPlanner readyPlanner(const pd::CompensationParams& p, double breath_start = 0.3) {
   pd::CompensationPlanner planner(p, apModel());
-  planner.predictor().setVentilator(pd::VentilatorSettings());
-  planner.predictor().setBreathStart(breath_start);
+  planner.compensator().setVentilator(pd::VentilatorSettings());
+  planner.compensator().setBreathStart(breath_start);
   return planner;
+}
+
+/** @brief The paper compensator's prediction inside a planner made with the default class. */
+const pd::DisplacementPredictor& paperPredictor(const pd::CompensationPlanner& planner) {
+  const auto* paper = dynamic_cast<const pd::PaperCompensator*>(&planner.compensator());
+  if (paper == nullptr || paper->predictor() == nullptr) throw std::logic_error("not the paper's");
+  return *paper->predictor();
 }
 
 }  // namespace
@@ -75,7 +83,7 @@ TEST(CompensationPlanner, PredictionFollowsVentilatorPhaseAndModel) {
   for (double tau : {0.0, 0.8, 1.6, 2.5, 4.9}) {
     for (int cycle : {-2, 0, 3}) {
       const double t = start + cycle * vent.period() + tau;
-      const Eigen::Vector3d d = planner.predictor().displacement(t);
+      const Eigen::Vector3d d = planner.compensator().displacement(t);
       const double tv = vent.volumeInCycle(tau);
       // AP only (default): world +z, mm -> m; SI/LR not predicted.
       EXPECT_NEAR(d.z(), 1e-3 * (0.01 * tv + 0.4), 1e-12) << "t " << t;
@@ -87,8 +95,8 @@ TEST(CompensationPlanner, PredictionFollowsVentilatorPhaseAndModel) {
   pd::CompensationPlanner all = readyPlanner(p, start);
   const double t = start + 1.0;
   const double tv = vent.volumeInCycle(1.0);
-  EXPECT_NEAR(all.predictor().displacement(t).y(), 1e-3 * 0.004 * tv, 1e-12);
-  EXPECT_NEAR(all.predictor().displacement(t).x(), 1e-3 * 0.002 * tv, 1e-12);
+  EXPECT_NEAR(all.compensator().displacement(t).y(), 1e-3 * 0.004 * tv, 1e-12);
+  EXPECT_NEAR(all.compensator().displacement(t).x(), 1e-3 * 0.002 * tv, 1e-12);
 }
 
 TEST(CompensationPlanner, ModesNeedThePredictionExceptStationary) {
@@ -254,10 +262,10 @@ TEST(CompensationPlanner, ExactSegmentsFollowTheReferenceWithKnotsAtTheFlowSteps
   pd::CompensationParams p;
   p.segment_profile = pd::SegmentProfile::kExact;
   pd::CompensationPlanner planner = readyPlanner(p, 0.3);
-  const pd::VentilatorModel& vent = *planner.predictor().ventilator();
+  const pd::VentilatorModel& vent = *paperPredictor(planner).ventilator();
   // The default settings: square flow, 12 /min, I:E 1:2, no pause: steps at the breath start
   // and at Ti = 5/3 s in every 5 s breath.
-  const std::vector<double> steps = planner.predictor().flowSteps(0.0, 10.5);
+  const std::vector<double> steps = paperPredictor(planner).flowSteps(0.0, 10.5);
   ASSERT_EQ(steps.size(), 5u);
   EXPECT_NEAR(steps[0], 0.3, 1e-12);
   EXPECT_NEAR(steps[1], 0.3 + vent.flowTime(), 1e-12);
@@ -284,8 +292,8 @@ TEST(CompensationPlanner, ExactSegmentsFollowTheReferenceWithKnotsAtTheFlowSteps
   const double q1 = 0.01e-3;  // m/ml
   const double feed = p.feed_rate_m_s;
   // (The velocities are one-sided 1 us differences: compare with the flow mid-way.)
-  const pd::VentilatorSample before = planner.predictor().ventilatorAt(5.3 - 0.5e-6);
-  const pd::VentilatorSample after = planner.predictor().ventilatorAt(5.301 + 0.5e-6);
+  const pd::VentilatorSample before = paperPredictor(planner).ventilatorAt(5.3 - 0.5e-6);
+  const pd::VentilatorSample after = paperPredictor(planner).ventilatorAt(5.301 + 0.5e-6);
   // Reference = feed * axis + y: feed-axis velocity = feed + q1 * flow * (AP . axis) = feed - q1 F.
   EXPECT_NEAR(seg.points[1].feed_velocity_m_s, feed - q1 * before.flow_ml_s, 1e-8);
   EXPECT_NEAR(seg.points[2].feed_velocity_m_s, feed - q1 * after.flow_ml_s, 1e-8);
@@ -294,7 +302,7 @@ TEST(CompensationPlanner, ExactSegmentsFollowTheReferenceWithKnotsAtTheFlowSteps
   const pd::PlannedSegment plain = planner.segment(4);
   ASSERT_EQ(plain.points.size(), 5u);
   for (const pd::PlannedPoint& pt : plain.points) {
-    const double f = planner.predictor().ventilatorAt(pt.t - 0.5e-6).flow_ml_s;
+    const double f = paperPredictor(planner).ventilatorAt(pt.t - 0.5e-6).flow_ml_s;
     EXPECT_NEAR(pt.feed_velocity_m_s, feed - q1 * f, 1e-8);
   }
   // The profile's name round-trips.

@@ -374,3 +374,82 @@ TEST(TrialSequencer, PhaseNames) {
   EXPECT_TRUE(pd::isRunning(pd::TrialPhase::kStopped));
   EXPECT_FALSE(pd::isRunning(pd::TrialPhase::kFailed));
 }
+
+namespace {
+
+/** @brief Records what the sequencer hands a compensator; predicts the last marker sample. */
+class RecordingCompensator : public pd::CompensatorInterface {
+ public:
+  struct Log {
+    std::vector<double> stamps;
+    std::vector<Eigen::Vector3d> positions;
+  };
+  explicit RecordingCompensator(Log* log) : log_(log) {}
+  void configure(const pd::CompensatorSettings&) override {}
+  void setPatient(const pd::MotionModel&, const pd::CompensationParams&) override {}
+  void setVentilator(const pd::VentilatorSettings&) override {}
+  void setBreathStart(double) override {}
+  void observeMarker(double stamp, const Eigen::Vector3d& p) override {
+    log_->stamps.push_back(stamp);
+    log_->positions.push_back(p);
+  }
+  bool ready() const override { return !log_->positions.empty(); }
+  Eigen::Vector3d displacement(double) const override { return log_->positions.back(); }
+  std::string describe() const override { return "recording"; }
+  std::vector<std::string> parameterNames() const override { return {}; }
+
+ private:
+  Log* log_;
+};
+
+}  // namespace
+
+TEST(TrialSequencer, ACompensatorClassHearsTheTrackerAndDrivesTheReferenceAndThePrediction) {
+  RecordingCompensator::Log log;
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setCompensatorFactory([&log]() { return std::make_unique<RecordingCompensator>(&log); });
+  seq.setVentilator(pd::VentilatorSettings());
+  seq.setBreathStart(0.0);
+  ASSERT_EQ(seq.start(request("compensated"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  seq.takeOutput();
+  // The marker frame is rotated 90 degrees about z from the world: the compensator is told
+  // world positions.
+  const Eigen::Matrix3d world_to_marker =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  const pd::RotationLookup lookup = [&](const std::string& frame, Eigen::Matrix3d* r) {
+    if (frame != "camera") return false;
+    *r = world_to_marker;
+    return true;
+  };
+  const Eigen::Vector3d marker(0.6, 0.0, 0.27);
+  for (int i = 1; i <= 4; ++i) {
+    const double t = 12.5 + 0.125 * i;
+    seq.onMarker(t, t, "camera", marker, Eigen::Quaterniond::Identity(), lookup);
+  }
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  ASSERT_EQ(log.stamps.size(), 4u);  // every registration sample
+  EXPECT_TRUE(log.positions[0].isApprox(world_to_marker.transpose() * marker, 1e-15));
+  seq.takeOutput();
+  // While drilling: the prediction for the monitor is made before the sample is heard.
+  const Eigen::Vector3d moved = marker + Eigen::Vector3d(0.0, 0.0, 0.002);
+  seq.onMarker(13.2, 13.2, "camera", moved, Eigen::Quaterniond::Identity(), lookup);
+  const pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.predicted.size(), 1u);
+  EXPECT_TRUE(out.predicted[0].position.isApprox(marker, 1e-12));  // the previous sample
+  ASSERT_EQ(log.stamps.size(), 5u);
+  EXPECT_EQ(log.stamps.back(), 13.2);
+  // ... and the planner's reference follows what the class now predicts (2 mm along marker z,
+  // which is world z, against the drill axis -z).
+  const pd::CompensationPlanner* planner = seq.planner();
+  ASSERT_NE(planner, nullptr);
+  EXPECT_NEAR(planner->boneDisplacementSinceStart(13.3).z(), 0.002, 1e-12);
+}
+
+TEST(TrialSequencer, ACompensatorFactoryThatThrowsRefusesTheStart) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setCompensatorFactory(
+      []() -> std::unique_ptr<pd::CompensatorInterface> { throw std::runtime_error("no class"); });
+  EXPECT_EQ(seq.start(request("stationary"), apModel(), 0.0), "no class");
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+}

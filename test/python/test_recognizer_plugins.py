@@ -1,7 +1,8 @@
-"""Bring your own recognizer (issue 17): the built-in recognizers are pluginlib classes that
-rospack lists; the offline `recognize` tool and the campaign run whichever class is named; a
-plugin defined only in the test tree (test/plugin/, built with the tests) is loaded by its name,
-which proves that an outside class plugs in; a class that does not load is exit 2 naming it."""
+"""Bring your own recognizer or compensator (issue 17): the built-in recognizers and
+compensators are pluginlib classes that rospack lists; the offline `recognize` tool, trial_engine
+and the campaign run whichever class is named; plugins defined only in the test tree
+(test/plugin/, built with the tests) are loaded by their names, which proves that an outside
+class plugs in; a class that does not load is exit 2 naming it."""
 import json
 import os
 import subprocess
@@ -31,7 +32,7 @@ def recognize(bin_dir, *args, plugin_xml=None):
                           capture_output=True, text=True, timeout=60, env=env)
 
 
-def test_rospack_lists_both_recognizers_of_the_package():
+def test_rospack_lists_both_recognizers_and_both_compensators_of_the_package():
     out = subprocess.run(['rospack', 'plugins', '--attrib=plugin', 'pedicle_drilling'],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
@@ -41,6 +42,64 @@ def test_rospack_lists_both_recognizers_of_the_package():
     classes = [c.get('name') for x in xmls for c in ET.parse(x).getroot().iter('class')]
     assert 'pedicle_drilling/PaperRecognizer' in classes
     assert 'pedicle_drilling/ForceDifferenceRecognizer' in classes
+    assert 'pedicle_drilling/PaperCompensator' in classes
+    assert 'pedicle_drilling/TrackedMarkerCompensator' in classes
+
+
+def trial_engine(bin_dir, *args, plugin_xml=None):
+    env = dict(os.environ)
+    env.pop('PEDICLE_DRILLING_PLUGIN_XML', None)
+    if plugin_xml:
+        env['PEDICLE_DRILLING_PLUGIN_XML'] = plugin_xml
+    return subprocess.run([os.path.join(bin_dir, 'trial_engine')] + list(args),
+                          capture_output=True, text=True, timeout=60, env=env)
+
+
+def test_trial_engine_loads_a_compensator_by_name_and_refuses_a_bad_one(bin_dir):
+    # Through pluginlib (not a built-in): the test tree's class, by its name.
+    out = trial_engine(bin_dir, '--check-compensator', 'test_plugins/HoldStill', 'offset_mm=1',
+                       plugin_xml=TEST_PLUGIN_XML)
+    assert out.returncode == 0 and 'holds still' in out.stdout, out.stderr
+    out = trial_engine(bin_dir, '--check-compensator', 'test_plugins/HoldStill')
+    assert out.returncode == 2 and 'test_plugins/HoldStill' in out.stderr
+    out = trial_engine(bin_dir, '--check-compensator', 'test_plugins/HoldStill', 'gain=2',
+                       plugin_xml=TEST_PLUGIN_XML)
+    assert out.returncode == 2 and 'gain' in out.stderr
+    out = trial_engine(bin_dir, '--check-compensator', 'pedicle_drilling/TrackedMarkerCompensator',
+                       'extrapolate=true')
+    assert out.returncode == 0 and 'constant-velocity' in out.stdout, out.stderr
+    out = trial_engine(bin_dir, '--check-compensator', 'pedicle_drilling/TrackedMarkerCompensator',
+                       'max_horizon_s=0')
+    assert out.returncode == 2 and 'max_horizon_s' in out.stderr
+    out = trial_engine(bin_dir, '--check-compensator', 'pedicle_drilling/PaperCompensator',
+                       'latency_s=1')
+    assert out.returncode == 2 and 'latency_s' in out.stderr
+
+
+def test_the_campaign_runs_the_named_compensator(tmp_path):
+    """The tracker-feedback baseline drills compensated trials on the core engine; the design
+    records the class; a class that does not load is exit 2 before anything is written."""
+    out_dir = tmp_path / 'tracked'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'compensated', '--rpm', '12000',
+         '--trials', '2', '--jobs', '1', '--seed', '78', '--out', str(out_dir),
+         '--compensator', 'pedicle_drilling/TrackedMarkerCompensator'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out_dir / 'design.json') as handle:
+        meta = json.load(handle)['meta']
+    assert meta['compensator'] == 'pedicle_drilling/TrackedMarkerCompensator'
+    assert meta['recognizer'] == 'pedicle_drilling/PaperRecognizer'
+    import csv
+    with open(out_dir / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2 and all(r['error'] == '' for r in rows), rows
+    bad = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'compensated', '--rpm', '12000',
+         '--trials', '1', '--out', str(tmp_path / 'bad'), '--compensator', 'nobody/Nothing'],
+        capture_output=True, text=True, timeout=600)
+    assert bad.returncode == 2 and 'nobody/Nothing' in bad.stderr, bad.stderr[-2000:]
+    assert not (tmp_path / 'bad').exists()
 
 
 def test_a_plugin_of_the_test_tree_is_loaded_by_name(bin_dir, tmp_path):

@@ -52,6 +52,11 @@ struct EngineConfig {
    *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.
    */
   std::function<std::unique_ptr<RecognizerInterface>()> make_recognizer;
+  /**
+   * @brief The compensator of each trial (issue 17): empty = the paper's (PaperCompensator);
+   *        trial_engine --compensator sets a built-in or a pluginlib class.
+   */
+  CompensatorFactory make_compensator;
   SupervisorParams safety;              ///< config/safety_monitor.yaml
   double safety_check_rate_hz = 200.0;  ///< the monitor's watchdog timer
   TrialSequencerParams sequencer;       ///< config/compensation_planner.yaml; joints from URDF

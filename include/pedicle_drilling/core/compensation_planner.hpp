@@ -25,6 +25,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "pedicle_drilling/core/compensator_interface.hpp"
 #include "pedicle_drilling/core/kinematics.hpp"
 #include "pedicle_drilling/core/motion_model.hpp"
 #include "pedicle_drilling/core/trapezoid_segmenter.hpp"
@@ -146,17 +147,28 @@ struct PlannedSegment {
  */
 class CompensationPlanner {
  public:
-  /** @brief Construct. @throws std::invalid_argument if params.validate() fails. */
+  /**
+   * @brief Construct with the paper's compensator (PaperCompensator) of `model`.
+   * @throws std::invalid_argument if params.validate() fails.
+   */
   CompensationPlanner(const CompensationParams& params, const MotionModel& model);
 
-  /** @brief The prediction (settings, breath phase). */
-  DisplacementPredictor& predictor() { return predictor_; }
-  /** @brief The prediction (read only). */
-  const DisplacementPredictor& predictor() const { return predictor_; }
+  /**
+   * @brief Construct with a compensator of any class (issue 17), configured; setPatient(model,
+   *        params) is called here. @throws std::invalid_argument if params.validate() fails or
+   *        `compensator` is null.
+   */
+  CompensationPlanner(const CompensationParams& params, const MotionModel& model,
+                      std::unique_ptr<CompensatorInterface> compensator);
+
+  /** @brief The compensator (ventilator settings, breath phase, tracked marker go in here). */
+  CompensatorInterface& compensator() { return *compensator_; }
+  /** @brief The compensator (read only). */
+  const CompensatorInterface& compensator() const { return *compensator_; }
 
   /**
    * @brief Start a trial at t_reg (the registration time of the marker).
-   * @throws std::logic_error if the mode needs the prediction and it is not ready.
+   * @throws std::logic_error if the mode needs the compensator and it is not ready.
    */
   void start(CompensationMode mode, double t_reg);
 
@@ -219,7 +231,7 @@ class CompensationPlanner {
 
   CompensationParams params_;
   Eigen::Vector3d axis_;
-  DisplacementPredictor predictor_;
+  std::unique_ptr<CompensatorInterface> compensator_;
   TrapezoidSegmenter segmenter_;
   CompensationMode mode_ = CompensationMode::kStationary;
   double t_reg_ = 0.0;

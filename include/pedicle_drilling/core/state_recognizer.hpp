@@ -95,6 +95,8 @@ struct RecognizerParams {
 double parseSettingDouble(const std::string& name, const std::string& text);
 /** @brief As parseSettingDouble, for an integer (int range). */
 int parseSettingInt(const std::string& name, const std::string& text);
+/** @brief As parseSettingDouble, for a boolean: true/1 or false/0. */
+bool parseSettingBool(const std::string& name, const std::string& text);
 
 /** @brief Drilling state as seen by the recognizer. */
 enum class DrillingState {

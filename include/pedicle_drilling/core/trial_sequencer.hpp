@@ -135,6 +135,9 @@ struct SequencerOutput {
   bool empty() const;
 };
 
+/** @brief Makes the compensator of a trial (issue 17); configured, one per trial. */
+using CompensatorFactory = std::function<std::unique_ptr<CompensatorInterface>()>;
+
 /**
  * @brief World -> marker-frame rotation lookup: true and *rotation when known (tf), false to
  *        wait (the sample is skipped). An empty frame or the world frame never calls it.
@@ -157,6 +160,13 @@ class TrialSequencer {
    */
   TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
                  std::string world_frame = "world");
+
+  /**
+   * @brief The compensator class of the next trials (issue 17): empty (the default) is the
+   *        paper's, PaperCompensator. The factory is called by start(); an exception it throws
+   *        is start()'s refusal.
+   */
+  void setCompensatorFactory(CompensatorFactory factory) { make_compensator_ = std::move(factory); }
 
   /** @brief New ventilator settings (from the ventilator; applied to a running prediction). */
   void setVentilator(const VentilatorSettings& settings);
@@ -241,6 +251,7 @@ class TrialSequencer {
   ArmCompensation arm_;
   std::string world_frame_;
   RetreatPlanner retreat_planner_;
+  CompensatorFactory make_compensator_;
   std::unique_ptr<CompensationPlanner> planner_;
   std::unique_ptr<RetreatMotion> retreat_;
   CompensationMode mode_ = CompensationMode::kStationary;

@@ -13,6 +13,7 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pedicle_drilling/core/cli_args.hpp"
@@ -150,6 +151,45 @@ class ParamLoader {
     }
     if (!allow_empty && value.empty()) fail(name, "must not be empty");
     return value;
+  }
+
+  /**
+   * @brief The mapping `name` ({key: value}, values numbers, bools or strings) as text pairs,
+   *        for a plugin's configure() (~recognizer_params, ~compensator_params); absent: empty.
+   */
+  std::vector<std::pair<std::string, std::string>> getTextMap(const std::string& name) const {
+    std::vector<std::pair<std::string, std::string>> out;
+    if (!nh_.hasParam(name)) return out;
+    XmlRpc::XmlRpcValue raw;
+    nh_.getParam(name, raw);
+    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) {
+      fail(name, "must be a mapping {name: value}");
+    }
+    for (auto& [key, value] : raw) {
+      std::string text;
+      switch (value.getType()) {
+        case XmlRpc::XmlRpcValue::TypeInt:
+          text = std::to_string(static_cast<int>(value));
+          break;
+        case XmlRpc::XmlRpcValue::TypeDouble: {
+          std::ostringstream os;
+          os.precision(17);
+          os << static_cast<double>(value);
+          text = os.str();
+          break;
+        }
+        case XmlRpc::XmlRpcValue::TypeBoolean:
+          text = static_cast<bool>(value) ? "true" : "false";
+          break;
+        case XmlRpc::XmlRpcValue::TypeString:
+          text = static_cast<std::string>(value);
+          break;
+        default:
+          fail(name + "/" + key, "must be a number, a bool or a string");
+      }
+      out.emplace_back(key, text);
+    }
+    return out;
   }
 
   /**
