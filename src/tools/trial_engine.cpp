@@ -168,7 +168,7 @@ int main(int argc, char** argv) {
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
   app.add_option("--recognizer", recognizer_class,
                  "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
-                 "own recognizer\")");
+                 "own recognizer or compensator\")");
   std::vector<std::string> recognizer_params;
   app.add_option("--recognizer-param", recognizer_params,
                  "name=value for the recognizer (repeatable; the paper recognizer's default: "
