@@ -152,11 +152,16 @@ std::string TrialSequencer::resolve(const TrialRequest& request, ResolvedRequest
   const double max_duration =
       pick(request.max_duration_s, params_.default_max_duration_s, 3600.0, "max_duration_s");
   if (!why.empty()) return why;
+  SegmentProfile profile = params_.compensation.segment_profile;
+  if (!request.segment_profile.empty() && !parseSegmentProfile(request.segment_profile, &profile)) {
+    return "segment_profile: unknown profile '" + request.segment_profile +
+           "' (use rest_to_rest or exact; empty: the planner's)";
+  }
   if (mode != CompensationMode::kStationary && !haveVentilator()) {
     return std::string(toString(mode)) +
            " mode needs the ventilator: no ventilator/settings or tidal_volume received";
   }
-  *out = {mode, feed_mm_s, rpm, max_duration};
+  *out = {mode, feed_mm_s, rpm, max_duration, profile};
   return "";
 }
 
@@ -171,6 +176,7 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   const double max_duration = r.max_duration_s;
   CompensationParams cp = params_.compensation;
   cp.feed_rate_m_s = feed_mm_s * 1e-3;
+  cp.segment_profile = r.profile;
   try {
     auto planner = make_compensator_
                        ? std::make_unique<CompensationPlanner>(cp, model, make_compensator_())

@@ -211,6 +211,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     request.spindle_rpm = req.spindle_rpm;
     request.feed_rate_mm_s = req.feed_rate_mm_s;
     request.max_duration_s = req.max_duration_s;
+    request.segment_profile = req.segment_profile;
     res.message = sequencer_->check(request);  // a bad request resets nothing
     if (!res.message.empty()) return true;
     // The patient model is read again for every trial, so a new identification (a new

@@ -23,6 +23,7 @@
 #include <rviz/properties/float_property.h>
 #include <rviz/properties/ros_topic_property.h>
 #include <rviz/properties/status_property.h>
+#include <rviz/properties/string_property.h>
 #include <rviz/properties/tf_frame_property.h>
 #include <rviz/properties/vector_property.h>
 #include <pluginlib/class_list_macros.hpp>
@@ -126,10 +127,30 @@ DrillingDisplay::DrillingDisplay() {
       "Detail offset", Ogre::Vector3(0.3f, 0.0f, 0.42f),
       "Position of the detail copy's top-surface centre in the bone frame (m).", this,
       SLOT(updateAppearance()));
+  predicted_topic_property_ = new rviz::RosTopicProperty(
+      "Predicted marker topic", "compensation/predicted_marker_pose",
+      QString::fromStdString(ros::message_traits::datatype<geometry_msgs::PoseStamped>()),
+      "The planner's predicted marker pose at each tracker stamp (magenta sphere).", this,
+      SLOT(updateTopics()));
+  tracked_topic_property_ = new rviz::RosTopicProperty(
+      "Tracked marker topic", "tracker/marker_pose",
+      QString::fromStdString(ros::message_traits::datatype<geometry_msgs::PoseStamped>()),
+      "The tracker's marker pose (green sphere); predicted - tracked is the H1 quantity.", this,
+      SLOT(updateTopics()));
+  monitor_status_property_ = new rviz::StringProperty(
+      "Monitor status", "/safety_monitor: monitor",
+      "Name of the SafetyMonitor's DiagnosticStatus on /diagnostics: colours the drill bit.", this);
+  marker_size_property_ = new rviz::FloatProperty(
+      "Marker size", 0.012f, "Diameter of the predicted and tracked marker spheres (m).", this,
+      SLOT(updateAppearance()));
+  marker_size_property_->setMin(0.0005f);
 }
 
 DrillingDisplay::~DrillingDisplay() {
   unsubscribe();
+  predicted_sphere_.reset();
+  tracked_sphere_.reset();
+  bit_.reset();
   destroyVisual(&true_scale_);
   destroyVisual(&detail_);
   if (text_node_ != nullptr) {
@@ -143,6 +164,14 @@ void DrillingDisplay::onInitialize() {
   frame_property_->setFrameManager(context_->getFrameManager());
   createVisual(&true_scale_);
   createVisual(&detail_);
+  predicted_sphere_ =
+      std::make_unique<rviz::Shape>(rviz::Shape::Sphere, scene_manager_, scene_node_);
+  tracked_sphere_ = std::make_unique<rviz::Shape>(rviz::Shape::Sphere, scene_manager_, scene_node_);
+  predicted_sphere_->setColor(1.0f, 0.2f, 1.0f, 0.9f);
+  tracked_sphere_->setColor(0.2f, 1.0f, 0.3f, 0.9f);
+  predicted_sphere_->getRootNode()->setVisible(false);
+  tracked_sphere_->getRootNode()->setVisible(false);
+  bit_ = std::make_unique<rviz::Shape>(rviz::Shape::Cylinder, scene_manager_, detail_.node);
   text_node_ = scene_node_->createChildSceneNode();
   text_ = new rviz::MovableText("DrillingDisplay");
   text_->setTextAlignment(rviz::MovableText::H_LEFT, rviz::MovableText::V_BELOW);
@@ -191,6 +220,9 @@ void DrillingDisplay::reset() {
   rviz::Display::reset();
   ground_truth_.reset();
   state_.reset();
+  predicted_.reset();
+  tracked_.reset();
+  view_.reset();
   dirty_ = true;
 }
 
@@ -231,11 +263,88 @@ void DrillingDisplay::subscribe() {
     setStatus(rviz::StatusProperty::Error, "Topic",
               QString("cannot subscribe to drilling state: ") + e.what());
   }
+  try {
+    const std::string predicted = predicted_topic_property_->getTopicStd();
+    const std::string tracked = tracked_topic_property_->getTopicStd();
+    if (!predicted.empty()) {
+      predicted_sub_ =
+          update_nh_.subscribe(predicted, 20, &DrillingDisplay::predictedCallback, this);
+    }
+    if (!tracked.empty()) {
+      tracked_sub_ = update_nh_.subscribe(tracked, 20, &DrillingDisplay::trackedCallback, this);
+    }
+    diagnostics_sub_ =
+        update_nh_.subscribe("/diagnostics", 20, &DrillingDisplay::diagnosticsCallback, this);
+    status_sub_ =
+        update_nh_.subscribe("compensation/status", 20, &DrillingDisplay::statusCallback, this);
+  } catch (const ros::Exception& e) {
+    setStatus(rviz::StatusProperty::Error, "Topic",
+              QString("cannot subscribe to the marker poses: ") + e.what());
+  }
 }
 
 void DrillingDisplay::unsubscribe() {
   ground_truth_sub_.shutdown();
   state_sub_.shutdown();
+  predicted_sub_.shutdown();
+  tracked_sub_.shutdown();
+  diagnostics_sub_.shutdown();
+  status_sub_.shutdown();
+}
+
+void DrillingDisplay::statusCallback(const TrialStatus::ConstPtr& msg) {
+  const int level = view_.monitorLevel();
+  view_.onPhase(msg->phase_name, msg->running);  // a new trial starts the view afresh ...
+  if (level >= 0 && view_.monitorLevel() < 0)
+    view_.onMonitorStatus(level, "");  // ... not the monitor
+  dirty_ = true;
+}
+
+void DrillingDisplay::predictedCallback(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+  predicted_ = msg;
+  const geometry_msgs::Point& p = msg->pose.position;
+  view_.onPredictedMarker(msg->header.stamp.toSec(), Eigen::Vector3d(p.x, p.y, p.z));
+  dirty_ = true;
+}
+
+void DrillingDisplay::trackedCallback(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+  tracked_ = msg;
+  const geometry_msgs::Point& p = msg->pose.position;
+  view_.onTrackedMarker(msg->header.stamp.toSec(), Eigen::Vector3d(p.x, p.y, p.z));
+  dirty_ = true;
+}
+
+void DrillingDisplay::diagnosticsCallback(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
+  for (const diagnostic_msgs::DiagnosticStatus& s : msg->status) {
+    if (s.name == monitor_status_property_->getStdString()) {
+      view_.onMonitorStatus(s.level, s.message);
+      dirty_ = true;
+    }
+  }
+}
+
+bool DrillingDisplay::placeMarker(rviz::Shape* sphere,
+                                  const geometry_msgs::PoseStamped::ConstPtr& msg,
+                                  const Ogre::Vector3& bone_position,
+                                  const Ogre::Quaternion& bone_orientation) {
+  Ogre::Vector3 position;
+  Ogre::Quaternion orientation;
+  if (!msg || !context_->getFrameManager()->transform(msg->header.frame_id, ros::Time(0), msg->pose,
+                                                      position, orientation)) {
+    sphere->getRootNode()->setVisible(false);
+    return false;
+  }
+  // The spheres hang under the display's node, which sits at the bone frame.
+  sphere->setPosition(bone_orientation.Inverse() * (position - bone_position));
+  sphere->setScale(Ogre::Vector3(marker_size_property_->getFloat()));
+  sphere->getRootNode()->setVisible(true);
+  return true;
+}
+
+void DrillingDisplay::placeMarkers(const Ogre::Vector3& bone_position,
+                                   const Ogre::Quaternion& bone_orientation) {
+  placeMarker(predicted_sphere_.get(), predicted_, bone_position, bone_orientation);
+  placeMarker(tracked_sphere_.get(), tracked_, bone_position, bone_orientation);
 }
 
 void DrillingDisplay::groundTruthCallback(const GroundTruth::ConstPtr& msg) {
@@ -257,6 +366,7 @@ void DrillingDisplay::update(float /*wall_dt*/, float /*ros_dt*/) {
   if (context_->getFrameManager()->getTransform(frame, ros::Time(0), position, orientation)) {
     scene_node_->setPosition(position);
     scene_node_->setOrientation(orientation);
+    placeMarkers(position, orientation);
     setStatus(rviz::StatusProperty::Ok, "Transform", "ok");
   } else {
     setStatus(rviz::StatusProperty::Error, "Transform",
@@ -353,6 +463,32 @@ void DrillingDisplay::rebuild() {
   }
   detail_.node->setPosition(detail_offset);
   detail_.node->setScale(Ogre::Vector3(detail_on ? detail_scale : 1.0f));
+  // The bit in the detail copy: from 5 mm above the surface down to the tip, coloured by the
+  // safety monitor's status.
+  if (drawn && ground_truth_ && std::isfinite(ground_truth_->tip_depth_m)) {
+    core::Slab bit;
+    bit.top_z_m = 0.005;
+    bit.bottom_z_m = -ground_truth_->tip_depth_m;
+    placeCylinder(bit_.get(), bit, 1.1f * kBitDiameter);  // over the hole it cut
+    const int level = view_.monitorLevel();
+    if (level == 0) {
+      bit_->setColor(0.2f, 0.85f, 0.2f, 1.0f);
+    } else if (level == 1) {
+      bit_->setColor(1.0f, 0.85f, 0.1f, 1.0f);
+    } else if (level >= 2) {
+      bit_->setColor(1.0f, 0.15f, 0.15f, 1.0f);
+    } else {
+      bit_->setColor(0.6f, 0.6f, 0.6f, 1.0f);
+    }
+  }
+  // The residual, once the trial ended (compensation/status done or failed).
+  const bool ended = view_.ended() && ground_truth_ && layout_error_.empty();
+  if (ended && !logged_end_) {
+    ROS_INFO("DrillingDisplay: trial %s, residual shown: %.2f mm, breakthrough %s",
+             view_.phase().c_str(), 1e3 * ground_truth_->residual_inner_cortical_m,
+             ground_truth_->breakthrough ? "yes" : "no");
+  }
+  logged_end_ = ended;
 
   // Text: below the detail copy (or the specimen itself), starting at its left (-x) edge.
   const float text_height = text_height_property_->getFloat();
@@ -390,10 +526,17 @@ std::string DrillingDisplay::overlayText() const {
     text += "ground truth invalid: " + layout_error_;
   } else {
     text += format("thrust: %.2f N", ground_truth_->thrust_n) + "\n" +
-            format("left to the canal wall: %.2f mm (the residual once in the inner layer)",
+            format("left to the canal wall: %.2f mm",
                    1000.0 * ground_truth_->residual_inner_cortical_m) +
             "\nbreakthrough: " + (ground_truth_->breakthrough ? "YES" : "no");
   }
+  if (std::isfinite(view_.positionError())) {
+    text += format("\nbone predicted - tracked: %.2f mm (H1 1.2 mm)", 1e3 * view_.positionError());
+  }
+  static const char* const kLevels[] = {"OK", "WARN", "ERROR", "STALE"};
+  const int level = view_.monitorLevel();
+  text +=
+      std::string("\nsafety monitor: ") + (level >= 0 && level <= 3 ? kLevels[level] : "not heard");
   return text;
 }
 

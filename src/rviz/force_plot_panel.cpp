@@ -4,7 +4,8 @@
  */
 #include "pedicle_drilling/rviz/force_plot_panel.hpp"
 
-#include <QDoubleSpinBox>
+#include <QComboBox>
+#include <QFontMetrics>
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QLineEdit>
@@ -16,143 +17,175 @@
 
 #include <algorithm>
 #include <cmath>
-#include <deque>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include <rviz/config.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include "pedicle_drilling/core/trial_view.hpp"
+
 namespace pedicle_drilling {
 namespace rviz_plugins {
 
-/** @brief The chart itself: keeps the last `window` seconds of samples and paints them. */
-class StripChart : public QWidget {
+/** @brief The chart: paints a core::ForceTrace over time or depth. */
+class TraceChart : public QWidget {
  public:
-  explicit StripChart(QWidget* parent) : QWidget(parent) {
-    setMinimumSize(240, 140);
+  explicit TraceChart(QWidget* parent) : QWidget(parent) {
+    setMinimumSize(260, 180);
     setSizePolicy(QSizePolicy::Expanding, QSizePolicy::Expanding);
   }
 
-  /** @brief Appends one recognizer output; non-finite values are skipped (not plotted). */
-  void add(double t, const DrillingState& msg) {
-    if (!samples_.empty() && t < samples_.back().t) {
-      samples_.clear();  // time went backwards (simulation reset, bag loop): start over
-      events_.clear();
-      last_key_point_ = 0;
-      stopped_ = false;
-    }
-    if (msg.last_key_point != last_key_point_ && msg.last_key_point > 0) {
-      events_.push_back({t, "K" + std::to_string(msg.last_key_point), false});
-    }
-    last_key_point_ = msg.last_key_point;
-    if (msg.stop && !stopped_) {
-      events_.push_back({t, "STOP", true});
-    }
-    stopped_ = msg.stop;
-    if (std::isfinite(msg.averaged_force) && std::isfinite(msg.feature)) {
-      samples_.push_back({t, msg.averaged_force, msg.feature});
-    }
-    state_name_ = msg.state_name;
-    trim(t);
-  }
-
-  /** @brief Length of the visible window (s). */
-  void setWindow(double seconds) {
-    window_s_ = seconds;
-    if (!samples_.empty()) {
-      trim(samples_.back().t);
-    }
-    update();
-  }
+  core::ForceTrace trace;
+  bool depth_axis = false;
+  double c1 = std::numeric_limits<double>::quiet_NaN();
+  double c2 = std::numeric_limits<double>::quiet_NaN();
+  double c3 = std::numeric_limits<double>::quiet_NaN();
 
  protected:
   void paintEvent(QPaintEvent* /*event*/) override {
     QPainter painter(this);
     painter.setRenderHint(QPainter::Antialiasing, true);
     painter.fillRect(rect(), QColor(28, 28, 32));
-    const QRectF plot(46.0, 22.0, std::max(10.0, width() - 92.0), std::max(10.0, height() - 44.0));
+    const QFontMetrics fm(painter.font());
+    const double row_h = fm.height();
+    // Top: title row, then up to three rows of event labels.
+    const double top = 4.0 + row_h * 4.0;
+    const QRectF plot(48.0, top, std::max(10.0, width() - 96.0),
+                      std::max(10.0, height() - top - row_h - 10.0));
     painter.setPen(QColor(90, 90, 96));
     painter.drawRect(plot);
-
     const QColor force_colour(80, 200, 255);
     const QColor feature_colour(255, 170, 60);
     painter.setPen(force_colour);
-    painter.drawText(QPointF(plot.left(), 15.0), "averaged force [N]");
+    painter.drawText(QPointF(4.0, 2.0 + row_h), "averaged force [N]");
     painter.setPen(feature_colour);
-    painter.drawText(QPointF(plot.left() + 130.0, 15.0), "A*");
+    const double a_x = 4.0 + fm.horizontalAdvance("averaged force [N]  ");
+    painter.drawText(QPointF(a_x, 2.0 + row_h), "A*");
+    painter.setPen(QColor(170, 170, 170));
+    painter.drawText(QPointF(a_x + fm.horizontalAdvance("A*   "), 2.0 + row_h),
+                     depth_axis ? "x: depth of the cut [mm]" : "x: time since contact [s]");
     painter.setPen(Qt::white);
-    painter.drawText(QRectF(plot.left(), 2.0, plot.width(), 18.0), Qt::AlignRight,
-                     QString::fromStdString(state_name_));
-    if (samples_.empty()) {
+    painter.drawText(QRectF(0.0, 2.0, width() - 4.0, row_h + 2.0), Qt::AlignRight,
+                     QString::fromStdString(trace.stateName()));
+
+    // The x of each sample: seconds since the contact, or the deepest cut in mm.
+    const double t0 = std::isnan(trace.contactTime())
+                          ? (trace.samples().empty() ? 0.0 : trace.samples().front().t)
+                          : trace.contactTime();
+    const auto x_value = [&](double t) { return depth_axis ? 1e3 * trace.depthAt(t) : t - t0; };
+    std::vector<std::pair<double, const core::TraceSample*>> points;
+    for (const core::TraceSample& s : trace.samples()) {
+      const double x = x_value(s.t);
+      if (std::isfinite(x)) points.emplace_back(x, &s);
+    }
+    if (points.empty()) {
       painter.setPen(QColor(170, 170, 170));
-      painter.drawText(plot, Qt::AlignCenter, "no drilling_state received");
+      painter.drawText(plot, Qt::AlignCenter,
+                       depth_axis ? "no depth: the depth axis needs simulator/ground_truth"
+                                  : "no drilling_state received");
       return;
     }
-
-    const double t_end = samples_.back().t;
-    const double t_start = t_end - window_s_;
+    double x_min = points.front().first;
+    double x_max = x_min;
     double force_max = 1.0;
-    double feature_min = std::numeric_limits<double>::infinity();
-    double feature_max = -std::numeric_limits<double>::infinity();
-    for (const Sample& s : samples_) {
-      force_max = std::max(force_max, s.force);
-      feature_min = std::min(feature_min, s.feature);
-      feature_max = std::max(feature_max, s.feature);
+    double feature_max = 0.0;
+    double feature_min = 0.0;
+    for (const auto& [x, s] : points) {
+      x_min = std::min(x_min, x);
+      x_max = std::max(x_max, x);
+      force_max = std::max(force_max, s->force);
+      feature_max = std::max(feature_max, s->feature);
+      feature_min = std::min(feature_min, s->feature);
     }
+    for (double c : {c1, c2}) {
+      if (std::isfinite(c)) feature_max = std::max(feature_max, c);
+    }
+    if (x_max - x_min < 1e-6) x_max = x_min + 1.0;
     force_max *= 1.1;
-    if (feature_max - feature_min < 1e-9) {
-      feature_min -= 0.5;
-      feature_max += 0.5;
-    }
-    auto x_of = [&](double t) { return plot.left() + (t - t_start) / window_s_ * plot.width(); };
-    auto y_force = [&](double f) {
+    feature_max = feature_max * 1.1 + 1e-12;
+    const auto x_of = [&](double x) {
+      return plot.left() + (x - x_min) / (x_max - x_min) * plot.width();
+    };
+    const auto y_force = [&](double f) {
       return plot.bottom() - std::clamp(f / force_max, 0.0, 1.0) * plot.height();
     };
-    auto y_feature = [&](double a) {
-      return plot.bottom() - (a - feature_min) / (feature_max - feature_min) * plot.height();
+    const auto y_feature = [&](double a) {
+      return plot.bottom() -
+             std::clamp((a - feature_min) / (feature_max - feature_min), 0.0, 1.0) * plot.height();
     };
 
-    // Axes labels: force on the left, A* on the right, time relative to the newest sample.
+    // Axes: force left, A* right, time or depth below.
     painter.setPen(force_colour);
     for (int i = 0; i <= 4; ++i) {
       const double f = force_max * i / 4.0;
-      painter.drawText(QRectF(0.0, y_force(f) - 8.0, 42.0, 16.0), Qt::AlignRight,
+      painter.drawText(QRectF(0.0, y_force(f) - row_h / 2, 44.0, row_h), Qt::AlignRight,
                        QString::number(f, 'f', 1));
     }
     painter.setPen(feature_colour);
     for (int i = 0; i <= 4; ++i) {
       const double a = feature_min + (feature_max - feature_min) * i / 4.0;
-      painter.drawText(QRectF(plot.right() + 4.0, y_feature(a) - 8.0, 44.0, 16.0), Qt::AlignLeft,
-                       QString::number(a, 'g', 3));
+      painter.drawText(QRectF(plot.right() + 4.0, y_feature(a) - row_h / 2, 44.0, row_h),
+                       Qt::AlignLeft, QString::number(a, 'f', 2));
     }
     painter.setPen(QColor(170, 170, 170));
     for (int i = 0; i <= 4; ++i) {
-      const double t = t_start + window_s_ * i / 4.0;
-      painter.drawText(QRectF(x_of(t) - 30.0, plot.bottom() + 2.0, 60.0, 16.0), Qt::AlignCenter,
-                       QString::number(t - t_end, 'f', 1) + " s");
+      const double x = x_min + (x_max - x_min) * i / 4.0;
+      painter.drawText(QRectF(x_of(x) - 40.0, plot.bottom() + 2.0, 80.0, row_h), Qt::AlignCenter,
+                       QString::number(x, 'f', 1));
     }
 
-    // Key points and the stop as vertical lines.
-    for (const Event& e : events_) {
-      if (e.t < t_start) {
-        continue;
-      }
+    // The recognizer's thresholds on A*: C1, C2 and, after key point 4, C3 x the inner peak.
+    struct Line {
+      double value;
+      QString label;
+    };
+    std::vector<Line> lines;
+    if (std::isfinite(c1)) lines.push_back({c1, "C1"});
+    if (std::isfinite(c2)) lines.push_back({c2, "C2"});
+    if (std::isfinite(c3) && std::isfinite(trace.innerPeak())) {
+      lines.push_back({c3 * trace.innerPeak(), "C3 peak"});
+    }
+    for (const Line& l : lines) {
+      QPen pen(feature_colour.darker(130));
+      pen.setStyle(Qt::DotLine);
+      painter.setPen(pen);
+      painter.drawLine(QPointF(plot.left(), y_feature(l.value)),
+                       QPointF(plot.right(), y_feature(l.value)));
+      painter.drawText(QPointF(plot.left() + 3.0, y_feature(l.value) - 2.0), l.label);
+    }
+
+    // Key points and the stop: vertical lines, labels on rows that do not overlap.
+    std::vector<core::ChartLabel> labels;
+    std::vector<const core::TraceEvent*> shown;
+    for (const core::TraceEvent& e : trace.events()) {
+      const double x = x_value(e.t);
+      if (!std::isfinite(x)) continue;
+      labels.push_back(
+          {x_of(x), static_cast<double>(fm.horizontalAdvance(QString::fromStdString(e.label)))});
+      shown.push_back(&e);
+    }
+    const std::vector<int> rows = core::layoutLabels(labels, 4.0, 3);
+    for (std::size_t i = 0; i < shown.size(); ++i) {
+      const core::TraceEvent& e = *shown[i];
+      const double x = labels[i].x;
       QPen pen(e.stop ? QColor(255, 60, 60) : QColor(200, 200, 200));
       pen.setStyle(e.stop ? Qt::SolidLine : Qt::DashLine);
-      pen.setWidthF(e.stop ? 2.0 : 1.0);
+      pen.setWidthF(e.stop ? 2.5 : 1.0);
       painter.setPen(pen);
-      painter.drawLine(QPointF(x_of(e.t), plot.top()), QPointF(x_of(e.t), plot.bottom()));
-      painter.drawText(QPointF(x_of(e.t) + 3.0, plot.top() + 12.0),
+      const double label_y = 4.0 + row_h * (rows[i] + 2);
+      painter.drawLine(QPointF(x, label_y + 2.0), QPointF(x, plot.bottom()));
+      painter.drawText(QPointF(x - labels[i].width / 2.0, label_y),
                        QString::fromStdString(e.label));
     }
 
     QPainterPath force_path;
     QPainterPath feature_path;
     bool first = true;
-    for (const Sample& s : samples_) {
-      const QPointF pf(x_of(s.t), y_force(s.force));
-      const QPointF pa(x_of(s.t), y_feature(s.feature));
+    for (const auto& [x, s] : points) {
+      const QPointF pf(x_of(x), y_force(s->force));
+      const QPointF pa(x_of(x), y_feature(s->feature));
       if (first) {
         force_path.moveTo(pf);
         feature_path.moveTo(pa);
@@ -168,34 +201,6 @@ class StripChart : public QWidget {
     painter.setPen(QPen(force_colour, 2.0));
     painter.drawPath(force_path);
   }
-
- private:
-  struct Sample {
-    double t;
-    double force;
-    double feature;
-  };
-  struct Event {
-    double t;
-    std::string label;
-    bool stop;
-  };
-
-  void trim(double t_now) {
-    while (!samples_.empty() && samples_.front().t < t_now - window_s_) {
-      samples_.pop_front();
-    }
-    while (!events_.empty() && events_.front().t < t_now - window_s_) {
-      events_.pop_front();
-    }
-  }
-
-  std::deque<Sample> samples_;
-  std::deque<Event> events_;
-  std::string state_name_;
-  double window_s_ = 20.0;
-  int last_key_point_ = 0;
-  bool stopped_ = false;
 };
 
 ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
@@ -204,13 +209,17 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
   controls->addWidget(new QLabel("Topic:"));
   topic_edit_ = new QLineEdit("drilling_state");
   controls->addWidget(topic_edit_);
-  controls->addWidget(new QLabel("Window [s]:"));
-  window_spin_ = new QDoubleSpinBox();
-  window_spin_->setRange(1.0, 600.0);
-  window_spin_->setValue(20.0);
-  controls->addWidget(window_spin_);
+  controls->addWidget(new QLabel("X:"));
+  axis_combo_ = new QComboBox();
+  axis_combo_->addItems({"time", "depth"});
+  controls->addWidget(axis_combo_);
   layout->addLayout(controls);
-  chart_ = new StripChart(this);
+  auto* thresholds = new QHBoxLayout();
+  thresholds->addWidget(new QLabel("Recognizer node (C1, C2, C3):"));
+  recognizer_edit_ = new QLineEdit("/state_recognizer");
+  thresholds->addWidget(recognizer_edit_);
+  layout->addLayout(thresholds);
+  chart_ = new TraceChart(this);
   layout->addWidget(chart_, 1);
   status_label_ = new QLabel("no message yet");
   layout->addWidget(status_label_);
@@ -218,52 +227,67 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
 
   nh_.setCallbackQueue(&queue_);
   connect(topic_edit_, SIGNAL(editingFinished()), this, SLOT(onTopicEdited()));
-  connect(window_spin_, SIGNAL(valueChanged(double)), this, SLOT(onWindowChanged(double)));
+  connect(recognizer_edit_, SIGNAL(editingFinished()), this, SLOT(onTopicEdited()));
+  connect(axis_combo_, SIGNAL(currentIndexChanged(int)), this, SLOT(onAxisChanged(int)));
   connect(timer_, SIGNAL(timeout()), this, SLOT(poll()));
 }
 
 ForcePlotPanel::~ForcePlotPanel() {
   timer_->stop();
   sub_.shutdown();
+  truth_sub_.shutdown();
+  stop_sub_.shutdown();
 }
 
 void ForcePlotPanel::onInitialize() {
   subscribe(topic_edit_->text().toStdString());
+  truth_sub_ = nh_.subscribe("simulator/ground_truth", 100, &ForcePlotPanel::truthCallback, this);
+  stop_sub_ = nh_.subscribe("drill/stop", 20, &ForcePlotPanel::stopCallback, this);
   timer_->start(50);
 }
 
 void ForcePlotPanel::load(const rviz::Config& config) {
   rviz::Panel::load(config);
-  QString topic;
-  if (config.mapGetString("Topic", &topic)) {
-    topic_edit_->setText(topic);
-    subscribe(topic.toStdString());
+  QString value;
+  if (config.mapGetString("Topic", &value)) {
+    topic_edit_->setText(value);
+    subscribe(value.toStdString());
   }
-  float window = 0.0f;
-  if (config.mapGetFloat("Window", &window) && window >= 1.0f) {
-    window_spin_->setValue(window);
+  if (config.mapGetString("Axis", &value)) {
+    const int index = axis_combo_->findText(value);
+    if (index >= 0) {
+      axis_combo_->setCurrentIndex(index);
+    } else {
+      ROS_WARN("ForcePlotPanel: Axis '%s' is not time or depth; time kept",
+               value.toStdString().c_str());
+    }
   }
+  if (config.mapGetString("Recognizer", &value)) recognizer_edit_->setText(value);
 }
 
 void ForcePlotPanel::save(rviz::Config config) const {
   rviz::Panel::save(config);
   config.mapSetValue("Topic", topic_edit_->text());
-  config.mapSetValue("Window", window_spin_->value());
+  config.mapSetValue("Axis", axis_combo_->currentText());
+  config.mapSetValue("Recognizer", recognizer_edit_->text());
 }
 
 void ForcePlotPanel::onTopicEdited() {
   subscribe(topic_edit_->text().toStdString());
+  thresholds_read_ = ros::WallTime();
   Q_EMIT configChanged();
 }
 
-void ForcePlotPanel::onWindowChanged(double seconds) {
-  chart_->setWindow(seconds);
+void ForcePlotPanel::onAxisChanged(int index) {
+  chart_->depth_axis = index == 1;
+  chart_->update();
   Q_EMIT configChanged();
 }
 
 void ForcePlotPanel::subscribe(const std::string& topic) {
   sub_.shutdown();
   received_ = false;
+  chart_->trace.clear();
   if (topic.empty()) {
     status_label_->setText("no topic");
     return;
@@ -276,21 +300,56 @@ void ForcePlotPanel::subscribe(const std::string& topic) {
   }
 }
 
+void ForcePlotPanel::readThresholds() {
+  // The recognizer's own parameters (the paper recognizer's ~c1, ~c2, ~c3); another class has
+  // none of these, and then no line is drawn.
+  const std::string node = recognizer_edit_->text().toStdString();
+  double value = 0.0;
+  chart_->c1 = ros::param::getCached(node + "/c1", value) ? value : std::nan("");
+  chart_->c2 = ros::param::getCached(node + "/c2", value) ? value : std::nan("");
+  chart_->c3 = ros::param::getCached(node + "/c3", value) ? value : std::nan("");
+}
+
 void ForcePlotPanel::stateCallback(const DrillingState::ConstPtr& msg) {
   const double t =
       msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
-  chart_->add(t, *msg);
+  chart_->trace.add(t, msg->state_name, msg->last_key_point, msg->averaged_force, msg->feature,
+                    msg->stop);
   received_ = true;
   last_message_ = ros::WallTime::now();
 }
 
+void ForcePlotPanel::truthCallback(const GroundTruth::ConstPtr& msg) {
+  chart_->trace.addDepth(msg->header.stamp.toSec(), msg->max_depth_cut_m);
+}
+
+void ForcePlotPanel::stopCallback(const StopCommand::ConstPtr& msg) {
+  const double t =
+      msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
+  chart_->trace.addStop(t, msg->source);
+}
+
 void ForcePlotPanel::poll() {
+  if (thresholds_read_.isZero() || (ros::WallTime::now() - thresholds_read_).toSec() > 5.0) {
+    readThresholds();
+    thresholds_read_ = ros::WallTime::now();
+  }
   queue_.callAvailable();
   if (received_) {
     const double age = (ros::WallTime::now() - last_message_).toSec();
     status_label_->setText(age > 2.0 ? QString("last message %1 s ago").arg(age, 0, 'f', 1)
                                      : QString("receiving"));
   }
+  const bool stopped = chart_->trace.stopped();
+  if (stopped && !logged_stop_) {
+    for (const core::TraceEvent& e : chart_->trace.events()) {
+      if (!e.stop) continue;
+      ROS_INFO("ForcePlotPanel: stop marked (%s) at %.3f s after the contact (%zu key points)",
+               e.label.c_str(), e.t - chart_->trace.contactTime(),
+               chart_->trace.events().size() - 1);
+    }
+  }
+  logged_stop_ = stopped;
   chart_->update();
 }
 

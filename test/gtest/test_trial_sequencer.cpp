@@ -453,3 +453,20 @@ TEST(TrialSequencer, ACompensatorFactoryThatThrowsRefusesTheStart) {
   EXPECT_EQ(seq.start(request("stationary"), apModel(), 0.0), "no class");
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
 }
+
+TEST(TrialSequencer, ARequestMayNameTheSegmentProfileOfItsTrial) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  pd::TrialRequest bad = request("stationary");
+  bad.segment_profile = "blended";
+  EXPECT_EQ(seq.start(bad, apModel(), 0.0).rfind("segment_profile", 0), 0u);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  pd::TrialRequest exact = request("stationary");
+  exact.segment_profile = "exact";
+  ASSERT_EQ(seq.start(exact, apModel(), 0.0), "");
+  ASSERT_NE(seq.planner(), nullptr);
+  EXPECT_EQ(seq.planner()->params().segment_profile, pd::SegmentProfile::kExact);
+  // Empty: the sequencer's own (rest_to_rest by default).
+  pd::TrialSequencer other(params(), workcellArm());
+  ASSERT_EQ(other.start(request("stationary"), apModel(), 0.0), "");
+  EXPECT_EQ(other.planner()->params().segment_profile, pd::SegmentProfile::kRestToRest);
+}

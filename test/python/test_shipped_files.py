@@ -42,6 +42,25 @@ def test_rviz_config_loads(path):
     assert manager['Global Options']['Fixed Frame']
     for display in manager['Displays']:
         assert display['Class'] and display['Name']
+    # Every display and panel class it names is declared by an rviz plugin (ours or rviz's own).
+    # rviz's own panels are built into it, not plugins (rviz/visualization_frame.cpp).
+    declared = rviz_classes() | {'rviz/Displays', 'rviz/Views', 'rviz/Selection',
+                                 'rviz/Tool Properties', 'rviz/Time', 'rviz/Help'}
+    named = [d['Class'] for d in manager['Displays']] + [p['Class'] for p in data['Panels']]
+    missing = [c for c in named if c not in declared]
+    assert not missing, '%s names undeclared rviz classes %s' % (path, missing)
+
+
+def rviz_classes():
+    """Every class name declared by the plugin XML files exported to rviz."""
+    out = subprocess.run(['rospack', 'plugins', '--attrib=plugin', 'rviz'], capture_output=True,
+                         text=True, timeout=60, check=True).stdout
+    names = set()
+    for line in out.splitlines():
+        _, _, xml_path = line.partition(' ')
+        for c in ET.parse(xml_path.strip()).getroot().iter('class'):
+            names.add(c.get('name'))
+    return names
 
 
 @pytest.mark.parametrize('path', files('urdf/*.urdf'))

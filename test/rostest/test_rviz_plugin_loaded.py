@@ -26,7 +26,8 @@ from rosgraph_msgs.msg import Log
 
 from test_rviz_screenshot import artifacts_dir, rviz_window_present
 
-CLASSES = ('pedicle_drilling/DrillingDisplay', 'pedicle_drilling/ForcePlotPanel')
+CLASSES = ('pedicle_drilling/DrillingDisplay', 'pedicle_drilling/ForcePlotPanel',
+           'pedicle_drilling/DrillingPanel')
 ERRORS = []
 
 
@@ -87,5 +88,5 @@ class RvizPluginLoadedTest(unittest.TestCase):
 
 if __name__ == '__main__':
     rospy.init_node('test_rviz_plugin_loaded')
-    rospy.Subscriber('/rosout_agg', Log, on_log, queue_size=100)
+    rospy.Subscriber('/rosout', Log, on_log, queue_size=100)
     rostest.rosrun('pedicle_drilling', 'rviz_drilling_plugin', RvizPluginLoadedTest, sys.argv)

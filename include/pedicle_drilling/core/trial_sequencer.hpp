@@ -80,6 +80,8 @@ struct TrialRequest {
   double spindle_rpm = 0.0;
   double feed_rate_mm_s = 0.0;
   double max_duration_s = 0.0;
+  /** @brief rest_to_rest | exact for this trial; "" means params().compensation's. */
+  std::string segment_profile;
 };
 
 /** @brief One joint trajectory command (trajectory_msgs/JointTrajectory semantics). */
@@ -226,6 +228,7 @@ class TrialSequencer {
     double feed_mm_s = 0.0;
     double rpm = 0.0;
     double max_duration_s = 0.0;
+    SegmentProfile profile = SegmentProfile::kRestToRest;
   };
   std::string resolve(const TrialRequest& request, ResolvedRequest* out) const;
   void setPhase(TrialPhase p);

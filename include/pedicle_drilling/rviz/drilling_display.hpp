@@ -9,6 +9,12 @@
  * last key point, averaged force, A*). Both are optional; a missing or broken one only gives a
  * warning or error in the Displays panel, and the rest is still drawn.
  *
+ * It also draws the bone's predicted and tracked marker positions (`compensation/
+ * predicted_marker_pose`, `tracker/marker_pose`: the safety monitor's H1 quantity, paired by
+ * stamp; magenta and green spheres, their distance in the text) and the drill bit in the detail
+ * copy, down to the tip, coloured by the safety monitor's status on `/diagnostics` (green OK,
+ * yellow WARN, red ERROR, grey unheard).
+ *
  * The specimen is a few centimetres wide and the bit 2.5 mm, which a view of the whole workcell
  * cannot show; the display therefore also draws a magnified "detail" copy of the specimen next
  * to the real one (property "Detail scale", 0 or 1 = off), and puts the text beside it.
@@ -21,9 +27,17 @@
 
 #include <ros/ros.h>
 
+#include <OgreQuaternion.h>
+#include <OgreVector3.h>
+
+#include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseStamped.h>
 #include <pedicle_drilling/DrillingState.h>
 #include <pedicle_drilling/GroundTruth.h>
+#include <pedicle_drilling/TrialStatus.h>
 #include <rviz/display.h>
+
+#include "pedicle_drilling/core/trial_view.hpp"
 #endif
 
 namespace Ogre {
@@ -36,6 +50,7 @@ class ColorProperty;
 class FloatProperty;
 class MovableText;
 class RosTopicProperty;
+class StringProperty;
 class Shape;
 class TfFrameProperty;
 class VectorProperty;
@@ -76,6 +91,13 @@ class DrillingDisplay : public rviz::Display {
   void unsubscribe();
   void groundTruthCallback(const GroundTruth::ConstPtr& msg);
   void drillingStateCallback(const DrillingState::ConstPtr& msg);
+  void predictedCallback(const geometry_msgs::PoseStamped::ConstPtr& msg);
+  void trackedCallback(const geometry_msgs::PoseStamped::ConstPtr& msg);
+  void statusCallback(const TrialStatus::ConstPtr& msg);
+  void diagnosticsCallback(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg);
+  bool placeMarker(rviz::Shape* sphere, const geometry_msgs::PoseStamped::ConstPtr& msg,
+                   const Ogre::Vector3& bone_position, const Ogre::Quaternion& bone_orientation);
+  void placeMarkers(const Ogre::Vector3& bone_position, const Ogre::Quaternion& bone_orientation);
   void rebuild();
   void applyColours();
   std::string overlayText() const;
@@ -107,14 +129,29 @@ class DrillingDisplay : public rviz::Display {
   rviz::FloatProperty* stale_after_property_;
   rviz::FloatProperty* detail_scale_property_;
   rviz::VectorProperty* detail_offset_property_;
+  rviz::RosTopicProperty* predicted_topic_property_;
+  rviz::RosTopicProperty* tracked_topic_property_;
+  rviz::StringProperty* monitor_status_property_;
+  rviz::FloatProperty* marker_size_property_;
 
   SpecimenVisual true_scale_;
   SpecimenVisual detail_;
+  std::unique_ptr<rviz::Shape> predicted_sphere_;
+  std::unique_ptr<rviz::Shape> tracked_sphere_;
+  std::unique_ptr<rviz::Shape> bit_;  // the drill bit in the detail copy
   Ogre::SceneNode* text_node_ = nullptr;
   rviz::MovableText* text_ = nullptr;
 
   ros::Subscriber ground_truth_sub_;
   ros::Subscriber state_sub_;
+  ros::Subscriber predicted_sub_;
+  ros::Subscriber tracked_sub_;
+  ros::Subscriber diagnostics_sub_;
+  ros::Subscriber status_sub_;
+  geometry_msgs::PoseStamped::ConstPtr predicted_;
+  geometry_msgs::PoseStamped::ConstPtr tracked_;
+  core::TrialView view_;  // pairs prediction and tracker by stamp; the monitor's level
+  bool logged_end_ = false;
   GroundTruth::ConstPtr ground_truth_;
   DrillingState::ConstPtr state_;
   ros::WallTime ground_truth_received_;
