@@ -139,6 +139,7 @@ void DrillingPanel::onInitialize() {
   subs_.push_back(nh_.subscribe("drilling_panel/press", 10, &DrillingPanel::pressCallback, this));
   stop_pub_ = nh_.advertise<StopCommand>("drill/stop", 10);
   summary_pub_ = nh_.advertise<std_msgs::String>("drilling_panel/summary", 1, true);
+  controls_pub_ = nh_.advertise<std_msgs::String>("drilling_panel/controls", 1, true);
   watcher_ = std::thread([this]() { watchServices(); });
   timer_->start(50);
 }
@@ -275,6 +276,17 @@ void DrillingPanel::refreshControls() {
     why = "a trial is running";
   }
   service_label_->setText(why);
+  const std::string controls = std::string("start ") +
+                               (start_button_->isEnabled() ? "enabled" : "disabled") + ", stop " +
+                               (stop_button_->isEnabled() ? "enabled" : "disabled") + ", reset " +
+                               (reset_button_->isEnabled() ? "enabled" : "disabled") +
+                               (why.isEmpty() ? "" : ": " + why.toStdString());
+  if (controls != last_controls_ && controls_pub_) {
+    last_controls_ = controls;
+    std_msgs::String msg;
+    msg.data = controls;
+    controls_pub_.publish(msg);
+  }
 }
 
 void DrillingPanel::refreshReadouts() {

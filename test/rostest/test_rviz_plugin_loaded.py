@@ -66,6 +66,40 @@ class RvizPluginLoadedTest(unittest.TestCase):
         for name in CLASSES:
             self.assertIn(name, declared)
 
+    def test_panel_without_the_pipeline_greys_out_and_stays_responsive(self):
+        """No planner or simulator here: the DrillingPanel's buttons are greyed out with the
+        reason, a press on Start does nothing, and the panel keeps answering."""
+        from std_msgs.msg import String
+        controls = []
+        rospy.Subscriber('/drilling_panel/controls', String, lambda m: controls.append(m.data))
+        deadline = time.time() + 60.0
+        while time.time() < deadline and not controls:
+            time.sleep(0.1)
+        self.assertTrue(controls, 'the panel never published drilling_panel/controls')
+        self.assertIn('start disabled', controls[-1])
+        self.assertIn('compensation_planner/start_trial is not available', controls[-1])
+        summaries = []
+        rospy.Subscriber('/drilling_panel/summary', String, lambda m: summaries.append(m.data))
+        press = rospy.Publisher('/drilling_panel/press', String, queue_size=1)
+        deadline = time.time() + 30.0
+        while time.time() < deadline and press.get_num_connections() == 0:
+            time.sleep(0.1)
+        press.publish(String(data='start'))
+        # After the press the panel's own thread still handles messages: a phase published here
+        # (there is no planner in this launch) changes its summary, which only its GUI-thread
+        # refresh publishes.
+        from pedicle_drilling.msg import TrialStatus
+        status = rospy.Publisher('/compensation/status', TrialStatus, queue_size=1, latch=True)
+        status.publish(TrialStatus(phase=TrialStatus.MOVING_TO_POSE, phase_name='moving_to_pose',
+                                   running=True))
+        deadline = time.time() + 30.0
+        while time.time() < deadline and not any('moving_to_pose' in m for m in summaries):
+            time.sleep(0.1)
+        self.assertTrue(any('moving_to_pose' in m for m in summaries),
+                        'the panel stopped answering: %r' % summaries)
+        self.assertFalse(any('started' in m for m in summaries))
+        status.publish(TrialStatus(phase=TrialStatus.IDLE, phase_name='idle', running=False))
+
     def test_display_loaded_subscribed_and_drew(self):
         deadline = time.time() + 60.0
         wanted = {'/simulator/ground_truth', '/drilling_state'}

@@ -10,7 +10,8 @@
  * and ROS. Service calls run on a worker thread: a missing or slow service greys the controls out
  * with the reason and never blocks rviz. Scripting hook: a std_msgs/String "start", "stop" or
  * "reset" on `drilling_panel/press` clicks that button (nothing happens when it is greyed out).
- * The panel publishes its one-line summary, latched, on `drilling_panel/summary`.
+ * The panel publishes its one-line summary, latched, on `drilling_panel/summary`, and which
+ * buttons are enabled with the reason of the others, latched, on `drilling_panel/controls`.
  */
 #pragma once
 
@@ -111,6 +112,8 @@ class DrillingPanel : public rviz::Panel {
   std::vector<ros::Subscriber> subs_;
   ros::Publisher stop_pub_;
   ros::Publisher summary_pub_;
+  ros::Publisher controls_pub_;
+  std::string last_controls_;
   std::string start_service_ = "compensation_planner/start_trial";
   std::string reset_service_ = "simulator/reset";
   std::string monitor_status_name_ = "/safety_monitor: monitor";
