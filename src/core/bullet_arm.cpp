@@ -158,7 +158,13 @@ struct BulletArm::Impl {
   int n() const { return static_cast<int>(joint_info.size()); }
 
   void build(const std::string& urdf_xml);
-  void buildBullet();
+  urdf::ModelInterfaceSharedPtr parseModel(const std::string& urdf_xml) const;
+  std::vector<urdf::JointConstSharedPtr> movingJoints(const urdf::ModelInterface& model) const;
+  void mergeBodies(const urdf::ModelInterface& model,
+                   const std::vector<urdf::JointConstSharedPtr>& moving);
+  ArmJointInfo jointInfo(const urdf::Joint& joint) const;
+  std::vector<Eigen::Isometry3d> jointFrames(const std::vector<urdf::JointConstSharedPtr>& moving);
+  void buildBullet(const std::vector<Eigen::Isometry3d>& joint_frame);
   void forwardKinematics();
   Eigen::Isometry3d bodyPose(int body) const;  // Bullet frame B of a body
   Eigen::Isometry3d linkPose(const std::string& name) const;
@@ -193,6 +199,17 @@ struct BulletArm::Impl {
 // ------------------------------------------------------------------------------------------
 
 void BulletArm::Impl::build(const std::string& urdf_xml) {
+  const urdf::ModelInterfaceSharedPtr model = parseModel(urdf_xml);
+  const std::vector<urdf::JointConstSharedPtr> moving = movingJoints(*model);
+  mergeBodies(*model, moving);
+  for (const auto& j : moving) {
+    joint_info.push_back(jointInfo(*j));
+    joint_names.push_back(j->name);
+  }
+  buildBullet(jointFrames(moving));
+}
+
+urdf::ModelInterfaceSharedPtr BulletArm::Impl::parseModel(const std::string& urdf_xml) const {
   if (urdf_xml.find_first_not_of(" \t\r\n") == std::string::npos) {
     throw std::runtime_error("BulletArm: empty URDF string");
   }
@@ -213,6 +230,12 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
                              model->getName() + "'");
   }
 
+  return model;
+}
+
+std::vector<urdf::JointConstSharedPtr> BulletArm::Impl::movingJoints(
+    const urdf::ModelInterface& model) const {
+  urdf::LinkConstSharedPtr tip = model.getLink(tip_link);
   // Path tip -> base through parent joints.
   std::vector<urdf::JointConstSharedPtr> path;
   {
@@ -223,7 +246,7 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
                                  "' does not descend from base link '" + base_link + "'");
       }
       path.push_back(l->parent_joint);
-      l = model->getLink(l->parent_joint->parent_link_name);
+      l = model.getLink(l->parent_joint->parent_link_name);
       if (!l) throw std::runtime_error("BulletArm: broken URDF tree above '" + tip_link + "'");
     }
     std::reverse(path.begin(), path.end());
@@ -251,6 +274,11 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
                              tip_link + "'");
   }
 
+  return moving;
+}
+
+void BulletArm::Impl::mergeBodies(const urdf::ModelInterface& model,
+                                  const std::vector<urdf::JointConstSharedPtr>& moving) {
   bodies.resize(moving.size() + 1);
   bodies[0].head_link = base_link;
   for (std::size_t k = 0; k < moving.size(); ++k) {
@@ -285,12 +313,12 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
           }
           for (const auto& cj : l->child_joints) {
             if (cj->type != urdf::Joint::FIXED) continue;
-            urdf::LinkConstSharedPtr child = model->getLink(cj->child_link_name);
+            urdf::LinkConstSharedPtr child = model.getLink(cj->child_link_name);
             if (!child) continue;
             visit(child, t * toEigen(cj->parent_to_joint_origin_transform));
           }
         };
-    visit(model->getLink(bodies[b].head_link), Eigen::Isometry3d::Identity());
+    visit(model.getLink(bodies[b].head_link), Eigen::Isometry3d::Identity());
 
     Body& body = bodies[b];
     Eigen::Vector3d com = Eigen::Vector3d::Zero();
@@ -316,54 +344,56 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
     body.com_frame.linear() = v;
     body.com_frame.translation() = com;
   }
+}
 
-  // Joint info.
-  for (const auto& j : moving) {
-    ArmJointInfo info;
-    info.name = j->name;
-    info.type = j->type == urdf::Joint::PRISMATIC    ? ArmJointType::kPrismatic
-                : j->type == urdf::Joint::CONTINUOUS ? ArmJointType::kContinuous
-                                                     : ArmJointType::kRevolute;
-    info.lower = -kInf;
-    info.upper = kInf;
-    info.velocity = kInf;
-    info.effort = kInf;
-    if (j->limits) {
-      if (info.type != ArmJointType::kContinuous) {
-        info.lower = j->limits->lower;
-        info.upper = j->limits->upper;
-        if (!(info.lower <= info.upper) || (info.lower == 0.0 && info.upper == 0.0)) {
-          throw std::runtime_error("BulletArm: joint '" + j->name +
-                                   "' has an empty or invalid position range");
-        }
+ArmJointInfo BulletArm::Impl::jointInfo(const urdf::Joint& joint) const {
+  const urdf::Joint* j = &joint;
+  ArmJointInfo info;
+  info.name = j->name;
+  info.type = j->type == urdf::Joint::PRISMATIC    ? ArmJointType::kPrismatic
+              : j->type == urdf::Joint::CONTINUOUS ? ArmJointType::kContinuous
+                                                   : ArmJointType::kRevolute;
+  info.lower = -kInf;
+  info.upper = kInf;
+  info.velocity = kInf;
+  info.effort = kInf;
+  if (j->limits) {
+    if (info.type != ArmJointType::kContinuous) {
+      info.lower = j->limits->lower;
+      info.upper = j->limits->upper;
+      if (!(info.lower <= info.upper) || (info.lower == 0.0 && info.upper == 0.0)) {
+        throw std::runtime_error("BulletArm: joint '" + j->name +
+                                 "' has an empty or invalid position range");
       }
-      if (j->limits->velocity > 0.0) info.velocity = j->limits->velocity;
-      if (j->limits->effort > 0.0) info.effort = j->limits->effort;
-    } else if (info.type != ArmJointType::kContinuous) {
-      throw std::runtime_error("BulletArm: joint '" + j->name + "' has no <limit> element");
     }
-    switch (info.type) {
-      case ArmJointType::kRevolute:
-        info.stiffness = std::isfinite(info.effort)
-                             ? params.revolute_stiffness_per_effort * info.effort
-                             : params.revolute_stiffness_default;
-        break;
-      case ArmJointType::kContinuous:
-        info.stiffness = params.continuous_stiffness;
-        break;
-      case ArmJointType::kPrismatic:
-        info.stiffness = params.prismatic_stiffness;
-        break;
-    }
-    auto it = params.joint_stiffness.find(j->name);
-    if (it != params.joint_stiffness.end()) info.stiffness = it->second;
-    if (!(info.stiffness >= 0.0) || !std::isfinite(info.stiffness)) {
-      throw std::runtime_error("BulletArm: invalid stiffness for joint '" + j->name + "'");
-    }
-    joint_info.push_back(info);
-    joint_names.push_back(j->name);
+    if (j->limits->velocity > 0.0) info.velocity = j->limits->velocity;
+    if (j->limits->effort > 0.0) info.effort = j->limits->effort;
+  } else if (info.type != ArmJointType::kContinuous) {
+    throw std::runtime_error("BulletArm: joint '" + j->name + "' has no <limit> element");
   }
+  switch (info.type) {
+    case ArmJointType::kRevolute:
+      info.stiffness = std::isfinite(info.effort)
+                           ? params.revolute_stiffness_per_effort * info.effort
+                           : params.revolute_stiffness_default;
+      break;
+    case ArmJointType::kContinuous:
+      info.stiffness = params.continuous_stiffness;
+      break;
+    case ArmJointType::kPrismatic:
+      info.stiffness = params.prismatic_stiffness;
+      break;
+  }
+  auto it = params.joint_stiffness.find(j->name);
+  if (it != params.joint_stiffness.end()) info.stiffness = it->second;
+  if (!(info.stiffness >= 0.0) || !std::isfinite(info.stiffness)) {
+    throw std::runtime_error("BulletArm: invalid stiffness for joint '" + j->name + "'");
+  }
+  return info;
+}
 
+std::vector<Eigen::Isometry3d> BulletArm::Impl::jointFrames(
+    const std::vector<urdf::JointConstSharedPtr>& moving) {
   // Bullet link geometry per moving joint.
   joint_data.resize(moving.size());
   std::vector<Eigen::Isometry3d> joint_frame(moving.size());  // J in parent head frame
@@ -387,6 +417,10 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
         child.com_frame.linear().transpose() * child.com_frame.translation();
   }
 
+  return joint_frame;
+}
+
+void BulletArm::Impl::buildBullet(const std::vector<Eigen::Isometry3d>& joint_frame) {
   // Bullet objects.
   collision_config = std::make_unique<btDefaultCollisionConfiguration>();
   dispatcher = std::make_unique<btCollisionDispatcher>(collision_config.get());
@@ -396,7 +430,7 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
                                                      solver.get(), collision_config.get());
   world->setGravity(toBt(params.gravity));
 
-  const int nl = static_cast<int>(moving.size());
+  const int nl = static_cast<int>(joint_frame.size());
   mb = std::make_unique<btMultiBody>(nl, btScalar(bodies[0].mass), toBt(bodies[0].inertia),
                                      /*fixedBase=*/true, /*canSleep=*/false);
   mb->setBaseWorldTransform(toBt(bodies[0].com_frame));

@@ -49,121 +49,139 @@ class TraceChart : public QWidget {
     painter.setRenderHint(QPainter::Antialiasing, true);
     painter.fillRect(rect(), QColor(28, 28, 32));
     const QFontMetrics fm(painter.font());
-    const double row_h = fm.height();
+    row_h_ = fm.height();
     // Top: title row, then up to three rows of event labels.
-    const double top = 4.0 + row_h * 4.0;
-    const QRectF plot(48.0, top, std::max(10.0, width() - 96.0),
-                      std::max(10.0, height() - top - row_h - 10.0));
+    const double top = 4.0 + row_h_ * 4.0;
+    plot_ = QRectF(48.0, top, std::max(10.0, width() - 96.0),
+                   std::max(10.0, height() - top - row_h_ - 10.0));
     painter.setPen(QColor(90, 90, 96));
-    painter.drawRect(plot);
-    const QColor force_colour(80, 200, 255);
-    const QColor feature_colour(255, 170, 60);
-    painter.setPen(force_colour);
-    painter.drawText(QPointF(4.0, 2.0 + row_h), "averaged force [N]");
-    painter.setPen(feature_colour);
-    const double a_x = 4.0 + fm.horizontalAdvance("averaged force [N]  ");
-    painter.drawText(QPointF(a_x, 2.0 + row_h), "A*");
-    painter.setPen(QColor(170, 170, 170));
-    painter.drawText(QPointF(a_x + fm.horizontalAdvance("A*   "), 2.0 + row_h),
-                     depth_axis ? "x: depth of the cut [mm]" : "x: time since contact [s]");
-    painter.setPen(Qt::white);
-    painter.drawText(QRectF(0.0, 2.0, width() - 4.0, row_h + 2.0), Qt::AlignRight,
-                     QString::fromStdString(trace.stateName()));
-
-    // The x of each sample: seconds since the contact, or the deepest cut in mm.
-    const double t0 = std::isnan(trace.contactTime())
-                          ? (trace.samples().empty() ? 0.0 : trace.samples().front().t)
-                          : trace.contactTime();
-    const auto x_value = [&](double t) { return depth_axis ? 1e3 * trace.depthAt(t) : t - t0; };
-    std::vector<std::pair<double, const core::TraceSample*>> points;
-    for (const core::TraceSample& s : trace.samples()) {
-      const double x = x_value(s.t);
-      if (std::isfinite(x)) points.emplace_back(x, &s);
-    }
-    if (points.empty()) {
+    painter.drawRect(plot_);
+    drawTitle(&painter, fm);
+    if (!scale()) {
       painter.setPen(QColor(170, 170, 170));
-      painter.drawText(plot, Qt::AlignCenter,
+      painter.drawText(plot_, Qt::AlignCenter,
                        depth_axis ? "no depth: the depth axis needs simulator/ground_truth"
                                   : "no drilling_state received");
       return;
     }
-    double x_min = points.front().first;
-    double x_max = x_min;
-    double force_max = 1.0;
-    double feature_max = 0.0;
-    double feature_min = 0.0;
-    for (const auto& [x, s] : points) {
-      x_min = std::min(x_min, x);
-      x_max = std::max(x_max, x);
-      force_max = std::max(force_max, s->force);
-      feature_max = std::max(feature_max, s->feature);
-      feature_min = std::min(feature_min, s->feature);
+    drawAxes(&painter);
+    drawThresholds(&painter);
+    drawEvents(&painter, fm);
+    drawCurves(&painter);
+  }
+
+ private:
+  const QColor force_colour_{80, 200, 255};
+  const QColor feature_colour_{255, 170, 60};
+
+  /** @brief x of a sample time: seconds since the contact, or the deepest cut in mm. */
+  double xValue(double t) const { return depth_axis ? 1e3 * trace.depthAt(t) : t - t0_; }
+  double xOf(double x) const {
+    return plot_.left() + (x - x_min_) / (x_max_ - x_min_) * plot_.width();
+  }
+  double yForce(double f) const {
+    return plot_.bottom() - std::clamp(f / force_max_, 0.0, 1.0) * plot_.height();
+  }
+  double yFeature(double a) const {
+    return plot_.bottom() -
+           std::clamp((a - feature_min_) / (feature_max_ - feature_min_), 0.0, 1.0) *
+               plot_.height();
+  }
+
+  void drawTitle(QPainter* painter, const QFontMetrics& fm) const {
+    painter->setPen(force_colour_);
+    painter->drawText(QPointF(4.0, 2.0 + row_h_), "averaged force [N]");
+    painter->setPen(feature_colour_);
+    const double a_x = 4.0 + fm.horizontalAdvance("averaged force [N]  ");
+    painter->drawText(QPointF(a_x, 2.0 + row_h_), "A*");
+    painter->setPen(QColor(170, 170, 170));
+    painter->drawText(QPointF(a_x + fm.horizontalAdvance("A*   "), 2.0 + row_h_),
+                      depth_axis ? "x: depth of the cut [mm]" : "x: time since contact [s]");
+    painter->setPen(Qt::white);
+    painter->drawText(QRectF(0.0, 2.0, width() - 4.0, row_h_ + 2.0), Qt::AlignRight,
+                      QString::fromStdString(trace.stateName()));
+  }
+
+  /** @brief The plotted points and the axes' ranges; false when there is nothing to plot. */
+  bool scale() {
+    t0_ = std::isnan(trace.contactTime())
+              ? (trace.samples().empty() ? 0.0 : trace.samples().front().t)
+              : trace.contactTime();
+    points_.clear();
+    for (const core::TraceSample& s : trace.samples()) {
+      const double x = xValue(s.t);
+      if (std::isfinite(x)) points_.emplace_back(x, &s);
+    }
+    if (points_.empty()) return false;
+    x_min_ = x_max_ = points_.front().first;
+    force_max_ = 1.0;
+    feature_max_ = 0.0;
+    feature_min_ = 0.0;
+    for (const auto& [x, s] : points_) {
+      x_min_ = std::min(x_min_, x);
+      x_max_ = std::max(x_max_, x);
+      force_max_ = std::max(force_max_, s->force);
+      feature_max_ = std::max(feature_max_, s->feature);
+      feature_min_ = std::min(feature_min_, s->feature);
     }
     for (double c : {c1, c2}) {
-      if (std::isfinite(c)) feature_max = std::max(feature_max, c);
+      if (std::isfinite(c)) feature_max_ = std::max(feature_max_, c);
     }
-    if (x_max - x_min < 1e-6) x_max = x_min + 1.0;
-    force_max *= 1.1;
-    feature_max = feature_max * 1.1 + 1e-12;
-    const auto x_of = [&](double x) {
-      return plot.left() + (x - x_min) / (x_max - x_min) * plot.width();
-    };
-    const auto y_force = [&](double f) {
-      return plot.bottom() - std::clamp(f / force_max, 0.0, 1.0) * plot.height();
-    };
-    const auto y_feature = [&](double a) {
-      return plot.bottom() -
-             std::clamp((a - feature_min) / (feature_max - feature_min), 0.0, 1.0) * plot.height();
-    };
+    if (x_max_ - x_min_ < 1e-6) x_max_ = x_min_ + 1.0;
+    force_max_ *= 1.1;
+    feature_max_ = feature_max_ * 1.1 + 1e-12;
+    return true;
+  }
 
-    // Axes: force left, A* right, time or depth below.
-    painter.setPen(force_colour);
+  /** @brief Force on the left, A* on the right, time or depth below. */
+  void drawAxes(QPainter* painter) const {
+    painter->setPen(force_colour_);
     for (int i = 0; i <= 4; ++i) {
-      const double f = force_max * i / 4.0;
-      painter.drawText(QRectF(0.0, y_force(f) - row_h / 2, 44.0, row_h), Qt::AlignRight,
-                       QString::number(f, 'f', 1));
+      const double f = force_max_ * i / 4.0;
+      painter->drawText(QRectF(0.0, yForce(f) - row_h_ / 2, 44.0, row_h_), Qt::AlignRight,
+                        QString::number(f, 'f', 1));
     }
-    painter.setPen(feature_colour);
+    painter->setPen(feature_colour_);
     for (int i = 0; i <= 4; ++i) {
-      const double a = feature_min + (feature_max - feature_min) * i / 4.0;
-      painter.drawText(QRectF(plot.right() + 4.0, y_feature(a) - row_h / 2, 44.0, row_h),
-                       Qt::AlignLeft, QString::number(a, 'f', 2));
+      const double a = feature_min_ + (feature_max_ - feature_min_) * i / 4.0;
+      painter->drawText(QRectF(plot_.right() + 4.0, yFeature(a) - row_h_ / 2, 44.0, row_h_),
+                        Qt::AlignLeft, QString::number(a, 'f', 2));
     }
-    painter.setPen(QColor(170, 170, 170));
+    painter->setPen(QColor(170, 170, 170));
     for (int i = 0; i <= 4; ++i) {
-      const double x = x_min + (x_max - x_min) * i / 4.0;
-      painter.drawText(QRectF(x_of(x) - 40.0, plot.bottom() + 2.0, 80.0, row_h), Qt::AlignCenter,
-                       QString::number(x, 'f', 1));
+      const double x = x_min_ + (x_max_ - x_min_) * i / 4.0;
+      painter->drawText(QRectF(xOf(x) - 40.0, plot_.bottom() + 2.0, 80.0, row_h_), Qt::AlignCenter,
+                        QString::number(x, 'f', 1));
     }
+  }
 
-    // The recognizer's thresholds on A*: C1, C2 and, after key point 4, C3 x the inner peak.
-    struct Line {
-      double value;
-      QString label;
-    };
-    std::vector<Line> lines;
-    if (std::isfinite(c1)) lines.push_back({c1, "C1"});
-    if (std::isfinite(c2)) lines.push_back({c2, "C2"});
+  /** @brief The recognizer's thresholds on A*: C1, C2 and, after key point 4, C3 x the peak. */
+  void drawThresholds(QPainter* painter) const {
+    std::vector<std::pair<double, QString>> lines;
+    if (std::isfinite(c1)) lines.emplace_back(c1, "C1");
+    if (std::isfinite(c2)) lines.emplace_back(c2, "C2");
     if (std::isfinite(c3) && std::isfinite(trace.innerPeak())) {
-      lines.push_back({c3 * trace.innerPeak(), "C3 peak"});
+      lines.emplace_back(c3 * trace.innerPeak(), "C3 peak");
     }
-    for (const Line& l : lines) {
-      QPen pen(feature_colour.darker(130));
+    for (const auto& [value, label] : lines) {
+      QPen pen(feature_colour_.darker(130));
       pen.setStyle(Qt::DotLine);
-      painter.setPen(pen);
-      painter.drawLine(QPointF(plot.left(), y_feature(l.value)),
-                       QPointF(plot.right(), y_feature(l.value)));
-      painter.drawText(QPointF(plot.left() + 3.0, y_feature(l.value) - 2.0), l.label);
+      painter->setPen(pen);
+      painter->drawLine(QPointF(plot_.left(), yFeature(value)),
+                        QPointF(plot_.right(), yFeature(value)));
+      painter->drawText(QPointF(plot_.left() + 3.0, yFeature(value) - 2.0), label);
     }
+  }
 
-    // Key points and the stop: vertical lines, labels on rows that do not overlap.
+  /** @brief Key points and the stop: vertical lines, labels on rows that do not overlap. */
+  void drawEvents(QPainter* painter, const QFontMetrics& fm) const {
     std::vector<core::ChartLabel> labels;
     std::vector<const core::TraceEvent*> shown;
     for (const core::TraceEvent& e : trace.events()) {
-      const double x = x_value(e.t);
+      const double x = xValue(e.t);
       if (!std::isfinite(x)) continue;
       labels.push_back(
-          {x_of(x), static_cast<double>(fm.horizontalAdvance(QString::fromStdString(e.label)))});
+          {xOf(x), static_cast<double>(fm.horizontalAdvance(QString::fromStdString(e.label)))});
       shown.push_back(&e);
     }
     const std::vector<int> rows = core::layoutLabels(labels, 4.0, 3);
@@ -173,19 +191,21 @@ class TraceChart : public QWidget {
       QPen pen(e.stop ? QColor(255, 60, 60) : QColor(200, 200, 200));
       pen.setStyle(e.stop ? Qt::SolidLine : Qt::DashLine);
       pen.setWidthF(e.stop ? 2.5 : 1.0);
-      painter.setPen(pen);
-      const double label_y = 4.0 + row_h * (rows[i] + 2);
-      painter.drawLine(QPointF(x, label_y + 2.0), QPointF(x, plot.bottom()));
-      painter.drawText(QPointF(x - labels[i].width / 2.0, label_y),
-                       QString::fromStdString(e.label));
+      painter->setPen(pen);
+      const double label_y = 4.0 + row_h_ * (rows[i] + 2);
+      painter->drawLine(QPointF(x, label_y + 2.0), QPointF(x, plot_.bottom()));
+      painter->drawText(QPointF(x - labels[i].width / 2.0, label_y),
+                        QString::fromStdString(e.label));
     }
+  }
 
+  void drawCurves(QPainter* painter) const {
     QPainterPath force_path;
     QPainterPath feature_path;
     bool first = true;
-    for (const auto& [x, s] : points) {
-      const QPointF pf(x_of(x), y_force(s->force));
-      const QPointF pa(x_of(x), y_feature(s->feature));
+    for (const auto& [x, s] : points_) {
+      const QPointF pf(xOf(x), yForce(s->force));
+      const QPointF pa(xOf(x), yFeature(s->feature));
       if (first) {
         force_path.moveTo(pf);
         feature_path.moveTo(pa);
@@ -195,12 +215,22 @@ class TraceChart : public QWidget {
         feature_path.lineTo(pa);
       }
     }
-    painter.setClipRect(plot);
-    painter.setPen(QPen(feature_colour, 1.5));
-    painter.drawPath(feature_path);
-    painter.setPen(QPen(force_colour, 2.0));
-    painter.drawPath(force_path);
+    painter->setClipRect(plot_);
+    painter->setPen(QPen(feature_colour_, 1.5));
+    painter->drawPath(feature_path);
+    painter->setPen(QPen(force_colour_, 2.0));
+    painter->drawPath(force_path);
   }
+
+  QRectF plot_;
+  double row_h_ = 12.0;
+  double t0_ = 0.0;
+  double x_min_ = 0.0;
+  double x_max_ = 1.0;
+  double force_max_ = 1.0;
+  double feature_min_ = 0.0;
+  double feature_max_ = 1.0;
+  std::vector<std::pair<double, const core::TraceSample*>> points_;
 };
 
 ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {

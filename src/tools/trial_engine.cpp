@@ -105,9 +105,10 @@ PluginSettings parseSettings(const std::vector<std::string>& items, const std::s
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  CLI::App app{"Closed-loop drilling trials on the core engine (JSON lines on stdout)",
-               "trial_engine"};
+namespace {
+
+/** @brief Everything the command line sets. */
+struct Options {
   std::string trials_path;
   std::string urdf_path = std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/workcell.urdf";
   std::string default_model =
@@ -116,104 +117,201 @@ int main(int argc, char** argv) {
   std::string model_kind = "linear";
   std::string bone_motion = "virtual_patient";
   std::vector<double> drilling_pose;
-  pd::EngineConfig config;
   double feed_rate = 0.5;
   double max_duration = 60.0;
-  app.add_option("--trials", trials_path, "JSON list of trials: {trial_id, seed, case, rpm, ...}")
+  std::string segment_profile = "rest_to_rest";
+  bool fixed_start = false;
+  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
+  std::vector<std::string> recognizer_params;
+  std::string compensator_class = "pedicle_drilling/PaperCompensator";
+  std::vector<std::string> compensator_params;
+  bool list_faults = false;
+};
+
+/** @brief Declares every option of the tool (its values go to *o and *config). */
+void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
+  app->add_option("--trials", o->trials_path,
+                  "JSON list of trials: {trial_id, seed, case, rpm, ...}")
       ->required();
-  app.add_option("--drilling-pose", drilling_pose,
-                 "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
+  app->add_option("--drilling-pose", o->drilling_pose,
+                  "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
       ->required()
       ->delimiter(',');
-  app.add_option("--urdf", urdf_path, "workcell URDF");
-  app.add_option("--default-model", default_model, "patient model of the stationary case");
-  app.add_option("--models-dir", models_dir,
-                 "identified volunteer models volunteer_<id>_<model>.yaml (moving cases)");
-  app.add_option("--model", model_kind, "linear | hysteresis")
+  app->add_option("--urdf", o->urdf_path, "workcell URDF");
+  app->add_option("--default-model", o->default_model, "patient model of the stationary case");
+  app->add_option("--models-dir", o->models_dir,
+                  "identified volunteer models volunteer_<id>_<model>.yaml (moving cases)");
+  app->add_option("--model", o->model_kind, "linear | hysteresis")
       ->check(CLI::IsMember({"linear", "hysteresis"}));
-  app.add_option("--bone-motion", bone_motion, "model | virtual_patient")
+  app->add_option("--bone-motion", o->bone_motion, "model | virtual_patient")
       ->check(CLI::IsMember({"model", "virtual_patient"}));
-  std::string segment_profile = "rest_to_rest";
-  app.add_option("--segment-profile", segment_profile,
-                 "the planner's ~segment_profile: rest_to_rest (the paper's) | exact")
+  app->add_option("--segment-profile", o->segment_profile,
+                  "the planner's ~segment_profile: rest_to_rest (the paper's) | exact")
       ->check(CLI::IsMember({"rest_to_rest", "exact"}));
-  app.add_option("--command-delay-s", config.delays.command_to_arm_s,
-                 "planner command -> arm controller transport delay, s")
+  app->add_option("--command-delay-s", config->delays.command_to_arm_s,
+                  "planner command -> arm controller transport delay, s")
       ->check(CLI::Range(0.0, 1.0));
-  app.add_option("--stop-delay-s", config.delays.stop_to_planner_s,
-                 "recognizer/monitor stop -> planner transport delay, s")
+  app->add_option("--stop-delay-s", config->delays.stop_to_planner_s,
+                  "recognizer/monitor stop -> planner transport delay, s")
       ->check(CLI::Range(0.0, 1.0));
-  app.add_option("--pre-trial-s", config.pre_trial_s,
-                 "sim time from the reset to the earliest trial start, s")
+  app->add_option("--pre-trial-s", config->pre_trial_s,
+                  "sim time from the reset to the earliest trial start, s")
       ->check(CLI::Range(0.0, 60.0));
-  app.add_option("--truth-rate-hz", config.ground_truth_rate_hz,
-                 "rate of the recorded ground truth (plus every layer change), Hz")
+  app->add_option("--truth-rate-hz", config->ground_truth_rate_hz,
+                  "rate of the recorded ground truth (plus every layer change), Hz")
       ->check(CLI::Range(1.0, 1000.0));
-  bool fixed_start = false;
-  app.add_flag("--fixed-start", fixed_start,
-               "start exactly --pre-trial-s after the reset (no breath phase drawn from the seed)");
-  app.add_option("--feed-rate", feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
-  app.add_option("--max-duration", max_duration, "sim time after which a trial is ended, s")
+  app->add_flag(
+      "--fixed-start", o->fixed_start,
+      "start exactly --pre-trial-s after the reset (no breath phase drawn from the seed)");
+  app->add_option("--feed-rate", o->feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
+  app->add_option("--max-duration", o->max_duration, "sim time after which a trial is ended, s")
       ->check(CLI::Range(1.0, 3600.0));
   // Sizes of the injected faults (a trial's "fault" key names the fault; README).
-  pd::FaultParams& faults = config.faults;
-  app.add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N");
-  app.add_option("--fault-drift-n-per-s", faults.drift_n_per_s, "force_drift rate, N/s");
-  app.add_option("--fault-tracker-jump-m", faults.tracker_jump_m, "tracker_jump size, m");
-  app.add_option("--fault-amplitude-factor", faults.amplitude_factor,
-                 "breathing_amplitude factor on the AP displacement");
-  app.add_option("--fault-rate-change-bpm", faults.rate_change_bpm,
-                 "breathing_rate_up/down change, breaths/min");
-  app.add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s");
-  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
-  app.add_option("--recognizer", recognizer_class,
-                 "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
-                 "own recognizer or compensator\")");
-  std::vector<std::string> recognizer_params;
-  app.add_option("--recognizer-param", recognizer_params,
-                 "name=value for the recognizer (repeatable; the paper recognizer's default: "
-                 "config/recognizer.yaml's values are its defaults)");
-  std::string compensator_class = "pedicle_drilling/PaperCompensator";
-  app.add_option("--compensator", compensator_class,
-                 "motion compensator class (built-in or pluginlib; README \"Bring your own "
-                 "recognizer or compensator\")");
-  std::vector<std::string> compensator_params;
-  app.add_option("--compensator-param", compensator_params,
-                 "name=value for the compensator (repeatable)");
-  bool list_faults = false;
-  app.add_flag("--list-faults", list_faults, "print the faults a trial may name, one per line");
-  app.footer("Faults: " + [] {
+  pd::FaultParams& faults = config->faults;
+  app->add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N");
+  app->add_option("--fault-drift-n-per-s", faults.drift_n_per_s, "force_drift rate, N/s");
+  app->add_option("--fault-tracker-jump-m", faults.tracker_jump_m, "tracker_jump size, m");
+  app->add_option("--fault-amplitude-factor", faults.amplitude_factor,
+                  "breathing_amplitude factor on the AP displacement");
+  app->add_option("--fault-rate-change-bpm", faults.rate_change_bpm,
+                  "breathing_rate_up/down change, breaths/min");
+  app->add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s");
+  app->add_option("--recognizer", o->recognizer_class,
+                  "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
+                  "own recognizer or compensator\")");
+  app->add_option("--recognizer-param", o->recognizer_params,
+                  "name=value for the recognizer (repeatable; the paper recognizer's default: "
+                  "config/recognizer.yaml's values are its defaults)");
+  app->add_option("--compensator", o->compensator_class,
+                  "motion compensator class (built-in or pluginlib; README \"Bring your own "
+                  "recognizer or compensator\")");
+  app->add_option("--compensator-param", o->compensator_params,
+                  "name=value for the compensator (repeatable)");
+  app->add_flag("--list-faults", o->list_faults, "print the faults a trial may name, one per line");
+  app->footer("Faults: " + [] {
     std::string names;
     for (const std::string& n : pd::faultNames()) names += (names.empty() ? "" : ", ") + n;
     return names;
   }());
-  const auto print_faults = [] {
-    for (const std::string& n : pd::faultNames()) std::cout << n << "\n";
+}
+
+int printFaults() {
+  for (const std::string& n : pd::faultNames()) std::cout << n << "\n";
+  return 0;
+}
+
+/**
+ * @brief --check-recognizer / --check-compensator CLASS [name=value ...]: load and configure it,
+ *        nothing run (the campaign asks before it writes anything). Exit code.
+ */
+int checkPlugin(int argc, char** argv) {
+  const bool recognizer = std::string(argv[1]) == "--check-recognizer";
+  try {
+    const PluginSettings settings =
+        parseSettings(std::vector<std::string>(argv + 3, argv + argc), "");
+    if (recognizer) {
+      pedicle_drilling::RecognizerLoader loader;
+      std::cout << loader.create(argv[2], settings)->describe() << "\n";
+    } else {
+      pedicle_drilling::CompensatorLoader loader;
+      std::cout << loader.create(argv[2], settings)->describe() << "\n";
+    }
     return 0;
-  };
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: --" << (recognizer ? "recognizer " : "compensator ") << argv[2]
+              << ": " << e.what() << "\n";
+    return 2;
+  }
+}
+
+/** @brief The --trials file, every trial checked. @throws UsageError naming what is wrong. */
+json readTrials(const std::string& path) {
+  json trials;
+  try {
+    trials = json::parse(readText(path, "--trials"));
+  } catch (const json::parse_error& e) {
+    throw UsageError("--trials '" + path + "' is not JSON: " + e.what());
+  }
+  if (!trials.is_array()) throw UsageError("--trials '" + path + "' is not a list");
+  for (const json& t : trials) {
+    for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
+      if (!t.contains(key)) {
+        throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
+      }
+    }
+    if (t.contains("fault")) {
+      if (!t.at("fault").is_string()) throw UsageError("--trials: fault must be a string");
+      try {
+        pd::parseFaultKind(t.at("fault").get<std::string>());
+      } catch (const std::invalid_argument& e) {
+        throw UsageError(std::string("--trials: ") + e.what());
+      }
+    }
+    if (!t.at("seed").is_number_unsigned()) {
+      throw UsageError("--trials: seed " + t.at("seed").dump() + " is not an integer in [0, 2^64)");
+    }
+  }
+  return trials;
+}
+
+/** @brief Runs the trials and writes one JSON line each (the patient model per volunteer). */
+void runTrials(const json& trials, const Options& o, const pd::EngineConfig& config,
+               const pd::PatientModel& stationary_model, pd::ClosedLoopEngine* engine) {
+  std::map<std::string, pd::PatientModel> models;
+  for (const json& t : trials) {
+    json out = {{"trial", t}};
+    try {
+      pd::EngineTrialSpec spec;
+      spec.seed = t.at("seed").get<std::uint64_t>();
+      spec.mode = t.at("case").get<std::string>();
+      spec.spindle_rpm = t.at("rpm").get<double>();
+      spec.feed_rate_mm_s = o.feed_rate;
+      spec.max_duration_s = o.max_duration;
+      spec.fault = pd::parseFaultKind(t.value("fault", std::string("none")));
+      const bool moving = spec.mode != "stationary";
+      pd::PatientModel patient = stationary_model;
+      if (moving) {
+        if (o.models_dir.empty()) {
+          throw std::runtime_error("--models-dir is needed for the moving cases");
+        }
+        // The simulator's patient is the volunteer the seed draws; use that volunteer's model
+        // identified beforehand from its own recording, as in the paper.
+        const pd::DrillingSimulationParams& sim = config.simulation;
+        const int volunteer = pd::drawTrialConditions(spec.seed, sim.variability, sim.ventilator,
+                                                      sim.sensor.force_noise_sd_n)
+                                  .volunteer_id;
+        const std::string path =
+            o.models_dir + "/volunteer_" + std::to_string(volunteer) + "_" + o.model_kind + ".yaml";
+        auto it = models.find(path);
+        if (it == models.end()) it = models.emplace(path, pd::readModelYaml(path)).first;
+        patient = it->second;
+        if (o.bone_motion == "model") {
+          const pd::AxisModelRecord& ap = patient.axes[static_cast<int>(pd::Axis::kAP)];
+          spec.bone_motion = pd::BoneMotionModel{ap.model.q1, ap.model.q2};
+        }
+      }
+      spec.model = patient.motionModel();
+      out["record"] = recordToJson(engine->run(spec));
+    } catch (const std::exception& e) {
+      out["error"] = e.what();
+    }
+    std::cout << out.dump() << "\n" << std::flush;
+  }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Closed-loop drilling trials on the core engine (JSON lines on stdout)",
+               "trial_engine"};
+  Options o;
+  pd::EngineConfig config;
+  addOptions(&app, &o, &config);
   // Alone, --list-faults needs none of the required options.
-  if (argc == 2 && std::string(argv[1]) == "--list-faults") return print_faults();
-  // --check-recognizer / --check-compensator CLASS [name=value ...]: load and configure it,
-  // nothing run (the campaign asks before it writes anything).
+  if (argc == 2 && std::string(argv[1]) == "--list-faults") return printFaults();
   if (argc >= 3 && (std::string(argv[1]) == "--check-recognizer" ||
                     std::string(argv[1]) == "--check-compensator")) {
-    const bool recognizer = std::string(argv[1]) == "--check-recognizer";
-    try {
-      const PluginSettings settings =
-          parseSettings(std::vector<std::string>(argv + 3, argv + argc), "");
-      if (recognizer) {
-        pedicle_drilling::RecognizerLoader loader;
-        std::cout << loader.create(argv[2], settings)->describe() << "\n";
-      } else {
-        pedicle_drilling::CompensatorLoader loader;
-        std::cout << loader.create(argv[2], settings)->describe() << "\n";
-      }
-      return 0;
-    } catch (const std::exception& e) {
-      std::cerr << "trial_engine: --" << (recognizer ? "recognizer " : "compensator ") << argv[2]
-                << ": " << e.what() << "\n";
-      return 2;
-    }
+    return checkPlugin(argc, argv);
   }
   try {
     app.parse(argc, argv);
@@ -221,41 +319,17 @@ int main(int argc, char** argv) {
     const int code = app.exit(e);
     return code == 0 ? 0 : 2;
   }
-  if (list_faults) return print_faults();  // never silently ignored beside other options
+  if (o.list_faults) return printFaults();  // never silently ignored beside other options
 
-  pd::parseSegmentProfile(segment_profile, &config.sequencer.compensation.segment_profile);
-  config.draw_start_phase = !fixed_start;
+  pd::parseSegmentProfile(o.segment_profile, &config.sequencer.compensation.segment_profile);
+  config.draw_start_phase = !o.fixed_start;
   json trials;
   pd::PatientModel stationary_model;
   try {
-    try {
-      trials = json::parse(readText(trials_path, "--trials"));
-    } catch (const json::parse_error& e) {
-      throw UsageError("--trials '" + trials_path + "' is not JSON: " + e.what());
-    }
-    if (!trials.is_array()) throw UsageError("--trials '" + trials_path + "' is not a list");
-    for (const json& t : trials) {
-      for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
-        if (!t.contains(key)) {
-          throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
-        }
-      }
-      if (t.contains("fault")) {
-        if (!t.at("fault").is_string()) throw UsageError("--trials: fault must be a string");
-        try {
-          pd::parseFaultKind(t.at("fault").get<std::string>());
-        } catch (const std::invalid_argument& e) {
-          throw UsageError(std::string("--trials: ") + e.what());
-        }
-      }
-      if (!t.at("seed").is_number_unsigned()) {
-        throw UsageError("--trials: seed " + t.at("seed").dump() +
-                         " is not an integer in [0, 2^64)");
-      }
-    }
-    config.urdf_xml = readText(urdf_path, "--urdf");
-    config.drilling_pose = drilling_pose;
-    stationary_model = pd::readModelYaml(default_model);
+    trials = readTrials(o.trials_path);
+    config.urdf_xml = readText(o.urdf_path, "--urdf");
+    config.drilling_pose = o.drilling_pose;
+    stationary_model = pd::readModelYaml(o.default_model);
   } catch (const UsageError& e) {
     std::cerr << "trial_engine: " << e.what() << "\n";
     return 2;
@@ -269,25 +343,25 @@ int main(int argc, char** argv) {
   pedicle_drilling::CompensatorLoader compensator_loader;
   PluginSettings recognizer_settings;
   PluginSettings compensator_settings;
-  std::string option = "--recognizer " + recognizer_class;
+  std::string option = "--recognizer " + o.recognizer_class;
   try {
-    recognizer_settings = parseSettings(recognizer_params, "--recognizer-param ");
-    recognizer_loader.create(recognizer_class, recognizer_settings);
-    option = "--compensator " + compensator_class;
-    compensator_settings = parseSettings(compensator_params, "--compensator-param ");
-    compensator_loader.create(compensator_class, compensator_settings);
+    recognizer_settings = parseSettings(o.recognizer_params, "--recognizer-param ");
+    recognizer_loader.create(o.recognizer_class, recognizer_settings);
+    option = "--compensator " + o.compensator_class;
+    compensator_settings = parseSettings(o.compensator_params, "--compensator-param ");
+    compensator_loader.create(o.compensator_class, compensator_settings);
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";
     return 2;
   }
-  if (recognizer_class != "pedicle_drilling/PaperRecognizer" || !recognizer_settings.empty()) {
-    config.make_recognizer = [&recognizer_loader, recognizer_class, recognizer_settings]() {
-      return recognizer_loader.create(recognizer_class, recognizer_settings);
+  if (o.recognizer_class != "pedicle_drilling/PaperRecognizer" || !recognizer_settings.empty()) {
+    config.make_recognizer = [&recognizer_loader, &o, recognizer_settings]() {
+      return recognizer_loader.create(o.recognizer_class, recognizer_settings);
     };
   }
-  if (compensator_class != "pedicle_drilling/PaperCompensator") {
-    config.make_compensator = [&compensator_loader, compensator_class, compensator_settings]() {
-      return compensator_loader.create(compensator_class, compensator_settings);
+  if (o.compensator_class != "pedicle_drilling/PaperCompensator") {
+    config.make_compensator = [&compensator_loader, &o, compensator_settings]() {
+      return compensator_loader.create(o.compensator_class, compensator_settings);
     };
   }
   std::unique_ptr<pd::ClosedLoopEngine> engine;
@@ -297,45 +371,6 @@ int main(int argc, char** argv) {
     std::cerr << "trial_engine: bad configuration: " << e.what() << "\n";
     return 2;
   }
-  std::map<std::string, pd::PatientModel> models;
-  for (const json& t : trials) {
-    json out = {{"trial", t}};
-    try {
-      pd::EngineTrialSpec spec;
-      spec.seed = t.at("seed").get<std::uint64_t>();
-      spec.mode = t.at("case").get<std::string>();
-      spec.spindle_rpm = t.at("rpm").get<double>();
-      spec.feed_rate_mm_s = feed_rate;
-      spec.max_duration_s = max_duration;
-      spec.fault = pd::parseFaultKind(t.value("fault", std::string("none")));
-      const bool moving = spec.mode != "stationary";
-      pd::PatientModel patient = stationary_model;
-      if (moving) {
-        if (models_dir.empty()) {
-          throw std::runtime_error("--models-dir is needed for the moving cases");
-        }
-        // The simulator's patient is the volunteer the seed draws; use that volunteer's model
-        // identified beforehand from its own recording, as in the paper.
-        const pd::DrillingSimulationParams& sim = config.simulation;
-        const int volunteer = pd::drawTrialConditions(spec.seed, sim.variability, sim.ventilator,
-                                                      sim.sensor.force_noise_sd_n)
-                                  .volunteer_id;
-        const std::string path =
-            models_dir + "/volunteer_" + std::to_string(volunteer) + "_" + model_kind + ".yaml";
-        auto it = models.find(path);
-        if (it == models.end()) it = models.emplace(path, pd::readModelYaml(path)).first;
-        patient = it->second;
-        if (bone_motion == "model") {
-          const pd::AxisModelRecord& ap = patient.axes[static_cast<int>(pd::Axis::kAP)];
-          spec.bone_motion = pd::BoneMotionModel{ap.model.q1, ap.model.q2};
-        }
-      }
-      spec.model = patient.motionModel();
-      out["record"] = recordToJson(engine->run(spec));
-    } catch (const std::exception& e) {
-      out["error"] = e.what();
-    }
-    std::cout << out.dump() << "\n" << std::flush;
-  }
+  runTrials(trials, o, config, stationary_model, engine.get());
   return 0;
 }
