@@ -16,24 +16,24 @@ CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
 all: build
 
 deps:
-	./scripts/install_deps.sh
+	./scripts/dev/install_deps.sh
 
 build: deps
-	./scripts/link_workspace.sh
+	./scripts/dev/link_workspace.sh
 	$(CATKIN_MAKE)
 
 test: build format-check
 	cd $(WS)/build && $(MAKE) -j$(JOBS) tests
-	xvfb-run -a -s "-screen 0 1280x1024x24" ./scripts/run_tests.sh
+	xvfb-run -a -s "-screen 0 1280x1024x24" ./scripts/dev/run_tests.sh
 
 run: build
-	./scripts/run_main.sh
+	./scripts/dev/run_main.sh
 
 bench: build
-	./scripts/run_bench.sh
+	./scripts/dev/run_bench.sh
 
 lint: deps
-	./scripts/link_workspace.sh
+	./scripts/dev/link_workspace.sh
 	catkin_lint -W1 $(WS)/src/pedicle_drilling
 
 format: deps

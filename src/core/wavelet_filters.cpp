@@ -4,8 +4,8 @@
 // (Debian package python3-pywt), attributes dec_lo/dec_hi/rec_lo/rec_hi of
 // pywt.Wavelet(name), printed with 17 significant digits (exact double round trip).
 // Generated with:
-//   /usr/bin/python3 scripts/generate_wavelet_filters.py > src/core/wavelet_filters.cpp
-// from the package root. See scripts/generate_wavelet_filters.py.
+//   /usr/bin/python3 scripts/dev/generate_wavelet_filters.py > src/core/wavelet_filters.cpp
+// from the package root. See scripts/dev/generate_wavelet_filters.py.
 
 #include <cstddef>
 

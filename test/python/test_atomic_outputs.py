@@ -16,7 +16,8 @@ import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 SCRIPTS = os.path.join(ROOT, 'scripts')
-sys.path.insert(0, SCRIPTS)
+PACKAGE_SRC = os.path.join(ROOT, 'src')  # pd_campaign (catkin_python_setup; here without devel)
+sys.path.insert(0, PACKAGE_SRC)
 from pd_campaign.atomic import atomic_path, atomic_savefig, atomic_write  # noqa: E402
 
 # The helper's temporary files: .<name>.tmp<random> in the destination's folder.
@@ -192,7 +193,8 @@ def output_violations(source):
 def python_scripts():
     paths = []
     for path in sorted(glob.glob(os.path.join(SCRIPTS, '*')) +
-                       glob.glob(os.path.join(SCRIPTS, 'pd_campaign', '*.py'))):
+                       glob.glob(os.path.join(SCRIPTS, 'dev', '*')) +
+                       glob.glob(os.path.join(PACKAGE_SRC, 'pd_campaign', '*.py'))):
         if not os.path.isfile(path) or path.endswith(os.path.join('pd_campaign', 'atomic.py')):
             continue
         with open(path, errors='replace') as handle:
@@ -249,7 +251,8 @@ def test_no_script_opens_an_output_for_writing_directly(path):
 
 
 def test_the_check_covers_the_scripts_named_by_the_issue():
-    names = {os.path.relpath(p, SCRIPTS) for p in python_scripts()}
+    names = {os.path.relpath(p, SCRIPTS) if p.startswith(SCRIPTS)
+             else os.path.relpath(p, PACKAGE_SRC) for p in python_scripts()}
     for name in ('table2.py', 'plot_tidal_volume.py', 'volunteers_to_bag.py', 'campaign',
                  'campaign_merge', 'campaign_compare', 'pd_campaign/cli.py',
                  'pd_campaign/report.py', 'pd_campaign/plots.py', 'pd_campaign/compare.py',

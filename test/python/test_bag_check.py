@@ -7,7 +7,7 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'scripts'))
+sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 rosbag = pytest.importorskip('rosbag')
 import rospy  # noqa: E402

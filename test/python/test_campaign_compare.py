@@ -8,7 +8,7 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'scripts'))
+sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import compare, stats  # noqa: E402
 
 TOOL = os.path.join(ROOT, 'scripts', 'campaign_compare')

@@ -10,7 +10,7 @@ import random
 import sys
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'scripts'))
+sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 from pd_campaign import cli  # noqa: E402
 

@@ -4,7 +4,7 @@
  *
  * The filter coefficients are the PyWavelets ones (same names, same sign and ordering
  * conventions), generated once into src/core/wavelet_filters.cpp by
- * scripts/generate_wavelet_filters.py. No ROS dependency.
+ * scripts/dev/generate_wavelet_filters.py. No ROS dependency.
  */
 #ifndef PEDICLE_DRILLING_CORE_WAVELET_HPP
 #define PEDICLE_DRILLING_CORE_WAVELET_HPP

@@ -4,7 +4,7 @@
 # the workspace inside its own package, and ROS's resource lookup (roslaunch, rostest, rosrun),
 # which follows symlinks while walking the package, would loop through it.
 set -eu
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 PKG="${ROOT}/catkin_ws/src/pedicle_drilling"
 if [ -L "${PKG}" ]; then rm -f "${PKG}"; fi
 mkdir -p "${PKG}"

@@ -2,7 +2,7 @@
 # `make bench`: runs every benchmark program; each prints `BENCH <name> <value> <unit>` lines.
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
 set +u
 # shellcheck disable=SC1091

@@ -7,7 +7,7 @@
 # Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
 set -u
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 WS="${ROOT}/catkin_ws"
 # setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
 set +u
@@ -70,4 +70,4 @@ if ls "${ROOT}"/test/python/test_*.py >/dev/null 2>&1; then
 fi
 
 echo "== summary"
-/usr/bin/python3 "${ROOT}/scripts/summarize_test_results.py" "${RESULTS}"
+/usr/bin/python3 "${ROOT}/scripts/dev/summarize_test_results.py" "${RESULTS}"

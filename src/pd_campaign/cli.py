@@ -434,10 +434,8 @@ def run_campaign(argv=None):
                    '--compensator', compensator]
         if args.bags:
             command.append('--bags')
-        env = dict(os.environ)
-        env['PYTHONPATH'] = os.path.join(PACKAGE_ROOT, 'scripts') + os.pathsep + \
-            env.get('PYTHONPATH', '')
-        workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, env=env, text=True,
+        # The worker imports pd_campaign as this process did: catkin's devel space has it.
+        workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True,
                                         start_new_session=True))
 
     def collect(worker):

@@ -12,7 +12,7 @@
 # Reports in results/campaign*/report.md.
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
-ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
 set +u
 # shellcheck disable=SC1091
