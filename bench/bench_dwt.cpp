@@ -14,10 +14,10 @@
 #include <random>
 #include <vector>
 
-#include "pedicle_drilling/core/denoising.hpp"
-#include "pedicle_drilling/core/dwt.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
-#include "pedicle_drilling/core/wavelet.hpp"
+#include "pedicle_drilling/core/breathing/denoising.hpp"
+#include "pedicle_drilling/core/breathing/dwt.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/wavelet.hpp"
 
 int main() {
   namespace pd = pedicle_drilling::core;

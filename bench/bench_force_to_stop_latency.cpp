@@ -29,7 +29,7 @@
 #include <vector>
 
 #include "pedicle_drilling/StopCommand.h"
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
 namespace {
 

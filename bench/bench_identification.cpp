@@ -15,9 +15,9 @@
 #include <cstdio>
 #include <vector>
 
-#include "pedicle_drilling/core/identification.hpp"
-#include "pedicle_drilling/core/pso.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/identification.hpp"
+#include "pedicle_drilling/core/breathing/pso.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 
 namespace {
 

@@ -5,7 +5,7 @@
 #include <random>
 #include <vector>
 
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
 namespace {
 

@@ -17,7 +17,7 @@
 
 #include <Eigen/Core>
 
-#include "pedicle_drilling/core/bullet_arm.hpp"
+#include "pedicle_drilling/core/robot/bullet_arm.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR
 #error "PEDICLE_DRILLING_SOURCE_DIR (the package's source folder) is passed by CMakeLists.txt"

@@ -16,7 +16,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR
 #error "PEDICLE_DRILLING_SOURCE_DIR (the package's source folder) is passed by CMakeLists.txt"

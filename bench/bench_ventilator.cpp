@@ -5,7 +5,7 @@
 #include <chrono>
 #include <cstdio>
 
-#include "pedicle_drilling/core/ventilator.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
 
 int main() {
   using Clock = std::chrono::steady_clock;

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""One-off generator of src/core/wavelet_filters.cpp from PyWavelets.
+"""One-off generator of src/core/breathing/wavelet_filters.cpp from PyWavelets.
 
 The wavelet filter coefficients are mathematical constants. Rather than typing
 them in by hand, they are taken once from PyWavelets (``pywt.Wavelet(name)``,
@@ -8,7 +8,7 @@ significant digits, which round-trips IEEE-754 doubles exactly.
 
 Usage (from the package root):
 
-    /usr/bin/python3 scripts/dev/generate_wavelet_filters.py > src/core/wavelet_filters.cpp
+    /usr/bin/python3 scripts/dev/generate_wavelet_filters.py > src/core/breathing/wavelet_filters.cpp
 
 The output is deterministic; re-running it with the same pywt version gives the
 same file. Note that ``python3`` on PATH may be an interpreter without pywt, so
@@ -31,7 +31,7 @@ FAMILIES = [
     ]),
 ]
 
-COMMAND = "/usr/bin/python3 scripts/dev/generate_wavelet_filters.py > src/core/wavelet_filters.cpp"
+COMMAND = "/usr/bin/python3 scripts/dev/generate_wavelet_filters.py > src/core/breathing/wavelet_filters.cpp"
 
 
 def ident(name):
@@ -64,7 +64,7 @@ def main():
     out.write("// Generated with:\n//   %s\n" % COMMAND)
     out.write("// from the package root. See scripts/dev/generate_wavelet_filters.py.\n\n")
     out.write("#include <cstddef>\n\n")
-    out.write('#include "pedicle_drilling/core/wavelet.hpp"\n\n')
+    out.write('#include "pedicle_drilling/core/breathing/wavelet.hpp"\n\n')
     out.write("namespace pedicle_drilling {\nnamespace detail {\nnamespace {\n\n")
     entries = []
     for family, names in FAMILIES:

@@ -21,7 +21,7 @@
 #include <string>
 
 #include "pedicle_drilling/InjectFault.h"
-#include "pedicle_drilling/core/fault_injector.hpp"
+#include "pedicle_drilling/core/sim/fault_injector.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 

@@ -22,7 +22,7 @@
 
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
-#include "pedicle_drilling/core/safety_supervisor.hpp"
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 

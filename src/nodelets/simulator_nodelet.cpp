@@ -35,7 +35,7 @@
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/VentilatorSettings.h"
-#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"

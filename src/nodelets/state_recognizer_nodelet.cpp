@@ -20,8 +20,8 @@
 
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StopCommand.h"
-#include "pedicle_drilling/core/recognizer_interface.hpp"
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"

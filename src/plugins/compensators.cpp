@@ -6,7 +6,7 @@
  */
 #include <pluginlib/class_list_macros.hpp>
 
-#include "pedicle_drilling/core/compensator_interface.hpp"
+#include "pedicle_drilling/core/control/compensator_interface.hpp"
 
 PLUGINLIB_EXPORT_CLASS(pedicle_drilling::core::PaperCompensator,
                        pedicle_drilling::core::CompensatorInterface)

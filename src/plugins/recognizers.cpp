@@ -6,7 +6,7 @@
  */
 #include <pluginlib/class_list_macros.hpp>
 
-#include "pedicle_drilling/core/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 PLUGINLIB_EXPORT_CLASS(pedicle_drilling::core::PaperRecognizer,
                        pedicle_drilling::core::RecognizerInterface)

@@ -4,7 +4,7 @@
 #include <sstream>
 #include <vector>
 
-#include "pedicle_drilling/core/cli_args.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace pedicle_drilling {
 

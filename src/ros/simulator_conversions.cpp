@@ -6,7 +6,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {

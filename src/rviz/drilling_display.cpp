@@ -28,7 +28,7 @@
 #include <rviz/properties/vector_property.h>
 #include <pluginlib/class_list_macros.hpp>
 
-#include "pedicle_drilling/core/drilling_scene.hpp"
+#include "pedicle_drilling/core/drilling/drilling_scene.hpp"
 
 namespace pedicle_drilling {
 namespace rviz_plugins {

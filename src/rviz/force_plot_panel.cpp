@@ -24,7 +24,7 @@
 #include <rviz/config.h>
 #include <pluginlib/class_list_macros.hpp>
 
-#include "pedicle_drilling/core/trial_view.hpp"
+#include "pedicle_drilling/core/control/trial_view.hpp"
 
 namespace pedicle_drilling {
 namespace rviz_plugins {

@@ -17,10 +17,10 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/cli_args.hpp"
-#include "pedicle_drilling/core/denoising.hpp"
-#include "pedicle_drilling/core/dwt.hpp"
-#include "pedicle_drilling/core/wavelet.hpp"
+#include "pedicle_drilling/core/breathing/denoising.hpp"
+#include "pedicle_drilling/core/breathing/dwt.hpp"
+#include "pedicle_drilling/core/breathing/wavelet.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace {
 

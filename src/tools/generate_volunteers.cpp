@@ -20,10 +20,10 @@
 
 #include <sys/stat.h>
 
-#include "pedicle_drilling/core/cli_args.hpp"
-#include "pedicle_drilling/core/identification.hpp"
-#include "pedicle_drilling/core/motion_model_io.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/identification.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace {
 

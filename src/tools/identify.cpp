@@ -26,15 +26,15 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/atomic_file.hpp"
-#include "pedicle_drilling/core/cli_args.hpp"
-#include "pedicle_drilling/core/denoising.hpp"
-#include "pedicle_drilling/core/identification.hpp"
-#include "pedicle_drilling/core/motion_model_io.hpp"
-#include "pedicle_drilling/core/motion_pipeline.hpp"
-#include "pedicle_drilling/core/pso.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
-#include "pedicle_drilling/core/wavelet.hpp"
+#include "pedicle_drilling/core/breathing/denoising.hpp"
+#include "pedicle_drilling/core/breathing/identification.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
+#include "pedicle_drilling/core/breathing/pso.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/wavelet.hpp"
+#include "pedicle_drilling/core/common/atomic_file.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace {
 

@@ -19,8 +19,8 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
-#include "pedicle_drilling/core/recognizer_interface.hpp"
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 
 namespace {

@@ -10,8 +10,8 @@
 #include <memory>
 #include <string>
 
-#include "pedicle_drilling/core/cli_args.hpp"
-#include "pedicle_drilling/core/ventilator.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace pd = pedicle_drilling::core;
 

@@ -25,9 +25,9 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/cli_args.hpp"
-#include "pedicle_drilling/core/closed_loop_engine.hpp"
-#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 
 namespace pd = pedicle_drilling::core;

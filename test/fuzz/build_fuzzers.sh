@@ -19,7 +19,7 @@ build() {  # build NAME SOURCES...
   local binary="${OUT}/${name}"
   if [ -x "${binary}" ]; then
     local newer=0 s
-    for s in "${sources[@]}" "${ROOT}"/include/pedicle_drilling/core/*.hpp; do
+    for s in "${sources[@]}" "${ROOT}"/include/pedicle_drilling/core/*/*.hpp; do
       [ "${s}" -nt "${binary}" ] && newer=1
     done
     [ "${newer}" -eq 0 ] && return 0
@@ -30,6 +30,6 @@ build() {  # build NAME SOURCES...
   mv "${binary}.tmp" "${binary}"
 }
 CORE="${ROOT}/src/core"
-build fuzz_model_yaml "${CORE}/motion_model_io.cpp" "${CORE}/motion_model.cpp" "${CORE}/atomic_file.cpp"
-build fuzz_recording_csv "${CORE}/virtual_volunteer.cpp" "${CORE}/atomic_file.cpp"
-build fuzz_recognizer "${CORE}/state_recognizer.cpp"
+build fuzz_model_yaml "${CORE}/breathing/motion_model_io.cpp" "${CORE}/breathing/motion_model.cpp" "${CORE}/common/atomic_file.cpp"
+build fuzz_recording_csv "${CORE}/breathing/virtual_volunteer.cpp" "${CORE}/common/atomic_file.cpp"
+build fuzz_recognizer "${CORE}/drilling/state_recognizer.cpp"

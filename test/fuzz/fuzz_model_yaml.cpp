@@ -9,7 +9,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 
 namespace core = pedicle_drilling::core;
 

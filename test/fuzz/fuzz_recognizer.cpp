@@ -12,7 +12,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
 namespace core = pedicle_drilling::core;
 

@@ -13,7 +13,7 @@
 #include <cstdlib>
 #include <string>
 
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 
 namespace core = pedicle_drilling::core;
 

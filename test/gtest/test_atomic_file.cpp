@@ -14,7 +14,7 @@
 #include <dirent.h>
 #include <unistd.h>
 
-#include "pedicle_drilling/core/atomic_file.hpp"
+#include "pedicle_drilling/core/common/atomic_file.hpp"
 
 namespace {
 

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/bone_specimen.hpp"
+#include "pedicle_drilling/core/drilling/bone_specimen.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

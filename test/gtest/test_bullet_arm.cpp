@@ -18,7 +18,7 @@
 #include <urdf_parser/urdf_parser.h>
 #include <Eigen/Dense>
 
-#include "pedicle_drilling/core/bullet_arm.hpp"
+#include "pedicle_drilling/core/robot/bullet_arm.hpp"
 #include "support.hpp"
 
 #ifndef PEDICLE_DRILLING_SOURCE_DIR

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/cli_args.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace {
 

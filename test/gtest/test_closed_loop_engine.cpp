@@ -1,5 +1,5 @@
 // Tests of core::ClosedLoopEngine: whole trials on the simulation with the nodelets' objects.
-#include "pedicle_drilling/core/closed_loop_engine.hpp"
+#include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "support.hpp"
 
 namespace pd = pedicle_drilling::core;

@@ -1,5 +1,5 @@
 // Tests of the Algorithm 1 compensation planner (core, no ROS).
-#include "pedicle_drilling/core/compensation_planner.hpp"
+#include "pedicle_drilling/core/control/compensation_planner.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Tests of the compensator plugin interface (issue 17): the paper compensator is the prediction
 // it wraps, the tracker-feedback baseline, the factory, and a planner driven by any class.
-#include "pedicle_drilling/core/compensator_interface.hpp"
+#include "pedicle_drilling/core/control/compensator_interface.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/compensation_planner.hpp"
+#include "pedicle_drilling/core/control/compensation_planner.hpp"
 
 namespace pd = pedicle_drilling::core;
 

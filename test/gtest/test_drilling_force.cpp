@@ -9,7 +9,7 @@
 #include <cmath>
 #include <vector>
 
-#include "pedicle_drilling/core/drilling_force.hpp"
+#include "pedicle_drilling/core/drilling/drilling_force.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

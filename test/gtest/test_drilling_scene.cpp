@@ -7,8 +7,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "pedicle_drilling/core/drilling_scene.hpp"
-#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/drilling/drilling_scene.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "support.hpp"
 
 namespace pd = pedicle_drilling::core;

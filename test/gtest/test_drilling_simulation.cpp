@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/drilling_simulation.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "support.hpp"
 
 namespace pedicle_drilling::core {

@@ -11,8 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/dwt.hpp"
-#include "pedicle_drilling/core/wavelet.hpp"
+#include "pedicle_drilling/core/breathing/dwt.hpp"
+#include "pedicle_drilling/core/breathing/wavelet.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

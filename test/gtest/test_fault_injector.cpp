@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pedicle_drilling/core/fault_injector.hpp"
+#include "pedicle_drilling/core/sim/fault_injector.hpp"
 
 namespace pd = pedicle_drilling::core;
 

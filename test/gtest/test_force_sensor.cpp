@@ -8,7 +8,7 @@
 #include <cmath>
 #include <vector>
 
-#include "pedicle_drilling/core/force_sensor.hpp"
+#include "pedicle_drilling/core/drilling/force_sensor.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

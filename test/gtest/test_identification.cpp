@@ -7,8 +7,8 @@
 #include <random>
 #include <vector>
 
-#include "pedicle_drilling/core/identification.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/identification.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

@@ -5,7 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "pedicle_drilling/core/identification_window.hpp"
+#include "pedicle_drilling/core/breathing/identification_window.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

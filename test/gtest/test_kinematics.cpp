@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pedicle_drilling/core/kinematics.hpp"
+#include "pedicle_drilling/core/robot/kinematics.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

@@ -14,8 +14,8 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include "pedicle_drilling/core/motion_model.hpp"
-#include "pedicle_drilling/core/motion_model_io.hpp"
+#include "pedicle_drilling/core/breathing/motion_model.hpp"
+#include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

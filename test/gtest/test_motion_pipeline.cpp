@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/motion_pipeline.hpp"
+#include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

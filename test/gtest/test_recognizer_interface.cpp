@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace pd = pedicle_drilling::core;
 

@@ -6,7 +6,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "pedicle_drilling/core/safety_monitor.hpp"
+#include "pedicle_drilling/core/control/safety_monitor.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

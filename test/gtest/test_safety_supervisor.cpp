@@ -5,7 +5,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "pedicle_drilling/core/safety_supervisor.hpp"
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

@@ -7,7 +7,7 @@
 
 #include <cmath>
 
-#include "pedicle_drilling/core/spms_kinematics.hpp"
+#include "pedicle_drilling/core/robot/spms_kinematics.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

@@ -1,6 +1,6 @@
 // Tests of core::StageAxis: a lead-screw drive's position loop with velocity feed-forward,
 // speed and acceleration limits (the SPMS sliders and the drill device's feed).
-#include "pedicle_drilling/core/stage_axis.hpp"
+#include "pedicle_drilling/core/robot/stage_axis.hpp"
 
 #include <gtest/gtest.h>
 

@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/state_recognizer.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

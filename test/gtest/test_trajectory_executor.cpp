@@ -1,7 +1,7 @@
 // Tests of core::JointTrajectoryExecutor: each rule of ros_control's JointTrajectoryController
 // that the simulated arm and SPMS controllers follow (trajectory_executor.hpp), stated from its
 // documented behaviour.
-#include "pedicle_drilling/core/trajectory_executor.hpp"
+#include "pedicle_drilling/core/robot/trajectory_executor.hpp"
 
 #include <gtest/gtest.h>
 

@@ -8,7 +8,7 @@
 
 #include <Eigen/Geometry>
 
-#include "pedicle_drilling/core/trapezoid_segmenter.hpp"
+#include "pedicle_drilling/core/control/trapezoid_segmenter.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

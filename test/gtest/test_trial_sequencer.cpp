@@ -1,5 +1,5 @@
 // Tests of core::TrialSequencer: the trial sequence of Algorithm 1 driven by explicit time.
-#include "pedicle_drilling/core/trial_sequencer.hpp"
+#include "pedicle_drilling/core/control/trial_sequencer.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,6 +1,6 @@
 // Tests of core::TrialView, PanelSettings and layoutLabels: what the rviz plugins show (issue 16),
 // without Qt, Ogre or ROS.
-#include "pedicle_drilling/core/trial_view.hpp"
+#include "pedicle_drilling/core/control/trial_view.hpp"
 
 #include <gtest/gtest.h>
 

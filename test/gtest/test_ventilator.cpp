@@ -4,7 +4,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "pedicle_drilling/core/ventilator.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

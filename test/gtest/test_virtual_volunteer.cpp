@@ -13,8 +13,8 @@
 #include <stdlib.h>
 #include <unistd.h>
 
-#include "pedicle_drilling/core/identification.hpp"
-#include "pedicle_drilling/core/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/breathing/identification.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 
 namespace pedicle_drilling::core {
 namespace {

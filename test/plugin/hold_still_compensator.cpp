@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/compensator_interface.hpp"
+#include "pedicle_drilling/core/control/compensator_interface.hpp"
 
 namespace test_plugins {
 

@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "pedicle_drilling/core/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace test_plugins {
 

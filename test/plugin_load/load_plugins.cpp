@@ -18,8 +18,8 @@
 #include <rviz/display.h>
 #include <rviz/panel.h>
 
-#include "pedicle_drilling/core/compensator_interface.hpp"
-#include "pedicle_drilling/core/recognizer_interface.hpp"
+#include "pedicle_drilling/core/control/compensator_interface.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace {
 

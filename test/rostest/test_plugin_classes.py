@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Every class in the package's plugin XML files (nodelet_plugins.xml, rviz_plugins.xml,
 recognizer_plugins.xml, compensator_plugins.xml, as `rospack plugins` finds them through the
-package's exports) loads through pluginlib by its name and constructs: plugin_load_check (built
+package's exports) loads through pluginlib by its name and constructs: plugin_load_test (built
 with the tests) loads them by base class and reports each; this test compares its report with
 the XML files, so a class added to an XML but not exported by its library fails here."""
 import os
@@ -38,12 +38,12 @@ class PluginClassesTest(unittest.TestCase):
         wanted = declared()
         bases = {b for b, _ in wanted}
         self.assertEqual(bases, {b for group in EXPORTS.values() for b in group}, wanted)
-        binary = os.path.join(os.environ['PEDICLE_DRILLING_BIN_DIR'], 'plugin_load_check') \
+        binary = os.path.join(os.environ['PEDICLE_DRILLING_BIN_DIR'], 'plugin_load_test') \
             if os.environ.get('PEDICLE_DRILLING_BIN_DIR') else None
         if not binary or not os.path.exists(binary):
-            out = subprocess.run(['catkin_find', 'pedicle_drilling', 'plugin_load_check'],
+            out = subprocess.run(['catkin_find', 'pedicle_drilling', 'plugin_load_test'],
                                  capture_output=True, text=True).stdout.split()
-            binary = out[0] if out else 'plugin_load_check'
+            binary = out[0] if out else 'plugin_load_test'
         env = dict(os.environ, QT_QPA_PLATFORM='offscreen')
         run = subprocess.run([binary], capture_output=True, text=True, timeout=90, env=env)
         loaded = set()

@@ -8,7 +8,7 @@
 #include <string>
 
 #include "pedicle_drilling/MotionModel.h"
-#include "pedicle_drilling/core/motion_pipeline.hpp"
+#include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 
 namespace pedicle_drilling {

@@ -16,7 +16,7 @@
 #include <utility>
 #include <vector>
 
-#include "pedicle_drilling/core/cli_args.hpp"
+#include "pedicle_drilling/core/common/cli_args.hpp"
 
 namespace pedicle_drilling {
 

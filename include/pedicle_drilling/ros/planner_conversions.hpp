@@ -15,7 +15,7 @@
 #include <vector>
 
 #include "pedicle_drilling/TrialStatus.h"
-#include "pedicle_drilling/core/trial_sequencer.hpp"
+#include "pedicle_drilling/core/control/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 
 namespace pedicle_drilling {

@@ -15,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include "pedicle_drilling/core/compensator_interface.hpp"
-#include "pedicle_drilling/core/recognizer_interface.hpp"
+#include "pedicle_drilling/core/control/compensator_interface.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace pluginlib {
 template <class T>

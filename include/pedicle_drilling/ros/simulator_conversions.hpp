@@ -20,7 +20,7 @@
 #include "pedicle_drilling/GroundTruth.h"
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/TidalVolume.h"
-#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/trial_distribution_params.hpp"
 

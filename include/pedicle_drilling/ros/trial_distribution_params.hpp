@@ -7,8 +7,8 @@
 
 #include <ros/node_handle.h>
 
-#include "pedicle_drilling/core/bone_specimen.hpp"
-#include "pedicle_drilling/core/drilling_simulation.hpp"
+#include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 
 namespace pedicle_drilling {
 

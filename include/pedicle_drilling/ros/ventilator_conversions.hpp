@@ -9,7 +9,7 @@
 
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/VentilatorSettings.h"
-#include "pedicle_drilling/core/ventilator.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 
 namespace pedicle_drilling {

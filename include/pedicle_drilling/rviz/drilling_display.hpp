@@ -37,7 +37,7 @@
 #include <pedicle_drilling/TrialStatus.h>
 #include <rviz/display.h>
 
-#include "pedicle_drilling/core/trial_view.hpp"
+#include "pedicle_drilling/core/control/trial_view.hpp"
 #endif
 
 namespace Ogre {

@@ -34,7 +34,7 @@
 #include <rviz/panel.h>
 #include <std_msgs/String.h>
 
-#include "pedicle_drilling/core/trial_view.hpp"
+#include "pedicle_drilling/core/control/trial_view.hpp"
 #endif
 
 class QComboBox;

@@ -1,0 +1,293 @@
+// The trial sequence of Algorithm 1 (paper Sec. IV-B), with no ROS and explicit time: spindle
+// on, arm to the drilling pose, marker registration, 125 ms trapezoidal segments of feed (+ the
+// predicted displacement in compensated mode), stop and hold, retreat, done. The
+// CompensationPlanner nodelet and the closed-loop engine drive the very same object: they feed
+// it their inputs, fire the timers it asks for, and carry out the commands it emits.
+#ifndef PEDICLE_DRILLING_CORE_TRIAL_SEQUENCER_HPP_
+#define PEDICLE_DRILLING_CORE_TRIAL_SEQUENCER_HPP_
+
+#include <Eigen/Geometry>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/breathing/motion_model.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/control/compensation_planner.hpp"
+#include "pedicle_drilling/core/control/safety_monitor.hpp"
+
+namespace pedicle_drilling::core {
+
+/** @brief Phase of a trial (the planner's status; the values of msg/TrialStatus.msg). */
+enum class TrialPhase : std::uint8_t {
+  kIdle = 0,
+  kMovingToPose = 1,
+  kRegistering = 2,
+  kDrilling = 3,
+  kStopped = 4,
+  kRetreating = 5,
+  kDone = 6,
+  kFailed = 7,
+};
+
+/** @brief Status text of a phase: idle, moving_to_pose, ..., done, failed. */
+const char* toString(TrialPhase p);
+
+/** @brief True while a trial runs (moving_to_pose .. retreating). */
+bool isRunning(TrialPhase p);
+
+/** @brief Parameters of the sequence (the CompensationPlanner's, README). */
+struct TrialSequencerParams {
+  /** @brief Segmentation and prediction; feed_rate_m_s is set per trial. drill_axis is set from
+   *         the arm by the constructor. */
+  CompensationParams compensation;
+  double default_feed_rate_mm_s = 0.5;    ///< StartTrial 0 means this, (0, 10]
+  double default_spindle_rpm = 12000.0;   ///< (0, 60000]
+  double default_max_duration_s = 120.0;  ///< (0, 3600]
+  double move_duration_s = 2.0;           ///< arm motion to the drilling pose, (0, 60]
+  double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
+  int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
+  double registration_timeout_s = 3.0;    ///< (0, 60]
+  double stop_hold_s = 1.0;               ///< hold after a recognizer stop, [0, 60]
+  /**
+   * @brief While drilling, the recognizer's drilling_state (every averaged sample, 20 Hz) must
+   *        not be silent longer than this, else stop and retreat (its nodelet was unloaded or
+   *        died: nothing would stop the feed at the inner layer). [0 (off), 60] s.
+   */
+  double recognizer_timeout_s = 0.5;
+  /**
+   * @brief While drilling, the safety monitor must have been heard (onMonitorAlive: its
+   *        /diagnostics, every 1 s and at once on a stop) within this, else stop and retreat.
+   *        [0 (off), 60] s.
+   */
+  double monitor_timeout_s = 2.5;
+  RetreatParams retreat;                ///< retreat along the drill axis
+  std::vector<std::string> arm_joints;  ///< the arm's joints, in command order
+  std::string feed_joint = "feed_joint";
+  double feed_lower_m = 0.0;  ///< feed joint limits (URDF)
+  double feed_upper_m = 0.06;
+
+  /** @brief Check every field. @throws std::invalid_argument naming the field first. */
+  void validate() const;
+};
+
+/** @brief What a trial is started with; 0 in a number means the parameter's default. */
+struct TrialRequest {
+  std::string mode;  ///< stationary | uncompensated | compensated
+  double spindle_rpm = 0.0;
+  double feed_rate_mm_s = 0.0;
+  double max_duration_s = 0.0;
+  /** @brief rest_to_rest | exact for this trial; "" means params().compensation's. */
+  std::string segment_profile;
+};
+
+/** @brief One joint trajectory command (trajectory_msgs/JointTrajectory semantics). */
+struct JointTrajectoryCommand {
+  /** @brief One point: time from the start time, positions and velocities per joint. */
+  struct Point {
+    double time_from_start = 0.0;
+    std::vector<double> positions;
+    std::vector<double> velocities;
+  };
+  double start_time = 0.0;  ///< header stamp [s]
+  std::vector<std::string> joint_names;
+  std::vector<Point> points;
+};
+
+/** @brief The predicted marker pose at a tracker sample's stamp (for the safety monitor). */
+struct PredictedMarker {
+  double stamp = 0.0;
+  std::string frame;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+};
+
+/** @brief A timer the driver must run: call the matching on*() method when it fires. */
+struct TimerRequest {
+  enum class Kind { kPoseReached, kRegistrationTimeout, kSegment };
+  Kind kind = Kind::kSegment;
+  double delay_s = 0.0;   ///< first firing after this much time from the request
+  bool periodic = false;  ///< then every delay_s
+};
+
+/** @brief A message for the driver's log. */
+struct SequencerLog {
+  enum class Level { kInfo, kWarn, kError };
+  Level level = Level::kInfo;
+  std::string text;
+};
+
+/** @brief Everything one call produced, in order of emission within each list. */
+struct SequencerOutput {
+  std::vector<JointTrajectoryCommand> trajectories;
+  std::vector<double> spindle_rpm;
+  std::vector<TrialPhase> phases;
+  std::vector<PredictedMarker> predicted;
+  std::vector<TimerRequest> start_timers;
+  bool stop_timers = false;  ///< stop every timer started before (applied before start_timers)
+  std::vector<SequencerLog> log;
+  /** @brief Stops the sequencer itself decided (a silent component): the driver announces each
+   *         as a StopCommand with retreat = true. */
+  std::vector<std::string> stops;
+
+  /** @brief True if nothing was produced. */
+  bool empty() const;
+};
+
+/** @brief Makes the compensator of a trial (issue 17); configured, one per trial. */
+using CompensatorFactory = std::function<std::unique_ptr<CompensatorInterface>()>;
+
+/**
+ * @brief World -> marker-frame rotation lookup: true and *rotation when known (tf), false to
+ *        wait (the sample is skipped). An empty frame or the world frame never calls it.
+ */
+using RotationLookup = std::function<bool(const std::string& frame, Eigen::Matrix3d* rotation)>;
+
+/**
+ * @brief The trial sequence, driven by explicit time. Not thread-safe: one driver calls it.
+ *
+ * Every call appends to an output that the driver takes with takeOutput() and carries out
+ * (publishes, or hands to the simulation), in order.
+ */
+class TrialSequencer {
+ public:
+  /**
+   * @brief Construct.
+   * @param params validated here (throws std::invalid_argument naming the field).
+   * @param arm the arm's drilling pose and feed home.
+   * @param world_frame frame in which the planner works; markers in it need no rotation.
+   */
+  TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
+                 std::string world_frame = "world");
+
+  /**
+   * @brief The compensator class of the next trials (issue 17): empty (the default) is the
+   *        paper's, PaperCompensator. The factory is called by start(); an exception it throws
+   *        is start()'s refusal.
+   */
+  void setCompensatorFactory(CompensatorFactory factory) { make_compensator_ = std::move(factory); }
+
+  /** @brief New ventilator settings (from the ventilator; applied to a running prediction). */
+  void setVentilator(const VentilatorSettings& settings);
+  /** @brief Start time of the current breath (tidal volume stamp - time in breath). */
+  void setBreathStart(double t);
+
+  /**
+   * @brief Start a trial at `now` with the patient's motion model.
+   * @return "" when started, else the reason (nothing was started; the phase is unchanged).
+   */
+  std::string start(const TrialRequest& request, const MotionModel& model, double now);
+
+  /** @brief What start() would answer about the request alone ("" = acceptable). */
+  std::string check(const TrialRequest& request) const;
+
+  /** @brief A tracked marker sample (stamp = measurement time). */
+  void onMarker(double now, double stamp, const std::string& frame, const Eigen::Vector3d& p,
+                const Eigen::Quaterniond& orientation, const RotationLookup& lookup);
+  /** @brief A stop command (retreat = true from the safety monitor, false from the recognizer). */
+  void onStop(double now, bool retreat, const std::string& reason);
+  /**
+   * @brief The recognizer's latest state. A reported stop is a stop while drilling; a stop it
+   *        still reports when the registration ends (latched from an earlier trial) fails the
+   *        trial before the first feed.
+   */
+  void onRecognizerState(double now, bool stop, const std::string& state_name, int key_point);
+
+  /** @brief The safety monitor is alive (a /diagnostics status of it, or in-process). */
+  void onMonitorAlive(double now);
+
+  /** @brief TimerRequest::kPoseReached fired. */
+  void onPoseReached(double now);
+  /** @brief TimerRequest::kRegistrationTimeout fired. */
+  void onRegistrationTimeout(double now);
+  /** @brief TimerRequest::kSegment fired. */
+  void onSegmentTimer(double now);
+
+  /** @brief Current phase. */
+  TrialPhase phase() const { return phase_; }
+  /** @brief Whether the ventilator's settings and breath phase are known. */
+  bool haveVentilator() const { return have_settings_ && have_phase_; }
+  /** @brief Mode of the current (or last) trial. */
+  CompensationMode mode() const { return mode_; }
+  /** @brief Spindle speed of the current trial [rpm]. */
+  double spindleRpm() const { return spindle_rpm_; }
+  /** @brief Parameters in use. */
+  const TrialSequencerParams& params() const { return params_; }
+  /** @brief The current trial's planner (nullptr before the first trial). */
+  const CompensationPlanner* planner() const { return planner_.get(); }
+
+  /** @brief Take (and clear) what the calls since the last take produced. */
+  SequencerOutput takeOutput();
+
+ private:
+  struct ResolvedRequest {
+    CompensationMode mode = CompensationMode::kStationary;
+    double feed_mm_s = 0.0;
+    double rpm = 0.0;
+    double max_duration_s = 0.0;
+    SegmentProfile profile = SegmentProfile::kRestToRest;
+  };
+  std::string resolve(const TrialRequest& request, ResolvedRequest* out) const;
+  void setPhase(TrialPhase p);
+  void log(SequencerLog::Level level, const std::string& text);
+  void fail(const std::string& why);
+  void spindle(double rpm);
+  Eigen::Vector3d boneDisplacementSinceMarker(double t) const;
+  void registerSample(double now, double stamp, const std::string& frame,
+                      const Eigen::Vector3d& pos, const Eigen::Quaterniond& orientation,
+                      const RotationLookup& lookup);
+  void startDrilling(double now, double t_reg);
+  double feedCommandAt(double t, double segmented_feed) const;
+  void sendMoveToPose(double now);
+  void sendDueSegments(double now);
+  void emitTrajectory(double start, const std::vector<double>& times,
+                      const std::vector<double>& feeds, const std::vector<Eigen::Vector3d>& lateral,
+                      const std::vector<double>* feed_velocities);
+  void resendFromNow(double now);
+  void handleStop(double now, bool retreat, const std::string& reason);
+  void startRetreat(double now, const std::string& why);
+
+  TrialSequencerParams params_;
+  ArmCompensation arm_;
+  std::string world_frame_;
+  RetreatPlanner retreat_planner_;
+  CompensatorFactory make_compensator_;
+  std::unique_ptr<CompensationPlanner> planner_;
+  std::unique_ptr<RetreatMotion> retreat_;
+  CompensationMode mode_ = CompensationMode::kStationary;
+  TrialPhase phase_ = TrialPhase::kIdle;
+  SequencerOutput out_;
+
+  VentilatorSettings settings_;
+  bool have_settings_ = false;
+  double breath_start_ = 0.0;
+  bool have_phase_ = false;
+  bool recognizer_reports_stop_ = false;
+  double last_recognizer_t_ = -1e300;  // last drilling_state
+  double last_monitor_t_ = -1e300;     // last sign of the safety monitor
+  double drilling_since_ = 0.0;        // start of the drilling phase (the watchdogs' origin)
+
+  double spindle_rpm_ = 0.0;
+  double max_duration_s_ = 0.0;
+  double registration_open_ = 0.0;
+  double registration_deadline_ = 0.0;
+  int reg_count_ = 0;
+  bool registered_ = false;
+  std::string marker_frame_;
+  Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d y_marker_reg_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d marker_sum_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d marker_reg_ = Eigen::Vector3d::Zero();
+  Eigen::Quaterniond marker_orientation_ = Eigen::Quaterniond::Identity();
+  Eigen::VectorXd arm_q_;
+  double t_end_ = 0.0;
+  double hold_end_ = 0.0;
+  int next_k_ = 0;
+};
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_TRIAL_SEQUENCER_HPP_

@@ -1,0 +1,150 @@
+// The drilling-state recognizer as a plugin interface (issue 17): raw thrust samples in, the
+// state and the stop decision out. Our paper recognizer (StateRecognizer) and the literature
+// baseline implement it; the StateRecognizer nodelet, the core engine (trial_engine, campaign)
+// and the offline `recognize` tool run whichever class is named. pluginlib loads outside classes
+// through this base class (`pedicle_drilling::core::RecognizerInterface`); the header has no ROS
+// type, so a plugin needs nothing of ROS but pluginlib's export macro.
+#ifndef PEDICLE_DRILLING_CORE_RECOGNIZER_INTERFACE_HPP_
+#define PEDICLE_DRILLING_CORE_RECOGNIZER_INTERFACE_HPP_
+
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+
+namespace pedicle_drilling::core {
+
+/** @brief Parameters by name, as text (`name=value` on a command line, a ROS parameter map). */
+using RecognizerSettings = std::vector<std::pair<std::string, std::string>>;
+
+/**
+ * @brief A drilling-state recognizer fed one raw thrust sample at a time.
+ *
+ * Life cycle: default construction (pluginlib), configure() once, then push() samples; reset()
+ * starts a new trial with the same parameters. The output is RecognizerOutput: a plugin fills at
+ * least `state`, `layer_state`, `stop` (latched until reset), `stop_t`, `stop_index` and
+ * `new_average` (true when it has a new value for the DrillingState message); the rest it may
+ * leave at their defaults (key points, k, D). Not thread-safe.
+ */
+class RecognizerInterface {
+ public:
+  virtual ~RecognizerInterface() = default;
+
+  /**
+   * @brief Set the parameters (unnamed ones keep their defaults) and check them.
+   * @throws std::invalid_argument whose message starts with the offending name.
+   */
+  virtual void configure(const RecognizerSettings& settings) = 0;
+  /** @brief Forget the trial (parameters kept). */
+  virtual void reset() = 0;
+  /**
+   * @brief One raw thrust sample.
+   * @throws std::invalid_argument if t or raw_force is not finite.
+   */
+  virtual const RecognizerOutput& push(double t, double raw_force) = 0;
+  /** @brief Latest output. */
+  virtual const RecognizerOutput& output() const = 0;
+  /** @brief The reason of the latched stop, for the StopCommand ("" if none). */
+  virtual std::string stopReason() const = 0;
+  /** @brief One line describing the parameters in use (for the log). */
+  virtual std::string describe() const = 0;
+  /** @brief Names of the parameters configure() accepts. */
+  virtual std::vector<std::string> parameterNames() const = 0;
+};
+
+/** @brief The paper's recognizer (StateRecognizer, Sec. IV-C/D) behind the interface. */
+class PaperRecognizer : public RecognizerInterface {
+ public:
+  PaperRecognizer() = default;
+  /** @brief With parameters already in their struct (validated here). */
+  explicit PaperRecognizer(const RecognizerParams& params);
+  void configure(const RecognizerSettings& settings) override;
+  void reset() override { recognizer_.reset(); }
+  const RecognizerOutput& push(double t, double raw_force) override {
+    return recognizer_.push(t, raw_force);
+  }
+  const RecognizerOutput& output() const override { return recognizer_.output(); }
+  std::string stopReason() const override;
+  std::string describe() const override;
+  std::vector<std::string> parameterNames() const override;
+  /** @brief Parameters in use. */
+  const RecognizerParams& params() const { return recognizer_.params(); }
+
+ private:
+  StateRecognizer recognizer_;
+};
+
+/** @brief Parameters of the force-difference breakthrough baseline (ForceDifferenceRecognizer). */
+struct ForceDifferenceParams {
+  int pre_average = 50;             ///< raw samples per block mean (as the paper recognizer's)
+  double contact_force_n = 1.0;     ///< block mean above this: the drill is in bone [N]
+  double process_noise = 0.001;     ///< Kalman q: variance of the FDSS's change per block [N^2]
+  double measurement_noise = 0.01;  ///< Kalman r: variance of one FDSS [N^2]
+  double drop_threshold_n = 0.05;   ///< filtered FDSS below -this: a falling force [N/block]
+  int drop_confirm = 3;             ///< consecutive falling blocks that make a breakthrough
+  int stop_at_breakthrough = 2;     ///< stop at this breakthrough (2: the second cortex)
+  double rearm_rise_n = 0.015;      ///< filtered FDSS above +this re-arms the detector [N/block]
+  /** @throws std::invalid_argument naming the field. */
+  void validate() const;
+};
+
+/**
+ * @brief Literature baseline: breakthrough detection on the force difference between successive
+ *        samples (FDSS) filtered by a Kalman filter, after Ong and Bouazza-Marouf, "The detection
+ *        of drill bit break-through for the enhancement of safety in mechatronic assisted
+ *        orthopaedic drilling", Mechatronics 9(6):565-588, 1999. Their method detects the
+ *        imminent break-through of a cortex from the filtered FDSS falling below a threshold;
+ *        written by us from that description. Our adaptation to a vertebra: the FDSS is taken
+ *        on block means of `pre_average` raw samples, a breakthrough is `drop_confirm`
+ *        consecutive falling blocks while in bone, the detector re-arms when the force rises
+ *        again (the next cortex), and the stop comes at the `stop_at_breakthrough`-th one (the
+ *        outer cortex's breakthrough into cancellous bone is the first). States: idle before
+ *        contact, outer cortical until the first breakthrough, cancellous until the force rises
+ *        again, inner cortical after.
+ */
+class ForceDifferenceRecognizer : public RecognizerInterface {
+ public:
+  ForceDifferenceRecognizer() = default;
+  void configure(const RecognizerSettings& settings) override;
+  void reset() override;
+  const RecognizerOutput& push(double t, double raw_force) override;
+  const RecognizerOutput& output() const override { return out_; }
+  std::string stopReason() const override;
+  std::string describe() const override;
+  std::vector<std::string> parameterNames() const override;
+
+ private:
+  void onBlock(double f);
+
+  ForceDifferenceParams p_;
+  RecognizerOutput out_;
+  std::size_t raw_count_ = 0;
+  int block_n_ = 0;
+  double block_sum_ = 0.0;
+  double cur_t_ = 0.0;
+  bool have_previous_ = false;
+  double previous_ = 0.0;
+  double x_ = 0.0;  // Kalman estimate of the FDSS
+  double P_ = 1.0;  // its variance
+  bool in_bone_ = false;
+  bool armed_ = true;
+  int falling_ = 0;
+  int breakthroughs_ = 0;
+};
+
+/** @brief The built-in recognizers' names, as pluginlib declares them. */
+std::vector<std::string> builtinRecognizerNames();
+
+/**
+ * @brief A built-in recognizer by its pluginlib name ("pedicle_drilling/PaperRecognizer",
+ *        "pedicle_drilling/ForceDifferenceRecognizer"), configured.
+ * @throws std::invalid_argument for an unknown name (listing the known ones) or bad settings.
+ */
+std::unique_ptr<RecognizerInterface> makeBuiltinRecognizer(const std::string& name,
+                                                           const RecognizerSettings& settings);
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_RECOGNIZER_INTERFACE_HPP_

@@ -1,0 +1,181 @@
+// The closed-loop trial engine: one drilling trial on the simulation, with the very objects the
+// nodelets run (TrialSequencer, StateRecognizer, SafetySupervisor, DrillingSimulation), called at
+// the rates of the ROS pipeline and with its transport delays as explicit parameters. No ROS,
+// no wall clock, no threads: one seed gives a bit-identical trial record on any machine, at any
+// load and in any process.
+#ifndef PEDICLE_DRILLING_CORE_CLOSED_LOOP_ENGINE_HPP_
+#define PEDICLE_DRILLING_CORE_CLOSED_LOOP_ENGINE_HPP_
+
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "pedicle_drilling/core/breathing/motion_model.hpp"
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
+#include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/fault_injector.hpp"
+
+namespace pedicle_drilling::core {
+
+/**
+ * @brief Transport delays of the ROS pipeline, made explicit [s]. A message sent at t is handled
+ *        at the first 1 ms simulation step at or after t + delay (0: within the same step).
+ *        Defaults: the nodelets share one manager (intra-process), and bench_force_to_stop_latency
+ *        measures force sample -> planner stop at 374 us p50 / 520 us p99; rounded up to 1 ms.
+ */
+struct EngineDelays {
+  double force_to_recognizer_s = 0.0;  ///< ft_sensor/wrench -> StateRecognizer
+  double stop_to_planner_s = 1e-3;     ///< drill/stop and drilling_state -> CompensationPlanner
+  double command_to_arm_s = 1e-3;      ///< arm_controller/command and spindle -> controller
+  /** @brief Check every field (finite, in [0, 1] s). @throws std::invalid_argument naming it. */
+  void validate() const;
+};
+
+/** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
+struct EngineConfig {
+  std::string urdf_xml;                 ///< the workcell (urdf/workcell.urdf)
+  DrillingSimulationParams simulation;  ///< config/simulator.yaml
+  double tracker_rate_hz = 8.0;         ///< optical tracker (Sec. III-A)
+  double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume stream
+  double ground_truth_rate_hz = 20.0;   ///< recorded ground truth (plus every layer change)
+  RecognizerParams recognizer;          ///< config/recognizer.yaml (thrust = +z of the sensor)
+  /**
+   * @brief The recognizer of each trial (issue 17): empty = the paper's (PaperRecognizer with
+   *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.
+   */
+  std::function<std::unique_ptr<RecognizerInterface>()> make_recognizer;
+  /**
+   * @brief The compensator of each trial (issue 17): empty = the paper's (PaperCompensator);
+   *        trial_engine --compensator sets a built-in or a pluginlib class.
+   */
+  CompensatorFactory make_compensator;
+  SupervisorParams safety;              ///< config/safety_monitor.yaml
+  double safety_check_rate_hz = 200.0;  ///< the monitor's watchdog timer
+  TrialSequencerParams sequencer;       ///< config/compensation_planner.yaml; joints from URDF
+  std::vector<double> drilling_pose;    ///< config/drilling_pose.yaml, arm joint order
+  double feed_home_m = 0.01;
+  std::string arm_base_link = "world";
+  std::string arm_tip_link = "device_base";
+  EngineDelays delays;
+  /** @brief Sim time between the reset and the earliest trial start: the ventilator's
+   *         settings and breath phase reach the planner. The start then waits a fraction of one
+   *         breath drawn from the seed, so that trials start at every phase of the breathing. */
+  double pre_trial_s = 1.0;
+  /** @brief false: start exactly pre_trial_s after the reset (no drawn breath phase). */
+  bool draw_start_phase = true;
+  /** @brief A trial not done this long after its start is an error (never silently cut). */
+  double trial_timeout_s = 600.0;
+  /** @brief Sizes of the faults a trial may inject (EngineTrialSpec::fault). */
+  FaultParams faults;
+};
+
+/** @brief What one trial is run with. */
+struct EngineTrialSpec {
+  std::uint64_t seed = 1;
+  std::string mode = "stationary";  ///< stationary | uncompensated | compensated
+  double spindle_rpm = 12000.0;
+  double feed_rate_mm_s = 0.5;
+  double max_duration_s = 60.0;
+  MotionModel model;  ///< the patient model the planner predicts with
+  /** @brief The paper's bench: the SPMS plays this model's AP displacement (else the patient). */
+  std::optional<BoneMotionModel> bone_motion;
+  /**
+   * @brief The fault to inject. It is triggered when the deepest cut first reaches u times the
+   *        depth of the inner cortical layer's start, u uniform in [0, 1) from the seed's own
+   *        stream: a random moment between the trial's start and the inner layer, where a
+   *        missed stop would break through. The breathing faults take effect at the next
+   *        breath's start (no step of the bone), the command faults with the next command.
+   */
+  FaultKind fault = FaultKind::kNone;
+};
+
+/** @brief When and how a fault was injected. */
+struct EngineFaultRecord {
+  FaultKind kind = FaultKind::kNone;
+  double trigger_depth_m = 0.0;  ///< depth of the deepest cut that triggers it
+  bool injected = false;         ///< false: the trial ended before the trigger
+  double t = 0.0;                ///< sim time it took effect [s] (if injected)
+};
+
+/** @brief A recognizer state as the ROS pipeline publishes it (DrillingState). */
+struct EngineStateSample {
+  double t = 0.0;
+  double averaged_force = 0.0;
+  double feature = 0.0;
+  std::string state_name;
+  int last_key_point = 0;
+};
+
+/** @brief A ground-truth sample (GroundTruth). */
+struct EngineTruthSample {
+  double t = 0.0;
+  std::string layer;
+  double max_depth_cut_m = 0.0;
+  double residual_inner_cortical_m = 0.0;
+  bool breakthrough = false;
+  double relative_ap_m = 0.0;
+  bool contact = false;
+  std::uint32_t contact_loss_count = 0;  ///< separations since the trial started
+};
+
+/** @brief A stop command (StopCommand). */
+struct EngineStop {
+  double t = 0.0;
+  std::string source;  ///< /state_recognizer | /safety_monitor (the nodelets' names)
+  std::string reason;
+  bool retreat = false;
+};
+
+/** @brief Everything the campaign records of a trial (what its ROS worker subscribes to). */
+struct EngineTrialRecord {
+  TrialConditions conditions;
+  double outer_cortical_thickness_m = 0.0;
+  double cancellous_thickness_m = 0.0;
+  double inner_cortical_thickness_m = 0.0;
+  std::vector<EngineStateSample> states;
+  std::vector<std::pair<int, double>> key_points;  ///< (id, t) as last_key_point rises
+  std::vector<EngineTruthSample> truth;
+  SimulationGroundTruth last_truth;
+  std::vector<EngineStop> stops;
+  std::vector<std::pair<double, std::string>> status;  ///< (t, phase)
+  EngineFaultRecord fault;
+};
+
+/**
+ * @brief Runs closed-loop trials. One engine per thread or process; trials are independent
+ *        (everything is reset from the seed), so the order and the grouping of trials into
+ *        processes do not change any record.
+ */
+class ClosedLoopEngine {
+ public:
+  /** @brief Builds the simulation and checks the configuration. @throws std::invalid_argument. */
+  explicit ClosedLoopEngine(const EngineConfig& config);
+  ~ClosedLoopEngine();
+  ClosedLoopEngine(const ClosedLoopEngine&) = delete;
+  ClosedLoopEngine& operator=(const ClosedLoopEngine&) = delete;
+
+  /**
+   * @brief Runs one trial to its end (done) and returns its record.
+   * @throws std::runtime_error when the trial fails (the planner's reason) or times out.
+   */
+  EngineTrialRecord run(const EngineTrialSpec& spec);
+
+  /** @brief Configuration in use. */
+  const EngineConfig& config() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_CLOSED_LOOP_ENGINE_HPP_

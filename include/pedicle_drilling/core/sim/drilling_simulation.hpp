@@ -1,0 +1,383 @@
+/**
+ * @file drilling_simulation.hpp
+ * @brief The whole simulated workcell without ROS: RSSSII arm (BulletArm), SPMS platform
+ *        (SpmsKinematics with rate-limited lead-screw sliders), virtual patient driven by an
+ *        internal ventilator, bone specimen, drilling-force process and force sensor.
+ *
+ * Multi-rate stepping (see doc/simulator_physics.md, section 5):
+ *  - physics step dt = 1 ms: ventilator -> patient AP displacement -> SPMS IK -> slider motion
+ *    (rate limited) -> SPMS FK -> bone pose; drill-tip position (interpolated from the arm, see
+ *    below) -> tip depth = bone top z - tip z (drill axis vertical) -> DrillingProcess -> thrust
+ *    -> ForceSensor (one 1 kHz sample per physics step).
+ *  - arm block = N physics steps (N = physics rate / arm rate, default 4: 250 Hz). At the start
+ *    of a block the arm is advanced by N dt in one Bullet sub-step, with the latest thrust applied
+ *    at the tip (zero-order hold) and the servo reference ramping over the block to the
+ *    commanded trajectory. Inside the block the tip position used by the drilling physics is
+ *    interpolated linearly between the arm states at the block start and end, so the thrust
+ *    deflects the tip (finite joint stiffness) and the deflection reduces the depth.
+ *
+ * Time: the simulation has its own clock, time() [s], starting at 0 and never going back
+ * (reset() starts a new trial but does not rewind time). Trajectory times are absolute sim times.
+ *
+ * No ROS headers; C++17, Eigen, Bullet and urdfdom only.
+ */
+#ifndef PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP
+#define PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP
+
+#include <cstdint>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/drilling/drilling_force.hpp"
+#include "pedicle_drilling/core/drilling/force_sensor.hpp"
+#include "pedicle_drilling/core/robot/bullet_arm.hpp"
+#include "pedicle_drilling/core/robot/spms_kinematics.hpp"
+#include "pedicle_drilling/core/robot/trajectory_executor.hpp"
+
+namespace pedicle_drilling::core {
+
+/** @brief The virtual patient: how tidal volume moves the vertebra (and the SPMS) in AP. */
+struct VirtualPatient {
+  int volunteer_id = 1;           ///< virtual volunteer whose truth model is used (1..5)
+  double q1_ap_mm_per_ml = 0.01;  ///< AP slope [mm/ml] (5 mm peak-to-peak at 500 ml)
+  double lag_s = 0.08;            ///< hysteresis lag of displacement behind volume [s]
+  double drift_mm = 0.15;         ///< amplitude of the slow AP drift [mm]
+  double drift_period_s = 60.0;   ///< period of the slow AP drift [s]
+  double drift_phase_rad = 0.0;   ///< phase of the slow AP drift [rad]
+  /// Small unpredictable movements (AP component used), as the volunteers' recordings have.
+  std::vector<PatientMovement> movements;
+  /// Phase-lead term on the flow [mm s/ml] (d = q1 Tv + q2 dTv/dt), 0 for a virtual volunteer;
+  /// set when the bone plays a displacement model (BoneMotionModel).
+  double q2_ap_mm_s_per_ml = 0.0;
+  /**
+   * @brief True AP displacement [mm] for a lagged tidal volume [ml] and flow [ml/s] at time
+   *        t [s]: q1 Tv + q2 dTv/dt + drift + movements.
+   */
+  double apDisplacementMm(double lagged_tv_ml, double t, double lagged_flow_ml_s = 0.0) const;
+};
+
+/**
+ * @brief A displacement model for the bone to play instead of a virtual patient: the SPMS
+ *        moves the bone by d_AP = q1 Tv(t) + q2 dTv/dt(t), nothing else (no lag, drift or
+ *        movements). This is the paper's bench protocol: Algorithm 1 computes the predicted
+ *        displacement y_AP(t) and then "SPMS and RSSSII do move", the SPMS playing the
+ *        patient's identified model (Sec. II-B, IV-B, V-C).
+ */
+struct BoneMotionModel {
+  double q1_ap_mm_per_ml = 0.0;    ///< AP slope [mm/ml], finite
+  double q2_ap_mm_s_per_ml = 0.0;  ///< AP flow term [mm s/ml], finite (0 for a linear model)
+};
+
+/**
+ * @brief Draws a virtual patient from a seed: the truth model (q1_AP, lag, drift) of virtual
+ *        volunteer 1 + seed % 5 (virtual_volunteer.hpp), drift period and phase from the seed,
+ *        and the volunteer's small movements (Poisson onsets at its rate, AP size SD times
+ *        `movement_scale`, the recordings' shapes) over the hour after `start_time_s`.
+ */
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s = 0.0,
+                                  double movement_scale = 1.0);
+
+/**
+ * @brief Per-trial spread of the patient, ventilator, sensor and arm, drawn at every
+ *        reset(seed) (the specimen's spread is SpecimenDistribution). Every SD defaults to 0:
+ *        the paper's conditions (one ventilator setting, one sensor, one arm; patients differ
+ *        through the five virtual volunteers). Draws are normal, truncated at +-3 SD.
+ */
+struct TrialVariability {
+  /// Relative SD of the patient's AP displacement per ml (inter-patient amplitude), [0, 0.3].
+  double patient_amplitude_scale_sd = 0.0;
+  /// SD of the breathing rate around the configured ventilator rate [breaths/min], [0, 5].
+  double ventilator_rate_sd_bpm = 0.0;
+  /// SD of the tidal volume around the configured Tv_max [ml], [0, 200].
+  double ventilator_tidal_volume_sd_ml = 0.0;
+  /// Relative SD of the force/torque sensor's white-noise level, [0, 0.5].
+  double sensor_noise_scale_sd = 0.0;
+  /// Relative SD of every arm joint's servo stiffness (pose, payload, gear wear), [0, 0.3].
+  double arm_stiffness_scale_sd = 0.0;
+  /// Factor on the size of the volunteer's small movements, [0, 5]; 0: none. Not a spread: 1
+  /// keeps the movements the virtual volunteers' recordings show (virtual_volunteer.hpp).
+  double patient_movement_scale = 1.0;
+  /** @brief @throws std::invalid_argument naming the field when a value is out of range. */
+  void validate() const;
+};
+
+/** @brief What reset(seed) drew for one trial (reported with the trial's results). */
+struct TrialConditions {
+  int volunteer_id = 1;                       ///< virtual volunteer of the patient (1..5)
+  double patient_amplitude_scale = 1.0;       ///< factor on the volunteer's AP slope q1
+  double ventilator_rate_bpm = 12.0;          ///< breathing rate of the trial [breaths/min]
+  double ventilator_tidal_volume_ml = 500.0;  ///< Tv_max of the trial [ml]
+  double force_noise_sd_n = 0.03;             ///< sensor white noise per force axis [N]
+  double arm_stiffness_scale = 1.0;           ///< factor on every arm joint's servo stiffness
+};
+
+/**
+ * @brief Draws the trial conditions of `seed` around the configured ventilator settings and
+ *        sensor noise. Deterministic for a seed; with every SD 0 it returns the configured
+ *        values and scale factors of 1 (only volunteer_id depends on the seed).
+ * @throws std::invalid_argument if `variability` is out of range.
+ */
+TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
+                                    const VentilatorSettings& ventilator, double force_noise_sd_n);
+
+/** @brief Parameters of the simulated workcell. Defaults and sources: simulator_physics.md. */
+struct DrillingSimulationParams {
+  std::string base_link = "world";     ///< root of the arm chain and of every pose
+  std::string tip_link = "drill_tip";  ///< end of the arm chain (drill point)
+  double physics_rate_hz = 1000.0;     ///< drilling physics and force-sensor rate
+  double arm_rate_hz = 1000.0;         ///< Bullet arm rate; physics_rate / arm_rate integer
+  BulletArmParams arm;                 ///< servo model (substep is set from arm_rate_hz)
+  /// Home joint positions (joints not listed stay at 0); arm returns here on reset().
+  std::map<std::string, double> home_pose = {{"rsssii_joint1", 0.0},      {"rsssii_joint2", 0.2},
+                                             {"rsssii_joint3", 1.2},      {"rsssii_joint4", 0.0},
+                                             {"rsssii_joint5", 1.741593}, {"rsssii_joint6", 0.0},
+                                             {"feed_joint", 0.0},         {"spindle_joint", 0.0}};
+  /// SPMS geometry. Defaults match urdf/workcell.urdf (checked against the URDF at startup).
+  SpmsGeometry spms = urdfSpmsGeometry();
+  double spms_slider_joint_offset_m = 0.05;  ///< URDF slider joint value = s - this offset
+  double slider_max_speed_m_s = 0.05;        ///< lead-screw slider speed limit (URDF: 50 mm/s)
+  double slider_max_accel_m_s2 = 2.0;        ///< slider drive's acceleration limit [m/s^2]
+  double slider_bandwidth_hz = 20.0;         ///< slider drive's position-loop bandwidth [Hz]
+  /// The drill device's feed drive (feed_joint; speed: its URDF limit): acceleration [m/s^2]
+  /// and position-loop bandwidth [Hz] of a lead-screw axis like the sliders'.
+  double feed_max_accel_m_s2 = 2.0;
+  double feed_bandwidth_hz = 20.0;  ///< see feed_max_accel_m_s2
+  /// Paper's bench (a BoneMotionModel): the SPMS controller streams the model's displacement
+  /// one period ahead, every bench_period_s (the planner's 125 ms), to the slider trajectory.
+  double bench_period_s = 0.125;
+  double spindle_max_rpm = 21000.0;      ///< URDF spindle_joint limit 2200 rad/s
+  double spindle_accel_rpm_s = 40000.0;  ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
+  double bone_half_x_m = 0.02;           ///< bone footprint half size along the bone frame x [m]
+  double bone_half_y_m = 0.015;          ///< bone footprint half size along the bone frame y [m]
+  bool moving_bone = true;               ///< initial trial: bone follows the patient (reset() sets)
+  VentilatorSettings ventilator;         ///< internal ventilator driving the patient
+  SpecimenDistribution specimen;         ///< specimen distribution for reset(seed)
+  TrialVariability variability;          ///< patient/ventilator/sensor/arm spread for reset(seed)
+  DrillParameters drill;                 ///< drill and force-law constants
+  ForceSensorParams sensor;              ///< force/torque sensor model
+  double tracker_noise_rms_mm = 0.25;    ///< 3-D RMS position noise of the marker (NDI Polaris)
+  /** @brief SPMS geometry that matches urdf/workcell.urdf. */
+  static SpmsGeometry urdfSpmsGeometry();
+};
+
+/**
+ * @brief Physics steps between two samples of a stream published at `rate_hz` (at least 1):
+ *        round(physics_rate_hz / rate_hz). Shared by the Simulator nodelet and the closed-loop
+ *        engine so that both sample every stream at the same steps.
+ * @throws std::invalid_argument naming `name` unless 0 < rate_hz <= physics_rate_hz.
+ */
+std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const std::string& name);
+
+/** @brief Output of one physics step. */
+struct SimulationStep {
+  double time_s = 0.0;                      ///< simulation time at the end of the step
+  Wrench measured_wrench = Wrench::Zero();  ///< force-sensor sample (sensor frame)
+  ForceSample force;                        ///< true drilling output of the step
+  double tip_depth_m = 0.0;    ///< tip depth below the bone top surface (negative: above)
+  bool layer_changed = false;  ///< the layer at the deepest cut changed in this step
+};
+
+/** @brief Ground truth of the simulated trial (what no sensor sees). */
+struct SimulationGroundTruth {
+  std::uint64_t seed = 0;                  ///< seed of the current specimen / patient
+  Material layer = Material::kAir;         ///< material at the deepest cut (air before any cut)
+  double tip_depth_m = 0.0;                ///< current tip depth below the bone top surface [m]
+  double max_depth_cut_m = 0.0;            ///< deepest point cut [m]
+  double outer_cortical_end_m = 0.0;       ///< depth of the outer-cortical / cancellous boundary
+  double inner_cortical_start_m = 0.0;     ///< depth of the cancellous / inner-cortical boundary
+  double inner_cortical_end_m = 0.0;       ///< depth of the canal wall
+  double residual_inner_cortical_m = 0.0;  ///< inner cortex left below the deepest cut
+  bool breakthrough = false;               ///< the tip passed the canal wall
+  double thrust_n = 0.0;                   ///< true thrust [N]
+  bool contact = false;                    ///< lips cutting
+  /** @brief Separations of drill and bone since reset() or startTrial(): gaps of at least 10 ms
+   *  without contact after a contact (shorter ones are the lips' chatter at first contact). */
+  std::uint32_t contact_loss_count = 0;
+  double feed_per_rev_m = 0.0;  ///< actual feed per revolution [m]
+  Eigen::Vector3d bone_displacement_m = Eigen::Vector3d::Zero();  ///< (LR, SI, AP) from home
+  double tidal_volume_ml = 0.0;  ///< patient tidal volume (unlagged) [ml]
+  double relative_ap_m =
+      0.0;  ///< AP motion of tip relative to bone since reset() or startTrial() [m]
+};
+
+/** @brief A parent -> child transform of the URDF tree. */
+struct FrameTransform {
+  std::string parent;           ///< parent frame (URDF link)
+  std::string child;            ///< child frame (URDF link)
+  Eigen::Isometry3d transform;  ///< child pose in the parent frame
+};
+
+/**
+ * @brief The simulated workcell. Not thread-safe: callers serialise access.
+ */
+class DrillingSimulation {
+ public:
+  /**
+   * @brief Builds everything from URDF XML text and draws specimen / patient from `seed`.
+   * @throws std::runtime_error for an unusable URDF (parse error, missing chain or SPMS links,
+   *         SPMS geometry not matching params.spms) or std::invalid_argument for bad params.
+   */
+  DrillingSimulation(const std::string& urdf_xml, const DrillingSimulationParams& params,
+                     std::uint64_t seed = 1);
+  ~DrillingSimulation();
+  DrillingSimulation(const DrillingSimulation&) = delete;
+  DrillingSimulation& operator=(const DrillingSimulation&) = delete;
+
+  /**
+   * @brief New trial: specimen sample(seed), patient drawVirtualPatient(seed), new tared
+   *        sensor, drilling state cleared, arm teleported to the home pose (targets too), spindle
+   *        stopped, trajectory cleared. Time and the ventilator keep running; the platform moves
+   *        (rate limited) to its new target.
+   */
+  void reset(std::uint64_t seed, bool moving_bone);
+
+  /**
+   * @brief Replaces the distributions the next reset(seed) draws from (the current trial is
+   *        not changed). @throws std::invalid_argument if a value is out of range; nothing
+   *        changes then.
+   */
+  void setTrialDistribution(const SpecimenDistribution& specimen,
+                            const TrialVariability& variability);
+  /**
+   * @brief From the next reset on, the bone plays `model` (the paper's bench protocol) instead
+   *        of the virtual volunteer's truth; std::nullopt goes back to the virtual patient. The
+   *        volunteer id and the other draws are unchanged.
+   * @throws std::invalid_argument for a non-finite coefficient; nothing changes then.
+   */
+  void setBoneMotionModel(const std::optional<BoneMotionModel>& model);
+  /**
+   * @brief Fault injection: the patient's AP displacement is multiplied by `factor` from the
+   *        next step until the next reset (a change of the patient's breathing that the
+   *        identified model does not know). @throws std::invalid_argument outside [0, 10].
+   */
+  void setPatientAmplitudeFactor(double factor);
+  /** @brief What the last reset (or the constructor) drew. */
+  const TrialConditions& trialConditions() const;
+
+  /** @brief Advances one physics step (1 / physics_rate_hz). */
+  SimulationStep stepOnce();
+  /** @brief Advances by at least `dt` seconds (whole physics steps); returns steps run. */
+  int step(double dt);
+
+  /**
+   * @brief A new trajectory (JointTrajectoryController semantics): the running one is followed
+   *        until command.start_time_s (now if NaN or past), then the new one goes from that
+   *        reference position and velocity to its points after the start time; points at or
+   *        before it are dropped. Unknown or duplicate names, NaN/inf, size mismatches, non-
+   *        increasing times or no point in the future reject the whole command (kRejected, the
+   *        old trajectory continues). Out-of-limit positions are clamped (kClamped).
+   */
+  TargetResult commandTrajectory(const TrajectoryCommand& command);
+  /** @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. */
+  TargetResult commandSpindle(double rpm);
+  /** @brief Queues new ventilator settings (take effect at the next breath); throws if bad. */
+  void requestVentilatorSettings(const VentilatorSettings& settings);
+
+  /** @brief Simulation time [s]. */
+  double time() const;
+  /** @brief Physics step [s]. */
+  double physicsDt() const;
+  /** @brief Names of the commandable joints (rsssii_joint1..6, feed_joint). */
+  const std::vector<std::string>& commandableJoints() const;
+  /** @brief All simulated arm joints (commandable ones plus spindle_joint), base to tip. */
+  const std::vector<std::string>& armJointNames() const;
+  /** @brief Arm joint positions / velocities (order of armJointNames()). */
+  Eigen::VectorXd armJointPositions() const;
+  /** @brief Arm joint velocities (order of armJointNames()). */
+  Eigen::VectorXd armJointVelocities() const;
+  /** @brief Servo stiffness of every arm joint (order of armJointNames()), after the trial's
+   *         stiffness scale [Nm/rad or N/m]. */
+  Eigen::VectorXd armJointStiffness() const;
+  /** @brief Arm joint efforts of the last Bullet step. */
+  Eigen::VectorXd armJointEfforts() const;
+  /** @brief SPMS joint names (slider1..3_joint, rod1..3_joint) and their URDF values. */
+  std::vector<std::pair<std::string, double>> spmsJointStates() const;
+  /** @brief Actual slider positions along the rails [m] (SpmsKinematics convention). */
+  Eigen::Vector3d sliderPositions() const;
+  /** @brief Slider targets from the IK of the desired heave [m]. */
+  Eigen::Vector3d sliderTargets() const;
+  /** @brief Platform pose from the FK of the actual sliders. */
+  const PlatformFullPose& platformPose() const;
+  /** @brief Desired platform heave (patient AP displacement) [m]. */
+  double desiredHeave() const;
+  /** @brief Pose of the drill tip in the base frame (last arm state). */
+  Eigen::Isometry3d tipPose() const;
+  /** @brief Tip position used by the drilling physics in the last step (interpolated). */
+  Eigen::Vector3d physicsTipPosition() const;
+  /** @brief Pose of any URDF link in the base frame (world). @throws std::out_of_range. */
+  Eigen::Isometry3d linkPose(const std::string& link) const;
+  /** @brief World z of the bone top surface (bone frame origin). */
+  double boneTopZ() const;
+  /** @brief Spindle speed actually running [rpm] (rate limited). */
+  double spindleRpm() const;
+  /** @brief Ground truth now. */
+  SimulationGroundTruth groundTruth() const;
+  /** @brief Current drilling process (specimen, depth cut, ...). */
+  const DrillingProcess& process() const;
+  /** @brief Current patient. */
+  const VirtualPatient& patient() const;
+  /**
+   * @brief Marks the start of a trial: ground truth's relative AP motion is measured from now,
+   *        and the trial counter increments. A specimen is never drilled twice: if the current
+   *        one has been cut, the bench mounts a fresh one first, as reset(seed() + 1,
+   *        movingBone()) with the same distributions and bone motion model (arm at home).
+   * @return true when a fresh specimen was mounted.
+   */
+  bool startTrial();
+  /** @brief Trials started since construction (reset() does not count). */
+  int trialCount() const;
+  /** @brief Internal ventilator sample of the last step (unlagged). */
+  const VentilatorSample& ventilatorSample() const;
+  /** @brief The internal ventilator (breath index and start, current settings). */
+  const BreathScheduler& ventilator() const;
+  /** @brief Whether the bone follows the patient. */
+  bool movingBone() const;
+  /** @brief Seed of the current trial. */
+  std::uint64_t seed() const;
+
+  /**
+   * @brief True when the optical tracker samples at the end of the last step: every
+   *        period_steps steps (125 at 8 Hz), at a phase drawn from the trial's seed. The tracker
+   *        and the ventilator are independent devices: with both grids starting at 0, a 5 s
+   *        breath is exactly 40 tracker periods and every 125 ms segment end would fall on
+   *        every inspiration start in every trial (the worst case for a dTv/dt step).
+   */
+  bool trackerDue(std::uint64_t period_steps) const;
+
+  /**
+   * @brief Tracker measurement of tracker_marker in the tracker_camera frame, with isotropic
+   *        Gaussian position noise (tracker_noise_rms_mm 3-D RMS); orientation exact.
+   */
+  Eigen::Isometry3d measureMarkerPose();
+
+  /**
+   * @brief Transforms of the URDF tree. `fixed` true: the constant transforms of fixed joints
+   *        (publish once, tf_static); false: every moving joint (arm from Bullet link poses,
+   *        sliders / rods / floating platform from the SPMS state).
+   */
+  std::vector<FrameTransform> frameTransforms(bool fixed) const;
+
+  /** @brief The arm (for tests and benchmarks). */
+  const BulletArm& arm() const;
+  /** @brief The parameters in use. */
+  const DrillingSimulationParams& params() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_DRILLING_SIMULATION_HPP

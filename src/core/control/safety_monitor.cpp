@@ -1,0 +1,184 @@
+// Monitor of Algorithm 1 and the retreat planner.
+#include "pedicle_drilling/core/control/safety_monitor.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+void require(bool ok, const char* name, const char* why, double value) {
+  if (ok) return;
+  std::ostringstream os;
+  os << name << ": " << why << " (got " << value << ")";
+  throw std::invalid_argument(os.str());
+}
+
+std::string fmt(const char* f, double a, double b, double c) {
+  char buf[160];
+  std::snprintf(buf, sizeof(buf), f, a, b, c);
+  return buf;
+}
+
+}  // namespace
+
+void SafetyParams::validate() const {
+  require(std::isfinite(position_threshold_m) && position_threshold_m > 0.0, "position_threshold_m",
+          "must be finite and > 0", position_threshold_m);
+  require(std::isfinite(force_threshold_N) && force_threshold_N > 0.0, "force_threshold_N",
+          "must be finite and > 0", force_threshold_N);
+  require(!std::isnan(force_timeout_s) && force_timeout_s > 0.0, "force_timeout_s",
+          "must be > 0 (+inf disables)", force_timeout_s);
+  require(!std::isnan(tracker_timeout_s) && tracker_timeout_s > 0.0, "tracker_timeout_s",
+          "must be > 0 (+inf disables)", tracker_timeout_s);
+  require(!std::isnan(force_stuck_s) && force_stuck_s > 0.0, "force_stuck_s",
+          "must be > 0 (+inf disables)", force_stuck_s);
+}
+
+std::string describe(const SafetyVerdict& v) {
+  return std::string(toString(v.reason)) + ": " + v.message;
+}
+
+const char* toString(SafetyVerdict::Reason r) {
+  switch (r) {
+    case SafetyVerdict::kNone:
+      return "none";
+    case SafetyVerdict::kPositionError:
+      return "position_error";
+    case SafetyVerdict::kForceExceeded:
+      return "force_exceeded";
+    case SafetyVerdict::kForceTimeout:
+      return "force_timeout";
+    case SafetyVerdict::kTrackerTimeout:
+      return "tracker_timeout";
+    case SafetyVerdict::kNaNInput:
+      return "nan_input";
+    case SafetyVerdict::kForceStuck:
+      return "force_stuck";
+  }
+  return "unknown";
+}
+
+SafetyMonitor::SafetyMonitor(const SafetyParams& params) : params_(params) { params_.validate(); }
+
+void SafetyMonitor::reset() {
+  verdict_ = SafetyVerdict();
+  armed_ = false;
+  have_force_ = false;
+  have_tracker_ = false;
+}
+
+void SafetyMonitor::arm(double t) {
+  if (armed_) return;
+  armed_ = true;
+  armed_t_ = t;
+}
+
+void SafetyMonitor::trigger(SafetyVerdict::Reason r, double t, const std::string& msg) {
+  if (verdict_.stop) return;  // latched: keep the first cause
+  verdict_.stop = true;
+  verdict_.reason = r;
+  verdict_.t = t;
+  verdict_.message = msg;
+}
+
+void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
+  if (!std::isfinite(t) || !force.allFinite()) {
+    trigger(SafetyVerdict::kNaNInput, t, "non-finite force sample or time stamp");
+    return;
+  }
+  arm(t);
+  if (!have_force_ || force != last_force_) same_force_since_ = t;
+  have_force_ = true;
+  last_force_t_ = t;
+  last_force_ = force;
+  if (t - same_force_since_ > params_.force_stuck_s) {
+    trigger(SafetyVerdict::kForceStuck, t,
+            fmt("force unchanged (%.4f N) for %.3f s > %.3f s: sensor frozen", force.norm(),
+                t - same_force_since_, params_.force_stuck_s));
+  }
+  const double n = force.norm();
+  if (n > params_.force_threshold_N) {
+    trigger(SafetyVerdict::kForceExceeded, t,
+            fmt("force %.3f N > %.3f N at t=%.3f s", n, params_.force_threshold_N, t));
+  }
+}
+
+void SafetyMonitor::onTracked(double t, const Eigen::Vector3d& predicted_bone_pos,
+                              const Eigen::Vector3d& tracked_bone_pos) {
+  comparePositions(t, predicted_bone_pos, tracked_bone_pos);
+  if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) return;
+  have_tracker_ = true;
+  last_tracker_t_ = t;
+}
+
+void SafetyMonitor::comparePositions(double t, const Eigen::Vector3d& predicted_bone_pos,
+                                     const Eigen::Vector3d& tracked_bone_pos) {
+  if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) {
+    trigger(SafetyVerdict::kNaNInput, t, "non-finite tracker sample, prediction or time stamp");
+    return;
+  }
+  arm(t);
+  const double e = (predicted_bone_pos - tracked_bone_pos).norm();
+  if (e > params_.position_threshold_m) {
+    trigger(SafetyVerdict::kPositionError, t,
+            fmt("bone position error %.3f mm > %.3f mm at t=%.3f s", e * 1e3,
+                params_.position_threshold_m * 1e3, t));
+  }
+}
+
+const SafetyVerdict& SafetyMonitor::check(double t) {
+  if (verdict_.stop) return verdict_;
+  if (!std::isfinite(t)) {
+    trigger(SafetyVerdict::kNaNInput, t, "non-finite check time");
+    return verdict_;
+  }
+  arm(t);
+  const double force_age = t - (have_force_ ? last_force_t_ : armed_t_);
+  const double tracker_age = t - (have_tracker_ ? last_tracker_t_ : armed_t_);
+  if (force_age > params_.force_timeout_s) {
+    trigger(SafetyVerdict::kForceTimeout, t,
+            fmt("no force sample for %.3f s > %.3f s at t=%.3f s", force_age,
+                params_.force_timeout_s, t));
+  } else if (tracker_age > params_.tracker_timeout_s) {
+    trigger(SafetyVerdict::kTrackerTimeout, t,
+            fmt("no fresh tracker sample for %.3f s > %.3f s at t=%.3f s", tracker_age,
+                params_.tracker_timeout_s, t));
+  }
+  return verdict_;
+}
+
+void RetreatParams::validate() const {
+  require(std::isfinite(distance_m) && distance_m > 0.0, "distance_m", "must be finite and > 0",
+          distance_m);
+  require(std::isfinite(speed_m_s) && speed_m_s > 0.0, "speed_m_s", "must be finite and > 0",
+          speed_m_s);
+  require(std::isfinite(accel_m_s2) && accel_m_s2 > 0.0, "accel_m_s2", "must be finite and > 0",
+          accel_m_s2);
+}
+
+RetreatMotion::RetreatMotion(double t0, const Eigen::Vector3d& start, const Eigen::Vector3d& target,
+                             const TrapezoidProfile& profile)
+    : segment_(t0, start, target, profile) {}
+
+RetreatPlanner::RetreatPlanner(const RetreatParams& params) : params_(params) {
+  params_.validate();
+}
+
+RetreatMotion RetreatPlanner::plan(double t0, const Eigen::Vector3d& tip,
+                                   const Eigen::Vector3d& drill_axis) const {
+  if (!std::isfinite(t0) || !tip.allFinite() || !drill_axis.allFinite()) {
+    throw std::invalid_argument("RetreatPlanner::plan: non-finite input");
+  }
+  const double n = drill_axis.norm();
+  if (!(n > 1e-12)) throw std::invalid_argument("drill_axis: must be non-zero");
+  const Eigen::Vector3d target = tip - (drill_axis / n) * params_.distance_m;
+  return RetreatMotion(
+      t0, tip, target,
+      TrapezoidProfile::minimumTime(params_.distance_m, params_.speed_m_s, params_.accel_m_s2));
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,100 @@
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
+
+#include <cmath>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+void SupervisorParams::validate() const {
+  safety.validate();
+  if (!(pair_tolerance_s >= 0.0 && pair_tolerance_s <= 1.0)) {
+    throw std::invalid_argument("pair_tolerance_s: must be in [0, 1] s");
+  }
+  if (!(history >= 1 && history <= 10000)) {
+    throw std::invalid_argument("history: must be in [1, 10000]");
+  }
+}
+
+SafetySupervisor::SafetySupervisor(const SupervisorParams& params)
+    : params_(params), monitor_(params.safety) {
+  params_.validate();
+}
+
+void SafetySupervisor::onForce(double now, const Eigen::Vector3d& force) {
+  have_force_ = true;
+  monitor_.onForce(now, force);
+}
+
+PairResult SafetySupervisor::onTracked(double now, const StampedPosition& tracked) {
+  const bool finite = tracked.position.allFinite() && std::isfinite(tracked.stamp);
+  if (finite && have_tracker_ && !(tracked.stamp > last_tracked_stamp_)) {
+    ++stale_tracked_;
+    return PairResult::kStale;
+  }
+  if (finite) last_tracked_stamp_ = tracked.stamp;
+  have_tracker_ = true;
+  // The watchdog and the NaN check, whether or not a prediction exists (no trial running).
+  monitor_.onTracked(now, tracked.position, tracked.position);
+  remember(&tracked_, tracked);
+  return pair(now, tracked, predicted_, false);
+}
+
+PairResult SafetySupervisor::onPredicted(double now, const StampedPosition& predicted) {
+  if (!predicted.position.allFinite() || !std::isfinite(predicted.stamp)) {
+    monitor_.comparePositions(now, predicted.position, predicted.position);  // NaN: stop
+    return PairResult::kUnpaired;
+  }
+  remember(&predicted_, predicted);
+  return pair(now, predicted, tracked_, true);
+}
+
+PairResult SafetySupervisor::pair(double now, const StampedPosition& sample,
+                                  const std::deque<StampedPosition>& others,
+                                  bool sample_is_predicted) {
+  const StampedPosition* best = nullptr;
+  double best_dt = params_.pair_tolerance_s;
+  for (const StampedPosition& s : others) {
+    const double dt = std::abs(s.stamp - sample.stamp);
+    if (dt <= best_dt) {
+      best_dt = dt;
+      best = &s;
+    }
+  }
+  if (best == nullptr) return PairResult::kUnpaired;
+  if (best->frame != sample.frame) return PairResult::kFrameMismatch;
+  const StampedPosition& predicted = sample_is_predicted ? sample : *best;
+  const StampedPosition& tracked = sample_is_predicted ? *best : sample;
+  monitor_.comparePositions(now, predicted.position, tracked.position);
+  return PairResult::kCompared;
+}
+
+void SafetySupervisor::remember(std::deque<StampedPosition>* buffer,
+                                const StampedPosition& s) const {
+  buffer->push_back(s);
+  while (static_cast<int>(buffer->size()) > params_.history) buffer->pop_front();
+}
+
+void SafetySupervisor::check(double now) {
+  // Armed once both streams were heard since reset, or as soon as a trial runs: then a sensor
+  // that never published times out from the arming time.
+  if (heardBoth() || trial_running_) monitor_.check(now);
+}
+
+std::optional<SafetyVerdict> SafetySupervisor::takeNewStop() {
+  if (!monitor_.stopped() || stop_reported_) return std::nullopt;
+  stop_reported_ = true;
+  return monitor_.verdict();
+}
+
+void SafetySupervisor::reset() {
+  monitor_.reset();
+  tracked_.clear();
+  predicted_.clear();
+  have_force_ = false;
+  have_tracker_ = false;
+  last_tracked_stamp_ = 0.0;
+  stale_tracked_ = 0;
+  stop_reported_ = false;
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,546 @@
+#include "pedicle_drilling/core/control/trial_sequencer.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+const char* toString(TrialPhase p) {
+  switch (p) {
+    case TrialPhase::kIdle:
+      return "idle";
+    case TrialPhase::kMovingToPose:
+      return "moving_to_pose";
+    case TrialPhase::kRegistering:
+      return "registering";
+    case TrialPhase::kDrilling:
+      return "drilling";
+    case TrialPhase::kStopped:
+      return "stopped";
+    case TrialPhase::kRetreating:
+      return "retreating";
+    case TrialPhase::kDone:
+      return "done";
+    case TrialPhase::kFailed:
+      return "failed";
+  }
+  return "unknown";
+}
+
+bool isRunning(TrialPhase p) {
+  return p != TrialPhase::kIdle && p != TrialPhase::kDone && p != TrialPhase::kFailed;
+}
+
+namespace {
+
+void require(bool ok, const std::string& field, const std::string& rule) {
+  if (!ok) throw std::invalid_argument(field + ": " + rule);
+}
+
+}  // namespace
+
+void TrialSequencerParams::validate() const {
+  compensation.validate();
+  require(default_feed_rate_mm_s > 0.0 && default_feed_rate_mm_s <= 10.0, "feed_rate_mm_s",
+          "must be in (0, 10] mm/s");
+  require(default_spindle_rpm > 0.0 && default_spindle_rpm <= 60000.0, "spindle_rpm",
+          "must be in (0, 60000] rpm");
+  require(default_max_duration_s > 0.0 && default_max_duration_s <= 3600.0, "max_duration_s",
+          "must be in (0, 3600] s");
+  require(move_duration_s > 0.0 && move_duration_s <= 60.0, "move_duration_s",
+          "must be in (0, 60] s");
+  require(settle_s >= 0.0 && settle_s <= 60.0, "settle_s", "must be in [0, 60] s");
+  require(registration_samples >= 1 && registration_samples <= 100, "registration_samples",
+          "must be in [1, 100]");
+  require(registration_timeout_s > 0.0 && registration_timeout_s <= 60.0, "registration_timeout_s",
+          "must be in (0, 60] s");
+  require(stop_hold_s >= 0.0 && stop_hold_s <= 60.0, "stop_hold_s", "must be in [0, 60] s");
+  require(recognizer_timeout_s >= 0.0 && recognizer_timeout_s <= 60.0, "recognizer_timeout_s",
+          "must be in [0, 60] s (0: off)");
+  require(monitor_timeout_s >= 0.0 && monitor_timeout_s <= 60.0, "monitor_timeout_s",
+          "must be in [0, 60] s (0: off)");
+  retreat.validate();
+  require(!arm_joints.empty(), "arm_joints", "must not be empty");
+  require(!feed_joint.empty(), "feed_joint", "must not be empty");
+  require(std::isfinite(feed_lower_m) && std::isfinite(feed_upper_m) && feed_lower_m < feed_upper_m,
+          "feed_joint", "limits must be finite with lower < upper");
+}
+
+bool SequencerOutput::empty() const {
+  return trajectories.empty() && spindle_rpm.empty() && phases.empty() && predicted.empty() &&
+         start_timers.empty() && !stop_timers && log.empty() && stops.empty();
+}
+
+TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
+                               std::string world_frame)
+    : params_(params),
+      arm_(arm),
+      world_frame_(std::move(world_frame)),
+      retreat_planner_(params.retreat) {
+  params_.compensation.drill_axis = arm_.drillAxis();
+  params_.validate();
+  arm_q_ = arm_.homeJoints();
+}
+
+void TrialSequencer::setVentilator(const VentilatorSettings& settings) {
+  settings_ = settings;
+  have_settings_ = true;
+  if (planner_) planner_->compensator().setVentilator(settings_);
+}
+
+void TrialSequencer::setBreathStart(double t) {
+  if (!std::isfinite(t)) return;
+  breath_start_ = t;
+  have_phase_ = true;
+  if (planner_) planner_->compensator().setBreathStart(t);
+}
+
+SequencerOutput TrialSequencer::takeOutput() {
+  SequencerOutput out = std::move(out_);
+  out_ = SequencerOutput();
+  return out;
+}
+
+void TrialSequencer::setPhase(TrialPhase p) {
+  phase_ = p;
+  out_.phases.push_back(p);
+}
+
+void TrialSequencer::log(SequencerLog::Level level, const std::string& text) {
+  out_.log.push_back({level, text});
+}
+
+void TrialSequencer::spindle(double rpm) { out_.spindle_rpm.push_back(rpm); }
+
+void TrialSequencer::fail(const std::string& why) {
+  log(SequencerLog::Level::kError, "trial failed: " + why);
+  spindle(0.0);
+  out_.stop_timers = true;
+  out_.start_timers.clear();
+  setPhase(TrialPhase::kFailed);
+}
+
+std::string TrialSequencer::check(const TrialRequest& request) const {
+  ResolvedRequest resolved;
+  return resolve(request, &resolved);
+}
+
+std::string TrialSequencer::resolve(const TrialRequest& request, ResolvedRequest* out) const {
+  if (isRunning(phase_)) {
+    return std::string("a trial is running (status ") + toString(phase_) + ")";
+  }
+  CompensationMode mode;
+  if (!parseCompensationMode(request.mode, &mode)) {
+    return "mode: unknown mode '" + request.mode +
+           "' (use stationary, uncompensated or compensated)";
+  }
+  std::string why;
+  const auto pick = [&why](double requested, double fallback, double max, const char* name) {
+    if (requested == 0.0) return fallback;
+    if (!(std::isfinite(requested) && requested > 0.0 && requested <= max)) {
+      std::ostringstream os;
+      os << name << ": must be 0 (default) or in (0, " << max << "]";
+      why = os.str();
+    }
+    return requested;
+  };
+  const double feed_mm_s =
+      pick(request.feed_rate_mm_s, params_.default_feed_rate_mm_s, 10.0, "feed_rate_mm_s");
+  const double rpm = pick(request.spindle_rpm, params_.default_spindle_rpm, 60000.0, "spindle_rpm");
+  const double max_duration =
+      pick(request.max_duration_s, params_.default_max_duration_s, 3600.0, "max_duration_s");
+  if (!why.empty()) return why;
+  SegmentProfile profile = params_.compensation.segment_profile;
+  if (!request.segment_profile.empty() && !parseSegmentProfile(request.segment_profile, &profile)) {
+    return "segment_profile: unknown profile '" + request.segment_profile +
+           "' (use rest_to_rest or exact; empty: the planner's)";
+  }
+  if (mode != CompensationMode::kStationary && !haveVentilator()) {
+    return std::string(toString(mode)) +
+           " mode needs the ventilator: no ventilator/settings or tidal_volume received";
+  }
+  *out = {mode, feed_mm_s, rpm, max_duration, profile};
+  return "";
+}
+
+std::string TrialSequencer::start(const TrialRequest& request, const MotionModel& model,
+                                  double now) {
+  ResolvedRequest r;
+  const std::string why = resolve(request, &r);
+  if (!why.empty()) return why;
+  const CompensationMode mode = r.mode;
+  const double feed_mm_s = r.feed_mm_s;
+  const double rpm = r.rpm;
+  const double max_duration = r.max_duration_s;
+  CompensationParams cp = params_.compensation;
+  cp.feed_rate_m_s = feed_mm_s * 1e-3;
+  cp.segment_profile = r.profile;
+  try {
+    auto planner = make_compensator_
+                       ? std::make_unique<CompensationPlanner>(cp, model, make_compensator_())
+                       : std::make_unique<CompensationPlanner>(cp, model);
+    if (have_settings_) planner->compensator().setVentilator(settings_);
+    if (have_phase_) planner->compensator().setBreathStart(breath_start_);
+    planner_ = std::move(planner);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  mode_ = mode;
+  spindle_rpm_ = rpm;
+  max_duration_s_ = max_duration;
+  registered_ = false;
+  reg_count_ = 0;
+  retreat_.reset();
+  arm_q_ = arm_.homeJoints();
+  spindle(spindle_rpm_);
+  sendMoveToPose(now);
+  setPhase(TrialPhase::kMovingToPose);
+  out_.start_timers.push_back(
+      {TimerRequest::Kind::kPoseReached, params_.move_duration_s + params_.settle_s, false});
+  std::ostringstream os;
+  os << "trial started: " << toString(mode) << ", feed " << feed_mm_s << " mm/s, spindle " << rpm
+     << " rpm";
+  log(SequencerLog::Level::kInfo, os.str());
+  return "";
+}
+
+void TrialSequencer::sendMoveToPose(double now) {
+  JointTrajectoryCommand traj;
+  traj.start_time = now;
+  traj.joint_names = params_.arm_joints;
+  traj.joint_names.push_back(params_.feed_joint);
+  JointTrajectoryCommand::Point goal;
+  for (int i = 0; i < arm_q_.size(); ++i) goal.positions.push_back(arm_q_[i]);
+  goal.positions.push_back(arm_.feedHome());
+  goal.velocities.assign(goal.positions.size(), 0.0);
+  goal.time_from_start = params_.move_duration_s;
+  // One point: the controller moves from its own current state (JointTrajectoryController
+  // semantics), which stays right when a component reset the robot before this trial.
+  traj.points.push_back(goal);
+  out_.trajectories.push_back(std::move(traj));
+}
+
+void TrialSequencer::onPoseReached(double now) {
+  if (phase_ != TrialPhase::kMovingToPose) return;
+  registration_open_ = now;
+  registration_deadline_ = now + params_.registration_timeout_s;
+  setPhase(TrialPhase::kRegistering);
+  out_.start_timers.push_back(
+      {TimerRequest::Kind::kRegistrationTimeout, params_.registration_timeout_s, false});
+}
+
+void TrialSequencer::onRegistrationTimeout(double) {
+  if (phase_ == TrialPhase::kRegistering) {
+    std::ostringstream os;
+    os << "no tracker/marker_pose message for registration within "
+       << params_.registration_timeout_s << " s";
+    fail(os.str());
+  }
+}
+
+Eigen::Vector3d TrialSequencer::boneDisplacementSinceMarker(double t) const {
+  // mode_, not planner_->mode(): the planner only starts after the registration.
+  if (mode_ == CompensationMode::kStationary) return Eigen::Vector3d::Zero();
+  return planner_->compensator().displacement(t) - y_marker_reg_;
+}
+
+void TrialSequencer::onMarker(double now, double stamp, const std::string& frame,
+                              const Eigen::Vector3d& p, const Eigen::Quaterniond& orientation,
+                              const RotationLookup& lookup) {
+  if (phase_ == TrialPhase::kRegistering) {
+    registerSample(now, stamp, frame, p, orientation, lookup);
+    return;
+  }
+  if (!registered_ || !planner_ ||
+      (phase_ != TrialPhase::kDrilling && phase_ != TrialPhase::kStopped &&
+       phase_ != TrialPhase::kRetreating)) {
+    return;
+  }
+  // Predicted marker pose at the tracker's own time stamp, for the safety monitor.
+  PredictedMarker m;
+  m.stamp = stamp;
+  m.frame = marker_frame_;
+  m.position = marker_reg_ + rotation_ * boneDisplacementSinceMarker(stamp);
+  m.orientation = marker_orientation_;
+  out_.predicted.push_back(m);
+  // Then the compensator hears the sample (a tracker-feedback one): the prediction above was
+  // made without it, so that the monitor judges a prediction, not the measurement itself.
+  if (p.allFinite()) planner_->compensator().observeMarker(stamp, rotation_.transpose() * p);
+}
+
+void TrialSequencer::registerSample(double now, double stamp, const std::string& frame,
+                                    const Eigen::Vector3d& pos,
+                                    const Eigen::Quaterniond& orientation,
+                                    const RotationLookup& lookup) {
+  if (now > registration_deadline_) {
+    fail("no usable tracker/marker_pose message for registration");
+    return;
+  }
+  if (stamp < registration_open_) return;  // measured before the arm settled
+  if (!pos.allFinite()) {
+    fail("non-finite marker pose during registration");
+    return;
+  }
+  if (reg_count_ == 0) {
+    marker_frame_ = frame;
+    if (marker_frame_.empty() || marker_frame_ == world_frame_) {
+      rotation_ = Eigen::Matrix3d::Identity();
+    } else if (!lookup || !lookup(marker_frame_, &rotation_)) {
+      log(SequencerLog::Level::kWarn,
+          "waiting for the rotation " + world_frame_ + " -> " + marker_frame_);
+      return;
+    }
+    planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
+    if (mode_ != CompensationMode::kStationary && !planner_->compensator().ready()) {
+      fail("the compensator is not ready at the registration (" +
+           planner_->compensator().describe() + ")");
+      return;
+    }
+    y_marker_reg_ = mode_ == CompensationMode::kStationary
+                        ? Eigen::Vector3d::Zero()
+                        : planner_->compensator().displacement(stamp);
+    marker_orientation_ = orientation;
+    marker_sum_.setZero();
+  } else if (frame != marker_frame_) {
+    fail("marker frame changed during registration");
+    return;
+  } else {
+    planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
+  }
+  // Average the samples, each moved back to the first sample's time by the prediction.
+  marker_sum_ += pos - rotation_ * boneDisplacementSinceMarker(stamp);
+  if (++reg_count_ < params_.registration_samples) return;
+  marker_reg_ = marker_sum_ / reg_count_;
+  registered_ = true;
+  startDrilling(now, stamp);
+}
+
+void TrialSequencer::onRecognizerState(double now, bool stop, const std::string& state_name,
+                                       int key_point) {
+  recognizer_reports_stop_ = stop;
+  last_recognizer_t_ = now;
+  if (stop && phase_ == TrialPhase::kDrilling) {
+    handleStop(now, false,
+               "drilling_state reports a recognizer stop (state " + state_name + ", key point " +
+                   std::to_string(key_point) + ")");
+  }
+}
+
+void TrialSequencer::startDrilling(double now, double t_reg) {
+  if (recognizer_reports_stop_) {
+    fail(
+        "refusing to feed: the StateRecognizer reports a stop latched from an earlier trial "
+        "(drilling_state.stop); reset it (~reset, or list it in ~trial_start_services)");
+    return;
+  }
+  // The segment grid starts at the registration time, the stamp of the last registration
+  // sample (the instant the marker was measured), not when its message was handled: on ROS the
+  // handling time is the last /clock tick, which trails the stamp by a scheduling-dependent
+  // amount and moved the 125 ms grid against the breath from run to run.
+  planner_->start(mode_, t_reg);
+  t_end_ = t_reg + max_duration_s_;
+  next_k_ = 0;
+  retreat_.reset();
+  drilling_since_ = now;
+  setPhase(TrialPhase::kDrilling);
+  log(SequencerLog::Level::kInfo, "marker registered (" + std::to_string(reg_count_) +
+                                      " samples), drilling (" + toString(mode_) + ")");
+  sendDueSegments(now);
+  out_.start_timers.push_back({TimerRequest::Kind::kSegment, planner_->params().period_s, true});
+}
+
+void TrialSequencer::onMonitorAlive(double now) { last_monitor_t_ = now; }
+
+void TrialSequencer::onSegmentTimer(double now) {
+  if (phase_ == TrialPhase::kDrilling) {
+    // A component that falls silent while the drill feeds: its nodelet was unloaded or died.
+    const auto silent = [this, now](double last, double timeout) {
+      return timeout > 0.0 && now - std::max(last, drilling_since_) > timeout;
+    };
+    std::string why;
+    if (silent(last_recognizer_t_, params_.recognizer_timeout_s)) {
+      why = "recognizer silent: no drilling_state for more than " +
+            std::to_string(params_.recognizer_timeout_s) + " s while drilling";
+    } else if (silent(last_monitor_t_, params_.monitor_timeout_s)) {
+      why = "safety monitor silent: not heard for more than " +
+            std::to_string(params_.monitor_timeout_s) + " s while drilling";
+    }
+    if (!why.empty()) {
+      log(SequencerLog::Level::kError, why + "; stopping and retracting");
+      out_.stops.push_back(why);
+      handleStop(now, true, why);
+    }
+  }
+  if (phase_ == TrialPhase::kDrilling && now >= t_end_) {
+    log(SequencerLog::Level::kWarn, "max duration reached, retracting");
+    startRetreat(now, "max duration");
+  } else if (phase_ == TrialPhase::kStopped && now >= hold_end_) {
+    startRetreat(now, "stop hold elapsed");
+  } else if (phase_ == TrialPhase::kRetreating && retreat_ && retreat_->finished(now)) {
+    out_.stop_timers = true;
+    setPhase(TrialPhase::kDone);
+    return;
+  }
+  if (phase_ == TrialPhase::kDrilling || phase_ == TrialPhase::kStopped ||
+      phase_ == TrialPhase::kRetreating) {
+    sendDueSegments(now);
+  }
+}
+
+double TrialSequencer::feedCommandAt(double t, double segmented_feed) const {
+  double feed = arm_.feedHome() + segmented_feed;
+  if (retreat_) feed -= retreat_->position(t).x();
+  return std::clamp(feed, params_.feed_lower_m, params_.feed_upper_m);
+}
+
+void TrialSequencer::sendDueSegments(double now) {
+  const double period = planner_->params().period_s;
+  // Segment k goes out one period ahead of its start, when the timer tick of t_k - T fires. The
+  // half-period margin makes that tick send it whatever the rounding of the two clocks (the
+  // timer's accumulated due time and the grid t_reg + k T differ in the last bits) and a timer
+  // that fires a little early: without it, about every other tick missed its segment by 1e-12 s,
+  // which then went out at its own start and reached the controller after it; the arm held the
+  // last point for the transport delay (a 4 um stall at the bone's 4 mm/s) at every such
+  // boundary.
+  while (planner_->registrationTime() + next_k_ * period <= now + 1.5 * period) {
+    const PlannedSegment seg = planner_->segment(next_k_);
+    ++next_k_;
+    if (seg.t1 <= now) continue;  // late timer: skip segments already over
+    std::vector<double> times;
+    std::vector<double> feeds;
+    std::vector<double> feed_velocities;
+    std::vector<Eigen::Vector3d> lateral;
+    const auto add = [&](const PlannedPoint& pt) {
+      times.push_back(pt.t);
+      feeds.push_back(pt.feed_m);
+      feed_velocities.push_back(pt.feed_velocity_m_s);
+      lateral.push_back(pt.lateral_m);
+    };
+    // A trajectory message takes over at its start time (JointTrajectoryController): segment
+    // k alone, from t_k.
+    for (const PlannedPoint& pt : seg.points) add(pt);
+    // While drilling every point carries its planned velocity (the trapezoid's, or the
+    // reference's for the exact profile), so that the controller's cubic spline runs the plan;
+    // a hold or a retreat adds to the feed, and its velocities come from the points.
+    emitTrajectory(seg.t0, times, feeds, lateral,
+                   phase_ == TrialPhase::kDrilling ? &feed_velocities : nullptr);
+    if (phase_ == TrialPhase::kDrilling &&
+        arm_.feedHome() + seg.feed_end_m > params_.feed_upper_m - 1e-3) {
+      log(SequencerLog::Level::kWarn, "feed axis travel exhausted, retracting");
+      startRetreat(now, "feed travel exhausted");
+      return;
+    }
+  }
+}
+
+void TrialSequencer::emitTrajectory(double start, const std::vector<double>& times,
+                                    const std::vector<double>& feeds,
+                                    const std::vector<Eigen::Vector3d>& lateral,
+                                    const std::vector<double>* feed_velocities) {
+  JointTrajectoryCommand traj;
+  traj.start_time = start;
+  traj.joint_names = params_.arm_joints;
+  traj.joint_names.push_back(params_.feed_joint);
+  double prev_t = start;
+  double prev_feed = times.empty() ? 0.0 : feedCommandAt(prev_t, feeds.front());
+  Eigen::VectorXd prev_q = arm_q_;
+  for (std::size_t i = 0; i < times.size(); ++i) {
+    Eigen::VectorXd q = arm_q_;
+    if (planner_->params().compensate_lateral && lateral[i].norm() > 1e-9) {
+      try {
+        q = arm_.lateral(lateral[i], arm_q_);
+        arm_q_ = q;
+      } catch (const std::exception& e) {
+        log(SequencerLog::Level::kError, std::string(e.what()) + "; arm held");
+      }
+    }
+    const double feed = feedCommandAt(times[i], feeds[i]);
+    const double dt = std::max(1e-6, times[i] - prev_t);
+    const bool last = i + 1 == times.size();
+    JointTrajectoryCommand::Point pt;
+    for (int j = 0; j < q.size(); ++j) {
+      pt.positions.push_back(q[j]);
+      pt.velocities.push_back(last ? 0.0 : (q[j] - prev_q[j]) / dt);
+    }
+    pt.positions.push_back(feed);
+    pt.velocities.push_back(feed_velocities != nullptr ? (*feed_velocities)[i]
+                            : last                     ? 0.0
+                                                       : (feed - prev_feed) / dt);
+    pt.time_from_start = times[i] - start;
+    traj.points.push_back(std::move(pt));
+    prev_t = times[i];
+    prev_feed = feed;
+    prev_q = q;
+  }
+  out_.trajectories.push_back(std::move(traj));
+}
+
+void TrialSequencer::resendFromNow(double now) {
+  const double period = planner_->params().period_s;
+  const int k = planner_->segmentIndexAt(now);
+  const double t_end = planner_->registrationTime() + (k + 1) * period;
+  const int n = planner_->params().points_per_segment;
+  std::vector<double> times;
+  std::vector<double> feeds;
+  std::vector<Eigen::Vector3d> lateral;
+  for (int i = 1; i <= n; ++i) {
+    const double t = now + (t_end - now) * i / n;
+    const Eigen::Vector3d r = planner_->segmentedReference(t);
+    const double f = r.dot(planner_->axis());
+    times.push_back(t);
+    feeds.push_back(f);
+    lateral.push_back(r - f * planner_->axis());
+  }
+  emitTrajectory(now, times, feeds, lateral, nullptr);
+  next_k_ = k + 1;
+  sendDueSegments(now);
+}
+
+void TrialSequencer::onStop(double now, bool retreat, const std::string& reason) {
+  handleStop(now, retreat, reason);
+}
+
+void TrialSequencer::handleStop(double now, bool retreat, const std::string& reason) {
+  switch (phase_) {
+    case TrialPhase::kMovingToPose:
+    case TrialPhase::kRegistering:
+      fail("stopped before drilling began: " + reason);
+      return;
+    case TrialPhase::kDrilling:
+    case TrialPhase::kStopped:
+      spindle(0.0);
+      planner_->holdFeed(now);
+      if (retreat) {
+        startRetreat(now, reason);
+      } else if (phase_ == TrialPhase::kDrilling) {
+        hold_end_ = now + params_.stop_hold_s;
+        setPhase(TrialPhase::kStopped);
+        resendFromNow(now);
+      }
+      return;
+    default:
+      return;  // idle, already retreating, done: nothing to stop
+  }
+}
+
+void TrialSequencer::startRetreat(double now, const std::string& why) {
+  spindle(0.0);
+  planner_->holdFeed(now);
+  // The held feed the trajectory settles at (the segment in progress ends there).
+  const double feed_now = feedCommandAt(now, planner_->referenceFeed(now));
+  // Back along the drill axis (feed coordinate), clamped at the retracted end of the feed.
+  const RetreatParams& rp = retreat_planner_.params();
+  const double distance = std::max(0.0, std::min(rp.distance_m, feed_now - params_.feed_lower_m));
+  retreat_ = std::make_unique<RetreatMotion>(
+      now, Eigen::Vector3d::Zero(), Eigen::Vector3d(distance, 0, 0),
+      TrapezoidProfile::minimumTime(distance, rp.speed_m_s, rp.accel_m_s2));
+  std::ostringstream os;
+  os << "retreating " << distance * 1e3 << " mm (" << why << ")";
+  log(SequencerLog::Level::kWarn, os.str());
+  setPhase(TrialPhase::kRetreating);
+  resendFromNow(now);
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,90 @@
+/**
+ * @file drilling_force.cpp
+ * @brief Mechanistic thrust-force law with material removal (see drilling_force.hpp).
+ */
+#include "pedicle_drilling/core/drilling/drilling_force.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <utility>
+
+namespace pedicle_drilling::core {
+
+namespace {
+constexpr double kPi = 3.14159265358979323846;
+}  // namespace
+
+DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
+    : specimen_(std::move(specimen)), params_(params) {
+  if (!(params_.bit_diameter_m > 0.0) || !(params_.point_angle_deg > 0.0) ||
+      !(params_.point_angle_deg < 180.0) || !(params_.ref_feed_per_rev_m > 0.0) ||
+      !(params_.ref_spindle_rpm > 0.0)) {
+    throw std::invalid_argument("DrillingProcess: invalid drill parameters");
+  }
+  const double half_angle = 0.5 * params_.point_angle_deg * kPi / 180.0;
+  cone_length_m_ = 0.5 * params_.bit_diameter_m / std::tan(half_angle);
+}
+
+void DrillingProcess::reset() {
+  max_depth_cut_m_ = 0.0;
+  thrust_N_ = 0.0;
+}
+
+double DrillingProcess::steadyThrust(double engaged_fraction, double feed_per_rev_m,
+                                     double spindle_rpm) const {
+  if (engaged_fraction <= 0.0 || feed_per_rev_m <= 0.0 || spindle_rpm <= 0.0) return 0.0;
+  return params_.thrust_coefficient_n_per_m * params_.bit_diameter_m * engaged_fraction *
+         std::pow(feed_per_rev_m / params_.ref_feed_per_rev_m, params_.feed_exponent) *
+         std::pow(spindle_rpm / params_.ref_spindle_rpm, -params_.speed_exponent);
+}
+
+double DrillingProcess::engagedFraction(double tip_depth_m) const {
+  // Lip point at radius r cuts at depth tip - (r / R) * cone_length (conical point); uniform
+  // weight per unit lip length -> mean solid fraction over the depth window of the cone.
+  return (specimen_.integratedFraction(tip_depth_m) -
+          specimen_.integratedFraction(tip_depth_m - cone_length_m_)) /
+         cone_length_m_;
+}
+
+ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_rpm) {
+  if (!(dt > 0.0)) throw std::invalid_argument("DrillingProcess::step: dt must be > 0");
+  ForceSample out;
+  out.material = specimen_.materialAt(tip_depth_m);
+  const double advance = tip_depth_m - max_depth_cut_m_;
+  if (advance <= 0.0 || spindle_rpm <= 0.0) {
+    // Tip at or behind the hole bottom (or spindle stopped): no lip touches bone.
+    thrust_N_ = 0.0;
+    out.thrust_N = 0.0;
+    return out;
+  }
+  const double revolutions = dt * spindle_rpm / 60.0;
+  const double feed_per_rev = advance / revolutions;
+  const double phi = engagedFraction(tip_depth_m);
+  max_depth_cut_m_ = tip_depth_m;
+  const double target = steadyThrust(phi, feed_per_rev, spindle_rpm);
+  // First-order lag with tau = lag_revolutions spindle periods (exact discretisation).
+  const double tau = params_.lag_revolutions * 60.0 / spindle_rpm;
+  const double a = tau > 0.0 ? std::exp(-dt / tau) : 0.0;
+  thrust_N_ = a * thrust_N_ + (1.0 - a) * target;
+  out.contact = phi > 0.0;
+  if (!out.contact) thrust_N_ = 0.0;  // cutting air (tip advancing before the surface/canal)
+  out.thrust_N = thrust_N_;
+  out.feed_per_rev_m = feed_per_rev;
+  out.engaged_fraction = phi;
+  return out;
+}
+
+double DrillingProcess::removedDepth(Material layer) const {
+  double s = 0.0;
+  double e = 0.0;
+  specimen_.layerInterval(layer, &s, &e);
+  if (e <= s) return 0.0;
+  return std::clamp(max_depth_cut_m_, s, e) - s;
+}
+
+double DrillingProcess::residualInnerCorticalThickness() const {
+  return std::max(0.0, specimen_.innerCorticalEnd() - max_depth_cut_m_);
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,240 @@
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+const char* const kPaperRecognizer = "pedicle_drilling/PaperRecognizer";
+const char* const kForceDifferenceRecognizer = "pedicle_drilling/ForceDifferenceRecognizer";
+
+}  // namespace
+
+// ----------------------------------------------------------------------- PaperRecognizer
+
+PaperRecognizer::PaperRecognizer(const RecognizerParams& params) : recognizer_(params) {}
+
+void PaperRecognizer::configure(const RecognizerSettings& settings) {
+  RecognizerParams p;
+  for (const auto& [name, value] : settings) p.set(name, value);
+  recognizer_ = StateRecognizer(p);  // validates
+}
+
+std::string PaperRecognizer::stopReason() const {
+  return pedicle_drilling::core::stopReason(recognizer_.output());
+}
+
+std::string PaperRecognizer::describe() const {
+  const RecognizerParams& p = recognizer_.params();
+  char text[300];
+  std::snprintf(text, sizeof(text),
+                "paper recognizer (Sec. IV-C/D): pre-average %d, window %d, K %.2f, F_th %.2f N, "
+                "G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
+                p.pre_average, p.window, p.k_ratio, p.f_th, p.gain, p.h_g, p.c1, p.c2, p.c3);
+  return text;
+}
+
+std::vector<std::string> PaperRecognizer::parameterNames() const {
+  return {"pre_average",
+          "window",
+          "k_ratio",
+          "f_th",
+          "gain",
+          "h_g",
+          "c1",
+          "c2",
+          "c3",
+          "cancellous_confirm",
+          "outer_cortical_timeout",
+          "cancellous_timeout",
+          "inner_confirm",
+          "stop_delay",
+          "normalize_feature"};
+}
+
+// ------------------------------------------------------------- ForceDifferenceRecognizer
+
+void ForceDifferenceParams::validate() const {
+  const auto fail = [](const char* name, const std::string& rule) {
+    throw std::invalid_argument(std::string(name) + ": " + rule);
+  };
+  if (pre_average < 1 || pre_average > 100000) fail("pre_average", "must be in [1, 100000]");
+  if (!(contact_force_n > 0.0 && contact_force_n <= 1000.0)) {
+    fail("contact_force_n", "must be in (0, 1000] N");
+  }
+  if (!(process_noise > 0.0 && process_noise <= 1e3)) fail("process_noise", "must be in (0, 1e3]");
+  if (!(measurement_noise > 0.0 && measurement_noise <= 1e3)) {
+    fail("measurement_noise", "must be in (0, 1e3]");
+  }
+  if (!(drop_threshold_n > 0.0 && drop_threshold_n <= 100.0)) {
+    fail("drop_threshold_n", "must be in (0, 100] N per block");
+  }
+  if (drop_confirm < 1 || drop_confirm > 10000) fail("drop_confirm", "must be in [1, 10000]");
+  if (stop_at_breakthrough < 1 || stop_at_breakthrough > 10) {
+    fail("stop_at_breakthrough", "must be in [1, 10]");
+  }
+  if (!(rearm_rise_n > 0.0 && rearm_rise_n <= 100.0)) {
+    fail("rearm_rise_n", "must be in (0, 100] N per block");
+  }
+}
+
+void ForceDifferenceRecognizer::configure(const RecognizerSettings& settings) {
+  ForceDifferenceParams p;
+  for (const auto& [name, value] : settings) {
+    if (name == "pre_average") {
+      p.pre_average = parseSettingInt(name, value);
+    } else if (name == "contact_force_n") {
+      p.contact_force_n = parseSettingDouble(name, value);
+    } else if (name == "process_noise") {
+      p.process_noise = parseSettingDouble(name, value);
+    } else if (name == "measurement_noise") {
+      p.measurement_noise = parseSettingDouble(name, value);
+    } else if (name == "drop_threshold_n") {
+      p.drop_threshold_n = parseSettingDouble(name, value);
+    } else if (name == "drop_confirm") {
+      p.drop_confirm = parseSettingInt(name, value);
+    } else if (name == "stop_at_breakthrough") {
+      p.stop_at_breakthrough = parseSettingInt(name, value);
+    } else if (name == "rearm_rise_n") {
+      p.rearm_rise_n = parseSettingDouble(name, value);
+    } else {
+      throw std::invalid_argument(name + ": not a parameter of " +
+                                  std::string(kForceDifferenceRecognizer));
+    }
+  }
+  p.validate();
+  p_ = p;
+  reset();
+}
+
+void ForceDifferenceRecognizer::reset() {
+  out_ = RecognizerOutput();
+  raw_count_ = 0;
+  block_n_ = 0;
+  block_sum_ = 0.0;
+  cur_t_ = 0.0;
+  have_previous_ = false;
+  previous_ = 0.0;
+  x_ = 0.0;
+  P_ = 1.0;
+  in_bone_ = false;
+  armed_ = true;
+  falling_ = 0;
+  breakthroughs_ = 0;
+}
+
+const RecognizerOutput& ForceDifferenceRecognizer::push(double t, double raw_force) {
+  if (!std::isfinite(t)) throw std::invalid_argument("t: time must be finite");
+  if (!std::isfinite(raw_force)) throw std::invalid_argument("raw_force: force must be finite");
+  out_.new_average = false;
+  ++raw_count_;
+  block_sum_ += raw_force;
+  if (++block_n_ == p_.pre_average) {
+    const double f = block_sum_ / p_.pre_average;
+    block_sum_ = 0.0;
+    block_n_ = 0;
+    cur_t_ = t;
+    onBlock(f);
+  }
+  return out_;
+}
+
+void ForceDifferenceRecognizer::onBlock(double f) {
+  out_.new_average = true;
+  out_.filter_ready = true;
+  out_.averaged_force = f;
+  if (!have_previous_) {
+    have_previous_ = true;
+    previous_ = f;
+    return;
+  }
+  // Force difference between successive (block-mean) samples, Kalman-filtered as a random walk.
+  const double fdss = f - previous_;
+  previous_ = f;
+  P_ += p_.process_noise;
+  const double gain = P_ / (P_ + p_.measurement_noise);
+  x_ += gain * (fdss - x_);
+  P_ *= 1.0 - gain;
+  out_.feature = x_;  // the filtered FDSS [N per block], shown as the feature
+
+  if (!in_bone_) {
+    if (f <= p_.contact_force_n) return;
+    in_bone_ = true;
+    out_.layer_state = DrillingState::kOuterCortical;
+    if (!out_.stop) out_.state = out_.layer_state;
+  }
+  if (armed_) {
+    falling_ = x_ < -p_.drop_threshold_n ? falling_ + 1 : 0;
+    if (falling_ >= p_.drop_confirm) {
+      ++breakthroughs_;
+      armed_ = false;
+      falling_ = 0;
+      out_.layer_state =
+          breakthroughs_ == 1 ? DrillingState::kCancellous : DrillingState::kBreakthrough;
+      if (breakthroughs_ >= p_.stop_at_breakthrough && !out_.stop) {
+        out_.stop = true;
+        out_.stop_t = cur_t_;
+        out_.stop_index = raw_count_ - 1;
+        out_.stop_key_point = 0;
+      }
+    }
+  } else if (x_ > p_.rearm_rise_n) {
+    armed_ = true;  // the force rises again: the next cortex
+    if (breakthroughs_ >= 1) out_.layer_state = DrillingState::kInnerCortical;
+  }
+  out_.state = out_.stop ? DrillingState::kStopped : out_.layer_state;
+}
+
+std::string ForceDifferenceRecognizer::stopReason() const {
+  if (!out_.stop) return "";
+  char text[200];
+  std::snprintf(text, sizeof(text),
+                "force-difference breakthrough %d detected (filtered FDSS below -%.3f N per "
+                "block for %d blocks) at t=%.3f s, raw sample %lu",
+                breakthroughs_, p_.drop_threshold_n, p_.drop_confirm, out_.stop_t,
+                static_cast<unsigned long>(out_.stop_index));
+  return text;
+}
+
+std::string ForceDifferenceRecognizer::describe() const {
+  std::ostringstream os;
+  os << "force-difference baseline (Ong and Bouazza-Marouf 1999): pre-average " << p_.pre_average
+     << ", contact " << p_.contact_force_n << " N, q " << p_.process_noise << ", r "
+     << p_.measurement_noise << ", drop " << p_.drop_threshold_n << " N/block x " << p_.drop_confirm
+     << ", stop at breakthrough " << p_.stop_at_breakthrough;
+  return os.str();
+}
+
+std::vector<std::string> ForceDifferenceRecognizer::parameterNames() const {
+  return {"pre_average",      "contact_force_n", "process_noise",        "measurement_noise",
+          "drop_threshold_n", "drop_confirm",    "stop_at_breakthrough", "rearm_rise_n"};
+}
+
+// ---------------------------------------------------------------------------- factory
+
+std::vector<std::string> builtinRecognizerNames() {
+  return {kPaperRecognizer, kForceDifferenceRecognizer};
+}
+
+std::unique_ptr<RecognizerInterface> makeBuiltinRecognizer(const std::string& name,
+                                                           const RecognizerSettings& settings) {
+  std::unique_ptr<RecognizerInterface> r;
+  if (name == kPaperRecognizer) {
+    r = std::make_unique<PaperRecognizer>();
+  } else if (name == kForceDifferenceRecognizer) {
+    r = std::make_unique<ForceDifferenceRecognizer>();
+  } else {
+    std::string known;
+    for (const std::string& n : builtinRecognizerNames()) known += (known.empty() ? "" : ", ") + n;
+    throw std::invalid_argument("recognizer '" + name + "' is not built in (known: " + known +
+                                "; a plugin of another package is loaded through pluginlib)");
+  }
+  r->configure(settings);
+  return r;
+}
+
+}  // namespace pedicle_drilling::core

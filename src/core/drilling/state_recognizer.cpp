@@ -1,0 +1,395 @@
+// Force-based drilling-state recognizer. See doc/state_machine.md for the state machine.
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+[[noreturn]] void fail(const std::string& name, const std::string& why, double value) {
+  std::ostringstream os;
+  os << name << ": " << why << " (got " << value << ")";
+  throw std::invalid_argument(os.str());
+}
+
+void requireFinite(const std::string& name, double v) {
+  if (!std::isfinite(v)) fail(name, "must be finite", v);
+}
+
+}  // namespace
+
+double parseSettingDouble(const std::string& name, const std::string& text) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(begin, &end);
+  if (text.empty() || end == begin || *end != '\0' || errno == ERANGE) {
+    throw std::invalid_argument(name + ": cannot parse number '" + text + "'");
+  }
+  return v;
+}
+
+bool parseSettingBool(const std::string& name, const std::string& text) {
+  if (text == "1" || text == "true") return true;
+  if (text == "0" || text == "false") return false;
+  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
+}
+
+int parseSettingInt(const std::string& name, const std::string& text) {
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  errno = 0;
+  const long v = std::strtol(begin, &end, 10);
+  if (text.empty() || end == begin || *end != '\0' || errno == ERANGE ||
+      v > std::numeric_limits<int>::max() || v < std::numeric_limits<int>::min()) {
+    throw std::invalid_argument(name + ": cannot parse integer '" + text + "'");
+  }
+  return static_cast<int>(v);
+}
+
+void RecognizerParams::validate() const {
+  if (pre_average < 1) fail("pre_average", "must be >= 1", pre_average);
+  if (window < 1) fail("window", "must be >= 1", window);
+  requireFinite("k_ratio", k_ratio);
+  if (!(k_ratio > 0.0 && k_ratio < 1.0)) fail("k_ratio", "must be in (0, 1)", k_ratio);
+  requireFinite("f_th", f_th);
+  if (!(f_th > 0.0)) fail("f_th", "must be > 0 N", f_th);
+  requireFinite("gain", gain);
+  if (!(gain >= 1.0)) fail("gain", "must be >= 1", gain);
+  requireFinite("h_g", h_g);
+  if (!(h_g >= 0.0)) fail("h_g", "must be >= 0", h_g);
+  requireFinite("c1", c1);
+  if (!(c1 > 0.0)) fail("c1", "must be > 0", c1);
+  requireFinite("c2", c2);
+  if (!(c2 >= c1)) fail("c2", "must be >= c1 (hysteresis between cancellous and cortical)", c2);
+  requireFinite("c3", c3);
+  if (!(c3 > 0.0 && c3 < 1.0)) fail("c3", "must be in (0, 1)", c3);
+  if (cancellous_confirm < 1) fail("cancellous_confirm", "must be >= 1", cancellous_confirm);
+  if (outer_cortical_timeout < 0) {
+    fail("outer_cortical_timeout", "must be >= 0", outer_cortical_timeout);
+  }
+  if (cancellous_timeout < 0) fail("cancellous_timeout", "must be >= 0", cancellous_timeout);
+  if (cancellous_timeout > 0 && cancellous_timeout <= cancellous_confirm) {
+    fail("cancellous_timeout", "must be 0 or > cancellous_confirm", cancellous_timeout);
+  }
+  if (inner_confirm < 1) fail("inner_confirm", "must be >= 1", inner_confirm);
+  if (stop_delay < 0) fail("stop_delay", "must be >= 0", stop_delay);
+}
+
+void RecognizerParams::set(const std::string& name, const std::string& value) {
+  if (name == "pre_average") {
+    pre_average = parseSettingInt(name, value);
+  } else if (name == "window") {
+    window = parseSettingInt(name, value);
+  } else if (name == "k_ratio") {
+    k_ratio = parseSettingDouble(name, value);
+  } else if (name == "f_th") {
+    f_th = parseSettingDouble(name, value);
+  } else if (name == "gain") {
+    gain = parseSettingDouble(name, value);
+  } else if (name == "h_g") {
+    h_g = parseSettingDouble(name, value);
+  } else if (name == "c1") {
+    c1 = parseSettingDouble(name, value);
+  } else if (name == "c2") {
+    c2 = parseSettingDouble(name, value);
+  } else if (name == "c3") {
+    c3 = parseSettingDouble(name, value);
+  } else if (name == "cancellous_confirm") {
+    cancellous_confirm = parseSettingInt(name, value);
+  } else if (name == "outer_cortical_timeout") {
+    outer_cortical_timeout = parseSettingInt(name, value);
+  } else if (name == "cancellous_timeout") {
+    cancellous_timeout = parseSettingInt(name, value);
+  } else if (name == "inner_confirm") {
+    inner_confirm = parseSettingInt(name, value);
+  } else if (name == "stop_delay") {
+    stop_delay = parseSettingInt(name, value);
+  } else if (name == "normalize_feature") {
+    normalize_feature = parseSettingBool(name, value);
+  } else {
+    throw std::invalid_argument(name + ": unknown recognizer parameter");
+  }
+}
+
+const char* toString(DrillingState s) {
+  switch (s) {
+    case DrillingState::kIdle:
+      return "idle";
+    case DrillingState::kOuterCortical:
+      return "outer_cortical";
+    case DrillingState::kOuterPunctured:
+      return "outer_punctured";
+    case DrillingState::kCancellous:
+      return "cancellous";
+    case DrillingState::kInnerCortical:
+      return "inner_cortical";
+    case DrillingState::kBreakthrough:
+      return "breakthrough";
+    case DrillingState::kStopped:
+      return "stopped";
+  }
+  return "unknown";
+}
+
+std::string stopReason(const RecognizerOutput& out) {
+  if (!out.stop) return "";
+  char reason[200];
+  if (out.stop_implausible && out.stop_key_point == 0) {
+    std::snprintf(reason, sizeof(reason),
+                  "implausible force: the outer cortical layer did not end after the contact "
+                  "(sensor drift?); stop before key point 1 at t=%.3f s, raw sample %lu",
+                  out.stop_t, static_cast<unsigned long>(out.stop_index));
+    return reason;
+  }
+  if (out.stop_implausible) {
+    std::snprintf(reason, sizeof(reason),
+                  "implausible force: cancellous bone not confirmed after the outer cortical "
+                  "layer (sensor drift?); stop after key point %d at t=%.3f s, raw sample %lu",
+                  out.stop_key_point, out.stop_t, static_cast<unsigned long>(out.stop_index));
+    return reason;
+  }
+  std::snprintf(reason, sizeof(reason),
+                "inner cortical layer reached: stop after key point %d (%s) at t=%.3f s, "
+                "raw sample %lu",
+                out.stop_key_point, toString(out.layer_state), out.stop_t,
+                static_cast<unsigned long>(out.stop_index));
+  return reason;
+}
+
+StateRecognizer::StateRecognizer(const RecognizerParams& params) : params_(params) {
+  params_.validate();
+  reset();
+}
+
+void StateRecognizer::reset() {
+  out_ = Output();
+  raw_count_ = 0;
+  t_last_ = 0.0;
+  block_sum_ = 0.0;
+  block_n_ = 0;
+  ring_.assign(static_cast<std::size_t>(params_.window), 0.0);
+  ring_pos_ = 0;
+  ring_fill_ = 0;
+  filtered_count_ = 0;
+  since_punctured_ = 0;
+  since_contact_ = 0;
+  cur_raw_index_ = 0;
+  cur_t_ = 0.0;
+  f_max_ = -std::numeric_limits<double>::infinity();
+  f_min_ = std::numeric_limits<double>::infinity();
+  contact_ = false;
+  records_.clear();
+  records_.reserve(256);
+  run_ = 0;
+  run_start_ = 0;
+  run_start_t_ = 0.0;
+  delay_left_ = -1;
+  inner_peak_ = 0.0;
+  inner_peak_index_ = 0;
+  inner_peak_t_ = 0.0;
+}
+
+double StateRecognizer::feature(const RecognizerParams& p, double fbar, double f_min, double d) {
+  const double fstar = (fbar - f_min) / d;  // normalised force, 1 at the outer-layer peak
+  double a_unit;                            // Eq. 14 divided by D
+  if (fstar > 1.0) {
+    a_unit = 1.0;
+  } else if (fstar >= 0.0) {
+    a_unit = fstar * fstar * fstar;
+  } else {
+    a_unit = 0.0;
+  }
+  const double a = p.normalize_feature ? a_unit : d * a_unit;
+  return a > p.h_g ? p.gain * a : a;  // Eq. 15
+}
+
+const StateRecognizer::Output& StateRecognizer::push(double t, double raw_force) {
+  if (!std::isfinite(t)) throw std::invalid_argument("t: time must be finite");
+  if (!std::isfinite(raw_force)) throw std::invalid_argument("raw_force: force must be finite");
+  out_.new_average = false;
+  t_last_ = t;
+  ++raw_count_;
+  block_sum_ += raw_force;
+  if (++block_n_ == params_.pre_average) {
+    const double f_block = block_sum_ / params_.pre_average;
+    block_sum_ = 0.0;
+    block_n_ = 0;
+    cur_raw_index_ = raw_count_ - 1;
+    cur_t_ = t;
+    processAverage(f_block);
+  }
+  return out_;
+}
+
+void StateRecognizer::processAverage(double f_block) {
+  out_.new_average = true;
+  ring_[ring_pos_] = f_block;
+  ring_pos_ = (ring_pos_ + 1) % ring_.size();
+  if (ring_fill_ < ring_.size()) ++ring_fill_;
+  if (ring_fill_ < ring_.size()) return;  // Eq. 13 needs n values (i >= n)
+  double sum = 0.0;
+  for (double v : ring_) sum += v;
+  out_.filter_ready = true;
+  onFiltered(sum / static_cast<double>(ring_.size()));
+  ++filtered_count_;
+}
+
+void StateRecognizer::addKeyPoint(int id, std::size_t index, double t) {
+  KeyPoint kp;
+  kp.id = id;
+  kp.index = index;
+  kp.t = t;
+  kp.recognized_index = cur_raw_index_;
+  kp.recognized_t = cur_t_;
+  out_.key_points[static_cast<std::size_t>(out_.num_key_points++)] = kp;
+  if (!out_.stop) out_.last_key_point = id;
+}
+
+void StateRecognizer::setLayerState(DrillingState s) {
+  out_.layer_state = s;
+  if (!out_.stop) out_.state = s;
+}
+
+void StateRecognizer::commandStop() {
+  if (out_.stop) return;
+  out_.stop = true;
+  out_.stop_index = cur_raw_index_;
+  out_.stop_t = cur_t_;
+  out_.stop_key_point = out_.last_key_point;
+  out_.state = DrillingState::kStopped;
+}
+
+void StateRecognizer::onFiltered(double fbar) {
+  out_.averaged_force = fbar;
+  const RecognizerParams& p = params_;
+
+  if (!out_.params_ready) {
+    // Algorithm 2 (F_max starts at -inf instead of 0: identical decisions because the exit test
+    // also requires F_max > F_th > 0, and it lets the running-maxima record start at i = 1).
+    if (fbar < f_min_) f_min_ = fbar;
+    if (fbar > f_max_) {
+      f_max_ = fbar;
+      records_.push_back(Record{fbar, cur_raw_index_, cur_t_});
+    }
+    if (!contact_ && f_max_ > p.f_th) {
+      contact_ = true;
+      setLayerState(DrillingState::kOuterCortical);
+    }
+    if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
+      out_.feature = 0.0;
+      // The contact sample counts as the first one (the outer layer's dwell starts with it).
+      if (contact_ && p.outer_cortical_timeout > 0 && ++since_contact_ > p.outer_cortical_timeout &&
+          !out_.stop) {
+        commandStop();
+        out_.stop_implausible = true;
+      }
+      return;
+    }
+    out_.params_ready = true;
+    out_.k = filtered_count_;
+    out_.d = f_max_ - f_min_;
+    out_.f_min = f_min_;
+    // Key point 1 (retrospective): first fbar before k whose A* reaches C1. Because A* is
+    // monotone in fbar, it is the first running maximum that does. Fallback (D too small for
+    // A* to ever reach C1): the first sample above F_th.
+    const Record* kp1 = nullptr;
+    for (const Record& r : records_) {
+      if (feature(p, r.fbar, f_min_, out_.d) >= p.c1) {
+        kp1 = &r;
+        break;
+      }
+    }
+    if (kp1 == nullptr) {
+      for (const Record& r : records_) {
+        if (r.fbar > p.f_th) {
+          kp1 = &r;
+          break;
+        }
+      }
+    }
+    addKeyPoint(1, kp1->raw_index, kp1->t);
+    addKeyPoint(2, cur_raw_index_, cur_t_);
+    records_.clear();
+    records_.shrink_to_fit();
+    setLayerState(DrillingState::kOuterPunctured);
+    run_ = 0;
+    since_punctured_ = 0;
+    out_.feature = feature(p, fbar, out_.f_min, out_.d);
+    return;  // the cancellous dwell starts with the next sample
+  }
+
+  const double a = feature(p, fbar, out_.f_min, out_.d);
+  out_.feature = a;
+
+  switch (out_.layer_state) {
+    case DrillingState::kOuterPunctured:
+      if (p.cancellous_timeout > 0 && ++since_punctured_ > p.cancellous_timeout && !out_.stop) {
+        commandStop();
+        out_.stop_implausible = true;
+      }
+      if (a < p.c1) {
+        // Key point 3 is placed where the dwell is confirmed: the first sample known to be in
+        // cancellous bone (the start of the dwell would coincide with key point 2).
+        if (++run_ >= p.cancellous_confirm) {
+          addKeyPoint(3, cur_raw_index_, cur_t_);
+          setLayerState(DrillingState::kCancellous);
+          run_ = 0;
+        }
+      } else {
+        run_ = 0;
+      }
+      break;
+    case DrillingState::kCancellous:
+      if (a > p.c2) {
+        if (run_++ == 0) {
+          run_start_ = cur_raw_index_;
+          run_start_t_ = cur_t_;
+          inner_peak_ = -1.0;
+        }
+        if (a > inner_peak_) {
+          inner_peak_ = a;
+          inner_peak_index_ = cur_raw_index_;
+          inner_peak_t_ = cur_t_;
+        }
+        if (run_ >= p.inner_confirm) {
+          addKeyPoint(4, run_start_, run_start_t_);
+          setLayerState(DrillingState::kInnerCortical);
+          run_ = 0;
+          delay_left_ = p.stop_delay;
+          if (delay_left_ == 0) commandStop();
+        }
+      } else {
+        run_ = 0;
+      }
+      break;
+    case DrillingState::kInnerCortical:
+      if (delay_left_ > 0 && --delay_left_ == 0) commandStop();
+      // The layer's own key point (last_key_point freezes at the stop).
+      if (out_.key_points[static_cast<std::size_t>(out_.num_key_points - 1)].id == 4) {
+        if (a > inner_peak_) {
+          inner_peak_ = a;
+          inner_peak_index_ = cur_raw_index_;
+          inner_peak_t_ = cur_t_;
+        } else if (a < p.c3 * inner_peak_) {
+          addKeyPoint(5, inner_peak_index_, inner_peak_t_);
+          commandStop();  // fail-safe: never later than key point 5
+        }
+      } else if (a < p.c1) {
+        addKeyPoint(6, cur_raw_index_, cur_t_);
+        setLayerState(DrillingState::kBreakthrough);
+      }
+      break;
+    default:
+      break;
+  }
+}
+
+}  // namespace pedicle_drilling::core

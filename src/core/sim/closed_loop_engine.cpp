@@ -1,0 +1,434 @@
+#include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+#include <utility>
+
+#include "pedicle_drilling/core/control/compensation_planner.hpp"
+#include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/robot/kinematics.hpp"
+#include "pedicle_drilling/core/sim/normal_source.hpp"
+
+namespace pedicle_drilling::core {
+
+void EngineDelays::validate() const {
+  const auto check = [](double v, const char* name) {
+    if (!(std::isfinite(v) && v >= 0.0 && v <= 1.0)) {
+      throw std::invalid_argument(std::string(name) + ": must be in [0, 1] s");
+    }
+  };
+  check(force_to_recognizer_s, "force_to_recognizer_s");
+  check(stop_to_planner_s, "stop_to_planner_s");
+  check(command_to_arm_s, "command_to_arm_s");
+}
+
+namespace {
+
+/** @brief The fault's trigger depth as a fraction of the inner layer's start: its own stream. */
+double faultDepthFraction(std::uint64_t seed) {
+  return uniformFromSeed(seed + 0x2545f4914f6cdd1dULL);
+}
+
+/** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
+std::uint64_t periodSteps(double rate_hz, const char* name) {
+  return core::streamPeriodSteps(1000.0, rate_hz, name);
+}
+
+/** @brief A message in transit: handled at the first step at or after `t`. */
+struct Event {
+  double t;
+  std::uint64_t seq;  // emission order: ties are handled in the order they were sent
+  std::function<void()> handle;
+};
+
+/** @brief A timer the sequencer asked for. */
+struct Timer {
+  TimerRequest::Kind kind;
+  double due;
+  double period;  // 0: one shot
+};
+
+/** @brief The trial's start phase in [0, 1): its own stream of the seed. */
+double startPhaseFraction(std::uint64_t seed) {
+  return uniformFromSeed(seed + 0x5851f42d4c957f2dULL);
+}
+
+}  // namespace
+
+struct ClosedLoopEngine::Impl {
+  EngineConfig config;
+  std::unique_ptr<ArmCompensation> arm;
+  std::uint64_t tracker_period = 125;
+  std::uint64_t tidal_period = 16;
+  std::uint64_t truth_period = 50;
+  std::uint64_t check_period = 5;
+
+  // Per trial (all rebuilt by run(), so that no trial depends on another).
+  std::unique_ptr<DrillingSimulation> sim;
+  std::unique_ptr<TrialSequencer> sequencer;
+  std::unique_ptr<RecognizerInterface> recognizer;
+  std::unique_ptr<SafetySupervisor> monitor;
+  std::vector<Event> events;
+  std::uint64_t event_seq = 0;
+  std::vector<Timer> timers;
+  EngineTrialRecord record;
+  long last_breath_index = -1;
+  double now = 0.0;
+
+  // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
+  bool fault_armed = false;    // the trial has started: the trigger is watched
+  bool fault_pending = false;  // triggered, waiting for the next breath or command
+  long fault_breath_index = -1;
+  FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
+
+  void injectFault() {
+    record.fault.injected = true;
+    record.fault.t = now;
+    fault_pending = false;
+  }
+
+  /** @brief Watches the trigger and applies the pending faults (once per step). */
+  void updateFault() {
+    const FaultKind kind = record.fault.kind;
+    if (kind == FaultKind::kNone || !fault_armed || record.fault.injected) return;
+    if (!fault_pending) {
+      if (sim->groundTruth().max_depth_cut_m < record.fault.trigger_depth_m) return;
+      fault_pending = true;
+      fault_breath_index = sim->ventilator().breathIndex();
+      if (kind == FaultKind::kBreathingRateUp || kind == FaultKind::kBreathingRateDown) {
+        // The ventilator takes new settings at its next breath; its settings stream tells the
+        // planner then, as the Ventilator nodelet publishes them. The model is not re-fit.
+        VentilatorSettings v = sim->ventilator().model().settings();
+        const double change = config.faults.rate_change_bpm;
+        v.rate_bpm =
+            std::max(1.0, v.rate_bpm + (kind == FaultKind::kBreathingRateUp ? change : -change));
+        sim->requestVentilatorSettings(v);
+      }
+      injector.inject(now);  // a command fault waits for the next command
+      if (!isBreathingFault(kind) && !isCommandFault(kind)) injectFault();
+      return;
+    }
+    if (isBreathingFault(kind) && sim->ventilator().breathIndex() != fault_breath_index) {
+      if (kind == FaultKind::kBreathingAmplitude) {
+        sim->setPatientAmplitudeFactor(config.faults.amplitude_factor);
+      }
+      injectFault();
+    }
+  }
+
+  /** @brief The force sample as the faulty sensor delivers it; false: nothing delivered. */
+  bool faultyForce(Eigen::Vector3d* force) { return injector.force(now, force); }
+
+  /** @brief Extra delay of a trajectory command, or < 0 when the command is lost. */
+  double commandFault() {
+    if (!fault_pending || !isCommandFault(record.fault.kind)) return 0.0;
+    const double extra = injector.command(now);
+    injectFault();
+    return extra;
+  }
+
+  void send(double delay, std::function<void()> fn) {
+    events.push_back({now + delay, event_seq++, std::move(fn)});
+  }
+
+  void deliverDue() {
+    // Handle every event due by now, in time then emission order; handlers may send more.
+    for (;;) {
+      auto best = events.end();
+      for (auto it = events.begin(); it != events.end(); ++it) {
+        if (it->t <= now + 1e-12 && (best == events.end() || it->t < best->t ||
+                                     (it->t == best->t && it->seq < best->seq))) {
+          best = it;
+        }
+      }
+      if (best == events.end()) return;
+      const std::function<void()> fn = std::move(best->handle);
+      events.erase(best);
+      fn();
+    }
+  }
+
+  void fireTimers() {
+    for (;;) {
+      auto best = timers.end();
+      for (auto it = timers.begin(); it != timers.end(); ++it) {
+        if (it->due <= now + 1e-9 && (best == timers.end() || it->due < best->due)) best = it;
+      }
+      if (best == timers.end()) return;
+      const TimerRequest::Kind kind = best->kind;
+      if (best->period > 0.0) {
+        best->due += best->period;
+      } else {
+        timers.erase(best);
+      }
+      switch (kind) {
+        case TimerRequest::Kind::kPoseReached:
+          sequencer->onPoseReached(now);
+          break;
+        case TimerRequest::Kind::kRegistrationTimeout:
+          sequencer->onRegistrationTimeout(now);
+          break;
+        case TimerRequest::Kind::kSegment:
+          sequencer->onSegmentTimer(now);
+          break;
+      }
+      carryOut();
+    }
+  }
+
+  /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
+  void carryOut() {
+    SequencerOutput out = sequencer->takeOutput();
+    for (const std::string& why : out.stops) {
+      record.stops.push_back({now, "/compensation_planner", why, true});
+    }
+    const double delay = config.delays.command_to_arm_s;
+    for (double rpm : out.spindle_rpm) {
+      send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
+    }
+    for (JointTrajectoryCommand& c : out.trajectories) {
+      const double extra = commandFault();
+      if (extra < 0.0) continue;  // lost
+      TrajectoryCommand command;
+      command.joint_names = c.joint_names;
+      command.start_time_s = c.start_time;  // the header stamp: takes over then
+      for (const JointTrajectoryCommand::Point& p : c.points) {
+        command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities, {}});
+      }
+      send(delay + extra, [this, command]() { sim->commandTrajectory(command); });
+    }
+    for (const PredictedMarker& m : out.predicted) {
+      monitor->onPredicted(now, {m.stamp, m.frame, m.position});  // paired by the supervisor
+      evaluateMonitor();
+    }
+    for (TrialPhase p : out.phases) {
+      record.status.emplace_back(now, toString(p));
+      monitor->setTrialRunning(isRunning(p));  // the status the monitor subscribes to
+    }
+    if (out.stop_timers) timers.clear();
+    for (const TimerRequest& r : out.start_timers) {
+      timers.push_back({r.kind, now + r.delay_s, r.periodic ? r.delay_s : 0.0});
+    }
+  }
+
+  void evaluateMonitor() {
+    const std::optional<SafetyVerdict> v = monitor->takeNewStop();
+    if (!v) return;
+    const std::string reason = describe(*v);
+    record.stops.push_back({now, "/safety_monitor", reason, true});
+    send(config.delays.stop_to_planner_s, [this, reason]() {
+      sequencer->onStop(now, true, reason);
+      carryOut();
+    });
+  }
+
+  void onRecognizerSample(double t, double thrust) {
+    const bool was_stopped = recognizer->output().stop;
+    const RecognizerOutput& out = recognizer->push(t, thrust);
+    if (out.new_average) {
+      record.states.push_back(
+          {t, out.averaged_force, out.feature, toString(out.state), out.last_key_point});
+      const int previous = record.key_points.empty() ? 0 : record.key_points.back().first;
+      for (int k = previous + 1; k <= out.last_key_point; ++k) record.key_points.emplace_back(k, t);
+      const bool stop = out.stop;
+      const std::string name = toString(out.state);
+      const int kp = out.last_key_point;
+      send(config.delays.stop_to_planner_s, [this, stop, name, kp]() {
+        sequencer->onRecognizerState(now, stop, name, kp);
+        carryOut();
+      });
+    }
+    if (out.stop && !was_stopped) {
+      const std::string text = recognizer->stopReason();
+      record.stops.push_back({t, "/state_recognizer", text, false});
+      send(config.delays.stop_to_planner_s, [this, text]() {
+        sequencer->onStop(now, false, text);
+        carryOut();
+      });
+    }
+  }
+
+  void onMarker() {
+    const Eigen::Isometry3d pose = sim->measureMarkerPose();
+    Eigen::Vector3d marker = pose.translation();
+    Eigen::Quaterniond orientation(pose.linear());
+    double stamp = now;
+    if (!injector.trackedPose(&marker, &orientation, &stamp)) return;  // silent tracker
+    monitor->onTracked(now, {stamp, "tracker_camera", marker});
+    evaluateMonitor();
+    const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
+    const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
+      if (frame != "tracker_camera") return false;
+      *r = r_cam_world;
+      return true;
+    };
+    sequencer->onMarker(now, stamp, "tracker_camera", marker, orientation, lookup);
+    carryOut();
+  }
+
+  void onTidalVolume() {
+    const BreathScheduler& ventilator = sim->ventilator();
+    if (ventilator.breathIndex() != last_breath_index) {
+      last_breath_index = ventilator.breathIndex();
+      sequencer->setVentilator(ventilator.model().settings());
+    }
+    const VentilatorSample& v = sim->ventilatorSample();
+    sequencer->setBreathStart(now - std::max(0.0, v.t - ventilator.breathStart()));
+  }
+
+  void recordTruth() {
+    const SimulationGroundTruth g = sim->groundTruth();
+    record.truth.push_back({now, materialName(g.layer), g.max_depth_cut_m,
+                            g.residual_inner_cortical_m, g.breakthrough, g.relative_ap_m, g.contact,
+                            g.contact_loss_count});
+    record.last_truth = g;
+  }
+
+  /** @brief One 1 ms physics step and everything the pipeline does in it. */
+  void step(std::uint64_t n) {
+    const SimulationStep s = sim->stepOnce();
+    now = s.time_s;
+    Eigen::Vector3d force = s.measured_wrench.head<3>();
+    sequencer->onMonitorAlive(now);  // the monitor runs in this process, every step
+    updateFault();
+    if (faultyForce(&force)) {
+      const double thrust = force.z();  // config/recognizer.yaml axis: z
+      const double t = now;
+      // The StateRecognizer nodelet drops a non-finite sample (counted, warned); the monitor
+      // stops on it.
+      if (std::isfinite(thrust) && config.delays.force_to_recognizer_s > 0.0) {
+        send(config.delays.force_to_recognizer_s,
+             [this, t, thrust]() { onRecognizerSample(t, thrust); });
+      } else if (std::isfinite(thrust)) {
+        onRecognizerSample(t, thrust);
+      }
+      monitor->onForce(now, force);
+      evaluateMonitor();
+    }
+    if (n % truth_period == 0 || s.layer_changed) recordTruth();
+    if (sim->trackerDue(tracker_period)) onMarker();
+    if (n % tidal_period == 0) onTidalVolume();
+    if (n % check_period == 0) {
+      monitor->check(now);
+      evaluateMonitor();
+    }
+    fireTimers();
+    deliverDue();
+  }
+};
+
+ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make_unique<Impl>()) {
+  Impl& s = *impl_;
+  s.config = config;
+  config.delays.validate();
+  config.recognizer.validate();
+  config.safety.validate();
+  config.faults.validate();
+  s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
+  s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
+  s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
+  s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");
+  if (!(config.pre_trial_s >= 0.0 && config.pre_trial_s <= 60.0)) {
+    throw std::invalid_argument("pre_trial_s: must be in [0, 60] s");
+  }
+  if (!(config.trial_timeout_s > 0.0)) {
+    throw std::invalid_argument("trial_timeout_s: must be > 0 s");
+  }
+  const KinematicChain chain =
+      KinematicChain::fromUrdfString(config.urdf_xml, config.arm_base_link, config.arm_tip_link);
+  if (config.drilling_pose.size() != chain.jointNames().size()) {
+    throw std::invalid_argument("drilling_pose: needs one value per arm joint (" +
+                                std::to_string(chain.jointNames().size()) + ")");
+  }
+  const Eigen::VectorXd q =
+      Eigen::Map<const Eigen::VectorXd>(config.drilling_pose.data(), config.drilling_pose.size());
+  s.arm = std::make_unique<ArmCompensation>(chain, q, config.feed_home_m);
+  s.config.sequencer.arm_joints = chain.jointNames();
+  // Checks the sequencer's parameters once, before any trial.
+  TrialSequencer check(s.config.sequencer, *s.arm);
+  (void)check;
+}
+
+ClosedLoopEngine::~ClosedLoopEngine() = default;
+
+const EngineConfig& ClosedLoopEngine::config() const { return impl_->config; }
+
+EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
+  Impl& s = *impl_;
+  const bool moving = spec.mode != "stationary";
+  // Everything new for every trial: its record depends on its seed and nothing else.
+  s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, s.config.simulation, spec.seed);
+  s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
+  s.sim->reset(spec.seed, moving);
+  s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
+  s.sequencer->setCompensatorFactory(s.config.make_compensator);
+  s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
+                                          : std::make_unique<PaperRecognizer>(s.config.recognizer);
+  if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
+  s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
+  s.events.clear();
+  s.event_seq = 0;
+  s.timers.clear();
+  s.record = EngineTrialRecord();
+  s.last_breath_index = -1;
+  s.fault_armed = false;
+  s.fault_pending = false;
+  s.fault_breath_index = -1;
+  s.injector = FaultInjector(s.config.faults);
+  s.injector.arm(spec.fault);
+  s.now = s.sim->time();
+  const BoneSpecimen& specimen = s.sim->process().specimen();
+  s.record.conditions = s.sim->trialConditions();
+  s.record.outer_cortical_thickness_m = specimen.outerCorticalThickness();
+  s.record.cancellous_thickness_m = specimen.cancellousThickness();
+  s.record.inner_cortical_thickness_m = specimen.innerCorticalThickness();
+  s.record.fault.kind = spec.fault;
+  if (spec.fault != FaultKind::kNone) {
+    s.record.fault.trigger_depth_m =
+        faultDepthFraction(spec.seed) * s.sim->groundTruth().inner_cortical_start_m;
+  }
+
+  std::uint64_t n = 0;
+  // Before the trial: the ventilator's settings and breath phase reach the planner. Then the
+  // trial starts at a breath phase drawn from the seed (uniform over one breath), as an operator
+  // starts at an arbitrary moment of the breathing: a fixed start would put every trial's first
+  // contact at the same phase.
+  const double breath_s = 60.0 / s.record.conditions.ventilator_rate_bpm;
+  const double t_start =
+      s.now + s.config.pre_trial_s +
+      (s.config.draw_start_phase ? startPhaseFraction(spec.seed) * breath_s : 0.0);
+  while (s.now < t_start - 1e-9) s.step(++n);
+  s.sim->startTrial();
+  TrialRequest request;
+  request.mode = spec.mode;
+  request.spindle_rpm = spec.spindle_rpm;
+  request.feed_rate_mm_s = spec.feed_rate_mm_s;
+  request.max_duration_s = spec.max_duration_s;
+  const std::string refused = s.sequencer->start(request, spec.model, s.now);
+  if (!refused.empty()) throw std::runtime_error("start_trial refused: " + refused);
+  s.fault_armed = true;
+  s.carryOut();
+  const double deadline = s.now + s.config.trial_timeout_s;
+  while (s.sequencer->phase() != TrialPhase::kDone) {
+    if (s.sequencer->phase() == TrialPhase::kFailed) {
+      std::string statuses;
+      for (const auto& st : s.record.status) statuses += (statuses.empty() ? "" : " ") + st.second;
+      throw std::runtime_error("the planner failed the trial (statuses: " + statuses + ")");
+    }
+    if (s.now > deadline) {
+      std::ostringstream os;
+      os << "trial did not finish within " << s.config.trial_timeout_s << " s of sim time (status "
+         << toString(s.sequencer->phase()) << ")";
+      throw std::runtime_error(os.str());
+    }
+    s.step(++n);
+  }
+  s.recordTruth();
+  return s.record;
+}
+
+}  // namespace pedicle_drilling::core

@@ -1,0 +1,973 @@
+/**
+ * @file drilling_simulation.cpp
+ * @brief Simulated workcell orchestration (see drilling_simulation.hpp).
+ */
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+
+#include <urdf_model/model.h>
+#include <urdf_parser/urdf_parser.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <sstream>
+#include <stdexcept>
+
+#include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/robot/stage_axis.hpp"
+#include "pedicle_drilling/core/robot/trajectory_executor.hpp"
+#include "pedicle_drilling/core/sim/normal_source.hpp"
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+// A separation of drill and bone: no contact for this many 1 ms steps (10 ms).
+constexpr int kSeparationSteps = 10;
+// Points of the bench's SPMS stream per period (every 5 ms at 125 ms): the cubic between them
+// is within 1e-9 m of the model's displacement on the expiration's exponential.
+constexpr int kBenchPointsPerPeriod = 25;
+
+// The tracker's sample phase of a trial, uniform in [0, 1): its own stream of the seed, so that
+// it changes nothing else the seed draws.
+double trackerPhaseFraction(std::uint64_t seed) {
+  return uniformFromSeed(seed ^ 0x7472616b70686173ULL);
+}
+
+Eigen::Isometry3d toIsometry(const urdf::Pose& p) {
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
+  t.linear() = Eigen::Quaterniond(p.rotation.w, p.rotation.x, p.rotation.y, p.rotation.z)
+                   .normalized()
+                   .toRotationMatrix();
+  return t;
+}
+
+Eigen::Isometry3d jointMotion(const urdf::Joint& joint, double q) {
+  Eigen::Isometry3d m = Eigen::Isometry3d::Identity();
+  const Eigen::Vector3d axis(joint.axis.x, joint.axis.y, joint.axis.z);
+  if (joint.type == urdf::Joint::PRISMATIC) {
+    m.translation() = q * axis;
+  } else if (joint.type == urdf::Joint::REVOLUTE || joint.type == urdf::Joint::CONTINUOUS) {
+    m.linear() = Eigen::AngleAxisd(q, axis.normalized()).toRotationMatrix();
+  }
+  return m;
+}
+
+}  // namespace
+
+double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t,
+                                        double lagged_flow_ml_s) const {
+  return q1_ap_mm_per_ml * lagged_tv_ml + q2_ap_mm_s_per_ml * lagged_flow_ml_s +
+         drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad) +
+         movementDisplacementMm(movements, 0, t);
+}
+
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s, double movement_scale) {
+  VirtualPatient p;
+  p.volunteer_id = 1 + static_cast<int>(seed % 5);
+  const VolunteerParams v = defaultVolunteer(p.volunteer_id);
+  const AxisModel& ap = v.truth.axis(Axis::kAP);
+  p.q1_ap_mm_per_ml = ap.q1;
+  p.lag_s = ap.lagSeconds();
+  p.drift_mm = v.drift_mm[0];
+  std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
+  const double u1 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
+  p.drift_period_s = 40.0 + 50.0 * u1;  // 40-90 s, as the volunteers' slow drift
+  p.drift_phase_rad = 2.0 * kPi * u2;
+  // Small movements over the next hour, as generateVolunteer() shapes them: raised-cosine
+  // ramps of 0.5-1 s, half persisting steps, half bumps held 1-3 s.
+  if (movement_scale > 0.0 && v.movements_per_min > 0.0) {
+    NormalSource mv(seed * 0x9E3779B97F4A7C15ULL + 0x5851F42D4C957F2DULL);
+    const double rate_hz = v.movements_per_min / 60.0;
+    double t = start_time_s - std::log(mv.uniformOpen()) / rate_hz;
+    while (t < start_time_s + 3600.0) {
+      PatientMovement m;
+      m.t = t;
+      m.ramp = 0.5 + 0.5 * mv.uniformOpen();
+      m.hold = mv.uniformOpen() < 0.5 ? -1.0 : 1.0 + 2.0 * mv.uniformOpen();
+      m.size[0] = movement_scale * v.movement_mm[0] * mv.normal();
+      p.movements.push_back(m);
+      t -= std::log(mv.uniformOpen()) / rate_hz;
+    }
+  }
+  return p;
+}
+
+std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const std::string& name) {
+  if (!(std::isfinite(rate_hz) && rate_hz > 0.0 && rate_hz <= physics_rate_hz)) {
+    std::ostringstream os;
+    os << name << ": must be in (0, " << physics_rate_hz << "] Hz, got " << rate_hz;
+    throw std::invalid_argument(os.str());
+  }
+  return static_cast<std::uint64_t>(std::max(1.0, std::round(physics_rate_hz / rate_hz)));
+}
+
+void TrialVariability::validate() const {
+  auto check = [](double value, double hi, const char* name) {
+    if (!std::isfinite(value) || value < 0.0 || value > hi) {
+      std::ostringstream os;
+      os << "TrialVariability: " << name << " = " << value << " is out of range [0, " << hi << "]";
+      throw std::invalid_argument(os.str());
+    }
+  };
+  check(patient_amplitude_scale_sd, 0.3, "patient_amplitude_scale_sd");
+  check(ventilator_rate_sd_bpm, 5.0, "ventilator_rate_sd_bpm");
+  check(ventilator_tidal_volume_sd_ml, 200.0, "ventilator_tidal_volume_sd_ml");
+  check(sensor_noise_scale_sd, 0.5, "sensor_noise_scale_sd");
+  check(arm_stiffness_scale_sd, 0.3, "arm_stiffness_scale_sd");
+  check(patient_movement_scale, 5.0, "patient_movement_scale");
+}
+
+TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
+                                    const VentilatorSettings& ventilator, double force_noise_sd_n) {
+  variability.validate();
+  // Own stream (not the specimen's, sensor's or tracker's): changing a spread never changes
+  // the other draws of the same seed. Every deviate is drawn whatever its SD, for the same
+  // reason; each is truncated at +-3 SD by resampling.
+  NormalSource src(seed * 0x2545F4914F6CDD1DULL + 0x632BE59BD9B4E019ULL);
+  auto truncated = [&src]() {
+    for (int i = 0; i < 100; ++i) {
+      const double z = src.normal();
+      if (std::abs(z) <= 3.0) return z;
+    }
+    return 0.0;
+  };
+  const double z_amplitude = truncated();
+  const double z_rate = truncated();
+  const double z_volume = truncated();
+  const double z_noise = truncated();
+  const double z_stiffness = truncated();
+  TrialConditions c;
+  c.volunteer_id = 1 + static_cast<int>(seed % 5);
+  c.patient_amplitude_scale = 1.0 + variability.patient_amplitude_scale_sd * z_amplitude;
+  // Bounded below so that a wide spread cannot produce a non-physical ventilator setting.
+  c.ventilator_rate_bpm =
+      std::max(1.0, ventilator.rate_bpm + variability.ventilator_rate_sd_bpm * z_rate);
+  c.ventilator_tidal_volume_ml =
+      std::max(10.0, ventilator.tv_max_ml + variability.ventilator_tidal_volume_sd_ml * z_volume);
+  c.force_noise_sd_n = force_noise_sd_n * (1.0 + variability.sensor_noise_scale_sd * z_noise);
+  c.arm_stiffness_scale = 1.0 + variability.arm_stiffness_scale_sd * z_stiffness;
+  return c;
+}
+
+SpmsGeometry DrillingSimulationParams::urdfSpmsGeometry() {
+  SpmsGeometry g;
+  g.base_radius_m = 0.10;      // lead screws at 0.12 m, rod pivot 0.02 m inboard
+  g.platform_radius_m = 0.04;  // spherical joints on the platform
+  g.rod_length_m = 0.12;
+  g.rail_inclination_deg = 0.0;
+  g.slider_min_m = 0.05;   // slider joint 0 (+0.05 m offset)
+  g.slider_max_m = 0.25;   // slider joint 0.20
+  g.home_slider_m = 0.15;  // slider joint 0.10 (nominal)
+  g.leg_azimuth_offset_deg = 90.0;
+  g.max_spherical_tilt_deg = 45.0;  // rods sit at 30 deg to the normal at home
+  return g;
+}
+
+// ------------------------------------------------------------------------------------------
+
+struct DrillingSimulation::Impl {
+  DrillingSimulationParams params;
+  urdf::ModelInterfaceSharedPtr model;
+  std::unique_ptr<BulletArm> arm;
+  SpmsKinematics spms;
+  BreathScheduler ventilator;
+  BreathScheduler lagged_ventilator;  // same settings, sampled at t - lag (patient hysteresis)
+  VirtualPatient patient;
+  std::unique_ptr<DrillingProcess> process;
+  std::unique_ptr<ForceSensor> sensor;
+  std::mt19937_64 tracker_rng;
+  double tracker_phase = 0.0;  // fraction of a tracker period, drawn per trial
+  // Separations since the trial started: contact lost for at least kSeparationSteps steps
+  // (10 ms, two revolutions at 12000 rpm), so that the lips' step-to-step chatter at first
+  // contact is not counted as the drill leaving the bone.
+  bool was_in_contact = false;
+  int steps_without_contact = 0;
+  std::uint32_t contact_losses = 0;
+
+  int steps_per_arm_block = 4;
+  double dt = 1e-3;
+  std::uint64_t step_index = 0;
+  double time = 0.0;
+  std::uint64_t seed = 1;
+  bool moving_bone = true;
+  // Fault injection: factor on the patient's AP displacement (1 after every reset).
+  double amplitude_factor = 1.0;
+
+  std::vector<std::string> arm_joints;
+  std::vector<std::string> commandable;
+  std::vector<int> commandable_index;  // index in arm joints
+  Eigen::VectorXd home;                // all arm joints
+
+  // The arm controller's trajectory (commandable joints only), JointTrajectoryController rules.
+  std::unique_ptr<JointTrajectoryExecutor> arm_trajectory;
+  // The feed joint's drive (index in the commandable joints, -1: none in the chain).
+  int feed_index = -1;
+  StageAxis feed_drive;
+  // The displacement model the bone plays from the next reset on (none: virtual patient).
+  std::optional<BoneMotionModel> bone_motion_model;
+  // The joint controllers' position setpoint: the commanded reference, moved at most at each
+  // joint's URDF velocity limit per arm block (a real controller never outruns its limits).
+  Eigen::VectorXd servo_ref;
+
+  // Spindle.
+  double spindle_cmd_rpm = 0.0;
+  double spindle_rpm = 0.0;
+
+  // SPMS state.
+  Eigen::Isometry3d spms_base_world = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d platform_home_in_base = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d bone_in_platform = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d marker_in_platform = Eigen::Isometry3d::Identity();
+  Eigen::Isometry3d camera_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d sliders;
+  Eigen::Vector3d slider_targets;
+  // The sliders' drives (lead-screw servo axes) and, on the paper's bench, the trajectory the
+  // SPMS controller streams (slider joints, the SpmsKinematics convention).
+  std::array<StageAxis, 3> slider_axes;
+  std::unique_ptr<JointTrajectoryExecutor> spms_trajectory;
+  std::uint64_t bench_period_steps = 125;
+  std::uint64_t bench_stream_due = 0;  // 0: stream from now at the next step (after a reset)
+  Eigen::Vector3d previous_targets = Eigen::Vector3d::Zero();
+  bool have_previous_targets = false;
+  PlatformFullPose platform;
+  double desired_heave = 0.0;
+  Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();
+  Eigen::Vector3d bone_home_world = Eigen::Vector3d::Zero();
+
+  // Arm block interpolation.
+  Eigen::Vector3d tip_block_start = Eigen::Vector3d::Zero();
+  Eigen::Vector3d tip_block_end = Eigen::Vector3d::Zero();
+  Eigen::Vector3d physics_tip = Eigen::Vector3d::Zero();
+  Eigen::Vector3d drill_axis = -Eigen::Vector3d::UnitZ();
+
+  // Drilling.
+  ForceSample last_force;
+  double tip_depth = 0.0;
+  double relative_ap0 = 0.0;
+  int trial_count = 0;
+  VentilatorSample vent_now;
+  TrialConditions conditions;
+
+  Impl(const DrillingSimulationParams& p)
+      : params(p),
+        spms(p.spms),
+        ventilator(p.ventilator, 0.0),
+        lagged_ventilator(p.ventilator, 0.0) {}
+
+  static Eigen::Isometry3d fixedChainPose(const urdf::ModelInterface& m, const std::string& root,
+                                          const std::string& link) {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    urdf::LinkConstSharedPtr l = m.getLink(link);
+    if (!l) throw std::runtime_error("DrillingSimulation: URDF has no link '" + link + "'");
+    while (l->name != root) {
+      if (!l->parent_joint) {
+        throw std::runtime_error("DrillingSimulation: URDF link '" + link +
+                                 "' does not descend from '" + root + "'");
+      }
+      t = toIsometry(l->parent_joint->parent_to_joint_origin_transform) * t;
+      l = m.getLink(l->parent_joint->parent_link_name);
+      if (!l) throw std::runtime_error("DrillingSimulation: broken URDF tree above " + link);
+    }
+    return t;
+  }
+
+  void checkSpmsAgainstUrdf() {
+    // The closed chains are not in the URDF; the kinematic model must match its nominal pose.
+    spms_base_world = fixedChainPose(*model, params.base_link, "spms_base");
+    urdf::JointConstSharedPtr pj = model->getJoint("spms_platform_joint");
+    if (!pj) throw std::runtime_error("DrillingSimulation: URDF has no spms_platform_joint");
+    platform_home_in_base = toIsometry(pj->parent_to_joint_origin_transform);
+    bone_in_platform = fixedChainPose(*model, "spms_platform", "bone");
+    marker_in_platform = fixedChainPose(*model, "spms_platform", "tracker_marker");
+    camera_world = fixedChainPose(*model, params.base_link, "tracker_camera");
+    const double urdf_home = platform_home_in_base.translation().z();
+    if (std::abs(urdf_home - spms.homeHeight()) > 1e-5) {
+      std::ostringstream os;
+      os << "DrillingSimulation: SPMS geometry gives a home platform height of "
+         << spms.homeHeight() << " m but the URDF's spms_platform_joint is at " << urdf_home
+         << " m";
+      throw std::runtime_error(os.str());
+    }
+    for (int i = 1; i <= 3; ++i) {
+      for (const std::string& j :
+           {"slider" + std::to_string(i) + "_joint", "rod" + std::to_string(i) + "_joint"}) {
+        if (!model->getJoint(j)) {
+          throw std::runtime_error("DrillingSimulation: URDF has no SPMS joint '" + j + "'");
+        }
+      }
+      checkSpmsLegAgainstUrdf(i);
+    }
+  }
+
+  /**
+   * Leg i of the URDF against the kinematic model: the rod pivot (slider joint at 0) at the
+   * model's base radius and leg azimuth, at the lower end of the slider stroke, and the slider
+   * joint's limits spanning the model's stroke.
+   */
+  void checkSpmsLegAgainstUrdf(int i) {
+    const std::string slider = "slider" + std::to_string(i) + "_joint";
+    const urdf::JointConstSharedPtr sj = model->getJoint(slider);
+    const urdf::JointConstSharedPtr rj = model->getJoint("rod" + std::to_string(i) + "_joint");
+    const SpmsGeometry& g = spms.geometry();
+    const Eigen::Isometry3d slider_origin = toIsometry(sj->parent_to_joint_origin_transform);
+    const Eigen::Vector3d pivot =
+        slider_origin * toIsometry(rj->parent_to_joint_origin_transform).translation();
+    const double azimuth = (g.leg_azimuth_offset_deg + 120.0 * (i - 1)) * kPi / 180.0;
+    const Eigen::Vector3d expected(g.base_radius_m * std::cos(azimuth),
+                                   g.base_radius_m * std::sin(azimuth), g.slider_min_m);
+    std::ostringstream os;
+    if ((pivot - expected).norm() > 1e-6) {
+      os << "DrillingSimulation: URDF rod pivot of leg " << i << " (" << slider << " at 0) is at ("
+         << pivot.transpose() << ") m in spms_base, the SPMS geometry puts it "
+         << "at (" << expected.transpose() << ") m (base radius " << g.base_radius_m << " m)";
+      throw std::runtime_error(os.str());
+    }
+    if (!sj->limits ||
+        std::abs(slider_origin.translation().z() + sj->limits->lower - g.slider_min_m) > 1e-9 ||
+        std::abs(slider_origin.translation().z() + sj->limits->upper - g.slider_max_m) > 1e-9) {
+      os << "DrillingSimulation: URDF " << slider << " limits do not span the SPMS slider stroke ["
+         << g.slider_min_m << ", " << g.slider_max_m << "] m along the rail";
+      throw std::runtime_error(os.str());
+    }
+  }
+
+  // The patient's AP heave [m] at time t when the bone plays a model (the paper's bench): a
+  // copy of the internal ventilator sampled ahead (pending settings take effect at their
+  // breath, as on the ventilator itself), q1 Tv + q2 dTv/dt, and the fault's amplitude factor.
+  double benchHeave(BreathScheduler* vent, double t) const {
+    const VentilatorSample v = vent->sample(t);
+    return 1e-3 * amplitude_factor *
+           (patient.q1_ap_mm_per_ml * v.volume_ml + patient.q2_ap_mm_s_per_ml * v.flow_ml_s);
+  }
+
+  // Times in (t0, t1] where the ventilator's flow steps (breath start, end of the inspiratory
+  // flow, end of the pause), breath by breath on a copy of the ventilator.
+  std::vector<double> benchFlowSteps(double t0, double t1) const {
+    std::vector<double> out;
+    BreathScheduler vent = ventilator;
+    double t = t0;
+    for (int guard = 0; guard < 100; ++guard) {
+      vent.sample(t);
+      const double start = vent.breathStart();
+      const VentilatorModel& m = vent.model();
+      for (double tau : {0.0, m.flowTime(), m.inspiratoryTime(), m.period()}) {
+        const double ts = start + tau;
+        if (ts > t0 && ts <= t1 && (out.empty() || ts > out.back() + 1e-9)) out.push_back(ts);
+      }
+      t = start + m.period();
+      if (t > t1) break;
+    }
+    return out;
+  }
+
+  // The SPMS controller of the paper's bench plays the model: every bench_period_s it streams
+  // the next period, one period ahead, as a trajectory of the slider joints (points every
+  // period / bench_points, knots on both sides of each flow step, velocities from one-sided
+  // differences), executed like the arm's (JointTrajectoryExecutor).
+  void streamBench(bool first) {
+    const double period = bench_period_steps * dt;
+    const double t0 = first ? time : time + period;
+    const double t1 = time + 2.0 * period;
+    struct Knot {
+      double t;
+      bool left;
+    };
+    std::vector<Knot> knots;
+    const int n = static_cast<int>(std::lround((t1 - t0) / period * kBenchPointsPerPeriod));
+    for (int i = 1; i <= n; ++i) knots.push_back({t0 + (t1 - t0) * i / n, true});
+    constexpr double kStepWidth = 1e-3;
+    for (double ts : benchFlowSteps(t0, t1)) {
+      knots.push_back({ts, true});
+      if (ts + kStepWidth < t1) knots.push_back({ts + kStepWidth, false});
+    }
+    std::sort(knots.begin(), knots.end(), [](const Knot& a, const Knot& b) { return a.t < b.t; });
+    TrajectoryCommand command;
+    command.joint_names = spms_trajectory->jointNames();
+    command.start_time_s = first ? std::numeric_limits<double>::quiet_NaN() : t0;
+    BreathScheduler vent = ventilator;
+    constexpr double h = 1e-6;  // exact on the linear pieces of a square flow
+    constexpr double dz = 1e-7;
+    for (std::size_t i = 0; i < knots.size(); ++i) {
+      if (i > 0 && knots[i].t <= knots[i - 1].t + 1e-9) continue;
+      const double ta = knots[i].left ? knots[i].t - h : knots[i].t;
+      const double za = benchHeave(&vent, ta);
+      const double zb = benchHeave(&vent, ta + h);
+      const double z = knots[i].left ? zb : za;
+      const double zdot = (zb - za) / h;
+      const SpmsIkResult ik = spms.inverseHeave(z);
+      const SpmsIkResult ik2 = spms.inverseHeave(z + dz);
+      if (!ik.reachable || !ik2.reachable) break;  // outside the stroke: hold the last point
+      TrajectoryPoint pt;
+      pt.time_s = knots[i].t;
+      for (int j = 0; j < 3; ++j) {
+        pt.positions.push_back(ik.sliders[j]);
+        pt.velocities.push_back((ik2.sliders[j] - ik.sliders[j]) / dz * zdot);
+      }
+      command.points.push_back(pt);
+    }
+    if (!command.points.empty()) spms_trajectory->command(command, time);
+  }
+
+  void updatePlatform() {
+    Eigen::Vector3d ref_velocity = Eigen::Vector3d::Zero();
+    Eigen::Vector3d set_point = slider_targets;
+    if (moving_bone && bone_motion_model) {
+      if (bench_stream_due == 0 || step_index >= bench_stream_due) {
+        streamBench(bench_stream_due == 0);
+        bench_stream_due = step_index + bench_period_steps;
+      }
+      BreathScheduler vent = ventilator;
+      desired_heave = benchHeave(&vent, time);
+      // The drives read the set-point at the start of the step (time - dt).
+      const TrajectoryState ref = spms_trajectory->sample(time - dt);
+      spms_trajectory->prune(time - dt);
+      set_point = ref.position;
+      slider_targets = spms_trajectory->sample(time).position;
+      ref_velocity = ref.velocity;
+    } else {
+      const double t_lag = std::max(0.0, time - patient.lag_s);
+      // Earlier times than the last call are clamped by the scheduler (lag change on reset).
+      const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
+      desired_heave = moving_bone
+                          ? 1e-3 * amplitude_factor *
+                                patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
+                          : 0.0;
+      const SpmsIkResult ik = spms.inverseHeave(desired_heave);
+      if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
+      // The drive streams the patient's motion as position set-points, each with the velocity to
+      // the next as feed-forward: over this step, from the last set-point to this one.
+      set_point = have_previous_targets ? previous_targets : slider_targets;
+      if (have_previous_targets) ref_velocity = (slider_targets - previous_targets) / dt;
+      previous_targets = slider_targets;
+      have_previous_targets = true;
+    }
+    for (int i = 0; i < 3; ++i) {
+      sliders[i] = slider_axes[static_cast<std::size_t>(i)].step(dt, set_point[i], ref_velocity[i]);
+    }
+    PlatformPose guess;
+    guess.z_m = platform.z_m;
+    guess.roll_rad = platform.roll_rad;
+    guess.pitch_rad = platform.pitch_rad;
+    const SpmsFkResult fk = spms.forward(sliders, guess);
+    if (fk.ok) platform = fk.pose;
+    bone_world = spms_base_world * platformInBase() * bone_in_platform;
+  }
+
+  // Layer at the deepest cut; air before the first cut.
+  Material cutLayer() const {
+    return process->maxDepthCut() > 0.0 ? process->currentLayer() : Material::kAir;
+  }
+
+  Eigen::Isometry3d platformInBase() const {
+    Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+    t.linear() = platform.rotation();
+    t.translation() = platform.position(spms.homeHeight());
+    return t;
+  }
+
+  void advanceArmBlock() {
+    const double block = steps_per_arm_block * dt;
+    Eigen::VectorXd q0 = arm_trajectory->sample(time).position;
+    Eigen::VectorXd q1 = arm_trajectory->sample(time + block).position;
+    if (feed_index >= 0) {
+      // The drill device's feed drive (a lead-screw axis like the SPMS sliders) follows the
+      // trajectory with its own limits, stepped at the physics rate over the coming block.
+      q0[feed_index] = feed_drive.position();
+      for (int k = 0; k < steps_per_arm_block; ++k) {
+        const TrajectoryState ref = arm_trajectory->sample(time + k * dt);
+        feed_drive.step(dt, ref.position[feed_index], ref.velocity[feed_index]);
+      }
+      q1[feed_index] = feed_drive.position();
+    }
+    arm_trajectory->prune(time);
+    std::map<std::string, double> pos, vel;
+    for (size_t j = 0; j < commandable.size(); ++j) {
+      const double limit = arm->jointInfo()[commandable_index[j]].velocity * block;
+      // Not lagging: the setpoint is the reference now (q0). Lagging: it keeps its own value.
+      const double from = std::abs(servo_ref[j] - q0[j]) <= limit ? q0[j] : servo_ref[j];
+      const double to = from + std::clamp(q1[j] - from, -limit, limit);
+      pos[commandable[j]] = from;
+      vel[commandable[j]] = (to - from) / block;  // the servo reference ramps to `to`
+      servo_ref[j] = to;
+    }
+    arm->setJointPositionTargets(pos);
+    arm->setJointVelocityTargets(vel);
+    // Thrust on the tip, opposite to the feed (zero-order hold over the block).
+    const Eigen::Matrix3d r = arm->tipPose().linear();
+    arm->applyTipForce(-last_force.thrust_N * r.col(2));
+    tip_block_start = arm->tipPose().translation();
+    arm->step(block);
+    const Eigen::Isometry3d tip = arm->tipPose();
+    tip_block_end = tip.translation();
+    drill_axis = tip.linear().col(2);
+  }
+
+  void resetTrial(std::uint64_t new_seed, bool moving) {
+    // Everything that can throw first, so that a bad distribution leaves the trial unchanged.
+    const TrialConditions drawn = drawTrialConditions(
+        new_seed, params.variability, params.ventilator, params.sensor.force_noise_sd_n);
+    auto new_process =
+        std::make_unique<DrillingProcess>(sample(new_seed, params.specimen), params.drill);
+    VentilatorSettings breathing = params.ventilator;
+    breathing.rate_bpm = drawn.ventilator_rate_bpm;
+    breathing.tv_max_ml = drawn.ventilator_tidal_volume_ml;
+    breathing.validate();
+    ForceSensorParams sensor_params = params.sensor;
+    if (params.sensor.force_noise_sd_n > 0.0) {
+      const double noise_scale = drawn.force_noise_sd_n / params.sensor.force_noise_sd_n;
+      sensor_params.force_noise_sd_n = drawn.force_noise_sd_n;
+      sensor_params.torque_noise_sd_nm *= noise_scale;
+    }
+
+    seed = new_seed;
+    moving_bone = moving;
+    amplitude_factor = 1.0;
+    conditions = drawn;
+    patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
+    if (bone_motion_model) {
+      // The paper's bench: the SPMS plays the model, nothing else.
+      patient.q1_ap_mm_per_ml = bone_motion_model->q1_ap_mm_per_ml;
+      patient.q2_ap_mm_s_per_ml = bone_motion_model->q2_ap_mm_s_per_ml;
+      patient.lag_s = 0.0;
+      patient.drift_mm = 0.0;
+      patient.movements.clear();
+    }
+    patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
+    process = std::move(new_process);
+    sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, sensor_params);
+    arm->setStiffnessScale(drawn.arm_stiffness_scale);
+    // The trial's breathing takes effect at the next breath (a ventilator never cuts one).
+    const VentilatorSettings& current = ventilator.model().settings();
+    if (breathing.rate_bpm != current.rate_bpm || breathing.tv_max_ml != current.tv_max_ml) {
+      ventilator.requestSettings(breathing);
+      lagged_ventilator.requestSettings(breathing);
+    }
+    sensor->tare();  // standard practice before drilling
+    // The SPMS controller starts its stream from where the sliders are.
+    spms_trajectory->hold(sliders);
+    bench_stream_due = 0;
+    have_previous_targets = false;
+    tracker_rng.seed(seed * 40503ULL + 3ULL);
+    tracker_phase = trackerPhaseFraction(seed);
+    was_in_contact = false;
+    steps_without_contact = 0;
+    contact_losses = 0;
+    arm->applyTipForce(Eigen::Vector3d::Zero());
+    const TargetResult r = arm->resetJointState(home);
+    if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
+    Eigen::VectorXd hold_q(static_cast<int>(commandable.size()));
+    for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
+    arm_trajectory->hold(hold_q);
+    if (feed_index >= 0) feed_drive.reset(hold_q[feed_index]);
+    servo_ref = hold_q;
+    spindle_cmd_rpm = 0.0;
+    spindle_rpm = 0.0;
+    arm->setJointVelocityTargets(std::map<std::string, double>{{"spindle_joint", 0.0}});
+    last_force = ForceSample{};
+    tip_block_start = tip_block_end = physics_tip = arm->tipPose().translation();
+    drill_axis = arm->tipPose().linear().col(2);
+    tip_depth = -(bone_world.inverse() * physics_tip).z();
+    relative_ap0 = physics_tip.z() - bone_world.translation().z();
+  }
+};
+
+DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
+                                       const DrillingSimulationParams& params, std::uint64_t seed)
+    : impl_(std::make_unique<Impl>(params)) {
+  Impl& s = *impl_;
+  if (!(params.physics_rate_hz > 0.0) || !(params.arm_rate_hz > 0.0) ||
+      !(params.arm_rate_hz <= params.physics_rate_hz)) {
+    throw std::invalid_argument("DrillingSimulation: need 0 < arm_rate_hz <= physics_rate_hz");
+  }
+  const double ratio = params.physics_rate_hz / params.arm_rate_hz;
+  s.steps_per_arm_block = static_cast<int>(std::lround(ratio));
+  if (std::abs(ratio - s.steps_per_arm_block) > 1e-9) {
+    throw std::invalid_argument(
+        "DrillingSimulation: physics_rate_hz / arm_rate_hz must be an integer");
+  }
+  if (!(params.slider_max_accel_m_s2 > 0.0) || !std::isfinite(params.slider_max_accel_m_s2) ||
+      !(params.slider_bandwidth_hz > 0.0) || !std::isfinite(params.slider_bandwidth_hz)) {
+    throw std::invalid_argument(
+        "DrillingSimulation: slider_max_accel_m_s2 and slider_bandwidth_hz must be finite and > 0");
+  }
+  if (!(params.bench_period_s >= 0.01 && params.bench_period_s <= 1.0)) {
+    throw std::invalid_argument("DrillingSimulation: bench_period_s must be in [0.01, 1] s");
+  }
+  if (!(params.slider_max_speed_m_s > 0.0) || !(params.spindle_accel_rpm_s > 0.0) ||
+      !(params.spindle_max_rpm > 0.0) || !(params.tracker_noise_rms_mm >= 0.0)) {
+    throw std::invalid_argument("DrillingSimulation: speeds and noise must be positive");
+  }
+  s.dt = 1.0 / params.physics_rate_hz;
+  s.model = urdf::parseURDF(urdf_xml);
+  if (!s.model) {
+    throw std::runtime_error(
+        "DrillingSimulation: urdfdom could not parse the URDF (malformed XML or invalid robot "
+        "description)");
+  }
+  BulletArmParams arm_params = params.arm;
+  arm_params.substep = 1.0 / params.arm_rate_hz;
+  s.arm = std::make_unique<BulletArm>(urdf_xml, params.base_link, params.tip_link, arm_params);
+  s.arm_joints = s.arm->jointNames();
+  for (int k = 0; k < s.arm->numJoints(); ++k) {
+    if (s.arm->jointInfo()[k].type != ArmJointType::kContinuous) {
+      s.commandable.push_back(s.arm_joints[k]);
+      s.commandable_index.push_back(k);
+    }
+  }
+  if (std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint") == s.arm_joints.end()) {
+    throw std::runtime_error("DrillingSimulation: the arm chain has no spindle_joint");
+  }
+  s.home = Eigen::VectorXd::Zero(s.arm->numJoints());
+  for (const auto& kv : params.home_pose) {
+    auto it = std::find(s.arm_joints.begin(), s.arm_joints.end(), kv.first);
+    if (it == s.arm_joints.end()) {
+      throw std::invalid_argument("DrillingSimulation: home pose names unknown joint '" + kv.first +
+                                  "'");
+    }
+    s.home[it - s.arm_joints.begin()] = kv.second;
+  }
+  {
+    std::vector<JointLimit> limits;
+    Eigen::VectorXd hold_q(static_cast<int>(s.commandable.size()));
+    for (size_t j = 0; j < s.commandable.size(); ++j) {
+      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[j]];
+      limits.push_back(
+          {info.lower, info.upper,
+           info.velocity > 0.0 ? info.velocity : std::numeric_limits<double>::infinity()});
+      hold_q[static_cast<int>(j)] = s.home[s.commandable_index[j]];
+    }
+    s.arm_trajectory = std::make_unique<JointTrajectoryExecutor>(s.commandable, limits, hold_q);
+    const auto feed = std::find(s.commandable.begin(), s.commandable.end(), "feed_joint");
+    if (feed != s.commandable.end()) {
+      s.feed_index = static_cast<int>(feed - s.commandable.begin());
+      StageAxisParams drive;
+      drive.max_speed_m_s = limits[static_cast<std::size_t>(s.feed_index)].velocity;
+      drive.max_accel_m_s2 = params.feed_max_accel_m_s2;
+      drive.bandwidth_hz = params.feed_bandwidth_hz;
+      s.feed_drive = StageAxis(drive, hold_q[s.feed_index]);
+    }
+  }
+  s.checkSpmsAgainstUrdf();
+  s.sliders = Eigen::Vector3d::Constant(params.spms.home_slider_m);
+  s.slider_targets = s.sliders;
+  {
+    StageAxisParams drive;
+    drive.max_speed_m_s = params.slider_max_speed_m_s;
+    drive.max_accel_m_s2 = params.slider_max_accel_m_s2;
+    drive.bandwidth_hz = params.slider_bandwidth_hz;
+    for (StageAxis& axis : s.slider_axes) axis = StageAxis(drive, params.spms.home_slider_m);
+    const SpmsGeometry& g = params.spms;
+    const JointLimit stroke{g.slider_min_m, g.slider_max_m, params.slider_max_speed_m_s};
+    s.spms_trajectory = std::make_unique<JointTrajectoryExecutor>(
+        std::vector<std::string>{"slider1_joint", "slider2_joint", "slider3_joint"},
+        std::vector<JointLimit>{stroke, stroke, stroke}, s.sliders);
+    s.bench_period_steps = streamPeriodSteps(params.physics_rate_hz, 1.0 / params.bench_period_s,
+                                             "bench_period_s (as a rate)");
+  }
+  s.updatePlatform();  // home pose at t = 0 (platform not moving yet)
+  {
+    Eigen::Isometry3d home = Eigen::Isometry3d::Identity();
+    home.translation() = PlatformFullPose().position(s.spms.homeHeight());
+    s.bone_home_world = (s.spms_base_world * home * s.bone_in_platform).translation();
+  }
+  s.vent_now = s.ventilator.sample(0.0);
+  s.resetTrial(seed, params.moving_bone);
+  s.updatePlatform();
+}
+
+DrillingSimulation::~DrillingSimulation() = default;
+
+void DrillingSimulation::reset(std::uint64_t seed, bool moving_bone) {
+  impl_->resetTrial(seed, moving_bone);
+}
+
+SimulationStep DrillingSimulation::stepOnce() {
+  Impl& s = *impl_;
+  const int phase = static_cast<int>(s.step_index % s.steps_per_arm_block);
+  if (phase == 0) {
+    // Spindle run-up (rate limited) and the arm block.
+    const double block = s.steps_per_arm_block * s.dt;
+    const double max_change = s.params.spindle_accel_rpm_s * block;
+    s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
+    s.arm->setJointVelocityTargets(
+        std::map<std::string, double>{{"spindle_joint", s.spindle_rpm * 2.0 * kPi / 60.0}});
+    s.advanceArmBlock();
+  }
+  ++s.step_index;
+  s.time = static_cast<double>(s.step_index) * s.dt;
+  const double frac = static_cast<double>(phase + 1) / s.steps_per_arm_block;
+  s.physics_tip = s.tip_block_start + frac * (s.tip_block_end - s.tip_block_start);
+
+  s.vent_now = s.ventilator.sample(s.time);
+  s.updatePlatform();
+
+  // Tip depth below the bone's top surface along the surface normal (the bone frame's z; the
+  // layers are parallel to the surface), so platform roll and pitch tilt the layers with the
+  // bone. The paper drills perpendicular to the surface, where this is the depth along the drill
+  // axis; the 1-D force law does not model an oblique entry. Beside the bone's footprint there
+  // is no bone under the tip.
+  const Eigen::Vector3d tip_in_bone = s.bone_world.inverse() * s.physics_tip;
+  s.tip_depth = -tip_in_bone.z();
+  const bool over_bone = std::abs(tip_in_bone.x()) <= s.params.bone_half_x_m &&
+                         std::abs(tip_in_bone.y()) <= s.params.bone_half_y_m;
+  const Material before = s.cutLayer();
+  s.last_force = s.process->step(s.dt, over_bone ? s.tip_depth : -1.0, s.spindle_rpm);
+  if (s.last_force.contact) {
+    s.was_in_contact = true;
+    s.steps_without_contact = 0;
+  } else if (s.was_in_contact && ++s.steps_without_contact == kSeparationSteps) {
+    ++s.contact_losses;  // one separation per gap, counted once it lasted 10 ms
+  }
+
+  SimulationStep out;
+  out.time_s = s.time;
+  out.force = s.last_force;
+  out.tip_depth_m = s.tip_depth;
+  out.layer_changed = s.cutLayer() != before;
+  Wrench truth = Wrench::Zero();
+  truth[2] = s.last_force.thrust_N;
+  out.measured_wrench = s.sensor->measure(truth, s.spindle_rpm, s.last_force.contact);
+  return out;
+}
+
+int DrillingSimulation::step(double dt) {
+  if (!std::isfinite(dt) || dt <= 0.0) return 0;
+  const double end = impl_->time + dt - 1e-9;
+  int n = 0;
+  while (impl_->time < end) {
+    stepOnce();
+    ++n;
+  }
+  return n;
+}
+
+TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& command) {
+  for (const std::string& name : command.joint_names) {
+    if (name == "spindle_joint") {
+      return {TargetStatus::kRejected,
+              "spindle_joint is not commandable by trajectory: it is commanded through the "
+              "spindle speed"};
+    }
+  }
+  return impl_->arm_trajectory->command(command, impl_->time);
+}
+
+TargetResult DrillingSimulation::commandSpindle(double rpm) {
+  if (!std::isfinite(rpm)) return {TargetStatus::kRejected, "spindle speed is NaN/inf"};
+  if (rpm < 0.0) return {TargetStatus::kRejected, "spindle speed must be >= 0 rpm"};
+  TargetResult r;
+  if (rpm > impl_->params.spindle_max_rpm) {
+    r.status = TargetStatus::kClamped;
+    r.message = "spindle speed " + std::to_string(rpm) + " rpm clamped to " +
+                std::to_string(impl_->params.spindle_max_rpm);
+    rpm = impl_->params.spindle_max_rpm;
+  }
+  impl_->spindle_cmd_rpm = rpm;
+  return r;
+}
+
+void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
+  impl_->ventilator.requestSettings(settings);
+  impl_->lagged_ventilator.requestSettings(settings);
+  impl_->params.ventilator = settings;  // the base the next trials' breathing is drawn around
+}
+
+void DrillingSimulation::setTrialDistribution(const SpecimenDistribution& specimen,
+                                              const TrialVariability& variability) {
+  specimen.validate();
+  variability.validate();
+  impl_->params.specimen = specimen;
+  impl_->params.variability = variability;
+}
+
+void DrillingSimulation::setPatientAmplitudeFactor(double factor) {
+  if (!(std::isfinite(factor) && factor >= 0.0 && factor <= 10.0)) {
+    throw std::invalid_argument("patient amplitude factor: must be in [0, 10]");
+  }
+  impl_->amplitude_factor = factor;
+}
+
+void DrillingSimulation::setBoneMotionModel(const std::optional<BoneMotionModel>& model) {
+  if (model &&
+      !(std::isfinite(model->q1_ap_mm_per_ml) && std::isfinite(model->q2_ap_mm_s_per_ml))) {
+    throw std::invalid_argument("bone motion model: q1 and q2 must be finite");
+  }
+  impl_->bone_motion_model = model;
+}
+
+Eigen::VectorXd DrillingSimulation::armJointStiffness() const {
+  return impl_->arm->jointStiffness();
+}
+
+const TrialConditions& DrillingSimulation::trialConditions() const { return impl_->conditions; }
+
+double DrillingSimulation::time() const { return impl_->time; }
+double DrillingSimulation::physicsDt() const { return impl_->dt; }
+const std::vector<std::string>& DrillingSimulation::commandableJoints() const {
+  return impl_->commandable;
+}
+const std::vector<std::string>& DrillingSimulation::armJointNames() const {
+  return impl_->arm_joints;
+}
+Eigen::VectorXd DrillingSimulation::armJointPositions() const {
+  return impl_->arm->jointPositions();
+}
+Eigen::VectorXd DrillingSimulation::armJointVelocities() const {
+  return impl_->arm->jointVelocities();
+}
+Eigen::VectorXd DrillingSimulation::armJointEfforts() const { return impl_->arm->jointEfforts(); }
+
+std::vector<std::pair<std::string, double>> DrillingSimulation::spmsJointStates() const {
+  const Impl& s = *impl_;
+  std::vector<std::pair<std::string, double>> out;
+  for (int i = 0; i < 3; ++i) {
+    out.emplace_back("slider" + std::to_string(i + 1) + "_joint",
+                     s.sliders[i] - s.params.spms_slider_joint_offset_m);
+  }
+  for (int i = 0; i < 3; ++i) {
+    // Rod angle in the leg's radial plane: 0 = vertical, negative = leaning inwards.
+    const Eigen::Vector3d d =
+        s.spms.platformJoint(i, s.platform) - s.spms.sliderPoint(i, s.sliders[i]);
+    const double th = (s.params.spms.leg_azimuth_offset_deg + 120.0 * i) * kPi / 180.0;
+    const Eigen::Vector3d er(std::cos(th), std::sin(th), 0.0);
+    out.emplace_back("rod" + std::to_string(i + 1) + "_joint", std::atan2(d.dot(er), d.z()));
+  }
+  return out;
+}
+
+Eigen::Vector3d DrillingSimulation::sliderPositions() const { return impl_->sliders; }
+Eigen::Vector3d DrillingSimulation::sliderTargets() const { return impl_->slider_targets; }
+const PlatformFullPose& DrillingSimulation::platformPose() const { return impl_->platform; }
+double DrillingSimulation::desiredHeave() const { return impl_->desired_heave; }
+Eigen::Isometry3d DrillingSimulation::tipPose() const { return impl_->arm->tipPose(); }
+Eigen::Vector3d DrillingSimulation::physicsTipPosition() const { return impl_->physics_tip; }
+double DrillingSimulation::boneTopZ() const { return impl_->bone_world.translation().z(); }
+double DrillingSimulation::spindleRpm() const { return impl_->spindle_rpm; }
+const DrillingProcess& DrillingSimulation::process() const { return *impl_->process; }
+const VirtualPatient& DrillingSimulation::patient() const { return impl_->patient; }
+const VentilatorSample& DrillingSimulation::ventilatorSample() const { return impl_->vent_now; }
+
+const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
+
+bool DrillingSimulation::startTrial() {
+  const bool remount = impl_->process->maxDepthCut() > 0.0;
+  if (remount) impl_->resetTrial(impl_->seed + 1, impl_->moving_bone);
+  impl_->relative_ap0 = impl_->physics_tip.z() - impl_->bone_world.translation().z();
+  impl_->was_in_contact = false;
+  impl_->steps_without_contact = 0;
+  impl_->contact_losses = 0;
+  ++impl_->trial_count;
+  return remount;
+}
+
+int DrillingSimulation::trialCount() const { return impl_->trial_count; }
+bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
+std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
+const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }
+const DrillingSimulationParams& DrillingSimulation::params() const { return impl_->params; }
+
+Eigen::Isometry3d DrillingSimulation::linkPose(const std::string& link) const {
+  const Impl& s = *impl_;
+  if (s.arm->hasLink(link)) return s.arm->linkPose(link);
+  if (link == s.params.base_link) return Eigen::Isometry3d::Identity();
+  // Walk up the URDF until an arm link, the base, or the floating platform joint.
+  urdf::LinkConstSharedPtr l = s.model->getLink(link);
+  if (!l) throw std::out_of_range("DrillingSimulation: no link '" + link + "'");
+  Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
+  const std::map<std::string, double> spms_q = [&] {
+    std::map<std::string, double> q;
+    for (const auto& kv : spmsJointStates()) q[kv.first] = kv.second;
+    return q;
+  }();
+  while (true) {
+    if (s.arm->hasLink(l->name)) return s.arm->linkPose(l->name) * t;
+    if (l->name == s.params.base_link) return t;
+    if (!l->parent_joint) throw std::out_of_range("DrillingSimulation: link '" + link + "'");
+    const urdf::Joint& j = *l->parent_joint;
+    if (j.name == "spms_platform_joint") {
+      t = s.platformInBase() * t;
+    } else {
+      auto it = spms_q.find(j.name);
+      const double q = it == spms_q.end() ? 0.0 : it->second;
+      t = toIsometry(j.parent_to_joint_origin_transform) * jointMotion(j, q) * t;
+    }
+    l = s.model->getLink(j.parent_link_name);
+  }
+}
+
+SimulationGroundTruth DrillingSimulation::groundTruth() const {
+  const Impl& s = *impl_;
+  SimulationGroundTruth g;
+  const DrillingProcess& p = *s.process;
+  g.seed = s.seed;
+  g.layer = s.cutLayer();
+  g.tip_depth_m = s.tip_depth;
+  g.max_depth_cut_m = p.maxDepthCut();
+  g.outer_cortical_end_m = p.specimen().outerCorticalEnd();
+  g.inner_cortical_start_m = p.specimen().innerCorticalStart();
+  g.inner_cortical_end_m = p.specimen().innerCorticalEnd();
+  g.residual_inner_cortical_m = p.residualInnerCorticalThickness();
+  g.breakthrough = p.breakthrough();
+  g.thrust_n = s.last_force.thrust_N;
+  g.contact = s.last_force.contact;
+  g.contact_loss_count = s.contact_losses;
+  g.feed_per_rev_m = s.last_force.feed_per_rev_m;
+  const Eigen::Vector3d d = s.bone_world.translation() - s.bone_home_world;
+  g.bone_displacement_m = Eigen::Vector3d(d.y(), d.x(), d.z());  // LR = y, SI = x, AP = z
+  g.tidal_volume_ml = s.vent_now.volume_ml;
+  g.relative_ap_m = (s.physics_tip.z() - s.bone_world.translation().z()) - s.relative_ap0;
+  return g;
+}
+
+bool DrillingSimulation::trackerDue(std::uint64_t period_steps) const {
+  const Impl& s = *impl_;
+  if (period_steps == 0) return false;
+  const auto offset = static_cast<std::uint64_t>(s.tracker_phase * period_steps);
+  return (s.step_index + offset) % period_steps == 0;
+}
+
+Eigen::Isometry3d DrillingSimulation::measureMarkerPose() {
+  Impl& s = *impl_;
+  const Eigen::Isometry3d marker_world =
+      s.spms_base_world * s.platformInBase() * s.marker_in_platform;
+  Eigen::Isometry3d m = s.camera_world.inverse() * marker_world;
+  std::normal_distribution<double> n(0.0, 1e-3 * s.params.tracker_noise_rms_mm / std::sqrt(3.0));
+  m.translation() += Eigen::Vector3d(n(s.tracker_rng), n(s.tracker_rng), n(s.tracker_rng));
+  return m;
+}
+
+std::vector<FrameTransform> DrillingSimulation::frameTransforms(bool fixed) const {
+  const Impl& s = *impl_;
+  std::vector<FrameTransform> out;
+  std::map<std::string, double> spms_q;
+  for (const auto& kv : spmsJointStates()) spms_q[kv.first] = kv.second;
+  for (const auto& kv : s.model->joints_) {
+    const urdf::Joint& j = *kv.second;
+    const bool is_fixed = j.type == urdf::Joint::FIXED;
+    if (is_fixed != fixed) continue;
+    FrameTransform f;
+    f.parent = j.parent_link_name;
+    f.child = j.child_link_name;
+    const Eigen::Isometry3d origin = toIsometry(j.parent_to_joint_origin_transform);
+    if (is_fixed) {
+      f.transform = origin;
+    } else if (s.arm->hasLink(f.parent) && s.arm->hasLink(f.child)) {
+      f.transform = s.arm->linkPose(f.parent).inverse() * s.arm->linkPose(f.child);
+    } else if (j.name == "spms_platform_joint") {
+      f.transform = s.platformInBase();
+    } else {
+      auto it = spms_q.find(j.name);
+      f.transform = origin * jointMotion(j, it == spms_q.end() ? 0.0 : it->second);
+    }
+    out.push_back(f);
+  }
+  return out;
+}
+
+}  // namespace pedicle_drilling::core

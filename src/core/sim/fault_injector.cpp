@@ -1,0 +1,168 @@
+#include "pedicle_drilling/core/sim/fault_injector.hpp"
+
+#include <cmath>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace pedicle_drilling::core {
+
+namespace {
+
+struct FaultName {
+  FaultKind kind;
+  const char* name;
+};
+
+constexpr FaultName kFaultNames[] = {
+    {FaultKind::kNone, "none"},
+    {FaultKind::kForceSilent, "force_silent"},
+    {FaultKind::kForceNaN, "force_nan"},
+    {FaultKind::kForceInf, "force_inf"},
+    {FaultKind::kForceSpike, "force_spike"},
+    {FaultKind::kForceStuck, "force_stuck"},
+    {FaultKind::kForceDrift, "force_drift"},
+    {FaultKind::kTrackerSilent, "tracker_silent"},
+    {FaultKind::kTrackerJump, "tracker_jump"},
+    {FaultKind::kTrackerStale, "tracker_stale"},
+    {FaultKind::kBreathingAmplitude, "breathing_amplitude"},
+    {FaultKind::kBreathingRateUp, "breathing_rate_up"},
+    {FaultKind::kBreathingRateDown, "breathing_rate_down"},
+    {FaultKind::kCommandLost, "command_lost"},
+    {FaultKind::kCommandDelayed, "command_delayed"},
+};
+
+}  // namespace
+
+const char* toString(FaultKind kind) {
+  for (const FaultName& f : kFaultNames) {
+    if (f.kind == kind) return f.name;
+  }
+  return "unknown";
+}
+
+std::vector<std::string> faultNames() {
+  std::vector<std::string> names;
+  for (const FaultName& f : kFaultNames) names.emplace_back(f.name);
+  return names;
+}
+
+FaultKind parseFaultKind(const std::string& name) {
+  std::string known;
+  for (const FaultName& f : kFaultNames) {
+    if (name == f.name) return f.kind;
+    known += (known.empty() ? "" : ", ") + std::string(f.name);
+  }
+  throw std::invalid_argument("fault '" + name + "' is not one of: " + known);
+}
+
+void FaultParams::validate() const {
+  const auto check = [](double v, double low, double high, const char* name) {
+    if (!(std::isfinite(v) && v >= low && v <= high)) {
+      std::ostringstream os;
+      os << name << ": must be in [" << low << ", " << high << "] (got " << v << ")";
+      throw std::invalid_argument(os.str());
+    }
+  };
+  check(spike_n, 0.0, 1e4, "spike_n");
+  check(drift_n_per_s, -100.0, 100.0, "drift_n_per_s");
+  check(tracker_jump_m, -0.1, 0.1, "tracker_jump_m");
+  check(amplitude_factor, 0.0, 10.0, "amplitude_factor");
+  check(rate_change_bpm, 0.0, 30.0, "rate_change_bpm");
+  check(command_delay_s, 0.0, 10.0, "command_delay_s");
+}
+
+bool isForceFault(FaultKind k) {
+  return k == FaultKind::kForceSilent || k == FaultKind::kForceNaN || k == FaultKind::kForceInf ||
+         k == FaultKind::kForceSpike || k == FaultKind::kForceStuck || k == FaultKind::kForceDrift;
+}
+
+bool isTrackerFault(FaultKind k) {
+  return k == FaultKind::kTrackerSilent || k == FaultKind::kTrackerJump ||
+         k == FaultKind::kTrackerStale;
+}
+
+bool isBreathingFault(FaultKind k) {
+  return k == FaultKind::kBreathingAmplitude || k == FaultKind::kBreathingRateUp ||
+         k == FaultKind::kBreathingRateDown;
+}
+
+bool isCommandFault(FaultKind k) {
+  return k == FaultKind::kCommandLost || k == FaultKind::kCommandDelayed;
+}
+
+FaultInjector::FaultInjector(FaultParams params) : params_(params) { params_.validate(); }
+
+void FaultInjector::arm(FaultKind kind) {
+  kind_ = kind;
+  pending_ = false;
+  injected_ = false;
+  spent_ = false;
+  t_injected_ = 0.0;
+}
+
+void FaultInjector::inject(double t) {
+  if (kind_ == FaultKind::kNone || injected_ || pending_) return;
+  t_injected_ = t;
+  if (isCommandFault(kind_)) {
+    pending_ = true;
+  } else {
+    injected_ = true;
+  }
+}
+
+bool FaultInjector::force(double t, Eigen::Vector3d* force) {
+  if (!injected_ || !isForceFault(kind_)) return true;
+  switch (kind_) {
+    case FaultKind::kForceSilent:
+      return false;
+    case FaultKind::kForceNaN:
+      force->setConstant(std::numeric_limits<double>::quiet_NaN());
+      return true;
+    case FaultKind::kForceInf:
+      force->z() = std::numeric_limits<double>::infinity();
+      return true;
+    case FaultKind::kForceSpike:
+      if (!spent_) force->z() = params_.spike_n;
+      spent_ = true;
+      return true;
+    case FaultKind::kForceStuck:
+      if (!spent_) last_force_ = *force;  // the frozen sensor repeats the first faulty sample
+      spent_ = true;
+      *force = last_force_;
+      return true;
+    case FaultKind::kForceDrift:
+      force->z() += params_.drift_n_per_s * (t - t_injected_);
+      return true;
+    default:
+      return true;
+  }
+}
+
+bool FaultInjector::trackedPose(Eigen::Vector3d* position, Eigen::Quaterniond* orientation,
+                                double* stamp) {
+  const bool active = injected_ && isTrackerFault(kind_);
+  if (active && kind_ == FaultKind::kTrackerSilent) return false;
+  if (active && kind_ == FaultKind::kTrackerJump) position->x() += params_.tracker_jump_m;
+  if (active && kind_ == FaultKind::kTrackerStale && have_pose_) {
+    *stamp = last_stamp_;  // the last pose again, with its old stamp
+    *position = last_position_;
+    *orientation = last_orientation_;
+  }
+  have_pose_ = true;
+  last_stamp_ = *stamp;
+  last_position_ = *position;
+  last_orientation_ = *orientation;
+  return true;
+}
+
+double FaultInjector::command(double t) {
+  if (!pending_ || spent_) return 0.0;
+  pending_ = false;
+  t_injected_ = t;
+  injected_ = true;
+  spent_ = true;
+  return kind_ == FaultKind::kCommandLost ? -1.0 : params_.command_delay_s;
+}
+
+}  // namespace pedicle_drilling::core
