@@ -16,6 +16,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <vector>
@@ -29,6 +30,15 @@ namespace rviz_plugins {
 namespace {
 
 Eigen::Vector3d toEigen(const geometry_msgs::Point& p) { return {p.x, p.y, p.z}; }
+
+/** @brief The settings as the controls report names them. */
+std::string settingsText(const core::PanelSettings& s) {
+  char text[200];
+  std::snprintf(text, sizeof(text), "settings: mode %s, profile %s, %.0f rpm, %.2f mm/s, seed %llu",
+                s.mode.c_str(), s.segment_profile.empty() ? "planner's" : s.segment_profile.c_str(),
+                s.spindle_rpm, s.feed_rate_mm_s, static_cast<unsigned long long>(s.seed));
+  return text;
+}
 
 }  // namespace
 
@@ -276,11 +286,11 @@ void DrillingPanel::refreshControls() {
     why = "a trial is running";
   }
   service_label_->setText(why);
-  const std::string controls = std::string("start ") +
-                               (start_button_->isEnabled() ? "enabled" : "disabled") + ", stop " +
-                               (stop_button_->isEnabled() ? "enabled" : "disabled") + ", reset " +
-                               (reset_button_->isEnabled() ? "enabled" : "disabled") +
-                               (why.isEmpty() ? "" : ": " + why.toStdString());
+  const std::string controls =
+      std::string("start ") + (start_button_->isEnabled() ? "enabled" : "disabled") + ", stop " +
+      (stop_button_->isEnabled() ? "enabled" : "disabled") + ", reset " +
+      (reset_button_->isEnabled() ? "enabled" : "disabled") +
+      (why.isEmpty() ? "" : ": " + why.toStdString()) + "; " + settingsText(settings());
   if (controls != last_controls_ && controls_pub_) {
     last_controls_ = controls;
     std_msgs::String msg;
