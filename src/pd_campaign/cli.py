@@ -40,6 +40,8 @@ SCENARIO_KEYS = {
     'fault_params': (dict, None, None),
     'recognizer': (str, None, None),  # a recognizer class (pluginlib name); --recognizer wins
     'compensator': (str, None, None),  # a compensator class (pluginlib name); --compensator wins
+    'recognizer_params': (dict, None, None),  # {name: value} for the recognizer class
+    'compensator_params': (dict, None, None),  # {name: value} for the compensator class
     'version': (int, 1, 1),  # SCENARIO_VERSION; optional (a file without it is version 1)
 }
 SCENARIO_VERSION = 1
@@ -196,6 +198,13 @@ def parse_args(argv):
                         help='motion compensator class (default: the scenario\'s, else '
                         'pedicle_drilling/PaperCompensator; pedicle_drilling/'
                         'TrackedMarkerCompensator is the tracker-feedback baseline)')
+    parser.add_argument('--recognizer-param', action='append', default=None, metavar='NAME=VALUE',
+                        help='a parameter of the recognizer class (repeatable; replaces the '
+                        'scenario\'s recognizer_params)')
+    parser.add_argument('--compensator-param', action='append', default=None,
+                        metavar='NAME=VALUE',
+                        help='a parameter of the compensator class (repeatable; replaces the '
+                        'scenario\'s compensator_params), e.g. extrapolate=true')
     parser.add_argument('--engine', default='core',
                         help='core (default): trial_engine, the ROS-free closed-loop engine, '
                         'deterministic; ros: the full nodelet pipeline on ROS masters')
@@ -222,6 +231,11 @@ def parse_args(argv):
                              'core yet (use --engine ros)')
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+    elif (args.recognizer_param or args.compensator_param or scenario.get('recognizer_params')
+          or scenario.get('compensator_params')):
+        raise UsageError('recognizer/compensator parameters are passed by --engine core only (on '
+                         'the ROS pipeline set the nodelets\' ~recognizer_params and '
+                         '~compensator_params)')
     elif scenario.get('faults') or scenario.get('fault_params'):
         raise UsageError('scenario keys faults/fault_params: faults are injected by --engine core '
                          'only (the ROS pipeline has one rostest per fault, README)')
@@ -331,6 +345,28 @@ def write_outputs(rows, meta, out_dir, notes=''):
     return summary
 
 
+def class_params(given, from_scenario, option):
+    """{name: value as text} of a class: the command line's NAME=VALUE items, else the scenario's
+    mapping. Raises UsageError naming a malformed item."""
+    if given:
+        out = {}
+        for item in given:
+            name, sep, value = item.partition('=')
+            if not sep or not name:
+                raise UsageError('%s %r is not NAME=VALUE' % (option, item))
+            out[name] = value
+        return out
+    out = {}
+    for name, value in (from_scenario or {}).items():
+        if isinstance(value, bool):
+            value = 'true' if value else 'false'
+        if not isinstance(value, (str, int, float)):
+            raise UsageError('scenario %s: %s must be a number, a bool or a string'
+                             % (option.lstrip('-').replace('-', '_') + 's', name))
+        out[str(name)] = str(value)
+    return out
+
+
 def run_campaign(argv=None):
     try:
         args, scenario, cases, rpms, trials, seed, shard_spec = parse_args(argv)
@@ -340,13 +376,23 @@ def run_campaign(argv=None):
     faults = scenario.get('faults')
     recognizer = args.recognizer or scenario.get('recognizer') or DEFAULT_RECOGNIZER
     compensator = args.compensator or scenario.get('compensator') or DEFAULT_COMPENSATOR
+    try:
+        params = {'recognizer': class_params(args.recognizer_param,
+                                             scenario.get('recognizer_params'), '--recognizer-param'),
+                  'compensator': class_params(args.compensator_param,
+                                              scenario.get('compensator_params'),
+                                              '--compensator-param')}
+    except UsageError as error:
+        sys.stderr.write('campaign: %s\n' % error)
+        return 2
     for kind, name, default in (('recognizer', recognizer, DEFAULT_RECOGNIZER),
                                 ('compensator', compensator, DEFAULT_COMPENSATOR)):
-        if name == default:
+        if name == default and not params[kind]:
             continue
-        # A class that does not load is exit 2 before anything is written (both engines load it
-        # through the same loader).
-        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-' + kind, name],
+        # A class that does not load, or refuses its parameters, is exit 2 before anything is
+        # written (both engines load it through the same loader).
+        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-' + kind, name]
+                               + ['%s=%s' % kv for kv in sorted(params[kind].items())],
                                capture_output=True, text=True)
         if check.returncode != 0:
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
@@ -365,6 +411,9 @@ def run_campaign(argv=None):
             'recognizer': recognizer,
             'compensator': compensator,
             'engine': args.engine}
+    for kind in ('recognizer', 'compensator'):
+        if params[kind]:
+            meta[kind + '_params'] = params[kind]
     if faults:
         meta['faults'] = list(faults)
         meta['fault_params'] = {k: float(v) for k, v in
@@ -413,7 +462,7 @@ def run_campaign(argv=None):
                 COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                 [(FAULT_PARAMS[k], float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
-                recognizer, compensator)))
+                recognizer, compensator, params['recognizer'], params['compensator'])))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

@@ -7,8 +7,8 @@ residuals; written as Markdown, JSON and a figure.
     rosrun pedicle_drilling campaign_compare DIR_A DIR_B [--out DIR] [--label-a A --label-b B]
 
 Two campaigns whose designs differ in anything but the algorithm compared (scenario keys
-`compensation_profile`, `recognizer`, `compensator`, and the engine) are refused: their trials
-are not the same specimens under the same conditions.
+`compensation_profile`, `recognizer`, `compensator`, their `*_params`, and the engine) are
+refused: their trials are not the same specimens under the same conditions.
 """
 import json
 import math
@@ -19,7 +19,8 @@ from . import report, stats, tools
 from .atomic import atomic_savefig, atomic_write
 
 # Design keys (design.json "meta") that name the algorithm under comparison: they may differ.
-COMPARED_KEYS = ('compensation_profile', 'recognizer', 'compensator', 'engine')
+COMPARED_KEYS = ('compensation_profile', 'recognizer', 'compensator', 'recognizer_params',
+                 'compensator_params', 'engine')
 
 
 class DesignMismatch(ValueError):

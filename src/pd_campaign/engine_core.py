@@ -32,7 +32,8 @@ class RecordedTrial:
 def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_motion,
                          feed_rate, max_duration, default_model, segment_profile='rest_to_rest',
                          fault_options=(), recognizer='pedicle_drilling/PaperRecognizer',
-                         compensator='pedicle_drilling/PaperCompensator'):
+                         compensator='pedicle_drilling/PaperCompensator',
+                         recognizer_params=None, compensator_params=None):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15)."""
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
@@ -47,6 +48,10 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
         command += ['--recognizer', recognizer]
     if compensator != 'pedicle_drilling/PaperCompensator':
         command += ['--compensator', compensator]
+    for option, params in (('--recognizer-param', recognizer_params),
+                           ('--compensator-param', compensator_params)):
+        for name, value in sorted((params or {}).items()):
+            command += [option, '%s=%s' % (name, value)]
     return command
 
 

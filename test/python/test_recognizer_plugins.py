@@ -194,3 +194,35 @@ def test_recognize_reads_a_recording_as_the_project_records_it(bin_dir, tmp_path
     assert out.returncode == 2 and '/nothing' in out.stderr
     out = recognize(bin_dir, '--bag', str(bag_path), '--input', str(trace))
     assert out.returncode == 2
+
+
+def test_the_campaign_passes_the_classes_parameters(tmp_path):
+    """--compensator-param / --recognizer-param (or the scenario's *_params mappings) reach the
+    class through trial_engine, are checked by it before anything runs and are recorded."""
+    out_dir = tmp_path / 'extrapolating'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'compensated', '--rpm', '12000',
+         '--trials', '1', '--jobs', '1', '--seed', '79', '--out', str(out_dir),
+         '--compensator', 'pedicle_drilling/TrackedMarkerCompensator',
+         '--compensator-param', 'extrapolate=true', '--compensator-param', 'max_horizon_s=0.3'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out_dir / 'design.json') as handle:
+        meta = json.load(handle)['meta']
+    assert meta['compensator_params'] == {'extrapolate': 'true', 'max_horizon_s': '0.3'}
+    assert 'recognizer_params' not in meta
+    for bad, named in ((['--compensator-param', 'max_horizon_s=0'], 'max_horizon_s'),
+                       (['--compensator-param', 'nonsense'], 'nonsense'),
+                       (['--recognizer-param', 'window=0'], 'window')):
+        out = subprocess.run(
+            ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'compensated', '--rpm', '12000',
+             '--trials', '1', '--out', str(tmp_path / 'bad'),
+             '--compensator', 'pedicle_drilling/TrackedMarkerCompensator'] + bad,
+            capture_output=True, text=True, timeout=600)
+        assert out.returncode == 2 and named in out.stderr, (bad, out.stderr[-2000:])
+        assert not (tmp_path / 'bad').exists()
+    ros = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--engine', 'ros', '--case', 'compensated',
+         '--trials', '1', '--out', str(tmp_path / 'ros'), '--compensator-param', 'a=1'],
+        capture_output=True, text=True, timeout=600)
+    assert ros.returncode == 2 and '--engine core only' in ros.stderr, ros.stderr[-2000:]
