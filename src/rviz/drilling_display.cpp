@@ -223,6 +223,7 @@ void DrillingDisplay::reset() {
   predicted_.reset();
   tracked_.reset();
   view_.reset();
+  monitor_level_ = -1;
   dirty_ = true;
 }
 
@@ -293,10 +294,7 @@ void DrillingDisplay::unsubscribe() {
 }
 
 void DrillingDisplay::statusCallback(const TrialStatus::ConstPtr& msg) {
-  const int level = view_.monitorLevel();
-  view_.onPhase(msg->phase_name, msg->running);  // a new trial starts the view afresh ...
-  if (level >= 0 && view_.monitorLevel() < 0)
-    view_.onMonitorStatus(level, "");  // ... not the monitor
+  view_.onPhase(msg->phase_name, msg->running);  // a new trial starts the view afresh
   dirty_ = true;
 }
 
@@ -317,7 +315,7 @@ void DrillingDisplay::trackedCallback(const geometry_msgs::PoseStamped::ConstPtr
 void DrillingDisplay::diagnosticsCallback(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
   for (const diagnostic_msgs::DiagnosticStatus& s : msg->status) {
     if (s.name == monitor_status_property_->getStdString()) {
-      view_.onMonitorStatus(s.level, s.message);
+      monitor_level_ = s.level;  // the monitor's own state: it outlives a trial
       dirty_ = true;
     }
   }
@@ -470,7 +468,7 @@ void DrillingDisplay::rebuild() {
     bit.top_z_m = 0.005;
     bit.bottom_z_m = -ground_truth_->tip_depth_m;
     placeCylinder(bit_.get(), bit, 1.1f * kBitDiameter);  // over the hole it cut
-    const int level = view_.monitorLevel();
+    const int level = monitor_level_;
     if (level == 0) {
       bit_->setColor(0.2f, 0.85f, 0.2f, 1.0f);
     } else if (level == 1) {
@@ -534,7 +532,7 @@ std::string DrillingDisplay::overlayText() const {
     text += format("\nbone predicted - tracked: %.2f mm (H1 1.2 mm)", 1e3 * view_.positionError());
   }
   static const char* const kLevels[] = {"OK", "WARN", "ERROR", "STALE"};
-  const int level = view_.monitorLevel();
+  const int level = monitor_level_;
   text +=
       std::string("\nsafety monitor: ") + (level >= 0 && level <= 3 ? kLevels[level] : "not heard");
   return text;

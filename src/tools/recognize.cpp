@@ -19,6 +19,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "pedicle_drilling/core/common/cli_args.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
@@ -194,13 +195,9 @@ int main(int argc, char** argv) {
       } else if (a == "--json") {
         json = true;
       } else if (a == "--param" && i + 1 < argc) {
-        const std::string kv = argv[++i];
-        const auto eq = kv.find('=');
-        if (eq == std::string::npos || eq == 0) {
-          throw std::invalid_argument("--param '" + kv + "': expected name=value");
-        }
-        once("--param " + kv.substr(0, eq));
-        settings.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
+        const auto setting = pedicle_drilling::core::parseNameValue(argv[++i], "--param");
+        once("--param " + setting.first);
+        settings.push_back(setting);
       } else if (a == "--help" || a == "-h") {
         std::cout << kUsage;
         return 0;

@@ -93,13 +93,7 @@ using PluginSettings = std::vector<std::pair<std::string, std::string>>;
 /** @brief name=value strings as settings; @throws std::invalid_argument naming the bad one. */
 PluginSettings parseSettings(const std::vector<std::string>& items, const std::string& option) {
   PluginSettings out;
-  for (const std::string& kv : items) {
-    const auto eq = kv.find('=');
-    if (eq == std::string::npos || eq == 0) {
-      throw std::invalid_argument(option + "'" + kv + "' is not name=value");
-    }
-    out.emplace_back(kv.substr(0, eq), kv.substr(eq + 1));
-  }
+  for (const std::string& kv : items) out.push_back(pd::parseNameValue(kv, option));
   return out;
 }
 
@@ -208,7 +202,7 @@ int checkPlugin(int argc, char** argv) {
   const bool recognizer = std::string(argv[1]) == "--check-recognizer";
   try {
     const PluginSettings settings =
-        parseSettings(std::vector<std::string>(argv + 3, argv + argc), "");
+        parseSettings(std::vector<std::string>(argv + 3, argv + argc), "parameter");
     if (recognizer) {
       pedicle_drilling::RecognizerLoader loader;
       std::cout << loader.create(argv[2], settings)->describe() << "\n";
@@ -345,10 +339,10 @@ int main(int argc, char** argv) {
   PluginSettings compensator_settings;
   std::string option = "--recognizer " + o.recognizer_class;
   try {
-    recognizer_settings = parseSettings(o.recognizer_params, "--recognizer-param ");
+    recognizer_settings = parseSettings(o.recognizer_params, "--recognizer-param");
     recognizer_loader.create(o.recognizer_class, recognizer_settings);
     option = "--compensator " + o.compensator_class;
-    compensator_settings = parseSettings(o.compensator_params, "--compensator-param ");
+    compensator_settings = parseSettings(o.compensator_params, "--compensator-param");
     compensator_loader.create(o.compensator_class, compensator_settings);
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";

@@ -6,7 +6,9 @@
  */
 #include <gtest/gtest.h>
 
+#include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pedicle_drilling/core/common/cli_args.hpp"
@@ -65,6 +67,22 @@ TEST(CliArgs, NamesUnknownOptionsMissingValuesAndBadNumbers) {
       ADD_FAILURE() << "accepted " << bad;
     } catch (const UsageError& e) {
       EXPECT_NE(std::string(e.what()).find("'--rate'"), std::string::npos) << e.what();
+    }
+  }
+}
+
+TEST(ParseNameValue, SplitsAtTheFirstEqualsSignAndNamesTheOptionOtherwise) {
+  EXPECT_EQ(pedicle_drilling::core::parseNameValue("extrapolate=true", "--compensator-param"),
+            std::make_pair(std::string("extrapolate"), std::string("true")));
+  EXPECT_EQ(pedicle_drilling::core::parseNameValue("a=b=c", "--param"),
+            std::make_pair(std::string("a"), std::string("b=c")));
+  EXPECT_EQ(pedicle_drilling::core::parseNameValue("empty=", "--param").second, "");
+  for (const char* bad : {"nonsense", "=1", ""}) {
+    try {
+      pedicle_drilling::core::parseNameValue(bad, "--param");
+      FAIL() << bad;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), std::string("--param '") + bad + "' is not name=value");
     }
   }
 }

@@ -17,14 +17,14 @@ import threading
 import time
 import unittest
 
-import numpy as np
 import rospy
 import rostest
 from rosgraph_msgs.msg import Log
 from std_msgs.msg import String
 
 from pedicle_drilling.msg import GroundTruth, TrialStatus
-from test_rviz_screenshot import artifacts_dir, rviz_window_present
+from test_rviz_screenshot import (artifacts_dir, highlight_pixels, rviz_window_present,
+                                  screenshot_channels)
 
 LOCK = threading.Lock()
 LOGS = []
@@ -48,15 +48,6 @@ def wait_for(predicate, timeout, what):
                 return
         time.sleep(0.1)
     raise AssertionError('timed out waiting for %s' % what)
-
-
-def pixels(path):
-    height = int(subprocess.run(['identify', '-format', '%h', path], capture_output=True,
-                                text=True, check=True).stdout)
-    raw = subprocess.run(['convert', path, '-depth', '8', 'rgb:-'], capture_output=True,
-                         check=True).stdout
-    rgb = np.frombuffer(raw, np.uint8).reshape(height, -1, 3).astype(int)
-    return rgb[..., 0], rgb[..., 1], rgb[..., 2]
 
 
 class DemoPanelTest(unittest.TestCase):
@@ -96,9 +87,9 @@ class DemoPanelTest(unittest.TestCase):
         time.sleep(2.0)
         path = os.path.join(artifacts_dir(), rospy.get_param('~screenshot', 'demo_panel.png'))
         subprocess.run(['import', '-window', 'root', path], check=True, timeout=30)
-        r, g, b = pixels(path)
+        r, g, b = screenshot_channels(path)
         stop_red = int(((r > 220) & (g < 90) & (b < 90)).sum())
-        residual_yellow = int(((r > 120) & (g > 0.75 * r) & (b < 0.45 * r)).sum())
+        residual_yellow = highlight_pixels(path)
         verdict_green = int(((g > 180) & (r < 100) & (b < 100)).sum())
         rospy.loginfo('screenshot %s: %d stop-red, %d residual-yellow, %d verdict-green pixels',
                       path, stop_red, residual_yellow, verdict_green)

@@ -18,13 +18,12 @@ import time
 import unittest
 import xml.etree.ElementTree as ET
 
-import numpy as np
 import rosgraph
 import rospy
 import rostest
 from rosgraph_msgs.msg import Log
 
-from test_rviz_screenshot import artifacts_dir, rviz_window_present
+from test_rviz_screenshot import artifacts_dir, highlight_pixels, rviz_window_present
 
 CLASSES = ('pedicle_drilling/DrillingDisplay', 'pedicle_drilling/ForcePlotPanel',
            'pedicle_drilling/DrillingPanel')
@@ -41,17 +40,6 @@ def rviz_subscriptions():
     """Topics subscribed by the rviz node, from the master."""
     _, subscribers, _ = rosgraph.Master('/test_rviz_plugin_loaded').getSystemState()
     return {topic for topic, nodes in subscribers if any(n.startswith('/rviz') for n in nodes)}
-
-
-def highlight_pixels(path):
-    """Pixels of the yellow residual highlight: bright, green close to red, little blue."""
-    height = int(subprocess.run(['identify', '-format', '%h', path], capture_output=True,
-                                text=True, check=True).stdout)
-    raw = subprocess.run(['convert', path, '-depth', '8', 'rgb:-'], capture_output=True,
-                         check=True).stdout
-    rgb = np.frombuffer(raw, np.uint8).reshape(height, -1, 3).astype(int)
-    r, g, b = rgb[..., 0], rgb[..., 1], rgb[..., 2]
-    return int(((r > 120) & (g > 0.75 * r) & (b < 0.45 * r)).sum())
 
 
 class RvizPluginLoadedTest(unittest.TestCase):

@@ -17,6 +17,24 @@ def artifacts_dir():
     return path
 
 
+def screenshot_channels(path):
+    """The R, G, B channels of a screenshot as integer arrays (ImageMagick decodes it)."""
+    import numpy as np
+    height = int(subprocess.run(['identify', '-format', '%h', path], capture_output=True,
+                                text=True, check=True).stdout)
+    raw = subprocess.run(['convert', path, '-depth', '8', 'rgb:-'], capture_output=True,
+                         check=True).stdout
+    rgb = np.frombuffer(raw, np.uint8).reshape(height, -1, 3).astype(int)
+    return rgb[..., 0], rgb[..., 1], rgb[..., 2]
+
+
+def highlight_pixels(path):
+    """Pixels of the DrillingDisplay's yellow residual highlight: bright, green close to red,
+    little blue."""
+    r, g, b = screenshot_channels(path)
+    return int(((r > 120) & (g > 0.75 * r) & (b < 0.45 * r)).sum())
+
+
 def rviz_window_present():
     out = subprocess.run(['xwininfo', '-root', '-tree'], capture_output=True, text=True)
     return out.returncode == 0 and 'rviz' in out.stdout.lower()

@@ -150,7 +150,8 @@ class DrillingDisplay : public rviz::Display {
   ros::Subscriber status_sub_;
   geometry_msgs::PoseStamped::ConstPtr predicted_;
   geometry_msgs::PoseStamped::ConstPtr tracked_;
-  core::TrialView view_;  // pairs prediction and tracker by stamp; the monitor's level
+  core::TrialView view_;    // pairs prediction and tracker by stamp; the trial's phase
+  int monitor_level_ = -1;  // the safety monitor's DiagnosticStatus level, -1 unheard
   bool logged_end_ = false;
   GroundTruth::ConstPtr ground_truth_;
   DrillingState::ConstPtr state_;

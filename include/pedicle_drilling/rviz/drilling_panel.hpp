@@ -64,9 +64,6 @@ class DrillingPanel : public rviz::Panel {
   /** @brief Stores the settings. */
   void save(rviz::Config config) const override;
 
-  /** @brief The trial as the panel sees it (for tests and the summary). */
-  const core::TrialView& view() const { return view_; }
-
  private Q_SLOTS:
   void onStart();
   void onStop();

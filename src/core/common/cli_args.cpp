@@ -154,4 +154,13 @@ std::vector<double> readNumberColumn(std::FILE* in) {
   return values;
 }
 
+std::pair<std::string, std::string> parseNameValue(const std::string& item,
+                                                   const std::string& option) {
+  const auto eq = item.find('=');
+  if (eq == std::string::npos || eq == 0) {
+    throw std::invalid_argument(option + " '" + item + "' is not name=value");
+  }
+  return {item.substr(0, eq), item.substr(eq + 1)};
+}
+
 }  // namespace pedicle_drilling::core

@@ -15,8 +15,29 @@ void SupervisorParams::validate() const {
   }
 }
 
+const StampedPosition* StampPairer::add(const StampedPosition& sample, bool is_predicted) {
+  std::deque<StampedPosition>& own = is_predicted ? predicted_ : tracked_;
+  own.push_back(sample);
+  while (static_cast<int>(own.size()) > history_) own.pop_front();
+  const StampedPosition* best = nullptr;
+  double best_dt = tolerance_s_;
+  for (const StampedPosition& s : is_predicted ? tracked_ : predicted_) {
+    const double dt = std::abs(s.stamp - sample.stamp);
+    if (dt <= best_dt) {
+      best_dt = dt;
+      best = &s;
+    }
+  }
+  return best;
+}
+
+void StampPairer::clear() {
+  tracked_.clear();
+  predicted_.clear();
+}
+
 SafetySupervisor::SafetySupervisor(const SupervisorParams& params)
-    : params_(params), monitor_(params.safety) {
+    : params_(params), monitor_(params.safety), pairer_(params.pair_tolerance_s, params.history) {
   params_.validate();
 }
 
@@ -35,8 +56,7 @@ PairResult SafetySupervisor::onTracked(double now, const StampedPosition& tracke
   have_tracker_ = true;
   // The watchdog and the NaN check, whether or not a prediction exists (no trial running).
   monitor_.onTracked(now, tracked.position, tracked.position);
-  remember(&tracked_, tracked);
-  return pair(now, tracked, predicted_, false);
+  return compare(now, tracked, pairer_.add(tracked, false), false);
 }
 
 PairResult SafetySupervisor::onPredicted(double now, const StampedPosition& predicted) {
@@ -44,34 +64,17 @@ PairResult SafetySupervisor::onPredicted(double now, const StampedPosition& pred
     monitor_.comparePositions(now, predicted.position, predicted.position);  // NaN: stop
     return PairResult::kUnpaired;
   }
-  remember(&predicted_, predicted);
-  return pair(now, predicted, tracked_, true);
+  return compare(now, predicted, pairer_.add(predicted, true), true);
 }
 
-PairResult SafetySupervisor::pair(double now, const StampedPosition& sample,
-                                  const std::deque<StampedPosition>& others,
-                                  bool sample_is_predicted) {
-  const StampedPosition* best = nullptr;
-  double best_dt = params_.pair_tolerance_s;
-  for (const StampedPosition& s : others) {
-    const double dt = std::abs(s.stamp - sample.stamp);
-    if (dt <= best_dt) {
-      best_dt = dt;
-      best = &s;
-    }
-  }
+PairResult SafetySupervisor::compare(double now, const StampedPosition& sample,
+                                     const StampedPosition* best, bool sample_is_predicted) {
   if (best == nullptr) return PairResult::kUnpaired;
   if (best->frame != sample.frame) return PairResult::kFrameMismatch;
   const StampedPosition& predicted = sample_is_predicted ? sample : *best;
   const StampedPosition& tracked = sample_is_predicted ? *best : sample;
   monitor_.comparePositions(now, predicted.position, tracked.position);
   return PairResult::kCompared;
-}
-
-void SafetySupervisor::remember(std::deque<StampedPosition>* buffer,
-                                const StampedPosition& s) const {
-  buffer->push_back(s);
-  while (static_cast<int>(buffer->size()) > params_.history) buffer->pop_front();
 }
 
 void SafetySupervisor::check(double now) {
@@ -88,8 +91,7 @@ std::optional<SafetyVerdict> SafetySupervisor::takeNewStop() {
 
 void SafetySupervisor::reset() {
   monitor_.reset();
-  tracked_.clear();
-  predicted_.clear();
+  pairer_.clear();
   have_force_ = false;
   have_tracker_ = false;
   last_tracked_stamp_ = 0.0;

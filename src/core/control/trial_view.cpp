@@ -20,13 +20,6 @@ std::string format(const char* fmt, double v) {
   return text;
 }
 
-/** @brief Keeps only the entries of the last few seconds (stamps may arrive out of order). */
-void prune(std::vector<std::pair<double, Eigen::Vector3d>>* list, double newest) {
-  list->erase(std::remove_if(list->begin(), list->end(),
-                             [newest](const auto& e) { return e.first < newest - 5.0; }),
-              list->end());
-}
-
 }  // namespace
 
 // ----------------------------------------------------------------------------- PanelSettings
@@ -158,33 +151,19 @@ void TrialView::onGroundTruth(double max_depth_cut_m, double inner_cortical_star
 }
 
 void TrialView::onPredictedMarker(double stamp, const Eigen::Vector3d& position) {
-  if (!position.allFinite()) return;
-  predicted_ = position;
-  for (auto it = pending_tracked_.begin(); it != pending_tracked_.end(); ++it) {
-    if (it->first == stamp) {
-      h1_error_m_ = (position - it->second).norm();
-      h1_max_m_ = std::max(h1_max_m_, h1_error_m_);
-      pending_tracked_.erase(it);
-      return;
-    }
-  }
-  pending_predicted_.emplace_back(stamp, position);
-  prune(&pending_predicted_, stamp);
+  onMarker(stamp, position, true);
 }
 
 void TrialView::onTrackedMarker(double stamp, const Eigen::Vector3d& position) {
+  onMarker(stamp, position, false);
+}
+
+void TrialView::onMarker(double stamp, const Eigen::Vector3d& position, bool predicted) {
   if (!position.allFinite()) return;
-  tracked_ = position;
-  for (auto it = pending_predicted_.begin(); it != pending_predicted_.end(); ++it) {
-    if (it->first == stamp) {
-      h1_error_m_ = (it->second - position).norm();
-      h1_max_m_ = std::max(h1_max_m_, h1_error_m_);
-      pending_predicted_.erase(it);
-      return;
-    }
-  }
-  pending_tracked_.emplace_back(stamp, position);
-  prune(&pending_tracked_, stamp);
+  const StampedPosition* partner = markers_.add({stamp, "", position}, predicted);
+  if (partner == nullptr) return;
+  h1_error_m_ = (position - partner->position).norm();
+  h1_max_m_ = std::max(h1_max_m_, h1_error_m_);
 }
 
 void TrialView::onForce(double force_n) {
@@ -278,7 +257,7 @@ void ForceTrace::add(double t, const std::string& state_name, int last_key_point
   recognizer_stop_ = stop;
   if (stopped() && t > stop_t_ + tail_s_) return;  // frozen: the stop stays in view
   state_name_ = state_name;
-  if (!(contact_t_ == contact_t_) && state_name != "idle" && !state_name.empty()) {
+  if (std::isnan(contact_t_) && state_name != "idle" && !state_name.empty()) {
     contact_t_ = t;
   }
   if (last_key_point != last_key_point_ && last_key_point > 0) {
@@ -292,11 +271,11 @@ void ForceTrace::add(double t, const std::string& state_name, int last_key_point
   if (std::isfinite(averaged_force) && std::isfinite(feature)) {
     samples_.push_back({t, averaged_force, feature});
     if (last_key_point >= 4 && !stopped()) {
-      inner_peak_ = inner_peak_ == inner_peak_ ? std::max(inner_peak_, feature) : feature;
+      inner_peak_ = std::isnan(inner_peak_) ? feature : std::max(inner_peak_, feature);
     }
   }
   // Before the contact only the lead-in is kept.
-  if (!(contact_t_ == contact_t_)) {
+  if (std::isnan(contact_t_)) {
     const double from = t - lead_in_s_;
     samples_.erase(samples_.begin(),
                    std::find_if(samples_.begin(), samples_.end(),

@@ -11,6 +11,7 @@
 #include <set>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace pedicle_drilling::core {
@@ -57,5 +58,13 @@ std::vector<int> parseIntList(const std::string& text, const std::string& what);
 
 /** @brief Parses "1.5,2" into doubles; UsageError naming @p what otherwise. */
 std::vector<double> parseDoubleList(const std::string& text, const std::string& what);
+
+/**
+ * @brief A class parameter given on a command line, "name=value", as (name, value) (recognize
+ *        --param, trial_engine --recognizer-param / --compensator-param / --check-*).
+ * @throws std::invalid_argument "<option> '<item>' is not name=value" without '=' or a name.
+ */
+std::pair<std::string, std::string> parseNameValue(const std::string& item,
+                                                   const std::string& option);
 
 }  // namespace pedicle_drilling::core

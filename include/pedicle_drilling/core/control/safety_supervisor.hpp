@@ -40,6 +40,32 @@ struct StampedPosition {
   Eigen::Vector3d position;  ///< [m]
 };
 
+/**
+ * @brief The latest samples of the predicted and the tracked stream, each paired with the other
+ *        stream's sample nearest in stamp within a tolerance: the SafetySupervisor's H1 pairing,
+ *        and the DrillingPanel's readout of the same quantity (core::TrialView).
+ */
+class StampPairer {
+ public:
+  /** @brief tolerance_s: max stamp difference of a pair (0: the same stamp only); history:
+   *         samples kept per stream. */
+  StampPairer(double tolerance_s, int history) : tolerance_s_(tolerance_s), history_(history) {}
+
+  /**
+   * @brief Keeps `sample` in its stream and returns the other stream's sample nearest in stamp
+   *        within the tolerance, or nullptr. The pointer is valid until the next add() or clear().
+   */
+  const StampedPosition* add(const StampedPosition& sample, bool is_predicted);
+  /** @brief Forgets both streams. */
+  void clear();
+
+ private:
+  double tolerance_s_;
+  int history_;
+  std::deque<StampedPosition> tracked_;
+  std::deque<StampedPosition> predicted_;
+};
+
 /** @brief What a position sample led to. */
 enum class PairResult {
   kUnpaired,       ///< No sample of the other stream within the tolerance (yet).
@@ -96,14 +122,12 @@ class SafetySupervisor {
   const SupervisorParams& params() const { return params_; }
 
  private:
-  PairResult pair(double now, const StampedPosition& sample,
-                  const std::deque<StampedPosition>& others, bool sample_is_predicted);
-  void remember(std::deque<StampedPosition>* buffer, const StampedPosition& s) const;
+  PairResult compare(double now, const StampedPosition& sample, const StampedPosition* partner,
+                     bool sample_is_predicted);
 
   SupervisorParams params_;
   SafetyMonitor monitor_;
-  std::deque<StampedPosition> tracked_;
-  std::deque<StampedPosition> predicted_;
+  StampPairer pairer_;
   bool have_force_ = false;
   bool have_tracker_ = false;
   double last_tracked_stamp_ = 0.0;

@@ -7,13 +7,15 @@
 
 #include <Eigen/Core>
 
+#include <cmath>
 #include <cstdint>
 #include <limits>
 #include <map>
-#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -95,9 +97,6 @@ class TrialView {
   TrialVerdict verdict() const;
   /** @brief The latest H1 error [m] (NaN before a pair of samples). */
   double positionError() const { return h1_error_m_; }
-  /** @brief The latest predicted and tracked marker positions (nullopt before). */
-  const std::optional<Eigen::Vector3d>& predicted() const { return predicted_; }
-  const std::optional<Eigen::Vector3d>& tracked() const { return tracked_; }
   /** @brief The safety monitor's level (-1: none heard). */
   int monitorLevel() const { return monitor_level_; }
   /** @brief The residual thickness at the end [m] (NaN without ground truth). */
@@ -126,10 +125,10 @@ class TrialView {
   double inner_end_m_ = 0.0;
   double residual_m_ = std::numeric_limits<double>::quiet_NaN();
   bool breakthrough_ = false;
-  std::vector<std::pair<double, Eigen::Vector3d>> pending_predicted_;  // awaiting the tracker
-  std::optional<Eigen::Vector3d> predicted_;
-  std::optional<Eigen::Vector3d> tracked_;
-  std::vector<std::pair<double, Eigen::Vector3d>> pending_tracked_;
+  /** @brief Prediction and tracker paired by the same stamp (the planner stamps its prediction
+   *         with the tracker sample's own), as the SafetySupervisor pairs them. */
+  StampPairer markers_{0.0, 64};
+  void onMarker(double stamp, const Eigen::Vector3d& position, bool predicted);
   double h1_error_m_ = std::numeric_limits<double>::quiet_NaN();
   double h1_max_m_ = 0.0;
   double force_n_ = std::numeric_limits<double>::quiet_NaN();
@@ -184,7 +183,7 @@ class ForceTrace {
   /** @brief Time of the bone contact (NaN before). */
   double contactTime() const { return contact_t_; }
   /** @brief True once the stop was seen (the trace is frozen tail_s after it). */
-  bool stopped() const { return stop_t_ == stop_t_; }
+  bool stopped() const { return !std::isnan(stop_t_); }
   /** @brief The largest A* since key point 4 (NaN before it): C3 applies to it. */
   double innerPeak() const { return inner_peak_; }
   /** @brief The state name of the newest sample. */
