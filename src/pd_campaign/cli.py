@@ -22,7 +22,7 @@ DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
 TABLE2_FILES = ('table2.md', 'table2.csv')
 SIMULATOR_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'simulator.yaml')
 
-# Scenario keys: name -> (type, min, max). Documented in the README ("Scenario files").
+# Scenario keys: name -> (type, min, max). Documented in doc/experiments.md ("Scenario files").
 SCENARIO_KEYS = {
     'cases': (list, None, None),
     'rpms': (list, 1000.0, 60000.0),

@@ -208,7 +208,7 @@ def fault_summary(rows):
 
 
 def fault_table(faults):
-    """The fault campaign's table (README "Fault campaign")."""
+    """The fault campaign's table (doc/experiments.md, "Fault campaign")."""
     lines = ['| case | rpm | fault | trials | injected | breakthroughs (Wilson 95 % upper) '
              '| stopped / retreated after the fault | fault to stop: median / max [s] '
              '| fault to retreat: median / max [s] | residual: median / min [mm] | stops |',
@@ -317,7 +317,7 @@ def _dominant(counts, exclude=()):
 def analysis(summary):
     """Sentences computed from the summary: where a case falls short of the stationary case (the
     bar the paper sets for compensation) and of the paper, and what the failures have in common.
-    The causes behind them are discussed in the README ("Results of make run")."""
+    The causes behind them are discussed in doc/campaign_results.md ("Results of make run")."""
     by_key = {(g['case'], g['rpm']): g for g in summary}
     lines = []
     for rpm in sorted({g['rpm'] for g in summary}):
@@ -368,7 +368,7 @@ def analysis(summary):
         return ''
     return '\n'.join(['## What the numbers say', '',
                       'Computed from the table above; the causes behind the shortfalls are '
-                      'analysed in the README ("Results of make run").', ''] + lines)
+                      'analysed in doc/campaign_results.md ("Results of make run").', ''] + lines)
 
 
 def bone_motion_sentence(meta):

@@ -1,7 +1,8 @@
-"""The README's Slurm job-array recipe, run for real (opt-in: PEDICLE_DRILLING_SLURM_TESTS=1, as
-root; about a minute once slurm-wlm and munge are installed, which the script does when they are
-missing): test/slurm/slurm_campaign.sh starts a one-node Slurm cluster on loopback, submits the
-README's job script as a 3-shard array, merges the shards with the README's campaign_merge line
+"""The Slurm job-array recipe of doc/experiments.md, run for real (opt-in:
+PEDICLE_DRILLING_SLURM_TESTS=1, as root; about a minute once slurm-wlm and munge are installed,
+which the script does when they are missing): test/slurm/slurm_campaign.sh starts a one-node
+Slurm cluster on loopback, submits that page's job script as a 3-shard array, merges the shards
+with its campaign_merge line
 as a dependent job, and checks the merged report against a single run of the same design. It
 stops its daemons on exit; this test checks that nothing it started is left running."""
 import os

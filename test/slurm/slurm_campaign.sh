@@ -1,15 +1,15 @@
 #!/usr/bin/env bash
-# The README's Slurm job-array recipe ("Beyond one machine: shards"), run for real on a one-node
-# Slurm cluster on loopback, and checked against a single run of the same design.
+# The Slurm job-array recipe of doc/experiments.md ("Beyond one machine: shards"), run for real
+# on a one-node Slurm cluster on loopback, and checked against a single run of the same design.
 #
 #   1. installs slurm-wlm and munge with apt-get when they are missing;
 #   2. starts munged, slurmctld and slurmd (node "localhost", 127.0.0.1, the machine's real CPU
 #      topology and memory) in a temporary directory of its own, with its own munge key, ports,
 #      slurm.conf (SLURM_CONF), state, spool, logs and pid files;
-#   3. takes the README's job script as it is written there, with a small design put in place of
-#      the README's (--case all --rpm 12000 --trials 4 --seed 7 --jobs 1) and submits it as a
+#   3. takes that page's job script as it is written there, with a small design put in place of
+#      the page's (--case all --rpm 12000 --trials 4 --seed 7 --jobs 1) and submits it as a
 #      3-task array (sbatch --array=1-3 --cpus-per-task=1 --wait);
-#   4. runs the README's campaign_merge line as a job depending on the array
+#   4. runs the page's campaign_merge line as a job depending on the array
 #      (sbatch --dependency=afterok:<array job> --wait);
 #   5. runs the same design once as a single run (no Slurm) and compares: every shard holds its
 #      slice of the design, the merged trials.csv equals the single run's apart from wall time
@@ -27,7 +27,7 @@ export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 
 HERE="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)"
 ROOT="$(cd "${HERE}/../.." && pwd)"
-README="${ROOT}/README.md"
+DOC="${ROOT}/doc/experiments.md"
 SHARDS=3
 DESIGN_CASE=all
 DESIGN_RPM=12000
@@ -311,35 +311,35 @@ done
 [ "${state}" = idle ] || die "node localhost is '${state:-unknown}', not idle, after 30 s"
 log "slurmctld (pid ${SLURMCTLD_PID}) and slurmd (pid ${SLURMD_PID}) up, node localhost idle"
 
-# ---------------------------------------------------------------- the README's job script
-[ -f "${README}" ] || die "no README.md beside the test: ${README}"
-SECTION="$(awk '/^### Beyond one machine: shards/ {on = 1; next} on && /^### / {exit} on' \
-  "${README}")"
+# ---------------------------------------------------------------- the documented job script
+[ -f "${DOC}" ] || die "no doc/experiments.md beside the test: ${DOC}"
+SECTION="$(awk '/^##+ Beyond one machine: shards/ {on = 1; next} on && /^##+ / {exit} on' \
+  "${DOC}")"
 JOB_SCRIPT="$(printf '%s\n' "${SECTION}" \
   | awk '/^```sh$/ && !done {on = 1; next} on && /^```$/ {on = 0; done = 1} on')"
 MERGE_COMMAND="$(printf '%s\n' "${SECTION}" \
   | grep -o "rosrun pedicle_drilling campaign_merge [^'\"\`]*" | head -n1 | sed 's/ *$//')"
-[ -n "${JOB_SCRIPT}" ] || die "README: no \`\`\`sh job script in 'Beyond one machine: shards'"
-[ -n "${MERGE_COMMAND}" ] || die "README: no campaign_merge command in 'Beyond one machine: shards'"
-# The design is the only thing replaced: the README's is too big for a test.
+[ -n "${JOB_SCRIPT}" ] || die "doc/experiments.md: no \`\`\`sh job script in 'Beyond one machine: shards'"
+[ -n "${MERGE_COMMAND}" ] || die "doc/experiments.md: no campaign_merge command in 'Beyond one machine: shards'"
+# The design is the only thing replaced: the documented one is too big for a test.
 JOB_SCRIPT_SMALL="${JOB_SCRIPT}"
 for option in "--case ${DESIGN_CASE}" "--rpm ${DESIGN_RPM}" "--trials ${DESIGN_TRIALS}" \
     "--seed ${DESIGN_SEED}" "--jobs ${DESIGN_JOBS}"; do
   name="${option%% *}"
   count="$(printf '%s\n' "${JOB_SCRIPT_SMALL}" | grep -o -- "${name} [^ ]*" | wc -l)"
-  [ "${count}" -le 1 ] || die "README job script: ${name} given ${count} times"
+  [ "${count}" -le 1 ] || die "documented job script: ${name} given ${count} times"
   if [ "${count}" -eq 1 ]; then
     JOB_SCRIPT_SMALL="$(printf '%s\n' "${JOB_SCRIPT_SMALL}" | sed "s|${name} [^ ]*|${option}|")"
   elif [ "${name}" != --case ]; then
-    die "README job script: no ${name} option to replace"
+    die "documented job script: no ${name} option to replace"
   fi
 done
 printf '%s\n' "${JOB_SCRIPT_SMALL}" > "${W}/submit/campaign_array.sh"
 chmod 755 "${W}/submit/campaign_array.sh"
-# The README's script sources catkin_ws/devel/setup.bash relative to the submit directory.
+# The documented script sources catkin_ws/devel/setup.bash relative to the submit directory.
 mkdir -p "${W}/submit/catkin_ws"
 ln -s "${SETUP_DIR}" "${W}/submit/catkin_ws/devel"
-log "job script (the README's, with this test's design), submitted with --array=1-${SHARDS}" \
+log "job script (doc/experiments.md's, with this test's design), submitted with --array=1-${SHARDS}" \
   "--cpus-per-task=1 (sbatch options override the script's #SBATCH lines):"
 sed 's/^/    /' "${W}/submit/campaign_array.sh" >&2
 
