@@ -33,6 +33,7 @@
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/planner_conversions.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
@@ -54,15 +55,11 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
     try {
-      const ParamLoader params(pnh);
+      const ParamLoader loader(pnh);
+      loader.load(CompensationPlannerNodeParams::table(), &params_);
       patient_ = loadPatient();
-      world_frame_ = params.getString("world_frame", "world");
-      trial_start_services_ = params.getStringList(
-          "trial_start_services", {"state_recognizer/reset", "safety_monitor/reset"});
-      trial_start_timeout_s_ = params.getDouble("trial_start_timeout_s", 2.0, 0.0, 60.0, true);
-      monitor_status_name_ = params.getString("monitor_status_name", "/safety_monitor: monitor");
-      sequencer_ = makeSequencer(params, nh, world_frame_);
-      loadCompensator(params);
+      sequencer_ = makeSequencer(params_, loader, nh);
+      loadCompensator(loader);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -86,7 +83,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     diagnostics_sub_ =
         nh.subscribe("/diagnostics", 50, &CompensationPlannerNodelet::onDiagnostics, this);
-    for (const std::string& name : trial_start_services_) {
+    for (const std::string& name : params_.trial_start_services) {
       trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
     }
     // ~start_trial calls other nodelets' services and waits for them: it gets a callback queue
@@ -103,30 +100,29 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
         "compensator %s",
         patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
-        p.compensation.drill_axis.z(), p.compensation.latency_s, compensator_class_.c_str());
+        p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str());
   }
 
   /**
    * @brief ~compensator and ~compensator_params (issue 17): the class is loaded and configured
    *        once here (a bad one fails the load), then made afresh for every trial.
    */
-  void loadCompensator(const ParamLoader& params) {
-    compensator_class_ = params.getString("compensator", "pedicle_drilling/PaperCompensator");
-    compensator_settings_ = params.getTextMap("compensator_params");
+  void loadCompensator(const ParamLoader& loader) {
     try {
-      compensator_loader_.create(compensator_class_, compensator_settings_);
+      compensator_loader_.create(params_.compensator_class, params_.compensator_params);
     } catch (const std::exception& e) {
-      params.fail("compensator", "= '" + compensator_class_ + "': " + e.what());
+      loader.fail("compensator", "= '" + params_.compensator_class + "': " + e.what());
     }
-    if (compensator_class_ == "pedicle_drilling/PaperCompensator") return;  // the default
-    sequencer_->setCompensatorFactory(
-        [this]() { return compensator_loader_.create(compensator_class_, compensator_settings_); });
+    if (params_.compensator_class == "pedicle_drilling/PaperCompensator") return;  // the default
+    sequencer_->setCompensatorFactory([this]() {
+      return compensator_loader_.create(params_.compensator_class, params_.compensator_params);
+    });
   }
 
-  /** @brief ~patient_model_path, read at start and again for every trial. */
+  /** @brief The file ~patient_model_path names, read at start and again for every trial. */
   core::PatientModel loadPatient() const {
     const ros::NodeHandle& pnh = getPrivateNodeHandle();
-    const std::string path = ParamLoader(pnh).getString("patient_model_path", "");
+    const std::string& path = params_.patient_model_path;
     try {
       return core::readModelYaml(path);
     } catch (const std::exception& e) {
@@ -163,9 +159,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     const auto& p = msg->pose.position;
     const auto& o = msg->pose.orientation;
     const core::RotationLookup lookup = [this](const std::string& frame, Eigen::Matrix3d* r) {
-      if (!tf_buffer_->canTransform(frame, world_frame_, ros::Time(0))) return false;
+      if (!tf_buffer_->canTransform(frame, params_.world_frame, ros::Time(0))) return false;
       const auto& q =
-          tf_buffer_->lookupTransform(frame, world_frame_, ros::Time(0)).transform.rotation;
+          tf_buffer_->lookupTransform(frame, params_.world_frame, ros::Time(0)).transform.rotation;
       *r = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
       return true;
     };
@@ -186,7 +182,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   /** @brief The safety monitor's /diagnostics status: it is alive. */
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
     for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
-      if (status.name != monitor_status_name_) continue;
+      if (status.name != params_.monitor_status_name) continue;
       std::lock_guard<std::mutex> lock(mutex_);
       sequencer_->onMonitorAlive(now());
       return;
@@ -227,7 +223,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // is held while calling: the components' answers may need this nodelet's callbacks.
     lock.unlock();
     const bool started =
-        callTriggerChain(&trial_start_clients_, trial_start_timeout_s_, &res.message);
+        callTriggerChain(&trial_start_clients_, params_.trial_start_timeout_s, &res.message);
     lock.lock();
     if (!started) return true;
     res.message = sequencer_->start(request, patient_.motionModel(), now());
@@ -312,14 +308,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, ros::Time::now())); }
 
   std::mutex mutex_;
+  CompensationPlannerNodeParams params_;  ///< every parameter, loaded once
   core::PatientModel patient_;
   CompensatorLoader compensator_loader_;  // before sequencer_: outlives what it made
-  std::string compensator_class_;
-  core::CompensatorSettings compensator_settings_;
   std::unique_ptr<core::TrialSequencer> sequencer_;
-  std::string world_frame_;
-  std::vector<std::string> trial_start_services_;
-  double trial_start_timeout_s_ = 2.0;
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
@@ -334,7 +326,6 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber state_sub_;
   ros::Subscriber diagnostics_sub_;
   ros::Publisher stop_pub_;
-  std::string monitor_status_name_;
   std::vector<ros::ServiceClient> trial_start_clients_;
   ros::Timer pose_timer_;
   ros::Timer registration_timer_;

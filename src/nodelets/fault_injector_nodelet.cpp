@@ -22,6 +22,7 @@
 
 #include "pedicle_drilling/InjectFault.h"
 #include "pedicle_drilling/core/sim/fault_injector.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
@@ -34,13 +35,9 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
     try {
-      const ParamLoader params(pnh);
-      core::FaultParams p;
-      p.spike_n = params.getDouble("spike_n", p.spike_n, 0.0, 1e4);
-      p.drift_n_per_s = params.getDouble("drift_n_per_s", p.drift_n_per_s, -100.0, 100.0);
-      p.tracker_jump_m = params.getDouble("tracker_jump_m", p.tracker_jump_m, -0.1, 0.1);
-      p.command_delay_s = params.getDouble("command_delay_s", p.command_delay_s, 0.0, 10.0);
-      injector_ = std::make_unique<core::FaultInjector>(p);
+      FaultInjectorNodeParams params;
+      ParamLoader(pnh).load(FaultInjectorNodeParams::table(), &params);
+      injector_ = std::make_unique<core::FaultInjector>(params.faults);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }

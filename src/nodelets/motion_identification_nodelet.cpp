@@ -52,6 +52,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     ros::NodeHandle pnh = getPrivateNodeHandle();
     try {
       p_ = loadMotionIdentificationParams(ParamLoader(pnh));
+      mapping_ = p_.mapping();
       window_.emplace(p_.window_s);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
@@ -94,7 +95,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
   }
 
   void addMarker(double t, double x_m, double y_m, double z_m) {
-    warnJump(window_->addMarker(t, p_.mapping.map(1e3 * x_m, 1e3 * y_m, 1e3 * z_m)));
+    warnJump(window_->addMarker(t, mapping_.map(1e3 * x_m, 1e3 * y_m, 1e3 * z_m)));
   }
 
   void onMarkerPose(const geometry_msgs::PoseStamped::ConstPtr& msg) {
@@ -183,7 +184,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
                            {"tidal_volume_samples", std::to_string(rec.tv.size())},
                            {"breaths", std::to_string(result.breaths)},
                            {"window_s", std::to_string(result.duration_s)},
-                           {"ap_si_lr_from_tracker_axes", p_.axis_specs}};
+                           {"ap_si_lr_from_tracker_axes", p_.axisSpecs()}};
     } catch (const std::exception& e) {
       return refuse(response, std::string("identification failed: ") + e.what());
     }
@@ -215,6 +216,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   MotionIdentificationParams p_;
+  core::AxisMapping mapping_;  ///< ~ap_axis, ~si_axis, ~lr_axis
   std::optional<core::IdentificationWindow> window_;
   std::string last_marker_error_;
 

@@ -23,6 +23,7 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
@@ -34,29 +35,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
-    double check_rate_hz = 0.0;
-    double diagnostic_period_s = 0.0;
+    SafetyMonitorNodeParams params;
     try {
-      const ParamLoader params(pnh);
-      core::SupervisorParams sp;
-      core::SafetyParams& p = sp.safety;
-      p.position_threshold_m =
-          params.getDouble("position_threshold_m", p.position_threshold_m, 0.0, 0.1, true);
-      p.force_threshold_N =
-          params.getDouble("force_threshold_n", p.force_threshold_N, 0.0, 1000.0, true);
-      p.force_timeout_s = params.getDouble("force_timeout_s", p.force_timeout_s, 0.0, 60.0, true);
-      p.tracker_timeout_s =
-          params.getDouble("tracker_timeout_s", p.tracker_timeout_s, 0.0, 60.0, true);
-      p.force_stuck_s = params.getDouble("force_stuck_s", p.force_stuck_s, 0.0, 3600.0, true);
-      check_rate_hz = params.getDouble("check_rate_hz", 200.0, 0.0, 10000.0, true);
-      sp.pair_tolerance_s = params.getDouble("pair_tolerance_s", sp.pair_tolerance_s, 0.0, 1.0);
-      diagnostic_period_s = params.getDouble("diagnostic_period_s", 1.0, 0.0, 60.0, true);
-      if (1.0 / check_rate_hz > 0.5 * p.force_timeout_s) {
-        params.fail("check_rate_hz",
-                    "is too low to check force_timeout_s (needs at least 2 "
-                    "checks per timeout)");
-      }
-      supervisor_ = std::make_unique<core::SafetySupervisor>(sp);
+      ParamLoader(pnh).load(SafetyMonitorNodeParams::table(), &params);
+      supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -72,16 +54,16 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                                   &SafetyMonitorNodelet::onPredicted, this, hints);
     status_sub_ =
         nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus, this);
-    check_timer_ =
-        nh.createTimer(ros::Duration(1.0 / check_rate_hz), &SafetyMonitorNodelet::onCheck, this);
-    diagnostic_timer_ = nh.createTimer(ros::Duration(diagnostic_period_s),
+    check_timer_ = nh.createTimer(ros::Duration(1.0 / params.check_rate_hz),
+                                  &SafetyMonitorNodelet::onCheck, this);
+    diagnostic_timer_ = nh.createTimer(ros::Duration(params.diagnostic_period_s),
                                        &SafetyMonitorNodelet::onDiagnosticTimer, this);
     const core::SafetyParams& p = supervisor_->params().safety;
     NODELET_INFO(
         "SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
         "%.3f s, checks at %.0f Hz",
         p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s, p.tracker_timeout_s,
-        check_rate_hz);
+        params.check_rate_hz);
     publishDiagnostics();
   }
 

@@ -57,25 +57,25 @@ class SimulatorNodelet : public nodelet::Nodelet {
     ros::NodeHandle pnh = getPrivateNodeHandle();
     std::string urdf_path;
     try {
-      const ParamLoader params(pnh);
-      sim_ = makeSimulation(pnh);
+      const ParamLoader loader(pnh);
+      const SimulatorNodeParams params = loadSimulatorParams(pnh);
+      sim_ = makeSimulation(params, loader);
       // Re-read at every reset; checked here too, so that a bad value refuses the start.
-      loadBoneMotionModel(pnh);
-      urdf_path = params.getString("urdf_path", "", true);
-      real_time_factor_ = params.getDouble("real_time_factor", 1.0, 0.0, 1000.0);
-      publish_clock_ = params.getBool("publish_clock", true);
-      clock_period_steps_ = params.getInt("clock_period_ms", 1, 1, 100);
-      const auto period = [&params](const std::string& name, double default_hz) {
-        return core::streamPeriodSteps(1000.0,
-                                       params.getDouble(name, default_hz, 0.0, 1000.0, true), name);
+      loadBoneMotionModel(params, loader);
+      urdf_path = params.urdf_path;
+      real_time_factor_ = params.real_time_factor;
+      publish_clock_ = params.publish_clock;
+      clock_period_steps_ = params.clock_period_ms;
+      const auto period = [](const std::string& name, double hz) {
+        return core::streamPeriodSteps(1000.0, hz, name);
       };
-      joint_state_period_ = period("joint_state_rate_hz", 100.0);
-      tf_period_ = period("tf_rate_hz", 100.0);
-      ground_truth_period_ = period("ground_truth_rate_hz", 100.0);
-      tracker_period_ = period("tracker_rate_hz", 8.0);
+      joint_state_period_ = period("joint_state_rate_hz", params.joint_state_rate_hz);
+      tf_period_ = period("tf_rate_hz", params.tf_rate_hz);
+      ground_truth_period_ = period("ground_truth_rate_hz", params.ground_truth_rate_hz);
+      tracker_period_ = period("tracker_rate_hz", params.tracker_rate_hz);
       // The simulated ventilator is the device that drives the patient: it publishes what the
       // Ventilator nodelet publishes on hardware-free setups (0 disables it).
-      const double tv_rate = params.getDouble("tidal_volume_rate_hz", 64.0, 0.0, 1000.0);
+      const double tv_rate = params.tidal_volume_rate_hz;
       tidal_volume_period_ =
           tv_rate > 0.0 ? core::streamPeriodSteps(1000.0, tv_rate, "tidal_volume_rate_hz") : 0;
     } catch (const std::exception& e) {
@@ -290,18 +290,18 @@ class SimulatorNodelet : public nodelet::Nodelet {
   bool onReset(ResetSimulation::Request& req, ResetSimulation::Response& res) {
     // The distributions are re-read at every reset, so that a campaign (or a user with
     // `rosparam set`) can change them between trials; a bad value refuses the reset.
-    TrialDistributionParams distribution;
+    SimulatorNodeParams distribution;
     std::optional<core::BoneMotionModel> bone_motion;
     try {
-      distribution = loadTrialDistribution(getPrivateNodeHandle());
-      bone_motion = loadBoneMotionModel(getPrivateNodeHandle());
+      distribution = loadSimulatorParams(getPrivateNodeHandle());
+      bone_motion = loadBoneMotionModel(distribution, ParamLoader(getPrivateNodeHandle()));
     } catch (const std::exception& e) {
       res.success = false;
       res.message = std::string(e.what()) + "; nothing was reset";
       return true;
     }
     // An explicit specimen: the given thicknesses with no spread.
-    const std::string refused = applySpecimenRequest(req, &distribution.specimen);
+    const std::string refused = applySpecimenRequest(req, &distribution.sim.specimen);
     if (!refused.empty()) {
       res.success = false;
       res.message = refused + "; nothing was reset";
@@ -309,7 +309,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      sim_->setTrialDistribution(distribution.specimen, distribution.variability);
+      sim_->setTrialDistribution(distribution.sim.specimen, distribution.sim.variability);
       sim_->setBoneMotionModel(bone_motion);
       sim_->reset(req.seed, req.moving_bone);
       pending_amplitude_.reset();

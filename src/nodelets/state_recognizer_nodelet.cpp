@@ -22,34 +22,12 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
-
-namespace {
-
-/** @brief Component index (0..2) and sign of an axis name x|y|z|-x|-y|-z. */
-bool parseForceAxis(const std::string& name, int* index, double* sign) {
-  std::string n = name;
-  *sign = 1.0;
-  if (!n.empty() && (n[0] == '-' || n[0] == '+')) {
-    *sign = n[0] == '-' ? -1.0 : 1.0;
-    n = n.substr(1);
-  }
-  if (n == "x")
-    *index = 0;
-  else if (n == "y")
-    *index = 1;
-  else if (n == "z")
-    *index = 2;
-  else
-    return false;
-  return true;
-}
-
-}  // namespace
 
 /** @brief Nodelet wrapper of core::StateRecognizer. */
 class StateRecognizerNodelet : public nodelet::Nodelet {
@@ -57,53 +35,19 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
-    int queue_size = 0;
+    StateRecognizerNodeParams params;
     try {
-      const ParamLoader params(pnh);
-      const std::string axis = params.getString("axis", "z");
-      if (!parseForceAxis(axis, &axis_index_, &axis_sign_)) {
-        params.fail("axis", "= '" + axis + "' must be one of x, y, z, -x, -y, -z");
-      }
-      core::RecognizerParams p;
-      p.pre_average = params.getInt("pre_average", p.pre_average, 1, 100000);
-      p.window = params.getInt("window", p.window, 1, 100000);
-      p.k_ratio = params.getDouble("k_ratio", p.k_ratio, 0.0, 1.0, true, true);
-      p.f_th = params.getDouble("f_th", p.f_th, 0.0, 1000.0, true);
-      p.gain = params.getDouble("gain", p.gain, 1.0, 100.0);
-      p.h_g = params.getDouble("h_g", p.h_g, 0.0, 1000.0);
-      p.c1 = params.getDouble("c1", p.c1, 0.0, 1000.0, true);
-      p.c2 = params.getDouble("c2", p.c2, 0.0, 1000.0, true);
-      p.c3 = params.getDouble("c3", p.c3, 0.0, 1.0, true, true);
-      p.cancellous_confirm = params.getInt("cancellous_confirm", p.cancellous_confirm, 1, 100000);
-      p.outer_cortical_timeout =
-          params.getInt("outer_cortical_timeout", p.outer_cortical_timeout, 0, 100000);
-      p.cancellous_timeout = params.getInt("cancellous_timeout", p.cancellous_timeout, 0, 100000);
-      p.inner_confirm = params.getInt("inner_confirm", p.inner_confirm, 1, 100000);
-      p.stop_delay = params.getInt("stop_delay", p.stop_delay, 0, 100000);
-      p.normalize_feature = params.getBool("normalize_feature", p.normalize_feature);
-      queue_size = params.getInt("queue_size", 1000, 1, 100000);
-      try {
-        p.validate();
-      } catch (const std::invalid_argument& e) {
-        // The core names the field first ("c2: must be >= c1"); report it as the parameter.
-        const std::string what = e.what();
-        params.fail(what.substr(0, what.find(':')), what.substr(what.find(':') + 1));
-      }
-      const std::string recognizer_class =
-          params.getString("recognizer", "pedicle_drilling/PaperRecognizer");
-      const core::RecognizerSettings settings = params.getTextMap("recognizer_params");
-      if (recognizer_class == "pedicle_drilling/PaperRecognizer") {
-        if (!settings.empty()) {
-          params.fail("recognizer_params",
-                      "is for other recognizer classes; the paper recognizer's parameters are "
-                      "this node's own (~pre_average, ~window, ...)");
-        }
-        recognizer_ = std::make_unique<core::PaperRecognizer>(p);
+      const ParamLoader loader(pnh);
+      loader.load(StateRecognizerNodeParams::table(), &params);
+      axis_index_ = params.axisIndex();
+      axis_sign_ = params.axisSign();
+      if (params.recognizer_class == "pedicle_drilling/PaperRecognizer") {
+        recognizer_ = std::make_unique<core::PaperRecognizer>(params.recognizer);
       } else {
         try {
-          recognizer_ = loader_.create(recognizer_class, settings);
+          recognizer_ = loader_.create(params.recognizer_class, params.recognizer_params);
         } catch (const std::exception& e) {
-          params.fail("recognizer", "= '" + recognizer_class + "': " + e.what());
+          loader.fail("recognizer", "= '" + params.recognizer_class + "': " + e.what());
         }
       }
     } catch (const std::exception& e) {
@@ -112,8 +56,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
-    wrench_sub_ = nh.subscribe("ft_sensor/wrench", queue_size, &StateRecognizerNodelet::onWrench,
-                               this, ros::TransportHints().tcpNoDelay());
+    wrench_sub_ =
+        nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
+                     ros::TransportHints().tcpNoDelay());
     NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
                  recognizer_ -> describe().c_str());
   }

@@ -13,6 +13,7 @@
 
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
@@ -26,11 +27,12 @@ class VentilatorNodelet : public nodelet::Nodelet {
     ros::NodeHandle pnh = getPrivateNodeHandle();
     double rate_hz = 0.0;
     try {
-      const ParamLoader params(pnh);
-      const core::VentilatorSettings settings = loadVentilatorSettings(params);
-      rate_hz = params.getDouble("publish_rate_hz", 64.0, 0.0, 1000.0, true);
-      frame_id_ = params.getString("frame_id", "ventilator");
-      scheduler_ = std::make_unique<core::BreathScheduler>(settings, ros::Time::now().toSec());
+      VentilatorNodeParams params;
+      ParamLoader(pnh).load(VentilatorNodeParams::table(), &params);
+      rate_hz = params.publish_rate_hz;
+      frame_id_ = params.frame_id;
+      scheduler_ =
+          std::make_unique<core::BreathScheduler>(params.settings, ros::Time::now().toSec());
     } catch (const std::exception& e) {
       // Safe state: nothing is published, the error names the parameter.
       failStartup(getName(), e.what());  // throws: the load fails

@@ -21,84 +21,46 @@ static_assert(TrialStatus::IDLE == static_cast<int>(core::TrialPhase::kIdle) &&
                   TrialStatus::FAILED == static_cast<int>(core::TrialPhase::kFailed),
               "msg/TrialStatus.msg and core::TrialPhase must share their values");
 
-core::TrialSequencerParams loadSequencerParams(const ParamLoader& params) {
-  core::TrialSequencerParams sp;
-  sp.default_feed_rate_mm_s = params.getDouble("feed_rate_mm_s", 0.5, 0.0, 10.0, true);
-  sp.default_spindle_rpm = params.getDouble("spindle_rpm", 12000.0, 0.0, 60000.0, true);
-  sp.default_max_duration_s = params.getDouble("max_duration_s", 120.0, 0.0, 3600.0, true);
-  core::CompensationParams& cp = sp.compensation;
-  cp.latency_s = params.getDouble("latency_s", 0.0, 0.0, 1.0);
-  cp.period_s = params.getDouble("period_s", 0.125, 0.0, 1.0, true);
-  cp.accel_ratio = params.getDouble("accel_ratio", 10.0, 0.0, 1000.0, true);
-  cp.points_per_segment = params.getInt("points_per_segment", 5, 1, 100);
-  const std::string profile = params.getString("segment_profile", "rest_to_rest");
-  if (!core::parseSegmentProfile(profile, &cp.segment_profile)) {
-    params.fail("segment_profile", "= '" + profile + "' is not rest_to_rest or exact");
-  }
-  cp.compensate_lateral = params.getBool("compensate_si_lr", false);
-  cp.predict_axis = {{false, false, false}};
-  std::stringstream axes(params.getString("predicted_axes", "ap"));
-  std::string name;
-  while (std::getline(axes, name, ',')) {
-    core::Axis a;
-    if (!core::parseAxis(name, &a)) {
-      params.fail("predicted_axes", "has unknown axis '" + name + "' (use ap, si, lr)");
-    }
-    cp.predict_axis[static_cast<int>(a)] = true;
-  }
-  sp.move_duration_s = params.getDouble("move_duration_s", 2.0, 0.0, 60.0, true);
-  sp.settle_s = params.getDouble("settle_s", 0.5, 0.0, 60.0);
-  sp.registration_samples = params.getInt("registration_samples", 4, 1, 100);
-  sp.registration_timeout_s = params.getDouble("registration_timeout_s", 3.0, 0.0, 60.0, true);
-  sp.stop_hold_s = params.getDouble("stop_hold_s", 1.0, 0.0, 60.0);
-  sp.recognizer_timeout_s =
-      params.getDouble("recognizer_timeout_s", sp.recognizer_timeout_s, 0.0, 60.0);
-  sp.monitor_timeout_s = params.getDouble("monitor_timeout_s", sp.monitor_timeout_s, 0.0, 60.0);
-  sp.retreat.distance_m = params.getDouble("retreat_distance_m", 0.025, 0.0, 0.1, true);
-  sp.retreat.speed_m_s = params.getDouble("retreat_speed_m_s", 0.005, 0.0, 0.05, true);
-  sp.retreat.accel_m_s2 = params.getDouble("retreat_accel_m_s2", 0.05, 0.0, 1.0, true);
-  return sp;
-}
-
-std::unique_ptr<core::TrialSequencer> makeSequencer(const ParamLoader& params,
-                                                    const ros::NodeHandle& nh,
-                                                    const std::string& world_frame) {
+std::unique_ptr<core::TrialSequencer> makeSequencer(const CompensationPlannerNodeParams& params,
+                                                    const ParamLoader& loader,
+                                                    const ros::NodeHandle& nh) {
   // Robot description: a URDF file, or the robot_description parameter.
-  const std::string urdf_path = params.getString("urdf_path", "", true);
   std::string urdf_xml;
-  if (!urdf_path.empty()) {
-    urdf_xml = params.readFile("urdf_path", urdf_path);
+  if (!params.urdf_path.empty()) {
+    urdf_xml = loader.readFile("urdf_path", params.urdf_path);
   } else if (!nh.getParam("robot_description", urdf_xml)) {
-    params.fail("urdf_path", "is empty and there is no robot_description parameter");
+    loader.fail("urdf_path", "is empty and there is no robot_description parameter");
   }
-  core::TrialSequencerParams sp = loadSequencerParams(params);
-  const std::string base = params.getString("arm_base_link", "world");
-  const std::string tip = params.getString("arm_tip_link", "device_base");
-  sp.feed_joint = params.getString("feed_joint", "feed_joint");
-  const core::KinematicChain arm = core::KinematicChain::fromUrdfString(urdf_xml, base, tip);
+  core::TrialSequencerParams sp = params.sequencer;
+  const core::KinematicChain arm =
+      core::KinematicChain::fromUrdfString(urdf_xml, params.arm_base_link, params.arm_tip_link);
   const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
   const auto feed = model ? model->getJoint(sp.feed_joint) : nullptr;
   if (!feed || !feed->limits) {
-    params.fail("feed_joint", "'" + sp.feed_joint + "' is not a limited joint of the URDF");
+    loader.fail("feed_joint", "'" + sp.feed_joint + "' is not a limited joint of the URDF");
   }
   sp.feed_lower_m = feed->limits->lower;
   sp.feed_upper_m = feed->limits->upper;
+  if (params.feed_home_m < sp.feed_lower_m || params.feed_home_m > 0.5 * sp.feed_upper_m) {
+    std::ostringstream os;
+    os << "= " << params.feed_home_m << " is outside [" << sp.feed_lower_m << ", "
+       << 0.5 * sp.feed_upper_m << "] (the feed joint's lower limit to half its upper limit)";
+    loader.fail("feed_home_m", os.str());
+  }
   sp.arm_joints = arm.jointNames();
   Eigen::VectorXd q(sp.arm_joints.size());
   for (std::size_t i = 0; i < sp.arm_joints.size(); ++i) {
     const std::string key = "drilling_pose/" + sp.arm_joints[i];
-    if (!params.has(key)) params.fail(key, "is missing (load config/drilling_pose.yaml)");
-    q[i] = params.getDouble(key, 0.0, -2.0 * M_PI, 2.0 * M_PI);
+    if (!loader.has(key)) loader.fail(key, "is missing (load config/drilling_pose.yaml)");
+    q[i] = loader.getDouble(key, 0.0, -2.0 * M_PI, 2.0 * M_PI);
   }
-  const double feed_home =
-      params.getDouble("feed_home_m", 0.01, sp.feed_lower_m, 0.5 * sp.feed_upper_m);
   try {
-    return std::make_unique<core::TrialSequencer>(sp, core::ArmCompensation(arm, q, feed_home),
-                                                  world_frame);
+    return std::make_unique<core::TrialSequencer>(
+        sp, core::ArmCompensation(arm, q, params.feed_home_m), params.world_frame);
   } catch (const std::invalid_argument& e) {
-    // The core names the field first ("settle_s: must be ..."): report it as the parameter.
+    // The core names the field first ("feed_joint limits must ..."): report it as the parameter.
     const std::string what = e.what();
-    params.fail(what.substr(0, what.find(':')), what.substr(what.find(':') + 1));
+    loader.fail(what.substr(0, what.find_first_of(" :")), what);
   }
   return nullptr;  // not reached: fail() throws
 }

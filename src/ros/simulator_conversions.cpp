@@ -7,47 +7,28 @@
 #include <sstream>
 
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
-#include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
 
-core::DrillingSimulationParams loadSimulationParams(const ros::NodeHandle& private_nh) {
-  const ParamLoader params(private_nh);
-  core::DrillingSimulationParams sp;
-  sp.arm_rate_hz = params.getDouble("arm_rate_hz", 1000.0, 1.0, 1000.0);
-  if (std::abs(1000.0 / sp.arm_rate_hz - std::round(1000.0 / sp.arm_rate_hz)) > 1e-9) {
-    params.fail("arm_rate_hz", "must divide the 1000 Hz physics rate (e.g. 1000, 500, 250)");
-  }
-  sp.slider_max_speed_m_s = params.getDouble("slider_max_speed_m_s", 0.05, 0.0, 1.0, true);
-  sp.slider_max_accel_m_s2 = params.getDouble("slider_max_accel_m_s2", 2.0, 0.0, 100.0, true);
-  sp.slider_bandwidth_hz = params.getDouble("slider_bandwidth_hz", 20.0, 0.0, 500.0, true);
-  sp.feed_max_accel_m_s2 = params.getDouble("feed_max_accel_m_s2", 2.0, 0.0, 100.0, true);
-  sp.feed_bandwidth_hz = params.getDouble("feed_bandwidth_hz", 20.0, 0.0, 500.0, true);
-  sp.bench_period_s = params.getDouble("bench_period_s", 0.125, 0.01, 1.0);
-  sp.spindle_accel_rpm_s = params.getDouble("spindle_accel_rpm_s", 40000.0, 0.0, 1.0e6, true);
-  sp.tracker_noise_rms_mm = params.getDouble("tracker_noise_rms_mm", 0.25, 0.0, 10.0);
-  sp.sensor.force_noise_sd_n = params.getDouble("force_noise_sd_n", 0.03, 0.0, 10.0);
-  sp.moving_bone = params.getBool("moving_bone", true);
-  sp.ventilator = loadVentilatorSettings(ParamLoader(ros::NodeHandle(private_nh, "ventilator")));
-  const TrialDistributionParams distribution = loadTrialDistribution(private_nh);
-  sp.specimen = distribution.specimen;
-  sp.variability = distribution.variability;
-  return sp;
+SimulatorNodeParams loadSimulatorParams(const ros::NodeHandle& private_nh) {
+  const ParamLoader loader(private_nh);
+  const auto& table = SimulatorNodeParams::table();
+  loader.rejectUndeclared(table, "trial_distribution");
+  loader.rejectUndeclared(table, "ventilator");
+  SimulatorNodeParams params;
+  loader.load(table, &params);
+  return params;
 }
 
-std::unique_ptr<core::DrillingSimulation> makeSimulation(const ros::NodeHandle& private_nh) {
-  const ParamLoader params(private_nh);
-  const std::string urdf_path = params.getString("urdf_path", "", true);
-  if (urdf_path.empty()) {
-    params.fail("urdf_path", "must name the workcell URDF file (urdf/workcell.urdf)");
-  }
-  const core::DrillingSimulationParams sp = loadSimulationParams(private_nh);
-  const int seed = params.getInt("seed", 1, 0, 2147483647);
-  const std::string xml = params.readFile("urdf_path", urdf_path);
+std::unique_ptr<core::DrillingSimulation> makeSimulation(const SimulatorNodeParams& params,
+                                                         const ParamLoader& loader) {
+  const std::string xml = loader.readFile("urdf_path", params.urdf_path);
   try {
-    return std::make_unique<core::DrillingSimulation>(xml, sp, static_cast<std::uint64_t>(seed));
+    return std::make_unique<core::DrillingSimulation>(xml, params.sim,
+                                                      static_cast<std::uint64_t>(params.seed));
   } catch (const std::exception& e) {
-    throw std::runtime_error("URDF '" + urdf_path + "' is not a usable workcell: " + e.what());
+    throw std::runtime_error("URDF '" + params.urdf_path +
+                             "' is not a usable workcell: " + e.what());
   }
 }
 
@@ -65,9 +46,9 @@ core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, dou
   return command;
 }
 
-std::optional<core::BoneMotionModel> loadBoneMotionModel(const ros::NodeHandle& private_nh) {
-  const ParamLoader params(private_nh);
-  const std::string path = params.getString("bone_motion_model_path", "", true);
+std::optional<core::BoneMotionModel> loadBoneMotionModel(const SimulatorNodeParams& node,
+                                                         const ParamLoader& params) {
+  const std::string& path = node.bone_motion_model_path;
   if (path.empty()) return std::nullopt;
   try {
     const core::PatientModel patient = core::readModelYaml(path);

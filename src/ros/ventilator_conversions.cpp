@@ -22,31 +22,6 @@ core::InspiratoryWaveform parseWaveformOrThrow(const std::string& text, const st
 
 }  // namespace
 
-core::VentilatorSettings loadVentilatorSettings(const ParamLoader& params) {
-  core::VentilatorSettings s;
-  s.tv_max_ml = params.getDouble("tv_max_ml", s.tv_max_ml, 0.0, 3000.0, true);
-  s.rate_bpm = params.getDouble("rate_bpm", s.rate_bpm, 0.0, 60.0, true);
-  const std::string ie = params.getString("ie_ratio", "1:2");
-  if (!core::parseIeRatio(ie, &s.ie_inspiratory, &s.ie_expiratory)) {
-    params.fail("ie_ratio", "= '" + ie + "' is not of the form a:b with positive a and b");
-  }
-  const std::string waveform = params.getString("waveform", "square");
-  try {
-    s.waveform = parseWaveformOrThrow(waveform, "waveform");
-    s.expiratory_spec =
-        parseSpec(params.getString("expiratory_spec", "peak_ratio"), "expiratory_spec");
-  } catch (const std::invalid_argument& e) {
-    throw ParameterError(std::string("parameter ") + e.what());
-  }
-  s.pause_fraction = params.getDouble("pause_fraction", s.pause_fraction, 0.0, 0.5);
-  s.peak_flow_ratio = params.getDouble("peak_flow_ratio", s.peak_flow_ratio, 0.2, 10.0);
-  s.expiratory_tau_s = params.getDouble("expiratory_tau_s", s.expiratory_tau_s, 0.0, 10.0, true);
-  s.ramp_start_fraction =
-      params.getDouble("ramp_start_fraction", s.ramp_start_fraction, 0.0, 1.0, false, true);
-  s.exponential_shape = params.getDouble("exponential_shape", s.exponential_shape, 0.0, 10.0, true);
-  return s;
-}
-
 VentilatorSettings toMsg(const core::VentilatorSettings& s) {
   VentilatorSettings msg;
   msg.tv_max_ml = s.tv_max_ml;

@@ -780,13 +780,13 @@ TEST(TrialConditions, OutOfRangeSpreadsNameTheField) {
   };
   TrialVariability v;
   v.patient_amplitude_scale_sd = 0.5;
-  EXPECT_NE(message(v).find("patient_amplitude_scale_sd"), std::string::npos) << message(v);
+  EXPECT_NE(message(v).find("patient/amplitude_scale_sd"), std::string::npos) << message(v);
   v = TrialVariability{};
   v.ventilator_rate_sd_bpm = std::nan("");
-  EXPECT_NE(message(v).find("ventilator_rate_sd_bpm"), std::string::npos) << message(v);
+  EXPECT_NE(message(v).find("ventilator/rate_sd_bpm"), std::string::npos) << message(v);
   v = TrialVariability{};
   v.arm_stiffness_scale_sd = -0.1;
-  EXPECT_NE(message(v).find("arm_stiffness_scale_sd"), std::string::npos) << message(v);
+  EXPECT_NE(message(v).find("arm/stiffness_scale_sd"), std::string::npos) << message(v);
 }
 
 TEST(DrillingSimulationTrial, ResetAppliesTheDrawnPatientSensorArmAndBreathing) {

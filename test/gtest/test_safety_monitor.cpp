@@ -209,7 +209,7 @@ TEST(SafetyMonitorTest, ParameterValidationNamesField) {
   expectNamed(p, "position_threshold_m");
   p = SafetyParams();
   p.force_threshold_N = kNaN;
-  expectNamed(p, "force_threshold_N");
+  expectNamed(p, "force_threshold_n");  // the declared (ROS) name
   p = SafetyParams();
   p.force_timeout_s = -1.0;
   expectNamed(p, "force_timeout_s");

@@ -499,7 +499,9 @@ void expectInvalid(const RecognizerParams& p, const std::string& name) {
     p.validate();
     ADD_FAILURE() << "validate() accepted bad " << name;
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()).rfind(name + ":", 0), 0u) << e.what();
+    // "<name> = <value> is out of range ..." or "<name>: <rule>".
+    const std::string what = e.what();
+    EXPECT_TRUE(what.rfind(name + " ", 0) == 0 || what.rfind(name + ":", 0) == 0) << what;
   }
   EXPECT_THROW(StateRecognizer rec(p), std::invalid_argument);
 }

@@ -358,7 +358,8 @@ TEST(TrialSequencer, ParametersAreValidatedNamingTheField) {
     pd::TrialSequencer seq(p, workcellArm());
     FAIL() << "accepted settle_s = -1";
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("settle_s:", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind("settle_s = -1 is out of range [0, 60] s", 0), 0u)
+        << e.what();
   }
   p = params();
   p.registration_samples = 0;

@@ -1,8 +1,14 @@
-"""The README's parameter tables against the shipped configuration (issue 12): every key a
-nodelet's config/*.yaml sets is documented in that nodelet's README table (a wildcard row such as
-`~trial_distribution/specimen/*` covers a group). The other direction, that every documented
-parameter is checked by the code, is the rostest parameter_walk."""
+"""The README's parameter tables against the code's declarations and the shipped configuration
+(issue 12). Each nodelet's parameters are declared once in C++ (core::ParamTable, through
+ros/node_params.hpp); `param_docs --format json` prints them. Every declared parameter has a README
+row with the same type, default and allowed values (the range column starts with the declared
+rule; notes may follow after "; "), and every README row is declared: a range changed in the code
+and not in the README, or the reverse, fails here. A wildcard row (`~ventilator/*`) covers a
+declared group. Every key a config/*.yaml sets is documented. That the nodelets refuse what the
+README calls out of range is the rostest parameter_walk."""
+import json
 import os
+import subprocess
 import sys
 
 import pytest
@@ -55,3 +61,77 @@ def test_every_shipped_parameter_is_documented(node):
     missing = [k for k in flat_keys(config) if not documented(k, rows)]
     assert missing == [], '%s: in config/%s but not in the README: %s' % (
         node, CONFIGS[node], missing)
+
+
+@pytest.fixture(scope='module')
+def declared(bin_dir):
+    out = subprocess.run([os.path.join(bin_dir, 'param_docs'), '--format', 'json'],
+                         check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def readme_rows():
+    """{node: {name: (type, default, range column)}} with the README's default column kept."""
+    import re
+    rows, node = {}, None
+    with open(os.path.join(ROOT, 'README.md')) as handle:
+        for line in handle:
+            heading = re.match(r'^### (pedicle_drilling/\w+)', line)
+            if heading:
+                node = heading.group(1)
+            elif line.startswith('## '):
+                node = None
+            row = re.match(r'^\|\s*(`~[^|]+?)\s*\|([^|]*)\|([^|]*)\|(.*)\|\s*$', line)
+            if node and row:
+                for name in re.findall(r'`~([^`]+)`', row.group(1)):
+                    rows.setdefault(node, {})[name] = (
+                        row.group(2).strip(), row.group(3).strip(), row.group(4).strip())
+    return rows
+
+
+def test_every_nodelet_declares_its_parameters(declared):
+    assert sorted(declared) == sorted(CONFIGS)
+    assert sorted(readme_rows()) == sorted(CONFIGS)
+
+
+@pytest.mark.parametrize('node', sorted(CONFIGS))
+def test_readme_table_matches_the_declarations(node, declared):
+    rows = readme_rows()[node]
+    params = {p['name']: p for p in declared[node]}
+    problems = []
+    for name, p in params.items():
+        wildcard = [r for r in rows if r.endswith('/*') and name.startswith(r[:-1])]
+        if wildcard:
+            continue
+        if name not in rows:
+            problems.append('~%s is declared (%s, default %r, %s) but has no README row' % (
+                name, p['type'], p['default'], p['rule']))
+            continue
+        kind, default, rule = rows[name]
+        expected_default = '`%s`' % p['default'] if p['default'] else '`""`'
+        if kind != p['type']:
+            problems.append('~%s: README type %r, declared %r' % (name, kind, p['type']))
+        if default != expected_default:
+            problems.append('~%s: README default %s, declared %s' % (name, default,
+                                                                    expected_default))
+        if not (rule == p['rule'] or rule.startswith(p['rule'] + '; ')):
+            problems.append('~%s: README range %r does not start with the declared %r' % (
+                name, rule, p['rule']))
+    for name in rows:
+        if name.endswith('/*'):
+            if not any(n.startswith(name[:-1]) for n in params):
+                problems.append('README wildcard ~%s covers no declared parameter' % name)
+        elif name not in params:
+            problems.append('README row ~%s is not a declared parameter' % name)
+    assert problems == [], node + ':\n' + '\n'.join(problems)
+
+
+def test_the_check_sees_a_changed_range(declared, tmp_path):
+    """The comparison itself: a declared range that differs from the README's is reported."""
+    node = 'pedicle_drilling/SafetyMonitor'
+    changed = json.loads(json.dumps(declared))
+    for p in changed[node]:
+        if p['name'] == 'position_threshold_m':
+            p['rule'] = '(0, 0.2] m'
+    with pytest.raises(AssertionError, match='position_threshold_m'):
+        test_readme_table_matches_the_declarations(node, changed)

@@ -7,6 +7,7 @@
 
 #include <ros/node_handle.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <set>
@@ -17,6 +18,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/common/cli_args.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
 
 namespace pedicle_drilling {
 
@@ -222,6 +224,37 @@ class ParamLoader {
     return contents.str();
   }
 
+  /**
+   * @brief Every parameter declared in @p table, read into @p out (whose values are the
+   *        defaults of the absent ones), each checked against its declaration: type, range,
+   *        choices. Then the struct's own validate() (the checks between fields) runs, its error
+   *        becoming a ParameterError under this node's namespace.
+   * @throws ParameterError naming the first bad parameter.
+   */
+  template <class T>
+  void load(const core::ParamTable<T>& table, T* out) const {
+    for (const auto& e : table.entries()) loadEntry(e, out);
+    try {
+      out->validate();
+    } catch (const std::invalid_argument& err) {
+      throw ParameterError("parameter '" + nh_.resolveName(firstWord(err.what())) +
+                           "': " + err.what());
+    }
+  }
+
+  /**
+   * @brief Fails on any key under the namespace @p ns that @p table does not declare (a typo
+   *        would otherwise be a silent default), or when @p ns is set but is not a mapping.
+   */
+  template <class T>
+  void rejectUndeclared(const core::ParamTable<T>& table, const std::string& ns) const {
+    if (!nh_.hasParam(ns)) return;
+    XmlRpc::XmlRpcValue raw;
+    nh_.getParam(ns, raw);
+    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) fail(ns, "must be a mapping");
+    rejectUndeclaredIn(table, raw, ns + "/");
+  }
+
   /** @brief True when the parameter is set. */
   bool has(const std::string& name) const { return nh_.hasParam(name); }
 
@@ -231,6 +264,76 @@ class ParamLoader {
   }
 
  private:
+  template <class T>
+  void rejectUndeclaredIn(const core::ParamTable<T>& table, XmlRpc::XmlRpcValue& raw,
+                          const std::string& prefix) const {
+    for (auto it = raw.begin(); it != raw.end(); ++it) {
+      const std::string name = prefix + it->first;
+      if (it->second.getType() == XmlRpc::XmlRpcValue::TypeStruct && table.find(name) == nullptr) {
+        rejectUndeclaredIn(table, it->second, name + "/");
+        continue;
+      }
+      if (table.find(name) != nullptr) continue;
+      std::string known;
+      for (const auto& e : table.entries()) {
+        if (e.info.name.rfind(prefix, 0) == 0) {
+          known += (known.empty() ? "" : ", ") + e.info.name.substr(prefix.size());
+        }
+      }
+      fail(name, "is not a known parameter (known under " + prefix + ": " + known + ")");
+    }
+  }
+
+  template <class T>
+  void loadEntry(const typename core::ParamTable<T>::Entry& e, T* out) const {
+    const core::ParamInfo& info = e.info;
+    const core::Range& r = info.range;
+    switch (info.kind) {
+      case core::ParamKind::kDouble:
+        e.set_number(
+            *out, getDouble(info.name, e.get_number(*out), r.min, r.max, r.open_min, r.open_max));
+        break;
+      case core::ParamKind::kInt:
+        e.set_number(*out, getInt(info.name, static_cast<int>(e.get_number(*out)),
+                                  intBound(r, true), intBound(r, false)));
+        break;
+      case core::ParamKind::kBool:
+        e.set_number(*out, getBool(info.name, e.get_number(*out) != 0.0) ? 1.0 : 0.0);
+        break;
+      case core::ParamKind::kText: {
+        const std::string value = getString(info.name, e.get_text(*out), info.allow_empty);
+        try {
+          e.set_text(*out, value);
+        } catch (const std::invalid_argument& err) {
+          fail(info.name, std::string(": ") + err.what());
+        }
+        break;
+      }
+      case core::ParamKind::kIntList:
+        e.set_ints(*out,
+                   getIntList(info.name, e.get_ints(*out), intBound(r, true), intBound(r, false)));
+        break;
+      case core::ParamKind::kTextList:
+        e.set_texts(*out, getStringList(info.name, e.get_texts(*out)));
+        break;
+      case core::ParamKind::kTextMap:
+        if (has(info.name)) e.set_map(*out, getTextMap(info.name));
+        break;
+    }
+  }
+
+  static int intBound(const core::Range& r, bool lower) {
+    const double b = lower ? (r.open_min ? std::floor(r.min) + 1.0 : std::ceil(r.min))
+                           : (r.open_max ? std::ceil(r.max) - 1.0 : std::floor(r.max));
+    const double limit = lower ? -2147483648.0 : 2147483647.0;
+    return static_cast<int>(lower ? std::max(b, limit) : std::min(b, limit));
+  }
+
+  static std::string firstWord(const std::string& text) {
+    const std::size_t end = text.find_first_of(" :=");
+    return text.substr(0, end);
+  }
+
   ros::NodeHandle nh_;
 };
 

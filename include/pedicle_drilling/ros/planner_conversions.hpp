@@ -16,26 +16,20 @@
 
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 
 namespace pedicle_drilling {
 
 /**
- * @brief Reads the planner's private parameters (README, CompensationPlanner) with their ranges
- *        into the core's struct. The arm (joints, feed limits, drilling pose) is filled in by
- *        the caller from the URDF. @throws ParameterError naming the parameter.
+ * @brief The planner's trial sequencer from its parameters, the URDF (~urdf_path or
+ *        ~robot_description: the arm chain and the feed joint's limits) and the drilling pose
+ *        (~drilling_pose/<joint> for every arm joint of the URDF, required).
+ * @throws ParameterError naming the parameter, or std::runtime_error.
  */
-core::TrialSequencerParams loadSequencerParams(const ParamLoader& params);
-
-/**
- * @brief The planner's trial sequencer from its parameters: the sequence's (above), the arm
- *        from ~urdf_path or robot_description (~arm_base_link, ~arm_tip_link, ~feed_joint and
- *        its limits), ~drilling_pose/<joint> and ~feed_home_m. A value the core refuses is
- *        reported as that parameter. @throws ParameterError or std::runtime_error.
- */
-std::unique_ptr<core::TrialSequencer> makeSequencer(const ParamLoader& params,
-                                                    const ros::NodeHandle& nh,
-                                                    const std::string& world_frame);
+std::unique_ptr<core::TrialSequencer> makeSequencer(const CompensationPlannerNodeParams& params,
+                                                    const ParamLoader& loader,
+                                                    const ros::NodeHandle& nh);
 
 /** @brief A trial phase as the typed status message, stamped `stamp`. */
 TrialStatus toMsg(core::TrialPhase phase, const ros::Time& stamp);

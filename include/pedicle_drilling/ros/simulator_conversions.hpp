@@ -21,23 +21,24 @@
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
-#include "pedicle_drilling/ros/trial_distribution_params.hpp"
 
 namespace pedicle_drilling {
 
 /**
- * @brief The simulation's parameters (README, Simulator): arm rate, slider speed, spindle
- *        acceleration, noises, ~moving_bone, ~ventilator/..., ~trial_distribution/....
+ * @brief Every parameter of the Simulator (README), loaded once: a key under ~trial_distribution
+ *        or ~ventilator that is not declared is refused too.
  * @throws ParameterError naming the parameter.
  */
-core::DrillingSimulationParams loadSimulationParams(const ros::NodeHandle& private_nh);
+SimulatorNodeParams loadSimulatorParams(const ros::NodeHandle& private_nh);
 
 /**
- * @brief The simulation from ~urdf_path (the workcell URDF), ~seed and the parameters above.
+ * @brief The simulation from ~urdf_path (the workcell URDF), ~seed and the parameters.
  * @throws ParameterError naming the parameter, or std::runtime_error for an unusable URDF.
  */
-std::unique_ptr<core::DrillingSimulation> makeSimulation(const ros::NodeHandle& private_nh);
+std::unique_ptr<core::DrillingSimulation> makeSimulation(const SimulatorNodeParams& params,
+                                                         const ParamLoader& loader);
 
 /**
  * @brief A JointTrajectory as the simulated controller's command: it takes over at its header
@@ -52,7 +53,8 @@ core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, dou
  *        YAML whose AP axis the bone plays (the paper's bench protocol).
  * @throws ParameterError naming the parameter and the file's error.
  */
-std::optional<core::BoneMotionModel> loadBoneMotionModel(const ros::NodeHandle& private_nh);
+std::optional<core::BoneMotionModel> loadBoneMotionModel(const SimulatorNodeParams& params,
+                                                         const ParamLoader& loader);
 
 /**
  * @brief Applies the explicit layer thicknesses of a reset request (0 = drawn) to the specimen

@@ -14,9 +14,6 @@
 
 namespace pedicle_drilling {
 
-/** @brief Reads ~tv_max_ml, ~rate_bpm, ~ie_ratio, ~waveform, ... with range checks. */
-core::VentilatorSettings loadVentilatorSettings(const ParamLoader& params);
-
 /** @brief Core settings to message. */
 VentilatorSettings toMsg(const core::VentilatorSettings& settings);
 

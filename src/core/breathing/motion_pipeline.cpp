@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <sstream>
 #include <stdexcept>
 
 #include "pedicle_drilling/core/breathing/wavelet.hpp"
@@ -37,24 +38,88 @@ bool parseMethod(const std::string& name, IdentificationMethod* method) {
   return true;
 }
 
+namespace {
+
+const ParamTable<DenoiseOptions>& keptLevelsTable() {
+  static const ParamTable<DenoiseOptions> t = [] {
+    ParamTable<DenoiseOptions> d;
+    d.integers("kept_levels", &DenoiseOptions::kept_levels, Range::closed(1, 16));
+    return d;
+  }();
+  return t;
+}
+
+}  // namespace
+
+const ParamTable<PipelineOptions>& PipelineOptions::table() {
+  static const ParamTable<PipelineOptions> t = [] {
+    using O = PipelineOptions;
+    ParamTable<O> d;
+    d.parsed(
+         "model", {"linear", "hysteresis"}, "", [](const O& v) { return modelKindName(v.kind); },
+         [](O& v, const std::string& x) { parseModelKind(x, &v.kind); })
+        .parsed(
+            "method", {"ceres", "pso"}, "", [](const O& v) { return methodName(v.method); },
+            [](O& v, const std::string& x) { parseMethod(x, &v.method); })
+        .flag("denoise", &O::denoise)
+        .flag("denoise_tv", &O::denoise_tv)
+        .integer(
+            "level", [](const O& v) { return static_cast<double>(v.denoise_options.level); },
+            [](O& v, double x) { v.denoise_options.level = static_cast<int>(x); },
+            Range::closed(1, 16))
+        .include(keptLevelsTable(), &O::denoise_options)
+        .parsed(
+            "wavelets", {}, "all, or comma-separated wavelet names",
+            [](const O& v) {
+              if (v.denoise_options.candidates == allWaveletNames()) return std::string("all");
+              std::string s;
+              for (const std::string& w : v.denoise_options.candidates)
+                s += (s.empty() ? "" : ",") + w;
+              return s;
+            },
+            [](O& v, const std::string& x) {
+              std::vector<std::string> names;
+              if (x == "all") {
+                names = allWaveletNames();
+              } else {
+                std::stringstream items(x);
+                std::string w;
+                while (std::getline(items, w, ',')) {
+                  if (findWavelet(w) == nullptr) {
+                    throw std::invalid_argument("names an unknown wavelet '" + w + "'");
+                  }
+                  names.push_back(w);
+                }
+              }
+              v.denoise_options.candidates = names;
+            })
+        .number(
+            "delta_tv_ml", [](const O& v) { return v.denoise_options.delta_tv; },
+            [](O& v, double x) { v.denoise_options.delta_tv = x; }, Range::closed(0, 1000), "ml")
+        .integer(
+            "pso_seed", [](const O& v) { return static_cast<double>(v.pso.seed); },
+            [](O& v, double x) { v.pso.seed = static_cast<std::uint64_t>(x); },
+            Range::closed(0, 2147483647));
+    return d;
+  }();
+  return t;
+}
+
 void PipelineOptions::validate() const {
+  table().validate(*this);
   const DenoiseOptions& d = denoise_options;
-  if (d.level < 1 || d.level > 16) throw std::invalid_argument("level must be in 1..16");
-  if (d.kept_levels.empty()) throw std::invalid_argument("kept levels must not be empty");
   for (int k : d.kept_levels) {
-    if (k < 1 || k > d.level) {
-      throw std::invalid_argument("kept level " + std::to_string(k) + " outside 1.." +
+    if (k > d.level) {
+      throw std::invalid_argument("kept_levels has " + std::to_string(k) + ", above level " +
                                   std::to_string(d.level));
     }
   }
-  if (d.candidates.empty()) throw std::invalid_argument("no candidate wavelet");
+  if (d.candidates.empty()) throw std::invalid_argument("wavelets: no candidate wavelet");
   for (const std::string& w : d.candidates) {
-    if (findWavelet(w) == nullptr) throw std::invalid_argument("unknown wavelet '" + w + "'");
+    if (findWavelet(w) == nullptr)
+      throw std::invalid_argument("wavelets: unknown wavelet '" + w + "'");
   }
-  if (!(d.delta_tv >= 0.0) || !std::isfinite(d.delta_tv)) {
-    throw std::invalid_argument("delta_tv must be a finite number >= 0");
-  }
-  if (denoise_tv && !denoise) throw std::invalid_argument("denoise_tv needs denoise on");
+  if (denoise_tv && !denoise) throw std::invalid_argument("denoise_tv needs denoise true");
   if (pso.population < 1 || pso.iterations < 1) {
     throw std::invalid_argument("PSO population and iterations must be >= 1");
   }

@@ -125,26 +125,51 @@ bool parseIeRatio(const std::string& text, double* inspiratory, double* expirato
   }
 }
 
+const ParamTable<VentilatorSettings>& VentilatorSettings::table() {
+  static const ParamTable<VentilatorSettings> t = [] {
+    using S = VentilatorSettings;
+    ParamTable<S> d;
+    d.number("tv_max_ml", &S::tv_max_ml, Range::aboveUpTo(0, 3000), "ml")
+        .number("rate_bpm", &S::rate_bpm, Range::aboveUpTo(0, 60), "breaths/min")
+        .parsed(
+            "ie_ratio", {}, "a:b with positive a and b",
+            [](const S& v) {
+              return Range::format(v.ie_inspiratory) + ":" + Range::format(v.ie_expiratory);
+            },
+            [](S& v, const std::string& x) {
+              if (!parseIeRatio(x, &v.ie_inspiratory, &v.ie_expiratory)) {
+                throw std::invalid_argument("is not of the form a:b with positive a and b");
+              }
+            })
+        .parsed(
+            "waveform", waveformNames(), "", [](const S& v) { return waveformName(v.waveform); },
+            [](S& v, const std::string& x) { parseWaveform(x, &v.waveform); })
+        .number("pause_fraction", &S::pause_fraction, Range::closed(0, 0.5))
+        .parsed(
+            "expiratory_spec", {"peak_ratio", "time_constant"}, "",
+            [](const S& v) {
+              return std::string(v.expiratory_spec == ExpiratorySpec::kPeakRatio ? "peak_ratio"
+                                                                                 : "time_constant");
+            },
+            [](S& v, const std::string& x) {
+              v.expiratory_spec =
+                  x == "peak_ratio" ? ExpiratorySpec::kPeakRatio : ExpiratorySpec::kTimeConstant;
+            })
+        .number("peak_flow_ratio", &S::peak_flow_ratio, Range::closed(0.2, 10))
+        .number("expiratory_tau_s", &S::expiratory_tau_s, Range::aboveUpTo(0, 10), "s")
+        .number("ramp_start_fraction", &S::ramp_start_fraction, Range::fromBelow(0, 1))
+        .number("exponential_shape", &S::exponential_shape, Range::aboveUpTo(0, 10));
+    return d;
+  }();
+  return t;
+}
+
 void VentilatorSettings::validate() const {
-  require(std::isfinite(tv_max_ml) && tv_max_ml > 0.0 && tv_max_ml <= 3000.0, "tv_max_ml",
-          "in (0, 3000] ml", tv_max_ml);
-  require(std::isfinite(rate_bpm) && rate_bpm > 0.0 && rate_bpm <= 60.0, "rate_bpm",
-          "in (0, 60] breaths/min", rate_bpm);
+  table().validate(*this);
   require(std::isfinite(ie_inspiratory) && ie_inspiratory > 0.0, "ie_inspiratory", "> 0",
           ie_inspiratory);
   require(std::isfinite(ie_expiratory) && ie_expiratory > 0.0, "ie_expiratory", "> 0",
           ie_expiratory);
-  require(std::isfinite(pause_fraction) && pause_fraction >= 0.0 && pause_fraction <= 0.5,
-          "pause_fraction", "in [0, 0.5]", pause_fraction);
-  require(std::isfinite(peak_flow_ratio) && peak_flow_ratio >= 0.2 && peak_flow_ratio <= 10.0,
-          "peak_flow_ratio", "in [0.2, 10]", peak_flow_ratio);
-  require(std::isfinite(expiratory_tau_s) && expiratory_tau_s > 0.0 && expiratory_tau_s <= 10.0,
-          "expiratory_tau_s", "in (0, 10] s", expiratory_tau_s);
-  require(
-      std::isfinite(ramp_start_fraction) && ramp_start_fraction >= 0.0 && ramp_start_fraction < 1.0,
-      "ramp_start_fraction", "in [0, 1)", ramp_start_fraction);
-  require(std::isfinite(exponential_shape) && exponential_shape > 0.0 && exponential_shape <= 10.0,
-          "exponential_shape", "in (0, 10]", exponential_shape);
 }
 
 VentilatorModel::VentilatorModel(const VentilatorSettings& settings) : settings_(settings) {

@@ -46,16 +46,50 @@ bool parseCompensationMode(const std::string& name, CompensationMode* mode) {
   return false;
 }
 
+const ParamTable<CompensationParams>& CompensationParams::table() {
+  static const ParamTable<CompensationParams> t = [] {
+    using P = CompensationParams;
+    ParamTable<P> d;
+    d.number("latency_s", &P::latency_s, Range::closed(0, 1), "s")
+        .number("period_s", &P::period_s, Range::aboveUpTo(0, 1), "s")
+        .number("accel_ratio", &P::accel_ratio, Range::aboveUpTo(0, 1000))
+        .integer("points_per_segment", &P::points_per_segment, Range::closed(1, 100))
+        .parsed(
+            "segment_profile", {"rest_to_rest", "exact"}, "",
+            [](const P& v) { return std::string(toString(v.segment_profile)); },
+            [](P& v, const std::string& x) { parseSegmentProfile(x, &v.segment_profile); })
+        .parsed(
+            "predicted_axes", {}, "comma-separated of ap, si, lr",
+            [](const P& v) {
+              std::string s;
+              for (Axis a : kAllAxes) {
+                if (v.predict_axis[static_cast<int>(a)]) s += (s.empty() ? "" : ",") + axisName(a);
+              }
+              return s;
+            },
+            [](P& v, const std::string& x) {
+              std::array<bool, 3> axes{{false, false, false}};
+              std::stringstream items(x);
+              std::string name;
+              while (std::getline(items, name, ',')) {
+                Axis a;
+                if (!parseAxis(name, &a)) {
+                  throw std::invalid_argument("has unknown axis '" + name + "' (use ap, si, lr)");
+                }
+                axes[static_cast<int>(a)] = true;
+              }
+              v.predict_axis = axes;
+            })
+        .flag("compensate_si_lr", &P::compensate_lateral);
+    return d;
+  }();
+  return t;
+}
+
 void CompensationParams::validate() const {
+  table().validate(*this);
   require(std::isfinite(feed_rate_m_s) && feed_rate_m_s >= 0.0 && feed_rate_m_s <= 0.01,
           "feed_rate_m_s", "must be in [0, 0.01] m/s");
-  require(std::isfinite(period_s) && period_s > 0.0 && period_s <= 1.0, "period_s",
-          "must be in (0, 1] s");
-  require(std::isfinite(accel_ratio) && accel_ratio > 0.0, "accel_ratio", "must be finite and > 0");
-  require(std::isfinite(latency_s) && latency_s >= 0.0 && latency_s <= 1.0, "latency_s",
-          "must be in [0, 1] s");
-  require(points_per_segment >= 1 && points_per_segment <= 100, "points_per_segment",
-          "must be in [1, 100]");
   require(isUnit(drill_axis), "drill_axis", "must be a finite unit vector");
   for (int i = 0; i < 3; ++i) {
     require(isUnit(axis_direction[i]), "axis_direction",

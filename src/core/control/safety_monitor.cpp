@@ -3,19 +3,13 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
 namespace pedicle_drilling::core {
 
 namespace {
-
-void require(bool ok, const char* name, const char* why, double value) {
-  if (ok) return;
-  std::ostringstream os;
-  os << name << ": " << why << " (got " << value << ")";
-  throw std::invalid_argument(os.str());
-}
 
 std::string fmt(const char* f, double a, double b, double c) {
   char buf[160];
@@ -25,18 +19,24 @@ std::string fmt(const char* f, double a, double b, double c) {
 
 }  // namespace
 
-void SafetyParams::validate() const {
-  require(std::isfinite(position_threshold_m) && position_threshold_m > 0.0, "position_threshold_m",
-          "must be finite and > 0", position_threshold_m);
-  require(std::isfinite(force_threshold_N) && force_threshold_N > 0.0, "force_threshold_N",
-          "must be finite and > 0", force_threshold_N);
-  require(!std::isnan(force_timeout_s) && force_timeout_s > 0.0, "force_timeout_s",
-          "must be > 0 (+inf disables)", force_timeout_s);
-  require(!std::isnan(tracker_timeout_s) && tracker_timeout_s > 0.0, "tracker_timeout_s",
-          "must be > 0 (+inf disables)", tracker_timeout_s);
-  require(!std::isnan(force_stuck_s) && force_stuck_s > 0.0, "force_stuck_s",
-          "must be > 0 (+inf disables)", force_stuck_s);
+const ParamTable<SafetyParams>& SafetyParams::table() {
+  static const ParamTable<SafetyParams> t = [] {
+    const double inf = std::numeric_limits<double>::infinity();
+    ParamTable<SafetyParams> d;
+    d.number("position_threshold_m", &SafetyParams::position_threshold_m, Range::aboveUpTo(0, 0.1),
+             "m")
+        .number("force_threshold_n", &SafetyParams::force_threshold_N, Range::aboveUpTo(0, 1000),
+                "N")
+        .number("force_timeout_s", &SafetyParams::force_timeout_s, Range::aboveUpTo(0, inf), "s")
+        .number("tracker_timeout_s", &SafetyParams::tracker_timeout_s, Range::aboveUpTo(0, inf),
+                "s")
+        .number("force_stuck_s", &SafetyParams::force_stuck_s, Range::aboveUpTo(0, inf), "s");
+    return d;
+  }();
+  return t;
 }
+
+void SafetyParams::validate() const { table().validate(*this); }
 
 std::string describe(const SafetyVerdict& v) {
   return std::string(toString(v.reason)) + ": " + v.message;
@@ -151,14 +151,18 @@ const SafetyVerdict& SafetyMonitor::check(double t) {
   return verdict_;
 }
 
-void RetreatParams::validate() const {
-  require(std::isfinite(distance_m) && distance_m > 0.0, "distance_m", "must be finite and > 0",
-          distance_m);
-  require(std::isfinite(speed_m_s) && speed_m_s > 0.0, "speed_m_s", "must be finite and > 0",
-          speed_m_s);
-  require(std::isfinite(accel_m_s2) && accel_m_s2 > 0.0, "accel_m_s2", "must be finite and > 0",
-          accel_m_s2);
+const ParamTable<RetreatParams>& RetreatParams::table() {
+  static const ParamTable<RetreatParams> t = [] {
+    ParamTable<RetreatParams> d;
+    d.number("retreat_distance_m", &RetreatParams::distance_m, Range::aboveUpTo(0, 0.1), "m")
+        .number("retreat_speed_m_s", &RetreatParams::speed_m_s, Range::aboveUpTo(0, 0.05), "m/s")
+        .number("retreat_accel_m_s2", &RetreatParams::accel_m_s2, Range::aboveUpTo(0, 1), "m/s^2");
+    return d;
+  }();
+  return t;
 }
+
+void RetreatParams::validate() const { table().validate(*this); }
 
 RetreatMotion::RetreatMotion(double t0, const Eigen::Vector3d& start, const Eigen::Vector3d& target,
                              const TrapezoidProfile& profile)

@@ -41,27 +41,31 @@ void require(bool ok, const std::string& field, const std::string& rule) {
 
 }  // namespace
 
+const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
+  static const ParamTable<TrialSequencerParams> t = [] {
+    using P = TrialSequencerParams;
+    ParamTable<P> d;
+    d.number("feed_rate_mm_s", &P::default_feed_rate_mm_s, Range::aboveUpTo(0, 10), "mm/s")
+        .number("spindle_rpm", &P::default_spindle_rpm, Range::aboveUpTo(0, 60000), "rpm")
+        .number("max_duration_s", &P::default_max_duration_s, Range::aboveUpTo(0, 3600), "s")
+        .include(CompensationParams::table(), &P::compensation)
+        .number("move_duration_s", &P::move_duration_s, Range::aboveUpTo(0, 60), "s")
+        .number("settle_s", &P::settle_s, Range::closed(0, 60), "s")
+        .integer("registration_samples", &P::registration_samples, Range::closed(1, 100))
+        .number("registration_timeout_s", &P::registration_timeout_s, Range::aboveUpTo(0, 60), "s")
+        .number("stop_hold_s", &P::stop_hold_s, Range::closed(0, 60), "s")
+        .number("recognizer_timeout_s", &P::recognizer_timeout_s, Range::closed(0, 60), "s")
+        .number("monitor_timeout_s", &P::monitor_timeout_s, Range::closed(0, 60), "s")
+        .include(RetreatParams::table(), &P::retreat)
+        .text("feed_joint", &P::feed_joint);
+    return d;
+  }();
+  return t;
+}
+
 void TrialSequencerParams::validate() const {
+  table().validate(*this);
   compensation.validate();
-  require(default_feed_rate_mm_s > 0.0 && default_feed_rate_mm_s <= 10.0, "feed_rate_mm_s",
-          "must be in (0, 10] mm/s");
-  require(default_spindle_rpm > 0.0 && default_spindle_rpm <= 60000.0, "spindle_rpm",
-          "must be in (0, 60000] rpm");
-  require(default_max_duration_s > 0.0 && default_max_duration_s <= 3600.0, "max_duration_s",
-          "must be in (0, 3600] s");
-  require(move_duration_s > 0.0 && move_duration_s <= 60.0, "move_duration_s",
-          "must be in (0, 60] s");
-  require(settle_s >= 0.0 && settle_s <= 60.0, "settle_s", "must be in [0, 60] s");
-  require(registration_samples >= 1 && registration_samples <= 100, "registration_samples",
-          "must be in [1, 100]");
-  require(registration_timeout_s > 0.0 && registration_timeout_s <= 60.0, "registration_timeout_s",
-          "must be in (0, 60] s");
-  require(stop_hold_s >= 0.0 && stop_hold_s <= 60.0, "stop_hold_s", "must be in [0, 60] s");
-  require(recognizer_timeout_s >= 0.0 && recognizer_timeout_s <= 60.0, "recognizer_timeout_s",
-          "must be in [0, 60] s (0: off)");
-  require(monitor_timeout_s >= 0.0 && monitor_timeout_s <= 60.0, "monitor_timeout_s",
-          "must be in [0, 60] s (0: off)");
-  retreat.validate();
   require(!arm_joints.empty(), "arm_joints", "must not be empty");
   require(!feed_joint.empty(), "feed_joint", "must not be empty");
   require(std::isfinite(feed_lower_m) && std::isfinite(feed_upper_m) && feed_lower_m < feed_upper_m,

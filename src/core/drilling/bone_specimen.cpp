@@ -175,35 +175,54 @@ double BoneSpecimen::meanFraction(Material m) const {
   return count > 0 ? acc / count : 0.0;
 }
 
+const ParamTable<SpecimenDistribution>& SpecimenDistribution::table() {
+  static const ParamTable<SpecimenDistribution> t = [] {
+    using D = SpecimenDistribution;
+    ParamTable<D> d;
+    // Lengths are stored in m and declared (set, documented) in mm.
+    const auto mm = [&d](const char* name, double D::*field, Range range) {
+      d.number(
+          name, [field](const D& v) { return 1e3 * (v.*field); },
+          [field](D& v, double x) { v.*field = 1e-3 * x; }, range, "mm");
+    };
+    mm("outer_cortical_thickness_mean_mm", &D::outer_cortical_thickness_mean_m,
+       Range::aboveUpTo(0, 100));
+    mm("outer_cortical_thickness_sd_mm", &D::outer_cortical_thickness_sd_m, Range::closed(0, 10));
+    mm("cancellous_thickness_mean_mm", &D::cancellous_thickness_mean_m, Range::aboveUpTo(0, 100));
+    mm("cancellous_thickness_sd_mm", &D::cancellous_thickness_sd_m, Range::closed(0, 10));
+    mm("inner_cortical_thickness_mean_mm", &D::inner_cortical_thickness_mean_m,
+       Range::aboveUpTo(0, 100));
+    mm("inner_cortical_thickness_sd_mm", &D::inner_cortical_thickness_sd_m, Range::closed(0, 10));
+    mm("min_layer_thickness_mm", &D::min_layer_thickness_m, Range::aboveUpTo(0, 10));
+    d.number("outer_cortical_fraction_mean", &D::outer_cortical_fraction_mean,
+             Range::aboveUpTo(0, 1))
+        .number("inner_cortical_fraction_mean", &D::inner_cortical_fraction_mean,
+                Range::aboveUpTo(0, 1))
+        .number("cortical_fraction_sd", &D::cortical_fraction_sd, Range::closed(0, 0.3))
+        .number("cortical_field_cv", &D::cortical_field_cv, Range::closed(0, 1));
+    mm("cortical_corr_length_mm", &D::cortical_corr_length_m, Range::aboveUpTo(0, 10));
+    d.number("cancellous_fraction_mean", &D::cancellous_fraction_mean, Range::aboveUpTo(0, 1))
+        .number("cancellous_fraction_sd", &D::cancellous_fraction_sd, Range::closed(0, 0.3))
+        .number("cancellous_field_cv", &D::cancellous_field_cv, Range::closed(0, 2));
+    mm("cancellous_corr_length_mm", &D::cancellous_corr_length_m, Range::aboveUpTo(0, 10));
+    d.number("cancellous_fraction_min", &D::cancellous_fraction_min, Range::aboveUpTo(0, 1))
+        .number("cancellous_fraction_max", &D::cancellous_fraction_max, Range::aboveUpTo(0, 1));
+    return d;
+  }();
+  return t;
+}
+
 void SpecimenDistribution::validate() const {
-  auto check = [](double value, double lo, double hi, bool open_lo, const char* name) {
-    const bool ok = std::isfinite(value) && (open_lo ? value > lo : value >= lo) && value <= hi;
-    if (!ok) {
-      throw std::invalid_argument(std::string("SpecimenDistribution: ") + name + " = " +
-                                  std::to_string(value) + " is out of range " +
-                                  (open_lo ? "(" : "[") + std::to_string(lo) + ", " +
-                                  std::to_string(hi) + "]");
-    }
-  };
-  check(outer_cortical_thickness_mean_m, 0.0, 100e-3, true, "outer_cortical_thickness_mean_m");
-  check(outer_cortical_thickness_sd_m, 0.0, 10e-3, false, "outer_cortical_thickness_sd_m");
-  check(cancellous_thickness_mean_m, 0.0, 100e-3, true, "cancellous_thickness_mean_m");
-  check(cancellous_thickness_sd_m, 0.0, 10e-3, false, "cancellous_thickness_sd_m");
-  check(inner_cortical_thickness_mean_m, 0.0, 100e-3, true, "inner_cortical_thickness_mean_m");
-  check(inner_cortical_thickness_sd_m, 0.0, 10e-3, false, "inner_cortical_thickness_sd_m");
-  check(min_layer_thickness_m, 0.0, 10e-3, true, "min_layer_thickness_m");
-  check(outer_cortical_fraction_mean, 0.0, 1.0, true, "outer_cortical_fraction_mean");
-  check(inner_cortical_fraction_mean, 0.0, 1.0, true, "inner_cortical_fraction_mean");
-  check(cortical_fraction_sd, 0.0, 0.3, false, "cortical_fraction_sd");
-  check(cortical_field_cv, 0.0, 1.0, false, "cortical_field_cv");
-  check(cortical_corr_length_m, 0.0, 10e-3, true, "cortical_corr_length_m");
-  check(cancellous_fraction_mean, 0.0, 1.0, true, "cancellous_fraction_mean");
-  check(cancellous_fraction_sd, 0.0, 0.3, false, "cancellous_fraction_sd");
-  check(cancellous_field_cv, 0.0, 2.0, false, "cancellous_field_cv");
-  check(cancellous_corr_length_m, 0.0, 10e-3, true, "cancellous_corr_length_m");
-  check(cancellous_fraction_min, 0.0, 1.0, true, "cancellous_fraction_min");
-  check(cancellous_fraction_max, cancellous_fraction_min, 1.0, true, "cancellous_fraction_max");
-  check(grid_step_m, 0.0, 1e-3, true, "grid_step_m");
+  table().validate(*this);
+  if (!(cancellous_fraction_max > cancellous_fraction_min)) {
+    throw std::invalid_argument(
+        "cancellous_fraction_max = " + Range::format(cancellous_fraction_max) +
+        " must be > cancellous_fraction_min = " + Range::format(cancellous_fraction_min));
+  }
+  if (!(std::isfinite(grid_step_m) && grid_step_m > 0.0 && grid_step_m <= 1e-3)) {
+    throw std::invalid_argument("grid_step_m = " + Range::format(grid_step_m) +
+                                " is out of range (0, 0.001]");
+  }
 }
 
 BoneSpecimen sample(std::uint64_t seed, const SpecimenDistribution& d) {

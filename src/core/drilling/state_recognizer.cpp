@@ -19,10 +19,6 @@ namespace {
   throw std::invalid_argument(os.str());
 }
 
-void requireFinite(const std::string& name, double v) {
-  if (!std::isfinite(v)) fail(name, "must be finite", v);
-}
-
 }  // namespace
 
 double parseSettingDouble(const std::string& name, const std::string& text) {
@@ -54,69 +50,45 @@ int parseSettingInt(const std::string& name, const std::string& text) {
   return static_cast<int>(v);
 }
 
+const ParamTable<RecognizerParams>& RecognizerParams::table() {
+  static const ParamTable<RecognizerParams> t = [] {
+    using P = RecognizerParams;
+    const Range count = Range::closed(1, 100000);
+    const Range count_or_off = Range::closed(0, 100000);
+    ParamTable<P> d;
+    d.integer("pre_average", &P::pre_average, count, "samples")
+        .integer("window", &P::window, count, "samples")
+        .number("k_ratio", &P::k_ratio, Range::open(0, 1))
+        .number("f_th", &P::f_th, Range::aboveUpTo(0, 1000), "N")
+        .number("gain", &P::gain, Range::closed(1, 100))
+        .number("h_g", &P::h_g, Range::closed(0, 1000), "N")
+        .number("c1", &P::c1, Range::aboveUpTo(0, 1000))
+        .number("c2", &P::c2, Range::aboveUpTo(0, 1000))
+        .number("c3", &P::c3, Range::open(0, 1))
+        .integer("cancellous_confirm", &P::cancellous_confirm, count, "samples")
+        .integer("outer_cortical_timeout", &P::outer_cortical_timeout, count_or_off, "samples")
+        .integer("cancellous_timeout", &P::cancellous_timeout, count_or_off, "samples")
+        .integer("inner_confirm", &P::inner_confirm, count, "samples")
+        .integer("stop_delay", &P::stop_delay, count_or_off, "samples")
+        .flag("normalize_feature", &P::normalize_feature);
+    return d;
+  }();
+  return t;
+}
+
 void RecognizerParams::validate() const {
-  if (pre_average < 1) fail("pre_average", "must be >= 1", pre_average);
-  if (window < 1) fail("window", "must be >= 1", window);
-  requireFinite("k_ratio", k_ratio);
-  if (!(k_ratio > 0.0 && k_ratio < 1.0)) fail("k_ratio", "must be in (0, 1)", k_ratio);
-  requireFinite("f_th", f_th);
-  if (!(f_th > 0.0)) fail("f_th", "must be > 0 N", f_th);
-  requireFinite("gain", gain);
-  if (!(gain >= 1.0)) fail("gain", "must be >= 1", gain);
-  requireFinite("h_g", h_g);
-  if (!(h_g >= 0.0)) fail("h_g", "must be >= 0", h_g);
-  requireFinite("c1", c1);
-  if (!(c1 > 0.0)) fail("c1", "must be > 0", c1);
-  requireFinite("c2", c2);
+  table().validate(*this);
   if (!(c2 >= c1)) fail("c2", "must be >= c1 (hysteresis between cancellous and cortical)", c2);
-  requireFinite("c3", c3);
-  if (!(c3 > 0.0 && c3 < 1.0)) fail("c3", "must be in (0, 1)", c3);
-  if (cancellous_confirm < 1) fail("cancellous_confirm", "must be >= 1", cancellous_confirm);
-  if (outer_cortical_timeout < 0) {
-    fail("outer_cortical_timeout", "must be >= 0", outer_cortical_timeout);
-  }
-  if (cancellous_timeout < 0) fail("cancellous_timeout", "must be >= 0", cancellous_timeout);
   if (cancellous_timeout > 0 && cancellous_timeout <= cancellous_confirm) {
     fail("cancellous_timeout", "must be 0 or > cancellous_confirm", cancellous_timeout);
   }
-  if (inner_confirm < 1) fail("inner_confirm", "must be >= 1", inner_confirm);
-  if (stop_delay < 0) fail("stop_delay", "must be >= 0", stop_delay);
 }
 
 void RecognizerParams::set(const std::string& name, const std::string& value) {
-  if (name == "pre_average") {
-    pre_average = parseSettingInt(name, value);
-  } else if (name == "window") {
-    window = parseSettingInt(name, value);
-  } else if (name == "k_ratio") {
-    k_ratio = parseSettingDouble(name, value);
-  } else if (name == "f_th") {
-    f_th = parseSettingDouble(name, value);
-  } else if (name == "gain") {
-    gain = parseSettingDouble(name, value);
-  } else if (name == "h_g") {
-    h_g = parseSettingDouble(name, value);
-  } else if (name == "c1") {
-    c1 = parseSettingDouble(name, value);
-  } else if (name == "c2") {
-    c2 = parseSettingDouble(name, value);
-  } else if (name == "c3") {
-    c3 = parseSettingDouble(name, value);
-  } else if (name == "cancellous_confirm") {
-    cancellous_confirm = parseSettingInt(name, value);
-  } else if (name == "outer_cortical_timeout") {
-    outer_cortical_timeout = parseSettingInt(name, value);
-  } else if (name == "cancellous_timeout") {
-    cancellous_timeout = parseSettingInt(name, value);
-  } else if (name == "inner_confirm") {
-    inner_confirm = parseSettingInt(name, value);
-  } else if (name == "stop_delay") {
-    stop_delay = parseSettingInt(name, value);
-  } else if (name == "normalize_feature") {
-    normalize_feature = parseSettingBool(name, value);
-  } else {
+  if (table().find(name) == nullptr) {
     throw std::invalid_argument(name + ": unknown recognizer parameter");
   }
+  table().set(*this, name, value);
 }
 
 const char* toString(DrillingState s) {

@@ -107,20 +107,60 @@ std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const st
   return static_cast<std::uint64_t>(std::max(1.0, std::round(physics_rate_hz / rate_hz)));
 }
 
-void TrialVariability::validate() const {
-  auto check = [](double value, double hi, const char* name) {
-    if (!std::isfinite(value) || value < 0.0 || value > hi) {
-      std::ostringstream os;
-      os << "TrialVariability: " << name << " = " << value << " is out of range [0, " << hi << "]";
-      throw std::invalid_argument(os.str());
-    }
-  };
-  check(patient_amplitude_scale_sd, 0.3, "patient_amplitude_scale_sd");
-  check(ventilator_rate_sd_bpm, 5.0, "ventilator_rate_sd_bpm");
-  check(ventilator_tidal_volume_sd_ml, 200.0, "ventilator_tidal_volume_sd_ml");
-  check(sensor_noise_scale_sd, 0.5, "sensor_noise_scale_sd");
-  check(arm_stiffness_scale_sd, 0.3, "arm_stiffness_scale_sd");
-  check(patient_movement_scale, 5.0, "patient_movement_scale");
+const ParamTable<TrialVariability>& TrialVariability::table() {
+  static const ParamTable<TrialVariability> t = [] {
+    using V = TrialVariability;
+    ParamTable<V> d;
+    d.number("patient/amplitude_scale_sd", &V::patient_amplitude_scale_sd, Range::closed(0, 0.3))
+        .number("patient/movement_scale", &V::patient_movement_scale, Range::closed(0, 5))
+        .number("ventilator/rate_sd_bpm", &V::ventilator_rate_sd_bpm, Range::closed(0, 5),
+                "breaths/min")
+        .number("ventilator/tidal_volume_sd_ml", &V::ventilator_tidal_volume_sd_ml,
+                Range::closed(0, 200), "ml")
+        .number("sensor/noise_scale_sd", &V::sensor_noise_scale_sd, Range::closed(0, 0.5))
+        .number("arm/stiffness_scale_sd", &V::arm_stiffness_scale_sd, Range::closed(0, 0.3));
+    return d;
+  }();
+  return t;
+}
+
+void TrialVariability::validate() const { table().validate(*this); }
+
+const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
+  static const ParamTable<DrillingSimulationParams> t = [] {
+    using P = DrillingSimulationParams;
+    ParamTable<P> d;
+    d.number("arm_rate_hz", &P::arm_rate_hz, Range::closed(1, 1000), "Hz")
+        .number("slider_max_speed_m_s", &P::slider_max_speed_m_s, Range::aboveUpTo(0, 1), "m/s")
+        .number("slider_max_accel_m_s2", &P::slider_max_accel_m_s2, Range::aboveUpTo(0, 100),
+                "m/s^2")
+        .number("slider_bandwidth_hz", &P::slider_bandwidth_hz, Range::aboveUpTo(0, 500), "Hz")
+        .number("feed_max_accel_m_s2", &P::feed_max_accel_m_s2, Range::aboveUpTo(0, 100), "m/s^2")
+        .number("feed_bandwidth_hz", &P::feed_bandwidth_hz, Range::aboveUpTo(0, 500), "Hz")
+        .number("bench_period_s", &P::bench_period_s, Range::closed(0.01, 1), "s")
+        .number("spindle_accel_rpm_s", &P::spindle_accel_rpm_s, Range::aboveUpTo(0, 1e6), "rpm/s")
+        .number("tracker_noise_rms_mm", &P::tracker_noise_rms_mm, Range::closed(0, 10), "mm")
+        .number(
+            "force_noise_sd_n", [](const P& v) { return v.sensor.force_noise_sd_n; },
+            [](P& v, double x) { v.sensor.force_noise_sd_n = x; }, Range::closed(0, 10), "N")
+        .flag("moving_bone", &P::moving_bone)
+        .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
+        .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
+        .include(TrialVariability::table(), &P::variability, "trial_distribution/");
+    return d;
+  }();
+  return t;
+}
+
+void DrillingSimulationParams::validate() const {
+  table().validate(*this);
+  if (std::abs(physics_rate_hz / arm_rate_hz - std::round(physics_rate_hz / arm_rate_hz)) > 1e-9) {
+    throw std::invalid_argument("arm_rate_hz must divide the " + Range::format(physics_rate_hz) +
+                                " Hz physics rate (e.g. 1000, 500, 250)");
+  }
+  ventilator.validate();
+  specimen.validate();
+  variability.validate();
 }
 
 TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
@@ -581,6 +621,7 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
                                        const DrillingSimulationParams& params, std::uint64_t seed)
     : impl_(std::make_unique<Impl>(params)) {
   Impl& s = *impl_;
+  params.validate();
   if (!(params.physics_rate_hz > 0.0) || !(params.arm_rate_hz > 0.0) ||
       !(params.arm_rate_hz <= params.physics_rate_hz)) {
     throw std::invalid_argument("DrillingSimulation: need 0 < arm_rate_hz <= physics_rate_hz");

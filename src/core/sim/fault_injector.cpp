@@ -56,7 +56,20 @@ FaultKind parseFaultKind(const std::string& name) {
   throw std::invalid_argument("fault '" + name + "' is not one of: " + known);
 }
 
+const ParamTable<FaultParams>& FaultParams::table() {
+  static const ParamTable<FaultParams> t = [] {
+    ParamTable<FaultParams> d;
+    d.number("spike_n", &FaultParams::spike_n, Range::closed(0, 1e4), "N")
+        .number("drift_n_per_s", &FaultParams::drift_n_per_s, Range::closed(-100, 100), "N/s")
+        .number("tracker_jump_m", &FaultParams::tracker_jump_m, Range::closed(-0.1, 0.1), "m")
+        .number("command_delay_s", &FaultParams::command_delay_s, Range::closed(0, 10), "s");
+    return d;
+  }();
+  return t;
+}
+
 void FaultParams::validate() const {
+  table().validate(*this);
   const auto check = [](double v, double low, double high, const char* name) {
     if (!(std::isfinite(v) && v >= low && v <= high)) {
       std::ostringstream os;
@@ -64,12 +77,9 @@ void FaultParams::validate() const {
       throw std::invalid_argument(os.str());
     }
   };
-  check(spike_n, 0.0, 1e4, "spike_n");
-  check(drift_n_per_s, -100.0, 100.0, "drift_n_per_s");
-  check(tracker_jump_m, -0.1, 0.1, "tracker_jump_m");
+  // The breathing faults act in the closed-loop engine only (no ROS parameter).
   check(amplitude_factor, 0.0, 10.0, "amplitude_factor");
   check(rate_change_bpm, 0.0, 30.0, "rate_change_bpm");
-  check(command_delay_s, 0.0, 10.0, "command_delay_s");
 }
 
 bool isForceFault(FaultKind k) {

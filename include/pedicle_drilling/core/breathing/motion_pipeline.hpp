@@ -35,6 +35,7 @@
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/breathing/pso.hpp"
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -66,6 +67,9 @@ struct PipelineOptions {
    * @throws std::invalid_argument naming the option.
    */
   void validate() const;
+
+  /** @brief The declaration of the options a node or tool sets (names as the ROS parameters). */
+  static const ParamTable<PipelineOptions>& table();
 };
 
 /** @brief What happened on one axis. */

@@ -29,6 +29,8 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief The six standard inspiratory flow shapes of Fig. 10a. */
@@ -75,6 +77,9 @@ struct VentilatorSettings {
 
   /** @brief Throws std::invalid_argument naming the first out-of-range field. */
   void validate() const;
+
+  /** @brief The declaration of every setting: name, range, unit (the ROS parameters too). */
+  static const ParamTable<VentilatorSettings>& table();
 };
 
 /** @brief Parses an I:E ratio "a:b" with positive numbers; returns false when malformed. */

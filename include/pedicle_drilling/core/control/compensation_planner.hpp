@@ -27,6 +27,7 @@
 
 #include "pedicle_drilling/core/breathing/motion_model.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/control/compensator_interface.hpp"
 #include "pedicle_drilling/core/control/trapezoid_segmenter.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
@@ -80,6 +81,9 @@ struct CompensationParams {
    * @throws std::invalid_argument whose message starts with the field name.
    */
   void validate() const;
+
+  /** @brief The declaration of the fields a node sets (names as the ROS parameters). */
+  static const ParamTable<CompensationParams>& table();
 };
 
 /**

@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/control/trapezoid_segmenter.hpp"
 
 namespace pedicle_drilling::core {
@@ -47,10 +48,13 @@ struct SafetyParams {
   double force_stuck_s = 0.05;
 
   /**
-   * @brief Check all fields (thresholds finite and > 0; timeouts > 0, +inf disables).
-   * @throws std::invalid_argument whose message starts with the field name.
+   * @brief Check all fields against table() (thresholds finite and > 0; timeouts > 0, +inf
+   * disables). @throws std::invalid_argument whose message starts with the parameter name.
    */
   void validate() const;
+
+  /** @brief The declaration of every field: name (as the ROS parameter), range, unit. */
+  static const ParamTable<SafetyParams>& table();
 };
 
 /** @brief Monitor result. */
@@ -144,8 +148,11 @@ struct RetreatParams {
   /** @brief Acceleration [m/s^2]. Default 50 mm/s^2 = 10 x the speed (the paper's ratio). */
   double accel_m_s2 = 50e-3;
 
-  /** @brief Check all fields (finite, > 0). @throws std::invalid_argument naming the field. */
+  /** @brief Check all fields against table(). @throws std::invalid_argument naming the field. */
   void validate() const;
+
+  /** @brief The declaration of every field (ROS names retreat_distance_m, ...). */
+  static const ParamTable<RetreatParams>& table();
 };
 
 /** @brief A planned retreat: straight line back along the drill axis, trapezoidal speed. */

@@ -72,6 +72,9 @@ struct TrialSequencerParams {
 
   /** @brief Check every field. @throws std::invalid_argument naming the field first. */
   void validate() const;
+
+  /** @brief The declaration of the fields a node sets (names as the ROS parameters). */
+  static const ParamTable<TrialSequencerParams>& table();
 };
 
 /** @brief What a trial is started with; 0 in a number means the parameter's default. */

@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief Material at a point along the drill axis. */
@@ -67,6 +69,9 @@ struct SpecimenDistribution {
    *        fractions in (0, 1], ...). @throws std::invalid_argument naming the field.
    */
   void validate() const;
+
+  /** @brief The declaration of every field a node sets: names and ranges in mm (ROS names). */
+  static const ParamTable<SpecimenDistribution>& table();
 };
 
 /**

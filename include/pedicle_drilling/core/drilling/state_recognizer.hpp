@@ -17,6 +17,8 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /**
@@ -79,6 +81,9 @@ struct RecognizerParams {
    * @throws std::invalid_argument whose message starts with the offending field name.
    */
   void validate() const;
+
+  /** @brief The declaration of every field: name, range, unit (the ROS parameters too). */
+  static const ParamTable<RecognizerParams>& table();
 
   /**
    * @brief Set one field from text, e.g. set("k_ratio", "0.5"). Does not call validate().

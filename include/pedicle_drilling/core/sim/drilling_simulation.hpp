@@ -110,6 +110,9 @@ struct TrialVariability {
   double patient_movement_scale = 1.0;
   /** @brief @throws std::invalid_argument naming the field when a value is out of range. */
   void validate() const;
+
+  /** @brief The declaration of every field (ROS names under ~trial_distribution/). */
+  static const ParamTable<TrialVariability>& table();
 };
 
 /** @brief What reset(seed) drew for one trial (reported with the trial's results). */
@@ -169,6 +172,19 @@ struct DrillingSimulationParams {
   double tracker_noise_rms_mm = 0.25;    ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
+
+  /**
+   * @brief Checks the declared fields, the arm rate (a divisor of the physics rate) and the
+   *        ventilator, specimen and variability settings.
+   * @throws std::invalid_argument whose message starts with the parameter name.
+   */
+  void validate() const;
+
+  /**
+   * @brief The declaration of the fields a node sets (the Simulator's ROS parameters): its own,
+   *        ventilator/... and trial_distribution/... (specimen/... in mm).
+   */
+  static const ParamTable<DrillingSimulationParams>& table();
 };
 
 /**

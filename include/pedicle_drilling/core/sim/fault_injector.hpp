@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /**
@@ -64,6 +66,9 @@ struct FaultParams {
   double command_delay_s = 0.2;
   /** @brief Check every field. @throws std::invalid_argument naming it. */
   void validate() const;
+
+  /** @brief The declaration of the fields the FaultInjector node sets. */
+  static const ParamTable<FaultParams>& table();
 };
 
 /** @brief True for the faults on the force stream (force_*). */

@@ -1,0 +1,143 @@
+/**
+ * @file node_params.hpp
+ * @brief One parameter struct per nodelet, each declared once (core::ParamTable): the core
+ *        options struct it holds plus the node's own settings (rates, frames, queue sizes).
+ *        Loaded once by ParamLoader::load(), validated by the same table, and documented from it
+ *        (`rosrun pedicle_drilling param_docs`; test_readme_parameters checks the README's
+ *        tables against it). No ROS type in this header.
+ */
+#pragma once
+
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
+#include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
+#include "pedicle_drilling/core/control/safety_supervisor.hpp"
+#include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+#include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/fault_injector.hpp"
+
+namespace pedicle_drilling {
+
+/** @brief pedicle_drilling/Ventilator. */
+struct VentilatorNodeParams {
+  core::VentilatorSettings settings;    ///< the ventilator's settings (core)
+  double publish_rate_hz = 64.0;        ///< tidal_volume rate
+  std::string frame_id = "ventilator";  ///< header.frame_id of what it publishes
+  /** @brief Checks the declared ranges. @throws std::invalid_argument naming the parameter. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<VentilatorNodeParams>& table();
+};
+
+/** @brief pedicle_drilling/Simulator. */
+struct SimulatorNodeParams {
+  std::string urdf_path;                ///< the workcell URDF (required)
+  int seed = 1;                         ///< specimen and patient of the first trial
+  core::DrillingSimulationParams sim;   ///< the simulation (core)
+  double real_time_factor = 1.0;        ///< 0: as fast as possible
+  bool publish_clock = true;            ///< publish /clock (sim time)
+  int clock_period_ms = 1;              ///< /clock every n physics steps
+  double joint_state_rate_hz = 100.0;   ///< joint_states rate
+  double tf_rate_hz = 100.0;            ///< tf rate
+  double ground_truth_rate_hz = 100.0;  ///< simulator/ground_truth rate
+  double tracker_rate_hz = 8.0;         ///< tracker rate (NDI Polaris in the paper: 8 Hz)
+  double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume (0: off)
+  std::string bone_motion_model_path;   ///< identified model driving the bone ("" = built-in)
+  /** @brief Checks the declared ranges and the stream rates (divisors of 1000 Hz). */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<SimulatorNodeParams>& table();
+};
+
+/** @brief pedicle_drilling/MotionIdentification. */
+struct MotionIdentificationParams {
+  std::string tracker_frame = "tracker_camera";    ///< the tracker's frame
+  std::string patient_frame;                       ///< frame of the patient's axes ("" = tracker)
+  std::string marker_frame = "tracker_marker";     ///< the marker's frame
+  double marker_rate_hz = 8.0;                     ///< tf sampling rate
+  double tf_delay_s = 0.25;                        ///< how far behind now tf is sampled
+  bool use_pose_topic = false;                     ///< tracker/marker_pose instead of tf
+  double window_s = 30.0;                          ///< length of the recording window
+  std::string ap_axis = "+z";                      ///< tracker axis of AP
+  std::string si_axis = "+y";                      ///< tracker axis of SI
+  std::string lr_axis = "+x";                      ///< tracker axis of LR
+  core::PipelineOptions defaults;                  ///< model, method, de-noising (per request)
+  std::string output_path = "patient_model.yaml";  ///< where the model is written
+  std::string patient_id = "patient";              ///< written into the model
+  /** @brief The three axis parameters as the mapping. @throws std::invalid_argument. */
+  core::AxisMapping mapping() const;
+  /** @brief "ap,si,lr" axis specs for the model file. */
+  std::string axisSpecs() const { return ap_axis + "," + si_axis + "," + lr_axis; }
+  /** @brief Checks the declared ranges, the axes and the pipeline options. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<MotionIdentificationParams>& table();
+};
+
+/** @brief pedicle_drilling/StateRecognizer. */
+struct StateRecognizerNodeParams {
+  std::string axis = "z";             ///< thrust component of the wrench, with sign
+  core::RecognizerParams recognizer;  ///< the paper's recognizer (core)
+  int queue_size = 1000;              ///< ft_sensor/wrench subscriber queue
+  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";  ///< plugin class
+  core::TextPairs recognizer_params;  ///< another class's own parameters
+  /** @brief Component index (0..2) of axis. */
+  int axisIndex() const;
+  /** @brief Sign (+1 or -1) of axis. */
+  double axisSign() const;
+  /** @brief Checks the declared ranges and the recognizer's own checks. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<StateRecognizerNodeParams>& table();
+};
+
+/** @brief pedicle_drilling/SafetyMonitor. */
+struct SafetyMonitorNodeParams {
+  core::SupervisorParams supervisor;  ///< H1, H2, timeouts and the pairing (core)
+  double check_rate_hz = 200.0;       ///< watchdog timer rate
+  double diagnostic_period_s = 1.0;   ///< /diagnostics period
+  /** @brief Checks the declared ranges and that the checks are fast enough for the timeout. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<SafetyMonitorNodeParams>& table();
+};
+
+/** @brief pedicle_drilling/CompensationPlanner (apart from the URDF-dependent drilling pose). */
+struct CompensationPlannerNodeParams {
+  std::string patient_model_path;            ///< the identified patient model (required)
+  std::string urdf_path;                     ///< the workcell URDF ("" = ~robot_description)
+  std::string arm_base_link = "world";       ///< root of the arm chain
+  std::string arm_tip_link = "device_base";  ///< end of the arm chain
+  core::TrialSequencerParams sequencer;      ///< the trial (core)
+  double feed_home_m = 0.01;                 ///< feed joint at the start
+  std::string world_frame = "world";         ///< frame of the predicted marker pose
+  std::vector<std::string> trial_start_services{"state_recognizer/reset",
+                                                "safety_monitor/reset"};  ///< called at start
+  double trial_start_timeout_s = 2.0;                                     ///< wait for each of them
+  std::string monitor_status_name = "/safety_monitor: monitor";           ///< its DiagnosticStatus
+  std::string compensator_class = "pedicle_drilling/PaperCompensator";    ///< plugin class
+  core::TextPairs compensator_params;  ///< the class's own parameters
+  /** @brief Checks the declared ranges and the sequencer's own checks (no URDF yet). */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<CompensationPlannerNodeParams>& table();
+};
+
+/** @brief pedicle_drilling/FaultInjector. */
+struct FaultInjectorNodeParams {
+  core::FaultParams faults;  ///< fault magnitudes (core)
+  /** @brief Checks the declared ranges. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<FaultInjectorNodeParams>& table();
+};
+
+/** @brief Every nodelet's declared parameters with their defaults, by nodelet class name. */
+std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterDocs();
+
+}  // namespace pedicle_drilling

@@ -1,0 +1,252 @@
+/**
+ * @file node_params.cpp
+ * @brief The declarations of every nodelet's parameters (node_params.hpp).
+ */
+#include "pedicle_drilling/ros/node_params.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace pedicle_drilling {
+
+using core::ParamTable;
+using core::Range;
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<VentilatorNodeParams>& VentilatorNodeParams::table() {
+  static const ParamTable<VentilatorNodeParams> t = [] {
+    using P = VentilatorNodeParams;
+    ParamTable<P> d;
+    d.include(core::VentilatorSettings::table(), &P::settings)
+        .number("publish_rate_hz", &P::publish_rate_hz, Range::aboveUpTo(0, 1000), "Hz")
+        .text("frame_id", &P::frame_id);
+    return d;
+  }();
+  return t;
+}
+
+void VentilatorNodeParams::validate() const {
+  table().validate(*this);
+  settings.validate();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
+  static const ParamTable<SimulatorNodeParams> t = [] {
+    using P = SimulatorNodeParams;
+    const Range stream = Range::aboveUpTo(0, 1000);
+    ParamTable<P> d;
+    d.text("urdf_path", &P::urdf_path)
+        .integer("seed", &P::seed, Range::closed(0, 2147483647))
+        .number("real_time_factor", &P::real_time_factor, Range::closed(0, 1000))
+        .flag("publish_clock", &P::publish_clock)
+        .integer("clock_period_ms", &P::clock_period_ms, Range::closed(1, 100), "ms")
+        .number("joint_state_rate_hz", &P::joint_state_rate_hz, stream, "Hz")
+        .number("tf_rate_hz", &P::tf_rate_hz, stream, "Hz")
+        .number("ground_truth_rate_hz", &P::ground_truth_rate_hz, stream, "Hz")
+        .number("tracker_rate_hz", &P::tracker_rate_hz, stream, "Hz")
+        .number("tidal_volume_rate_hz", &P::tidal_volume_rate_hz, Range::closed(0, 1000), "Hz")
+        .text("bone_motion_model_path", &P::bone_motion_model_path, true)
+        .include(core::DrillingSimulationParams::table(), &P::sim);
+    return d;
+  }();
+  return t;
+}
+
+void SimulatorNodeParams::validate() const {
+  table().validate(*this);
+  sim.validate();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<MotionIdentificationParams>& MotionIdentificationParams::table() {
+  static const ParamTable<MotionIdentificationParams> t = [] {
+    using P = MotionIdentificationParams;
+    const std::vector<std::string> axes{"+x", "-x", "+y", "-y", "+z", "-z"};
+    const auto axis = [&axes](std::string P::*field) {
+      return std::make_pair([field](const P& v) { return v.*field; },
+                            [field](P& v, const std::string& x) { v.*field = x; });
+    };
+    ParamTable<P> d;
+    d.text("tracker_frame", &P::tracker_frame)
+        .text("patient_frame", &P::patient_frame, true)
+        .text("marker_frame", &P::marker_frame)
+        .number("marker_rate_hz", &P::marker_rate_hz, Range::aboveUpTo(0, 1000), "Hz")
+        .number("tf_delay_s", &P::tf_delay_s, Range::closed(0, 10), "s")
+        .flag("use_pose_topic", &P::use_pose_topic)
+        .number("window_s", &P::window_s, Range::aboveUpTo(0, 3600), "s");
+    for (const auto& [name, field] :
+         {std::make_pair("ap_axis", &P::ap_axis), std::make_pair("si_axis", &P::si_axis),
+          std::make_pair("lr_axis", &P::lr_axis)}) {
+      const auto [get, set] = axis(field);
+      d.parsed(name, axes, "", get, set);
+    }
+    d.include(core::PipelineOptions::table(), &P::defaults)
+        .text("output_path", &P::output_path)
+        .text("patient_id", &P::patient_id);
+    return d;
+  }();
+  return t;
+}
+
+core::AxisMapping MotionIdentificationParams::mapping() const {
+  try {
+    return core::parseAxisMapping(ap_axis, si_axis, lr_axis);
+  } catch (const std::invalid_argument& e) {
+    // The message starts with the axis ("ap", "si" or "lr"): name that parameter.
+    throw std::invalid_argument(std::string(e.what()).substr(0, 2) + "_axis: " + e.what());
+  }
+}
+
+void MotionIdentificationParams::validate() const {
+  table().validate(*this);
+  mapping();
+  defaults.validate();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() {
+  static const ParamTable<StateRecognizerNodeParams> t = [] {
+    using P = StateRecognizerNodeParams;
+    ParamTable<P> d;
+    d.parsed(
+         "axis", {"x", "y", "z", "-x", "-y", "-z"}, "", [](const P& v) { return v.axis; },
+         [](P& v, const std::string& x) { v.axis = x; })
+        .include(core::RecognizerParams::table(), &P::recognizer)
+        .integer("queue_size", &P::queue_size, Range::closed(1, 100000))
+        .text("recognizer", &P::recognizer_class)
+        .pairs("recognizer_params", &P::recognizer_params);
+    return d;
+  }();
+  return t;
+}
+
+int StateRecognizerNodeParams::axisIndex() const { return axis.back() - 'x'; }
+
+double StateRecognizerNodeParams::axisSign() const { return axis.front() == '-' ? -1.0 : 1.0; }
+
+void StateRecognizerNodeParams::validate() const {
+  table().validate(*this);
+  recognizer.validate();
+  if (recognizer_class == "pedicle_drilling/PaperRecognizer" && !recognizer_params.empty()) {
+    throw std::invalid_argument(
+        "recognizer_params is for other recognizer classes; the paper recognizer's parameters "
+        "are this node's own (~pre_average, ~window, ...)");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<SafetyMonitorNodeParams>& SafetyMonitorNodeParams::table() {
+  static const ParamTable<SafetyMonitorNodeParams> t = [] {
+    using P = SafetyMonitorNodeParams;
+    ParamTable<core::SupervisorParams> pairing;
+    pairing.include(core::SafetyParams::table(), &core::SupervisorParams::safety)
+        .number("pair_tolerance_s", &core::SupervisorParams::pair_tolerance_s, Range::closed(0, 1),
+                "s");
+    ParamTable<P> d;
+    d.include(pairing, &P::supervisor)
+        .number("check_rate_hz", &P::check_rate_hz, Range::aboveUpTo(0, 10000), "Hz")
+        .number("diagnostic_period_s", &P::diagnostic_period_s, Range::aboveUpTo(0, 60), "s");
+    return d;
+  }();
+  return t;
+}
+
+void SafetyMonitorNodeParams::validate() const {
+  table().validate(*this);
+  supervisor.validate();
+  if (1.0 / check_rate_hz > 0.5 * supervisor.safety.force_timeout_s) {
+    throw std::invalid_argument(
+        "check_rate_hz is too low to check force_timeout_s (needs at least 2 checks per "
+        "timeout)");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::table() {
+  static const ParamTable<CompensationPlannerNodeParams> t = [] {
+    using P = CompensationPlannerNodeParams;
+    ParamTable<P> d;
+    d.text("patient_model_path", &P::patient_model_path)
+        .text("urdf_path", &P::urdf_path, true)
+        .text("arm_base_link", &P::arm_base_link)
+        .text("arm_tip_link", &P::arm_tip_link)
+        .include(core::TrialSequencerParams::table(), &P::sequencer)
+        .number("feed_home_m", &P::feed_home_m, Range::closed(0, 0.5), "m")
+        .text("world_frame", &P::world_frame)
+        .names("trial_start_services", &P::trial_start_services)
+        .number("trial_start_timeout_s", &P::trial_start_timeout_s, Range::aboveUpTo(0, 60), "s")
+        .text("monitor_status_name", &P::monitor_status_name)
+        .text("compensator", &P::compensator_class)
+        .pairs("compensator_params", &P::compensator_params);
+    return d;
+  }();
+  return t;
+}
+
+void CompensationPlannerNodeParams::validate() const {
+  table().validate(*this);
+  // The sequencer's own checks that need the URDF (joints, feed limits) run when it is made.
+  core::TrialSequencerParams s = sequencer;
+  s.arm_joints = {"checked with the URDF"};
+  s.validate();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+const ParamTable<FaultInjectorNodeParams>& FaultInjectorNodeParams::table() {
+  static const ParamTable<FaultInjectorNodeParams> t = [] {
+    ParamTable<FaultInjectorNodeParams> d;
+    d.include(core::FaultParams::table(), &FaultInjectorNodeParams::faults);
+    return d;
+  }();
+  return t;
+}
+
+void FaultInjectorNodeParams::validate() const {
+  table().validate(*this);
+  faults.validate();
+}
+
+// ---------------------------------------------------------------------------------------------
+
+std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterDocs() {
+  const CompensationPlannerNodeParams planner_defaults;
+  std::vector<core::ParamInfo> planner =
+      CompensationPlannerNodeParams::table().describe(planner_defaults);
+  // The one parameter whose names come from the URDF (the arm's joints): read by the nodelet
+  // once it knows them.
+  core::ParamInfo pose;
+  pose.name = "drilling_pose/<joint>";
+  pose.kind = core::ParamKind::kDouble;
+  pose.range = Range::closed(-2.0 * M_PI, 2.0 * M_PI);
+  pose.unit = "rad";
+  pose.default_text = "(required)";
+  planner.insert(planner.begin() + 4, pose);
+  // Each default from a named, default-constructed struct.
+  const VentilatorNodeParams ventilator;
+  const SimulatorNodeParams simulator;
+  const MotionIdentificationParams identification;
+  const StateRecognizerNodeParams recognizer;
+  const SafetyMonitorNodeParams monitor;
+  const FaultInjectorNodeParams faults;
+  return {
+      {"pedicle_drilling/Ventilator", VentilatorNodeParams::table().describe(ventilator)},
+      {"pedicle_drilling/Simulator", SimulatorNodeParams::table().describe(simulator)},
+      {"pedicle_drilling/MotionIdentification",
+       MotionIdentificationParams::table().describe(identification)},
+      {"pedicle_drilling/StateRecognizer", StateRecognizerNodeParams::table().describe(recognizer)},
+      {"pedicle_drilling/SafetyMonitor", SafetyMonitorNodeParams::table().describe(monitor)},
+      {"pedicle_drilling/CompensationPlanner", planner},
+      {"pedicle_drilling/FaultInjector", FaultInjectorNodeParams::table().describe(faults)},
+  };
+}
+
+}  // namespace pedicle_drilling
