@@ -135,3 +135,43 @@ def test_the_check_sees_a_changed_range(declared, tmp_path):
             p['rule'] = '(0, 0.2] m'
     with pytest.raises(AssertionError, match='position_threshold_m'):
         test_readme_table_matches_the_declarations(node, changed)
+
+
+# Shipped settings that differ from the declared default on purpose, with the reason. Any other
+# difference is a default written twice.
+SHIPPED_DIFFERENCES = {
+    ('pedicle_drilling/CompensationPlanner', 'retreat_distance_m'):
+        'the workcell pipeline retreats 25 mm (its feed travel allows it); the core default of '
+        '10 mm is the closed-loop engine\'s',
+}
+
+
+def same_value(text, value):
+    if isinstance(value, bool):
+        return text == str(value).lower()
+    if isinstance(value, (int, float)):
+        try:
+            return float(text) == float(value)
+        except ValueError:
+            return False
+    if isinstance(value, list):
+        joined = ','.join(str(v) for v in value)
+        return text in (joined, '[%s]' % ', '.join(str(v) for v in value))
+    return text == str(value)
+
+
+@pytest.mark.parametrize('node', sorted(CONFIGS))
+def test_shipped_config_repeats_no_default_differently(node, declared):
+    """config/*.yaml sets the declared default unless SHIPPED_DIFFERENCES says why not."""
+    defaults = {p['name']: p['default'] for p in declared[node]}
+    with open(os.path.join(ROOT, 'config', CONFIGS[node])) as handle:
+        config = yaml.safe_load(handle)
+    differ = []
+    for key in flat_keys(config):
+        value = config
+        for part in key.split('/'):
+            value = value[part]
+        if key in defaults and not same_value(defaults[key], value) and \
+                (node, key) not in SHIPPED_DIFFERENCES:
+            differ.append('%s: config %r, declared default %r' % (key, value, defaults[key]))
+    assert differ == [], node + ': ' + '; '.join(differ)
