@@ -4,7 +4,7 @@
 #include <sstream>
 #include <vector>
 
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "pedicle_drilling/core/common/text_parse.hpp"
 
 namespace pedicle_drilling {
 
