@@ -17,8 +17,8 @@ def tool(name):
 
 class _GivenOnce:
     """Refuses an option given twice on one command line (`--rpm 12000 ... --rpm 16000` would
-    otherwise silently keep the last): the same rule as the C++ tools (core::CliArgs). The
-    options seen are kept in the namespace being filled, so a parser can be used again."""
+    otherwise silently keep the last): the same rule as the C++ tools (src/tools/tool_cli.hpp).
+    The options seen are kept in the namespace being filled, so a parser can be used again."""
 
     def __call__(self, parser, namespace, values, option_string=None):
         given = namespace.__dict__.setdefault('_options_given', set())

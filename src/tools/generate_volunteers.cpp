@@ -8,7 +8,10 @@
 //   volunteer_<id>_truth.yaml  the true hysteresis-model coefficients in the model-file format
 //                              (wavelet "none"); r2 is the truth model's R^2 against the
 //                              noisy recording; meta holds the generator parameters.
+// Command-line parsing: CLI11 with the tools' conventions (tool_cli.hpp).
 // Exit status: 0 ok, 2 bad arguments, 1 a file could not be written.
+
+#include <CLI/CLI.hpp>
 
 #include <cerrno>
 #include <cstdio>
@@ -23,17 +26,9 @@
 #include "pedicle_drilling/core/breathing/identification.hpp"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "tool_cli.hpp"
 
 namespace {
-
-using pedicle_drilling::core::CliArgs;
-using pedicle_drilling::core::UsageError;
-
-const char kUsage[] =
-    "Usage: generate_volunteers --out DIR [--duration 30] [--ids 1,2,3,4,5]\n"
-    "Writes volunteer_<id>.csv (8 Hz t,tv,ap,si,lr), volunteer_<id>_tv64.csv (64 Hz t,tv)\n"
-    "and volunteer_<id>_truth.yaml for the default virtual volunteers (ids 1..5).\n";
 
 std::string num(double v) {
   char buf[64];
@@ -45,31 +40,22 @@ std::string num(double v) {
 
 int main(int argc, char** argv) {
   namespace pd = pedicle_drilling::core;
-  for (int i = 1; i < argc; ++i) {
-    if (std::string(argv[i]) == "--help") {
-      std::cout << kUsage;
-      return 0;
-    }
-  }
+  namespace tools = pedicle_drilling::tools;
+  CLI::App app{
+      "Writes volunteer_<id>.csv (8 Hz t,tv,ap,si,lr), volunteer_<id>_tv64.csv (64 Hz t,tv) and "
+      "volunteer_<id>_truth.yaml for the default virtual volunteers (ids 1..5).",
+      "generate_volunteers"};
+  tools::applyConventions(&app);
+  app.footer("Exit status: 0 ok, 2 bad arguments, 1 a file could not be written.");
   std::string dir;
   double duration = 30.0;
-  std::vector<int> ids;
-  try {
-    const CliArgs args(argc, argv, {"out", "duration", "ids"}, {});
-    if (!args.has("out")) throw UsageError("missing required option --out");
-    dir = args.get("out", "");
-    duration = args.getDouble("duration", 30.0);
-    if (!(duration >= 6.0 && duration <= 3600.0)) {
-      throw UsageError("--duration must be in [6, 3600] s (two breaths at least)");
-    }
-    ids = pd::parseIntList(args.get("ids", "1,2,3,4,5"), "--ids");
-    for (int id : ids) {
-      if (id < 1 || id > 5) throw UsageError("--ids: unknown volunteer " + std::to_string(id));
-    }
-  } catch (const std::exception& e) {
-    std::cerr << "generate_volunteers: " << e.what() << "\n" << kUsage;
-    return 2;
-  }
+  std::string ids_text = "1,2,3,4,5";
+  app.add_option("--out", dir, "output folder (created if missing, one level)")->required();
+  app.add_option("--duration", duration, "recording length, s (two breaths at least)")
+      ->check(tools::finiteNumber(6.0, 3600.0));
+  app.add_option("--ids", ids_text, "volunteers")->check(tools::intList(1, 5));
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
+  const std::vector<int> ids = pd::parseIntList(ids_text, "--ids");
 
   if (::mkdir(dir.c_str(), 0755) != 0 && errno != EEXIST) {
     std::cerr << "generate_volunteers: cannot create " << dir << ": " << std::strerror(errno)

@@ -11,8 +11,11 @@
 // (de-noised) displacement, the model prediction and the Tv it was fitted against (the raw tv,
 // or the de-noised one with --denoise-tv): t,tv,ap_raw,ap_fit,ap_model,ap_tv,si_raw,...
 //
+// Command-line parsing: CLI11 with the tools' conventions (tool_cli.hpp).
 // Exit status: 0 success; 2 bad arguments or bad input (message names the problem, no model
 // file is written); 1 the model file could not be written.
+
+#include <CLI/CLI.hpp>
 
 #include <array>
 #include <cmath>
@@ -21,6 +24,7 @@
 #include <exception>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <optional>
 #include <sstream>
 #include <string>
@@ -34,35 +38,12 @@
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 #include "pedicle_drilling/core/breathing/wavelet.hpp"
 #include "pedicle_drilling/core/common/atomic_file.hpp"
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "tool_cli.hpp"
 
 namespace {
 
-using pedicle_drilling::core::CliArgs;
-using pedicle_drilling::core::UsageError;
-
 constexpr int kBadInput = 2;
 constexpr int kWriteFailed = 1;
-
-const char kUsage[] =
-    "Usage: identify --input rec.csv --output model.yaml [--method ceres|pso]\n"
-    "                [--model linear|hysteresis] [--level 6] [--keep 3,4,5]\n"
-    "                [--wavelets all|NAME,...] [--delta-tv 5] [--patient-id ID] [--seed 1]\n"
-    "                [--no-denoise] [--denoise-tv] [--fit-csv PATH]\n"
-    "\n"
-    "Identifies d = q1*Tv + q0 (linear) or d = q1*Tv + q2*dTv/dt + q0 (hysteresis) per axis\n"
-    "from an 8 Hz CSV with columns t,tv,ap,si,lr (s, ml, mm) after DWT de-noising.\n"
-    "  --method      ceres (default) or pso (paper: population 24, 2000 iterations)\n"
-    "  --model       linear (default) or hysteresis\n"
-    "  --level       DWT level (default 6); --keep detail levels kept (default 3,4,5)\n"
-    "  --wavelets    candidate bases for the RMSE-DMM selection (default all)\n"
-    "  --delta-tv    half-width of the Tv neighbourhood of Eq. 2, ml (default 5)\n"
-    "  --patient-id  id written to the model (default: input file name)\n"
-    "  --seed        PSO seed (default 1)\n"
-    "  --no-denoise  fit the raw displacement\n"
-    "  --denoise-tv  filter Tv with the same wavelet and levels (not in the paper)\n"
-    "  --fit-csv     also write the raw, de-noised and model displacement per sample\n"
-    "Exit status: 0 ok, 2 bad arguments or input (no model written), 1 write failure.\n";
 
 std::vector<std::string> splitList(const std::string& text) {
   std::vector<std::string> out;
@@ -111,72 +92,100 @@ std::string fitCsv(const core::PairedSamples& rec, const core::PipelineResult& r
   return out.str();
 }
 
+/** @brief Everything the command line sets besides the pipeline options. */
+struct Options {
+  std::string input, output, patient_id, fit_csv;
+  std::string method = "ceres";
+  std::string model = "linear";
+  std::string keep = "3,4,5";
+  std::string wavelets = "all";
+  std::int64_t seed = 1;
+  bool no_denoise = false;
+};
+
+/** @brief Declares every option of the tool (its values go to *o and *opts). */
+void addOptions(CLI::App* app, Options* o, core::PipelineOptions* opts) {
+  namespace tools = pedicle_drilling::tools;
+  core::DenoiseOptions& dopts = opts->denoise_options;
+  app->add_option("--input", o->input, "8 Hz CSV with columns t,tv,ap,si,lr (s, ml, mm)")
+      ->required();
+  app->add_option("--output", o->output, "model YAML written")->required();
+  app->add_option("--method", o->method, "ceres, or pso (paper: population 24, 2000 iterations)")
+      ->check(CLI::IsMember({"ceres", "pso"}));
+  app->add_option("--model", o->model, "linear or hysteresis")
+      ->check(CLI::IsMember({"linear", "hysteresis"}));
+  app->add_option("--level", dopts.level, "DWT level")->check(CLI::Range(1, 16));
+  app->add_option("--keep", o->keep, "detail levels kept, each in 1..level")
+      ->check(tools::intList(1, 16));
+  app->add_option("--wavelets", o->wavelets,
+                  "candidate bases for the RMSE-DMM selection: all, or names comma-separated")
+      ->check(CLI::Validator(
+          [](std::string& text) -> std::string {
+            if (text == "all") return std::string();
+            for (const std::string& w : splitList(text)) {
+              if (core::findWavelet(w) == nullptr) return "unknown wavelet '" + w + "'";
+            }
+            return std::string();
+          },
+          "all|NAME,..."));
+  app->add_option("--delta-tv", dopts.delta_tv, "half-width of the Tv neighbourhood of Eq. 2, ml")
+      ->check(tools::finiteNumber(0.0));
+  app->add_option("--patient-id", o->patient_id, "id written to the model (default: input name)");
+  app->add_option("--seed", o->seed, "PSO seed")
+      ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+  CLI::Option* no_denoise =
+      app->add_flag("--no-denoise", o->no_denoise, "fit the raw displacement");
+  app->add_flag("--denoise-tv", opts->denoise_tv,
+                "filter Tv with the same wavelet and levels (not in the paper)")
+      ->excludes(no_denoise);
+  app->add_option("--fit-csv", o->fit_csv,
+                  "also write the raw, de-noised and model displacement per sample");
+}
+
+/** @brief Options given -> pipeline options; "" or what is wrong, naming the option. */
+std::string finishOptions(Options* o, core::PipelineOptions* opts) {
+  core::parseMethod(o->method, &opts->method);
+  core::parseModelKind(o->model, &opts->kind);
+  opts->denoise = !o->no_denoise;
+  core::DenoiseOptions& dopts = opts->denoise_options;
+  dopts.kept_levels = core::parseIntList(o->keep, "--keep");
+  for (int k : dopts.kept_levels) {
+    if (k > dopts.level) {
+      return "--keep level " + std::to_string(k) + " outside 1.." + std::to_string(dopts.level);
+    }
+  }
+  if (o->wavelets != "all") dopts.candidates = splitList(o->wavelets);
+  opts->pso.seed = static_cast<std::uint64_t>(o->seed);
+  if (o->patient_id.empty()) o->patient_id = baseName(o->input);
+  try {
+    opts->validate();
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  return "";
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   namespace pd = pedicle_drilling::core;
-  for (int i = 1; i < argc; ++i) {
-    if (std::string(argv[i]) == "--help") {
-      std::cout << kUsage;
-      return 0;
-    }
-  }
-
-  // ---------------------------------------------------------------- arguments
-  std::string input, output, patient_id, fit_csv;
+  namespace tools = pedicle_drilling::tools;
+  CLI::App app{
+      "Identifies d = q1*Tv + q0 (linear) or d = q1*Tv + q2*dTv/dt + q0 (hysteresis) per axis "
+      "from an 8 Hz recording after DWT de-noising.",
+      "identify"};
+  tools::applyConventions(&app);
+  app.footer("Exit status: 0 ok, 2 bad arguments or input (no model written), 1 write failure.");
+  Options o;
   pd::PipelineOptions opts;
-  try {
-    const CliArgs args(argc, argv,
-                       {"input", "output", "method", "model", "level", "keep", "wavelets",
-                        "delta-tv", "patient-id", "seed", "fit-csv"},
-                       {"no-denoise", "denoise-tv"});
-    if (!args.has("input")) throw UsageError("missing required option --input");
-    if (!args.has("output")) throw UsageError("missing required option --output");
-    input = args.get("input", "");
-    output = args.get("output", "");
-    fit_csv = args.get("fit-csv", "");
-    const std::string method = args.get("method", "ceres");
-    if (!pd::parseMethod(method, &opts.method)) {
-      throw UsageError("unknown method '" + method + "' (expected ceres or pso)");
-    }
-    const std::string model = args.get("model", "linear");
-    if (!pd::parseModelKind(model, &opts.kind)) {
-      throw UsageError("unknown model '" + model + "' (expected linear or hysteresis)");
-    }
-    opts.denoise = !args.flag("no-denoise");
-    opts.denoise_tv = args.flag("denoise-tv");
-    if (opts.denoise_tv && !opts.denoise) throw UsageError("--denoise-tv needs de-noising on");
-    pd::DenoiseOptions& dopts = opts.denoise_options;
-    const long level = args.getInt("level", 6);
-    if (level < 1 || level > 16) throw UsageError("--level must be in 1..16");
-    dopts.level = static_cast<int>(level);
-    dopts.kept_levels = pd::parseIntList(args.get("keep", "3,4,5"), "--keep");
-    for (int k : dopts.kept_levels) {
-      if (k < 1 || k > dopts.level) {
-        throw UsageError("--keep level " + std::to_string(k) + " outside 1.." +
-                         std::to_string(dopts.level));
-      }
-    }
-    const std::string wavelets = args.get("wavelets", "all");
-    if (wavelets != "all") {
-      dopts.candidates = splitList(wavelets);
-      for (const std::string& w : dopts.candidates) {
-        if (pd::findWavelet(w) == nullptr) {
-          throw UsageError("--wavelets: unknown wavelet '" + w + "'");
-        }
-      }
-    }
-    dopts.delta_tv = args.getDouble("delta-tv", 5.0);
-    if (!(dopts.delta_tv >= 0.0)) throw UsageError("--delta-tv must be >= 0");
-    const long s = args.getInt("seed", 1);
-    if (s < 0) throw UsageError("--seed must be >= 0");
-    opts.pso.seed = static_cast<std::uint64_t>(s);
-    patient_id = args.get("patient-id", baseName(input));
-    opts.validate();
-  } catch (const std::exception& e) {
-    std::cerr << "identify: " << e.what() << "\n" << kUsage;
-    return kBadInput;
-  }
+  addOptions(&app, &o, &opts);
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
+  const std::string bad = finishOptions(&o, &opts);
+  if (!bad.empty()) return tools::usageError(app, bad);
+  const std::string& input = o.input;
+  const std::string& output = o.output;
+  const std::string& fit_csv = o.fit_csv;
+  const std::string& patient_id = o.patient_id;
 
   // ---------------------------------------------------------------- data and fits
   pd::PipelineResult result;

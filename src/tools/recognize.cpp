@@ -3,7 +3,10 @@
 //   recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]
 //
 // force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
-// key points and the stop. Exit codes: 0 ok, 2 bad input or parameters.
+// key points and the stop. Command-line parsing: CLI11 with the tools' conventions
+// (tool_cli.hpp). Exit codes: 0 ok, 2 bad input or parameters.
+#include <CLI/CLI.hpp>
+
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -19,30 +22,16 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "pedicle_drilling/core/common/text_parse.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
+#include "tool_cli.hpp"
 
 namespace {
 
 using pedicle_drilling::core::KeyPoint;
 using pedicle_drilling::core::RecognizerOutput;
-
-const char kUsage[] =
-    "usage: recognize (--input force.csv | --bag trial.bag [--topic /ft_sensor/wrench] "
-    "[--axis z])\n"
-    "                 [--json] [--recognizer CLASS] [--param name=value ...]\n"
-    "  --bag         a recording (a campaign bag): the raw force of --topic "
-    "(geometry_msgs/WrenchStamped),\n"
-    "                its --axis component, at the header stamps\n"
-    "  --recognizer  pedicle_drilling/PaperRecognizer (default), "
-    "pedicle_drilling/ForceDifferenceRecognizer\n"
-    "                or any pluginlib class of base pedicle_drilling::core::RecognizerInterface\n"
-    "  the paper recognizer's parameters:\n"
-    "  parameters: pre_average window k_ratio f_th gain h_g c1 c2 c3 cancellous_confirm "
-    "cancellous_timeout\n"
-    "              outer_cortical_timeout inner_confirm stop_delay normalize_feature\n";
 
 struct InputError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -159,72 +148,99 @@ std::vector<Sample> readCsv(const std::string& path) {
   return out;
 }
 
+/** @brief Everything the command line sets. */
+struct Options {
+  std::string input;
+  std::string bag;
+  std::string topic = "/ft_sensor/wrench";
+  std::string axis = "z";
+  bool json = false;
+  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
+  std::vector<std::string> params;
+};
+
+/** @brief Declares every option of the tool (its values go to *o). */
+void addOptions(CLI::App* app, Options* o) {
+  CLI::Option* input = app->add_option("--input", o->input, "force trace, CSV t,force (s, N)");
+  app->add_option("--bag", o->bag,
+                  "a recording (a campaign bag): the raw force of --topic "
+                  "(geometry_msgs/WrenchStamped), its --axis component, at the header stamps")
+      ->excludes(input);
+  app->add_option("--topic", o->topic, "force topic of --bag");
+  app->add_option("--axis", o->axis, "force component of --bag")
+      ->check(CLI::IsMember({"x", "y", "z", "-x", "-y", "-z"}));
+  app->add_flag("--json", o->json, "print JSON {key_points, stop}");
+  app->add_option("--recognizer", o->recognizer_class,
+                  "pedicle_drilling/PaperRecognizer, pedicle_drilling/ForceDifferenceRecognizer or "
+                  "any pluginlib class of base pedicle_drilling::core::RecognizerInterface");
+  app->add_option("--param", o->params,
+                  "name=value for the recognizer (repeatable, each name once). The paper "
+                  "recognizer's: pre_average window k_ratio f_th gain h_g c1 c2 c3 "
+                  "cancellous_confirm cancellous_timeout outer_cortical_timeout inner_confirm "
+                  "stop_delay normalize_feature")
+      ->allow_extra_args(false)
+      ->check(pedicle_drilling::tools::accepting(
+          [](const std::string& item) {
+            try {
+              pedicle_drilling::core::parseNameValue(item, "--param");
+              return true;
+            } catch (const std::invalid_argument&) {
+              return false;
+            }
+          },
+          "name=value"));
+}
+
+/** @brief The --param settings; what is wrong (a name given twice) in *error, else "". */
+pedicle_drilling::core::RecognizerSettings settingsOf(const Options& o, std::string* error) {
+  pedicle_drilling::core::RecognizerSettings settings;
+  std::set<std::string> given;
+  for (const std::string& item : o.params) {
+    const auto setting = pedicle_drilling::core::parseNameValue(item, "--param");
+    if (!given.insert(setting.first).second) {
+      *error = "option '--param " + setting.first + "' given more than once: give it once";
+    }
+    settings.push_back(setting);
+  }
+  return settings;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string input;
-  bool json = false;
-  std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
-  std::string bag, topic = "/ft_sensor/wrench", axis = "z";
-  pedicle_drilling::core::RecognizerSettings settings;
+  namespace tools = pedicle_drilling::tools;
+  CLI::App app{
+      "Offline run of a drilling-state recognizer over a raw force recording (--input or --bag): "
+      "prints the key points and the stop.",
+      "recognize"};
+  tools::applyConventions(&app);
+  app.footer("Exit status: 0 ok, 2 bad input or parameters.");
+  Options options;
+  addOptions(&app, &options);
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
+  if (options.input.empty() == options.bag.empty()) {
+    return tools::usageError(app, "give one of --input (CSV t,force) and --bag (a recording)");
+  }
+  std::string error;
+  const pedicle_drilling::core::RecognizerSettings settings = settingsOf(options, &error);
+  if (!error.empty()) return tools::usageError(app, error);
   pedicle_drilling::RecognizerLoader loader;  // outlives the recognizer
   std::unique_ptr<pedicle_drilling::core::RecognizerInterface> rec;
   try {
-    std::set<std::string> given;  // an option or --param name given twice is refused
-    const auto once = [&given](const std::string& what) {
-      if (!given.insert(what).second) {
-        throw std::invalid_argument(what + " given more than once: give it once");
-      }
-    };
-    for (int i = 1; i < argc; ++i) {
-      const std::string a = argv[i];
-      if (a == "--input" || a == "--json" || a == "--recognizer" || a == "--bag" ||
-          a == "--topic" || a == "--axis") {
-        once(a);
-      }
-      if (a == "--input" && i + 1 < argc) {
-        input = argv[++i];
-      } else if (a == "--bag" && i + 1 < argc) {
-        bag = argv[++i];
-      } else if (a == "--topic" && i + 1 < argc) {
-        topic = argv[++i];
-      } else if (a == "--axis" && i + 1 < argc) {
-        axis = argv[++i];
-      } else if (a == "--recognizer" && i + 1 < argc) {
-        recognizer_class = argv[++i];
-      } else if (a == "--json") {
-        json = true;
-      } else if (a == "--param" && i + 1 < argc) {
-        const auto setting = pedicle_drilling::core::parseNameValue(argv[++i], "--param");
-        once("--param " + setting.first);
-        settings.push_back(setting);
-      } else if (a == "--help" || a == "-h") {
-        std::cout << kUsage;
-        return 0;
-      } else {
-        throw std::invalid_argument("unknown or incomplete argument '" + a + "'");
-      }
-    }
-    if (input.empty() == bag.empty()) {
-      throw std::invalid_argument("give one of --input (CSV t,force) and --bag (a recording)");
-    }
-    try {
-      rec = loader.create(recognizer_class, settings);
-    } catch (const std::runtime_error& e) {
-      std::cerr << "recognize: --recognizer " << recognizer_class << ": " << e.what() << "\n";
-      return 2;
-    }
-  } catch (const std::invalid_argument& e) {
-    std::cerr << "recognize: bad parameter: " << e.what() << "\n" << kUsage;
-    return 2;
+    rec = loader.create(options.recognizer_class, settings);
+  } catch (const std::exception& e) {
+    std::cerr << "recognize: --recognizer " << options.recognizer_class << ": " << e.what() << "\n";
+    return tools::kUsageExit;
   }
+  const bool json = options.json;
 
   std::vector<Sample> samples;
   try {
-    samples = bag.empty() ? readCsv(input) : readBag(bag, topic, axis);
+    samples = options.bag.empty() ? readCsv(options.input)
+                                  : readBag(options.bag, options.topic, options.axis);
   } catch (const InputError& e) {
     std::cerr << "recognize: bad input: " << e.what() << "\n";
-    return 2;
+    return tools::kUsageExit;
   }
 
   for (const Sample& s : samples) rec->push(s.t, s.f);

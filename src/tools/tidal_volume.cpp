@@ -4,86 +4,90 @@
  *
  *   rosrun pedicle_drilling tidal_volume --tv-max 500 --rate 12 --ie 1:2 --waveform square \
  *       --fs 64 --duration 10 [--pause 0.1] [--peak-ratio 1.5 | --tau 0.4]
+ *
+ * Command-line parsing: CLI11 with the tools' conventions (tool_cli.hpp). Exit status: 0 ok,
+ * 2 bad options (including settings the ventilator model refuses), 1 another error.
  */
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
 #include <iostream>
 #include <memory>
 #include <string>
 
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "tool_cli.hpp"
 
 namespace pd = pedicle_drilling::core;
+namespace tools = pedicle_drilling::tools;
 
 namespace {
 
-const char kUsage[] =
-    "usage: tidal_volume [--tv-max ML] [--rate BPM] [--ie I:E] [--waveform NAME] [--fs HZ]\n"
-    "                    [--duration S] [--pause FRACTION] [--peak-ratio R | --tau S]\n"
-    "Prints CSV t,flow,volume (s, ml/s, ml) of a volume-controlled ventilator.\n"
-    "Defaults: the paper's settings, 500 ml, 12 /min, 1:2, square, 64 Hz, 10 s, ratio 1.5.\n"
-    "Waveforms: square ascending_ramp descending_ramp sine exponential_rise exponential_decay\n";
+/** @brief Everything the command line sets besides the ventilator settings. */
+struct Options {
+  std::string ie = "1:2";
+  std::string waveform = "square";
+  double fs = 64.0;
+  double duration = 10.0;
+};
 
-int run(int argc, char** argv) {
-  const pd::CliArgs args(
-      argc, argv,
-      {"tv-max", "rate", "ie", "waveform", "fs", "duration", "pause", "peak-ratio", "tau"},
-      {"help"});
-  if (args.flag("help")) {
-    std::cout << kUsage;
-    return 0;
-  }
-  pd::VentilatorSettings settings;
-  settings.tv_max_ml = args.getDouble("tv-max", settings.tv_max_ml);
-  if (!(settings.tv_max_ml > 0.0)) throw pd::UsageError("--tv-max must be > 0 ml");
-  settings.rate_bpm = args.getDouble("rate", settings.rate_bpm);
-  if (!(settings.rate_bpm > 0.0)) throw pd::UsageError("--rate must be > 0 breaths/min");
-  const std::string ie = args.get("ie", "1:2");
-  if (!pd::parseIeRatio(ie, &settings.ie_inspiratory, &settings.ie_expiratory)) {
-    throw pd::UsageError("--ie '" + ie + "' is not of the form a:b with positive numbers");
-  }
-  const std::string waveform = args.get("waveform", "square");
-  if (!pd::parseWaveform(waveform, &settings.waveform)) {
-    throw pd::UsageError("--waveform '" + waveform + "' is unknown (see --help)");
-  }
-  settings.pause_fraction = args.getDouble("pause", 0.0);
-  if (args.has("peak-ratio") && args.has("tau")) {
-    throw pd::UsageError("--peak-ratio and --tau are exclusive");
-  }
-  if (args.has("tau")) {
-    settings.expiratory_spec = pd::ExpiratorySpec::kTimeConstant;
-    settings.expiratory_tau_s = args.getDouble("tau", settings.expiratory_tau_s);
-  }
-  settings.peak_flow_ratio = args.getDouble("peak-ratio", settings.peak_flow_ratio);
-  const double fs = args.getDouble("fs", 64.0);
-  if (!(fs > 0.0 && fs <= 100000.0)) throw pd::UsageError("--fs must be in (0, 100000] Hz");
-  const double duration = args.getDouble("duration", 10.0);
-  if (!(duration >= 0.0 && duration <= 86400.0)) {
-    throw pd::UsageError("--duration must be in [0, 86400] s");
-  }
-  std::unique_ptr<pd::VentilatorModel> model;
-  try {
-    model = std::make_unique<pd::VentilatorModel>(settings);
-  } catch (const std::invalid_argument& e) {
-    throw pd::UsageError(e.what());
-  }
-  std::printf("t,flow,volume\n");
-  for (const auto& s : model->sampleStream(fs, duration)) {
-    std::printf("%.6f,%.6f,%.6f\n", s.t, s.flow_ml_s, s.volume_ml);
-  }
-  return 0;
+/** @brief Declares every option of the tool (its values go to *o and *s). */
+void addOptions(CLI::App* app, Options* o, pd::VentilatorSettings* s) {
+  app->add_option("--tv-max", s->tv_max_ml, "set tidal volume, ml")
+      ->check(tools::finiteNumber(0.0, tools::kInf, true));
+  app->add_option("--rate", s->rate_bpm, "breaths per minute")
+      ->check(tools::finiteNumber(0.0, tools::kInf, true));
+  app->add_option("--ie", o->ie, "I:E ratio")
+      ->check(tools::accepting(
+          [](const std::string& text) {
+            double i = 0.0, e = 0.0;
+            return pd::parseIeRatio(text, &i, &e);
+          },
+          "of the form a:b with positive numbers"));
+  app->add_option("--waveform", o->waveform, "inspiratory flow shape")
+      ->check(CLI::IsMember(pd::waveformNames()));
+  app->add_option("--fs", o->fs, "sample rate, Hz")->check(tools::finiteNumber(0.0, 1e5, true));
+  app->add_option("--duration", o->duration, "s")->check(tools::finiteNumber(0.0, 86400.0));
+  app->add_option("--pause", s->pause_fraction, "inspiratory pause, fraction of Ti")
+      ->check(tools::finiteNumber());
+  CLI::Option* ratio =
+      app->add_option("--peak-ratio", s->peak_flow_ratio, "peak expiratory / inspiratory flow")
+          ->check(tools::finiteNumber());
+  app->add_option("--tau", s->expiratory_tau_s, "expiratory time constant, s (instead of a ratio)")
+      ->check(tools::finiteNumber())
+      ->excludes(ratio);
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  CLI::App app{
+      "Prints CSV t,flow,volume (s, ml/s, ml) of a volume-controlled ventilator. The defaults "
+      "are the paper's settings.",
+      "tidal_volume"};
+  tools::applyConventions(&app);
+  app.footer("Exit status: 0 ok, 2 bad options (or settings the ventilator model refuses).");
+  Options o;
+  pd::VentilatorSettings settings;
+  addOptions(&app, &o, &settings);
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
+  pd::parseIeRatio(o.ie, &settings.ie_inspiratory, &settings.ie_expiratory);
+  pd::parseWaveform(o.waveform, &settings.waveform);
+  if (app.count("--tau") > 0) settings.expiratory_spec = pd::ExpiratorySpec::kTimeConstant;
+  std::unique_ptr<pd::VentilatorModel> model;
   try {
-    return run(argc, argv);
-  } catch (const pd::UsageError& e) {
-    std::cerr << "tidal_volume: " << e.what() << "\n" << kUsage;
-    return 2;
+    model = std::make_unique<pd::VentilatorModel>(settings);
+  } catch (const std::invalid_argument& e) {
+    return tools::usageError(app, e.what());
+  }
+  try {
+    std::printf("t,flow,volume\n");
+    for (const auto& s : model->sampleStream(o.fs, o.duration)) {
+      std::printf("%.6f,%.6f,%.6f\n", s.t, s.flow_ml_s, s.volume_ml);
+    }
   } catch (const std::exception& e) {
     std::cerr << "tidal_volume: error: " << e.what() << "\n";
     return 1;
   }
+  return 0;
 }

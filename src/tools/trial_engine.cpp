@@ -12,7 +12,8 @@
 // its record then says when it took effect.
 //
 // Command-line parsing: CLI11 (Debian libcli11-dev): header-only, typed options with ranges,
-// --help, and a repeated single-value option is an error rather than silently ignored.
+// --help, and a repeated single-value option is an error rather than silently ignored; the
+// conventions shared by every tool are in tool_cli.hpp.
 // Exit status: 0 (errored trials included), 2 bad options or input (nothing run).
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -26,11 +27,13 @@
 #include <vector>
 
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
-#include "pedicle_drilling/core/common/cli_args.hpp"
+#include "pedicle_drilling/core/common/text_parse.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
+#include "tool_cli.hpp"
 
 namespace pd = pedicle_drilling::core;
+namespace tools = pedicle_drilling::tools;
 using nlohmann::json;
 
 namespace {
@@ -130,7 +133,9 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
   app->add_option("--drilling-pose", o->drilling_pose,
                   "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
       ->required()
-      ->delimiter(',');
+      ->delimiter(',')
+      ->check(tools::finiteNumber())
+      ->default_str("");  // none
   app->add_option("--urdf", o->urdf_path, "workcell URDF");
   app->add_option("--default-model", o->default_model, "patient model of the stationary case");
   app->add_option("--models-dir", o->models_dir,
@@ -144,32 +149,39 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->check(CLI::IsMember({"rest_to_rest", "exact"}));
   app->add_option("--command-delay-s", config->delays.command_to_arm_s,
                   "planner command -> arm controller transport delay, s")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(tools::finiteNumber(0.0, 1.0));
   app->add_option("--stop-delay-s", config->delays.stop_to_planner_s,
                   "recognizer/monitor stop -> planner transport delay, s")
-      ->check(CLI::Range(0.0, 1.0));
+      ->check(tools::finiteNumber(0.0, 1.0));
   app->add_option("--pre-trial-s", config->pre_trial_s,
                   "sim time from the reset to the earliest trial start, s")
-      ->check(CLI::Range(0.0, 60.0));
+      ->check(tools::finiteNumber(0.0, 60.0));
   app->add_option("--truth-rate-hz", config->ground_truth_rate_hz,
                   "rate of the recorded ground truth (plus every layer change), Hz")
-      ->check(CLI::Range(1.0, 1000.0));
+      ->check(tools::finiteNumber(1.0, 1000.0));
   app->add_flag(
       "--fixed-start", o->fixed_start,
       "start exactly --pre-trial-s after the reset (no breath phase drawn from the seed)");
-  app->add_option("--feed-rate", o->feed_rate, "feed rate, mm/s")->check(CLI::Range(0.01, 10.0));
+  app->add_option("--feed-rate", o->feed_rate, "feed rate, mm/s")
+      ->check(tools::finiteNumber(0.01, 10.0));
   app->add_option("--max-duration", o->max_duration, "sim time after which a trial is ended, s")
-      ->check(CLI::Range(1.0, 3600.0));
+      ->check(tools::finiteNumber(1.0, 3600.0));
   // Sizes of the injected faults (a trial's "fault" key names the fault; README).
   pd::FaultParams& faults = config->faults;
-  app->add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N");
-  app->add_option("--fault-drift-n-per-s", faults.drift_n_per_s, "force_drift rate, N/s");
-  app->add_option("--fault-tracker-jump-m", faults.tracker_jump_m, "tracker_jump size, m");
+  app->add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N")
+      ->check(tools::finiteNumber());
+  app->add_option("--fault-drift-n-per-s", faults.drift_n_per_s, "force_drift rate, N/s")
+      ->check(tools::finiteNumber());
+  app->add_option("--fault-tracker-jump-m", faults.tracker_jump_m, "tracker_jump size, m")
+      ->check(tools::finiteNumber());
   app->add_option("--fault-amplitude-factor", faults.amplitude_factor,
-                  "breathing_amplitude factor on the AP displacement");
+                  "breathing_amplitude factor on the AP displacement")
+      ->check(tools::finiteNumber());
   app->add_option("--fault-rate-change-bpm", faults.rate_change_bpm,
-                  "breathing_rate_up/down change, breaths/min");
-  app->add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s");
+                  "breathing_rate_up/down change, breaths/min")
+      ->check(tools::finiteNumber());
+  app->add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s")
+      ->check(tools::finiteNumber());
   app->add_option("--recognizer", o->recognizer_class,
                   "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
                   "own recognizer or compensator\")");
@@ -298,6 +310,7 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
 int main(int argc, char** argv) {
   CLI::App app{"Closed-loop drilling trials on the core engine (JSON lines on stdout)",
                "trial_engine"};
+  tools::applyConventions(&app);
   Options o;
   pd::EngineConfig config;
   addOptions(&app, &o, &config);
@@ -307,12 +320,7 @@ int main(int argc, char** argv) {
                     std::string(argv[1]) == "--check-compensator")) {
     return checkPlugin(argc, argv);
   }
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    const int code = app.exit(e);
-    return code == 0 ? 0 : 2;
-  }
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
   if (o.list_faults) return printFaults();  // never silently ignored beside other options
 
   pd::parseSegmentProfile(o.segment_profile, &config.sequencer.compensation.segment_profile);

@@ -17,8 +17,8 @@
 #include <utility>
 #include <vector>
 
-#include "pedicle_drilling/core/common/cli_args.hpp"
 #include "pedicle_drilling/core/common/param_table.hpp"
+#include "pedicle_drilling/core/common/text_parse.hpp"
 
 namespace pedicle_drilling {
 

@@ -1,4 +1,8 @@
-#include "pedicle_drilling/core/common/cli_args.hpp"
+/**
+ * @file text_parse.cpp
+ * @brief Values given as text (see text_parse.hpp).
+ */
+#include "pedicle_drilling/core/common/text_parse.hpp"
 
 #include <cctype>
 #include <cmath>
@@ -6,76 +10,6 @@
 #include <sstream>
 
 namespace pedicle_drilling::core {
-
-CliArgs::CliArgs(int argc, char** argv, const std::set<std::string>& value_options,
-                 const std::set<std::string>& flag_options) {
-  for (int i = 1; i < argc; ++i) {
-    std::string arg = argv[i];
-    if (arg.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + arg + "'");
-    std::string key = arg.substr(2);
-    std::string value;
-    bool has_inline_value = false;
-    const auto eq = key.find('=');
-    if (eq != std::string::npos) {
-      value = key.substr(eq + 1);
-      key = key.substr(0, eq);
-      has_inline_value = true;
-    }
-    if (flag_options.count(key)) {
-      if (has_inline_value) throw UsageError("option '--" + key + "' takes no value");
-      if (!flags_.insert(key).second) {
-        throw UsageError("option '--" + key + "' given more than once: give it once");
-      }
-    } else if (value_options.count(key)) {
-      if (!has_inline_value) {
-        if (i + 1 >= argc) throw UsageError("option '--" + key + "' needs a value");
-        value = argv[++i];
-      }
-      const auto first = values_.find(key);
-      if (first != values_.end()) {
-        // getopt would keep the last, argparse too; a drilling tool refuses, the same way in
-        // every tool (the campaign scripts' parser does too): `--rate 12 ... --rate 0` is a
-        // mistake to report, not a choice to guess.
-        throw UsageError("option '--" + key + "' given more than once ('" + first->second +
-                         "', then '" + value + "'): give it once");
-      }
-      values_.emplace(key, value);
-    } else {
-      throw UsageError("unknown option '--" + key + "'");
-    }
-  }
-}
-
-std::string CliArgs::get(const std::string& key, const std::string& fallback) const {
-  const auto it = values_.find(key);
-  return it == values_.end() ? fallback : it->second;
-}
-
-double CliArgs::getDouble(const std::string& key, double fallback) const {
-  if (!has(key)) return fallback;
-  const std::string text = get(key, "");
-  try {
-    size_t used = 0;
-    const double value = std::stod(text, &used);
-    if (used != text.size() || !std::isfinite(value)) throw std::invalid_argument(text);
-    return value;
-  } catch (const std::exception&) {
-    throw UsageError("option '--" + key + "' = '" + text + "' is not a finite number");
-  }
-}
-
-long CliArgs::getInt(const std::string& key, long fallback) const {
-  if (!has(key)) return fallback;
-  const std::string text = get(key, "");
-  try {
-    size_t used = 0;
-    const long value = std::stol(text, &used);
-    if (used != text.size()) throw std::invalid_argument(text);
-    return value;
-  } catch (const std::exception&) {
-    throw UsageError("option '--" + key + "' = '" + text + "' is not an integer");
-  }
-}
 
 std::vector<int> parseIntList(const std::string& text, const std::string& what) {
   std::vector<int> out;
