@@ -226,9 +226,6 @@ def parse_args(argv):
         if scenario.get('identification', 'volunteers') != 'volunteers':
             raise UsageError('scenario key identification: %r is not supported by --engine core '
                              '(use --engine ros)' % scenario.get('identification'))
-        if scenario.get('simulator'):
-            raise UsageError('scenario key simulator: overrides are not supported by --engine '
-                             'core yet (use --engine ros)')
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
     elif (args.recognizer_param or args.compensator_param or scenario.get('recognizer_params')
@@ -398,6 +395,16 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['--%s %s does not load' % (kind, name)])[-1])
             return 2
+    if args.engine == 'core' and scenario.get('simulator'):
+        # The simulator section, checked by the Simulator's own declaration before anything is
+        # written (the ROS engine's simulator checks it at its first reset).
+        check = subprocess.run(
+            engine_core.tool('trial_engine') + ['--check-simulator'] +
+            engine_core.simulator_params(scenario['simulator']), capture_output=True, text=True)
+        if check.returncode != 0:
+            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
+                                                 ['the simulator section was refused'])[-1])
+            return 2
     design = build_design(cases, rpms, trials, seed, faults)
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
@@ -462,7 +469,8 @@ def run_campaign(argv=None):
                 COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                 [(FAULT_PARAMS[k], float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
-                recognizer, compensator, params['recognizer'], params['compensator'])))
+                recognizer, compensator, params['recognizer'], params['compensator'],
+                scenario.get('simulator'))))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

@@ -33,8 +33,12 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                          feed_rate, max_duration, default_model, segment_profile='rest_to_rest',
                          fault_options=(), recognizer='pedicle_drilling/PaperRecognizer',
                          compensator='pedicle_drilling/PaperCompensator',
-                         recognizer_params=None, compensator_params=None):
-    """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15)."""
+                         recognizer_params=None, compensator_params=None,
+                         simulator_overrides=None):
+    """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15);
+    `simulator_overrides`: the scenario's `simulator:` section, {group: {key: value}}, passed as
+    the Simulator's parameters trial_distribution/<group>/<key> (the same declaration checks
+    them in both engines)."""
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
                '--model', model, '--bone-motion', bone_motion,
@@ -52,7 +56,17 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                            ('--compensator-param', compensator_params)):
         for name, value in sorted((params or {}).items()):
             command += [option, '%s=%s' % (name, value)]
+    for item in simulator_params(simulator_overrides):
+        command += ['--simulator-param', item]
     return command
+
+
+def simulator_params(section):
+    """The scenario's `simulator:` section, {group: {key: value}}, as the Simulator's parameters
+    `trial_distribution/<group>/<key>=<value>`."""
+    return ['trial_distribution/%s/%s=%r' % (group, key, float(value))
+            for group, values in sorted((section or {}).items())
+            for key, value in sorted(values.items())]
 
 
 def fault_columns(row, record):

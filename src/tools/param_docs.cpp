@@ -12,6 +12,7 @@
 #include <string>
 
 #include "pedicle_drilling/ros/node_params.hpp"
+#include "tool_cli.hpp"
 
 namespace {
 
@@ -74,29 +75,32 @@ void printMarkdown(const std::string& node, const std::vector<ParamInfo>& params
 }  // namespace
 
 int main(int argc, char** argv) {
+  namespace tools = pedicle_drilling::tools;
   CLI::App app{
       "Every nodelet's parameters as the code declares them (name, type, default, allowed "
-      "values)."};
+      "values).",
+      "param_docs"};
+  tools::applyConventions(&app);
   std::string node;
   std::string format = "markdown";
   app.add_option("--node", node, "only this nodelet class, e.g. pedicle_drilling/SafetyMonitor");
   app.add_option("--format", format, "markdown or json")
       ->check(CLI::IsMember({"markdown", "json"}));
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::CallForHelp& e) {
-    return app.exit(e);
-  } catch (const CLI::ParseError& e) {
-    app.exit(e);
-    return 2;
-  }
+  if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
   const auto docs = pedicle_drilling::nodeParameterDocs();
-  bool found = node.empty();
+  bool known_node = node.empty();
+  std::string known;
+  for (const auto& entry : docs) {
+    known += " " + entry.first;
+    known_node = known_node || entry.first == node;
+  }
+  if (!known_node) {
+    return tools::usageError(app, "--node: no nodelet class '" + node + "' (known:" + known + ")");
+  }
   if (format == "json") std::cout << "{\n";
   bool first = true;
   for (const auto& [name, params] : docs) {
     if (!node.empty() && name != node) continue;
-    found = true;
     if (format == "json") {
       printJson(name, params, first);
     } else {
@@ -105,11 +109,5 @@ int main(int argc, char** argv) {
     first = false;
   }
   if (format == "json") std::cout << "\n}\n";
-  if (!found) {
-    std::cerr << "--node: no nodelet class '" << node << "' (known:";
-    for (const auto& entry : docs) std::cerr << " " << entry.first;
-    std::cerr << ")\n";
-    return 2;
-  }
   return 0;
 }

@@ -122,6 +122,7 @@ struct Options {
   std::vector<std::string> recognizer_params;
   std::string compensator_class = "pedicle_drilling/PaperCompensator";
   std::vector<std::string> compensator_params;
+  std::vector<std::string> simulator_params;
   bool list_faults = false;
 };
 
@@ -193,6 +194,10 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "recognizer or compensator\")");
   app->add_option("--compensator-param", o->compensator_params,
                   "name=value for the compensator (repeatable)");
+  app->add_option("--simulator-param", o->simulator_params,
+                  "name=value for the simulation, named as the Simulator nodelet's parameters "
+                  "(repeatable; e.g. trial_distribution/patient/amplitude_scale_sd=0.2; `rosrun "
+                  "pedicle_drilling param_docs --node pedicle_drilling/Simulator` lists them)");
   app->add_flag("--list-faults", o->list_faults, "print the faults a trial may name, one per line");
   app->footer("Faults: " + [] {
     std::string names;
@@ -226,6 +231,25 @@ int checkPlugin(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: --" << (recognizer ? "recognizer " : "compensator ") << argv[2]
               << ": " << e.what() << "\n";
+    return 2;
+  }
+}
+
+/**
+ * @brief `trial_engine --check-simulator NAME=VALUE...`: the simulation's parameters set and
+ *        checked by their declaration (as --simulator-param); exit 0, or 2 naming the bad one.
+ */
+int checkSimulator(int argc, char** argv) {
+  try {
+    pd::DrillingSimulationParams params;
+    for (const auto& [name, value] :
+         parseSettings(std::vector<std::string>(argv + 2, argv + argc), "--check-simulator")) {
+      pd::DrillingSimulationParams::table().set(params, name, value);
+    }
+    params.validate();
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: --simulator-param: " << e.what() << "\n";
     return 2;
   }
 }
@@ -316,6 +340,7 @@ int main(int argc, char** argv) {
   addOptions(&app, &o, &config);
   // Alone, --list-faults needs none of the required options.
   if (argc == 2 && std::string(argv[1]) == "--list-faults") return printFaults();
+  if (argc >= 2 && std::string(argv[1]) == "--check-simulator") return checkSimulator(argc, argv);
   if (argc >= 3 && (std::string(argv[1]) == "--check-recognizer" ||
                     std::string(argv[1]) == "--check-compensator")) {
     return checkPlugin(argc, argv);
@@ -338,6 +363,15 @@ int main(int argc, char** argv) {
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: --default-model: " << e.what() << "\n";
     return 2;
+  }
+  // The simulation's parameters by the same declaration as the Simulator nodelet's.
+  try {
+    for (const auto& [name, value] : parseSettings(o.simulator_params, "--simulator-param")) {
+      pd::DrillingSimulationParams::table().set(config.simulation, name, value);
+    }
+    config.simulation.validate();
+  } catch (const std::exception& e) {
+    return tools::usageError(app, std::string("--simulator-param: ") + e.what());
   }
   // The recognizer and compensator classes, loaded and configured once here so that a bad one is
   // exit 2 before any trial; each trial then gets fresh instances.

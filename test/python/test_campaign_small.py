@@ -126,6 +126,40 @@ def test_scenario_simulator_section_reaches_the_trials(tmp_path):
     assert 'trial_distribution/patient/amplitude_scale_sd' in result.stderr
 
 
+def test_scenario_simulator_section_reaches_the_core_engine(tmp_path):
+    """The same section on the core engine: passed as the Simulator's declared parameters
+    (trial_engine --simulator-param) and refused before anything runs when out of range."""
+    scenario = tmp_path / 'spread_core.yaml'
+    scenario.write_text(
+        'cases: [uncompensated]\nrpms: [12000]\ntrials: 2\nseed: 21\nmax_duration_s: 40.0\n'
+        'simulator:\n'
+        '  patient: {amplitude_scale_sd: 0.2}\n'
+        '  specimen: {inner_cortical_thickness_mean_mm: 2.5, inner_cortical_thickness_sd_mm: 0}\n')
+    out = tmp_path / 'spread_core'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(scenario), '--jobs', '1',
+         '--out', str(out), '--engine', 'core'], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 2
+    for row in rows:
+        assert row['error'] == '', row['error']
+        assert abs(float(row['inner_cortical_mm']) - 2.5) < 1e-9
+    assert rows[0]['amplitude_scale'] != rows[1]['amplitude_scale']
+
+    bad = tmp_path / 'bad_spread_core.yaml'
+    bad.write_text('cases: [stationary]\nrpms: [12000]\ntrials: 1\n'
+                   'simulator: {patient: {amplitude_scale_sd: 0.9}}\n')
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(bad), '--jobs', '1',
+         '--out', str(tmp_path / 'bad_core'), '--engine', 'core'],
+        capture_output=True, text=True, timeout=300)
+    assert result.returncode == 2, result.stderr[-3000:]
+    assert 'trial_distribution/patient/amplitude_scale_sd' in result.stderr
+    assert not (tmp_path / 'bad_core').exists()
+
+
 def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
     """SIGINT to the campaign's process group (a Ctrl-C in its terminal) once a trial has
     finished: exit status 130, the finished trials kept in trials.csv and the report, the

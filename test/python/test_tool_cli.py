@@ -17,6 +17,7 @@ TOOLS = {
     'generate_volunteers': (['--out', 'never_written'], '--duration', '30', 'nan'),
     'identify': (['--input', 'rec.csv', '--output', 'never_written.yaml'], '--delta-tv', '5',
                  'nan'),
+    'param_docs': ([], '--format', 'json', 'yaml'),
     'recognize': (['--input', 'force.csv'], '--axis', '-z', 'w'),
     'tidal_volume': ([], '--fs', '64', 'inf'),
     'trial_engine': (['--trials', 'trials.json', '--drilling-pose', POSE], '--feed-rate', '0.5',

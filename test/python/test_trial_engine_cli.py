@@ -47,6 +47,11 @@ def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
     ([], ['--model', 'linear', '--model', 'hysteresis'], '--model'),
     ([], ['--command-delay-s', '-1'], '--command-delay-s'),
     ([], ['--urdf', '/nonexistent.urdf'], '--urdf'),
+    ([], ['--simulator-param', 'trial_distribution/patient/amplitude_scale_sd=0.9'],
+     'trial_distribution/patient/amplitude_scale_sd = 0.9 is out of range [0, 0.3]'),
+    ([], ['--simulator-param', 'trial_distribution/specimen/no_such_mm=1'],
+     "unknown parameter 'trial_distribution/specimen/no_such_mm'"),
+    ([], ['--simulator-param', 'arm_rate_hz'], '--simulator-param'),
 ])
 def test_bad_input_exits_2_naming_it(bin_dir, tmp_path, trials, extra, named):
     path = trials_file(tmp_path, trials)
@@ -61,3 +66,20 @@ def test_a_pose_of_the_wrong_size_is_refused(bin_dir, tmp_path):
     result = run(bin_dir, '--trials', path, '--drilling-pose', '0,1,2,3,4')
     assert result.returncode == 2
     assert 'drilling_pose' in result.stderr
+
+
+def test_simulator_params_reach_the_trial(bin_dir, tmp_path):
+    """--simulator-param sets the simulation by the Simulator nodelet's own declaration: an
+    explicit inner-cortex thickness without spread is the specimen every seed draws."""
+    path = trials_file(tmp_path, [
+        {'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary', 'rpm': 12000}])
+    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE, '--simulator-param',
+                 'trial_distribution/specimen/inner_cortical_thickness_mean_mm=2.5',
+                 '--simulator-param', 'trial_distribution/specimen/inner_cortical_thickness_sd_mm=0')
+    assert result.returncode == 0, result.stderr
+    record = json.loads(result.stdout.splitlines()[0])['record']
+    assert abs(record['conditions']['inner_cortical_mm'] - 2.5) < 1e-9
+    check = subprocess.run([os.path.join(bin_dir, 'trial_engine'), '--check-simulator',
+                            'trial_distribution/arm/stiffness_scale_sd=0.2'],
+                           capture_output=True, text=True)
+    assert check.returncode == 0, check.stderr
