@@ -110,29 +110,23 @@ void addOptions(CLI::App* app, Options* o, core::PipelineOptions* opts) {
   app->add_option("--input", o->input, "8 Hz CSV with columns t,tv,ap,si,lr (s, ml, mm)")
       ->required();
   app->add_option("--output", o->output, "model YAML written")->required();
+  // Ranges and choices from the one declaration the MotionIdentification nodelet loads too
+  // (core::PipelineOptions::table(); parameter names in the messages).
+  const auto& table = core::PipelineOptions::table();
   app->add_option("--method", o->method, "ceres, or pso (paper: population 24, 2000 iterations)")
-      ->check(CLI::IsMember({"ceres", "pso"}));
+      ->check(tools::declared(table, "method"));
   app->add_option("--model", o->model, "linear or hysteresis")
-      ->check(CLI::IsMember({"linear", "hysteresis"}));
-  app->add_option("--level", dopts.level, "DWT level")->check(CLI::Range(1, 16));
+      ->check(tools::declared(table, "model"));
+  app->add_option("--level", dopts.level, "DWT level")->check(tools::declared(table, "level"));
   app->add_option("--keep", o->keep, "detail levels kept, each in 1..level")
-      ->check(tools::intList(1, 16));
+      ->check(tools::declared(table, "kept_levels"));
   app->add_option("--wavelets", o->wavelets,
                   "candidate bases for the RMSE-DMM selection: all, or names comma-separated")
-      ->check(CLI::Validator(
-          [](std::string& text) -> std::string {
-            if (text == "all") return std::string();
-            for (const std::string& w : splitList(text)) {
-              if (core::findWavelet(w) == nullptr) return "unknown wavelet '" + w + "'";
-            }
-            return std::string();
-          },
-          "all|NAME,..."));
+      ->check(tools::declared(table, "wavelets"));
   app->add_option("--delta-tv", dopts.delta_tv, "half-width of the Tv neighbourhood of Eq. 2, ml")
-      ->check(tools::finiteNumber(0.0));
+      ->check(tools::declared(table, "delta_tv_ml"));
   app->add_option("--patient-id", o->patient_id, "id written to the model (default: input name)");
-  app->add_option("--seed", o->seed, "PSO seed")
-      ->check(CLI::Range(std::int64_t{0}, std::numeric_limits<std::int64_t>::max()));
+  app->add_option("--seed", o->seed, "PSO seed")->check(tools::declared(table, "pso_seed"));
   CLI::Option* no_denoise =
       app->add_flag("--no-denoise", o->no_denoise, "fit the raw displacement");
   app->add_flag("--denoise-tv", opts->denoise_tv,

@@ -33,28 +33,25 @@ struct Options {
 
 /** @brief Declares every option of the tool (its values go to *o and *s). */
 void addOptions(CLI::App* app, Options* o, pd::VentilatorSettings* s) {
+  // Ranges and choices from the one declaration the Ventilator nodelet loads too
+  // (core::VentilatorSettings::table(); parameter names in the messages).
+  const auto& table = pd::VentilatorSettings::table();
   app->add_option("--tv-max", s->tv_max_ml, "set tidal volume, ml")
-      ->check(tools::finiteNumber(0.0, tools::kInf, true));
+      ->check(tools::declared(table, "tv_max_ml"));
   app->add_option("--rate", s->rate_bpm, "breaths per minute")
-      ->check(tools::finiteNumber(0.0, tools::kInf, true));
-  app->add_option("--ie", o->ie, "I:E ratio")
-      ->check(tools::accepting(
-          [](const std::string& text) {
-            double i = 0.0, e = 0.0;
-            return pd::parseIeRatio(text, &i, &e);
-          },
-          "of the form a:b with positive numbers"));
+      ->check(tools::declared(table, "rate_bpm"));
+  app->add_option("--ie", o->ie, "I:E ratio")->check(tools::declared(table, "ie_ratio"));
   app->add_option("--waveform", o->waveform, "inspiratory flow shape")
-      ->check(CLI::IsMember(pd::waveformNames()));
+      ->check(tools::declared(table, "waveform"));
   app->add_option("--fs", o->fs, "sample rate, Hz")->check(tools::finiteNumber(0.0, 1e5, true));
   app->add_option("--duration", o->duration, "s")->check(tools::finiteNumber(0.0, 86400.0));
   app->add_option("--pause", s->pause_fraction, "inspiratory pause, fraction of Ti")
-      ->check(tools::finiteNumber());
+      ->check(tools::declared(table, "pause_fraction"));
   CLI::Option* ratio =
       app->add_option("--peak-ratio", s->peak_flow_ratio, "peak expiratory / inspiratory flow")
-          ->check(tools::finiteNumber());
+          ->check(tools::declared(table, "peak_flow_ratio"));
   app->add_option("--tau", s->expiratory_tau_s, "expiratory time constant, s (instead of a ratio)")
-      ->check(tools::finiteNumber())
+      ->check(tools::declared(table, "expiratory_tau_s"))
       ->excludes(ratio);
 }
 

@@ -20,11 +20,35 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/common/text_parse.hpp"
 
 namespace pedicle_drilling::tools {
 
 namespace core = pedicle_drilling::core;
+
+/**
+ * @brief A validator from a parameter's one declaration (core::ParamTable): the option's value
+ *        is set into a default @p T by @p table, so that the tool accepts exactly what the
+ *        nodelet and the core accept (range, choices, form), with the same message.
+ * @throws std::logic_error if @p table declares no @p name (a programming error).
+ */
+template <class T>
+CLI::Validator declared(const core::ParamTable<T>& table, const std::string& name) {
+  const auto* entry = table.find(name);
+  if (entry == nullptr) throw std::logic_error("no declared parameter '" + name + "'");
+  return CLI::Validator(
+      [&table, name](std::string& text) -> std::string {
+        T probe;
+        try {
+          table.set(probe, name, text);
+        } catch (const std::invalid_argument& e) {
+          return e.what();
+        }
+        return std::string();
+      },
+      entry->info.rule());
+}
 
 /** @brief Exit status of a bad command line, in every tool. */
 constexpr int kUsageExit = 2;
