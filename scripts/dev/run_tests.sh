@@ -25,10 +25,18 @@ LOGS="${WS}/build/test_logs"
 mkdir -p "${LOGS}"
 
 echo "== gtest suites"
-for binary in "${PEDICLE_DRILLING_BIN_DIR}"/test_*; do
-  [ -x "${binary}" ] || continue
-  name="$(basename "${binary}")"
+# One suite per test/gtest/test_<module>.cpp: a binary left in devel by a removed test is not
+# run, and a test whose binary is missing fails.
+for source in "${ROOT}"/test/gtest/test_*.cpp; do
+  name="$(basename "${source}" .cpp)"
+  binary="${PEDICLE_DRILLING_BIN_DIR}/${name}"
   [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
+  if [ ! -x "${binary}" ]; then
+    echo "  FAILED ${name}: no binary ${binary} (make tests)"
+    printf '<testsuite name="%s" tests="1" failures="1"><testcase classname="%s" name="built"><failure message="no binary"/></testcase></testsuite>\n' \
+      "${name}" "${name}" > "${RESULTS}/gtest-${name}.xml"
+    continue
+  fi
   start=$(date +%s)
   if timeout 600 "${binary}" --gtest_output="xml:${RESULTS}/gtest-${name}.xml" \
       > "${LOGS}/${name}.log" 2>&1; then

@@ -35,6 +35,9 @@ SCENARIO_KEYS = {
     'model': (str, None, None),
     'bone_motion': (str, None, None),
     'compensation_profile': (str, None, None),
+    # recognition (the recognizer stops the drill) or peak_forces (paper Sec. V-D: it observes,
+    # the drill goes through the inner layer; F_out / F_in of Fig. 16). Core engine only.
+    'protocol': (str, None, None),
     'simulator': (dict, None, None),
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
@@ -57,6 +60,7 @@ FAULT_PARAMS = {
     'command_delay_s': '--fault-command-delay-s',
 }
 ENGINES = ('core', 'ros')
+PROTOCOLS = ('recognition', 'peak_forces')
 # compensation_profile: the planner's segment profile (its ~segment_profile): the paper's 125 ms
 # rest-to-rest trapezoids, or the exact reference (beyond the paper).
 COMPENSATION_PROFILES = {'paper': 'rest_to_rest', 'exact': 'exact'}
@@ -151,6 +155,9 @@ def load_scenario(path):
         if key == 'compensation_profile' and value not in COMPENSATION_PROFILES:
             raise UsageError('--scenario %s: compensation_profile %r is not one of %s'
                              % (path, value, ', '.join(COMPENSATION_PROFILES)))
+        if key == 'protocol' and value not in PROTOCOLS:
+            raise UsageError('--scenario %s: protocol %r is not one of %s'
+                             % (path, value, ', '.join(PROTOCOLS)))
         if key == 'model' and value not in ('linear', 'hysteresis'):
             raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
         if key == 'faults':
@@ -228,6 +235,9 @@ def parse_args(argv):
                              '(use --engine ros)' % scenario.get('identification'))
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+    elif scenario.get('protocol', 'recognition') != 'recognition':
+        raise UsageError('scenario key protocol: %r is run by --engine core only (the ROS '
+                         'pipeline\'s recognizer always stops the drill)' % scenario['protocol'])
     elif (args.recognizer_param or args.compensator_param or scenario.get('recognizer_params')
           or scenario.get('compensator_params')):
         raise UsageError('recognizer/compensator parameters are passed by --engine core only (on '
@@ -323,12 +333,15 @@ def write_outputs(rows, meta, out_dir, notes=''):
     rows = [r for r in rows if r['fault'] == 'none']  # the paper's figures: fault-free trials
     report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'), faults)
     figures = []
+    # Under the peak_forces protocol no trial is a success: Table III, Fig. 15 and Fig. 18 (the
+    # residual of the recognizer's stops) have nothing to show.
+    recognition = meta.get('protocol', 'recognition') == 'recognition'
     for title, name in (
-            ('Table III', plots.table3(summary, out_dir)),
-            ('Fig. 15', plots.fig15(summary, out_dir)),
+            ('Table III', plots.table3(summary, out_dir) if recognition else None),
+            ('Fig. 15', plots.fig15(summary, out_dir) if recognition else None),
             ('Fig. 16', plots.fig16(rows, out_dir)),
             ('Fig. 17', plots.fig17(rows, out_dir, os.path.join(out_dir, 'traces'))),
-            ('Fig. 18', plots.fig18(rows, out_dir)),
+            ('Fig. 18', plots.fig18(rows, out_dir) if recognition else None),
             ('Table II', plots.table2(os.path.join(out_dir, 'table2.csv'), out_dir))):
         if name:
             figures.append((title, name))
@@ -415,6 +428,7 @@ def run_campaign(argv=None):
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
+            'protocol': scenario.get('protocol', 'recognition'),
             'recognizer': recognizer,
             'compensator': compensator,
             'engine': args.engine}
@@ -470,7 +484,7 @@ def run_campaign(argv=None):
                 [(FAULT_PARAMS[k], float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
                 recognizer, compensator, params['recognizer'], params['compensator'],
-                scenario.get('simulator'))))
+                scenario.get('simulator'), scenario.get('protocol', 'recognition'))))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

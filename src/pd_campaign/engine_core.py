@@ -24,6 +24,9 @@ class RecordedTrial:
         self.stops = [tuple(s) for s in record['stops']]
         self.status = [tuple(s) for s in record['status']]
         self.last_truth = types.SimpleNamespace(**record['last_truth'])
+        # Ground-truth peaks (the core engine computes them at 1 kHz; see worker.peak_forces).
+        self.truth_peaks = record.get('truth_peaks_n')
+        self.protocol = record.get('protocol', 'recognition')
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
@@ -34,7 +37,7 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                          fault_options=(), recognizer='pedicle_drilling/PaperRecognizer',
                          compensator='pedicle_drilling/PaperCompensator',
                          recognizer_params=None, compensator_params=None,
-                         simulator_overrides=None):
+                         simulator_overrides=None, protocol='recognition'):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15);
     `simulator_overrides`: the scenario's `simulator:` section, {group: {key: value}}, passed as
     the Simulator's parameters trial_distribution/<group>/<key> (the same declaration checks
@@ -58,6 +61,8 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
             command += [option, '%s=%s' % (name, value)]
     for item in simulator_params(simulator_overrides):
         command += ['--simulator-param', item]
+    if protocol != 'recognition':
+        command += ['--protocol', protocol]
     return command
 
 

@@ -12,7 +12,7 @@ from .design import CASES, FAULTS
 
 TRIAL_COLUMNS = [
     'trial_id', 'case', 'rpm', 'index', 'seed', 'fault', 'engine', 'success', 'residual_mm',
-    'f_out_n', 'f_in_n', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
+    'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'protocol', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
     'retreat_delay_s', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
@@ -44,7 +44,7 @@ def normalise_row(row):
     out['success'] = str(row['success']).lower() in ('1', 'true')
     out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
     out['fault'] = row.get('fault') or 'none'
-    for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s', 'residual_mm', 'f_out_n', 'f_in_n', 'max_depth_mm', 'inner_start_mm',
+    for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s', 'residual_mm', 'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'max_depth_mm', 'inner_start_mm',
                 'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                 'force_noise_sd_n', 'arm_stiffness_scale',
                 'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
@@ -109,6 +109,19 @@ def read_trials_csv(path):
         return [normalise_row(r) for r in reader]
 
 
+def _quartile_values(values):
+    """[first quartile, median, third quartile] (linear interpolation), None if empty."""
+    values = sorted(v for v in values if v is not None)
+    if not values:
+        return None
+
+    def q(p):
+        x = p * (len(values) - 1)
+        i = int(x)
+        return values[i] + (values[min(i + 1, len(values) - 1)] - values[i]) * (x - i)
+    return [q(0.25), q(0.5), q(0.75)]
+
+
 def summarise(rows):
     """Per case and rpm: trials, successes, success rate with its Wilson 95 % interval, medians.
     Trials with an injected fault are left out (fault_summary reports them)."""
@@ -134,6 +147,11 @@ def summarise(rows):
             'wilson95': [low, high],
             'median_f_out_n': stats.median([r['f_out_n'] for r in valid]),
             'median_f_in_n': stats.median([r['f_in_n'] for r in valid]),
+            'quartiles_f_out_n': _quartile_values([r['f_out_n'] for r in valid]),
+            'quartiles_f_in_n': _quartile_values([r['f_in_n'] for r in valid]),
+            'defined_f_in': sum(1 for r in valid if r['f_in_n'] is not None),
+            'median_f_out_truth_n': stats.median([r.get('f_out_truth_n') for r in valid]),
+            'median_f_in_truth_n': stats.median([r.get('f_in_truth_n') for r in valid]),
             'median_residual_mm_successful': stats.median(
                 [r['residual_mm'] for r in valid if r['success']]),
             'median_tracking_rms_mm': stats.median([r['tracking_rms_mm'] for r in valid]),
@@ -397,7 +415,62 @@ def _bone_motion(meta):
     return 'Prediction model: %s.' % model
 
 
+def _quartiles(q):
+    return '%.2f [%.2f, %.2f]' % (q[1], q[0], q[2]) if q else '-'
+
+
+def peak_force_section(summary):
+    """Protocol peak_forces (paper Sec. V-D, Fig. 16): F_out and F_in per case, as the paper reads
+    them (the recognizer's averaged force) and before the sensor (ground truth), and each moving
+    case's median minus the stationary one beside the paper's."""
+    lines = ['| case | rpm | trials | F_out median [IQR] [N] | F_in median [IQR] [N] | F_in defined '
+             '| ground truth F_out / F_in [N] | F_out vs stationary | F_in vs stationary '
+             '| paper (Sec. V-D) |', '|---|---|---|---|---|---|---|---|---|---|']
+    for g in summary:
+        base = next((b for b in summary if b['case'] == 'stationary' and b['rpm'] == g['rpm']),
+                    None)
+        diffs = ['-', '-']
+        if base and g['case'] != 'stationary':
+            for i, key in enumerate(('median_f_out_n', 'median_f_in_n')):
+                if g[key] is not None and base[key]:
+                    diffs[i] = '%+.2f N (%+.0f %%)' % (g[key] - base[key],
+                                                       100.0 * (g[key] - base[key]) / base[key])
+        paper = PAPER_PEAK_DIFFERENCES.get(g['case'])
+        lines.append('| %s | %.0f | %d | %s | %s | %d | %s / %s | %s | %s | %s |' % (
+            g['case'], g['rpm'], g['trials'], _quartiles(g['quartiles_f_out_n']),
+            _quartiles(g['quartiles_f_in_n']), g['defined_f_in'], _num(g['median_f_out_truth_n']), _num(g['median_f_in_truth_n']),
+            diffs[0], diffs[1],
+            ('F_out %+.2f N, F_in %+.2f N' % paper) if paper and g['rpm'] == 12000.0 else '-'))
+    return '\n'.join(lines)
+
+
+def write_peak_force_report(summary, meta, figures, path, notes=''):
+    lines = ['# Campaign report: peak forces', '',
+             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
+             % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
+                meta['trials'], meta['seed']),
+             bone_motion_sentence(meta),
+             'Protocol peak_forces (paper Sec. V-D): the recognizer observes without stopping the '
+             'drill, which goes through the inner cortical layer and is then stopped with '
+             'retreat; successes are not defined. F_out and F_in are the peaks of the '
+             'recognizer\'s averaged force (50-sample blocks, moving average of 10) before and '
+             'after the deepest cut enters the inner cortical layer, up to the first stop, as the '
+             'paper reads them off its force curves (Fig. 16); the ground-truth columns are the '
+             'same peaks of the simulator\'s true thrust in 50-sample blocks, before the sensor '
+             '(core engine).', '', '## Peak forces (Fig. 16)', '', peak_force_section(summary), '']
+    if notes:
+        lines += [notes.strip(), '']
+    if figures:
+        lines += ['## Figures', '']
+        for title, name in figures:
+            lines += ['### %s' % title, '', '![%s](%s)' % (title, name), '']
+    with atomic_write(path) as handle:
+        handle.write('\n'.join(lines) + '\n')
+
+
 def write_report_md(summary, meta, figures, path, notes='', faults=None):
+    if meta.get('protocol') == 'peak_forces':
+        return write_peak_force_report(summary, meta, figures, path, notes)
     lines = ['# Campaign report', '',
              'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),

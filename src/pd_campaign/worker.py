@@ -82,12 +82,16 @@ def tracking_error(truth, t_start, t_end):
     return float(np.sqrt(np.mean(residual ** 2))), float(np.max(np.abs(residual)))
 
 
-def peak_forces(states, truth):
-    """F_out: peak averaged thrust before the tip enters the inner cortical layer; F_in: peak
-    after it (the averaged force of the cancellous layer between is lower than both)."""
+def peak_forces(states, truth, t_stop=None):
+    """F_out and F_in as the paper reads them (Sec. V-D, Fig. 16): peaks of the recognizer's
+    averaged force (the DrillingState force), F_out before the tip's deepest cut enters the
+    inner cortical layer, F_in after it, both up to the first stop command `t_stop` (under the
+    recognition protocol the recognizer's own stop; the drill is not cutting after it). The
+    cancellous layer between is lower than both. None: no sample in that window."""
     inner_start = next((t for (t, layer, *_rest) in truth if layer == 'inner_cortical'), None)
-    out = [f for (t, f, *_r) in states if inner_start is None or t < inner_start]
-    inn = [f for (t, f, *_r) in states if inner_start is not None and t >= inner_start]
+    kept = [(t, f) for (t, f, *_r) in states if t_stop is None or t <= t_stop]
+    out = [f for (t, f) in kept if inner_start is None or t < inner_start]
+    inn = [f for (t, f) in kept if inner_start is not None and t >= inner_start]
     return (max(out) if out else None), (max(inn) if inn else None)
 
 
@@ -279,7 +283,14 @@ def analyse_trial(recorder, row, trial, trace_dir):
                           and 0.0 < truth.residual_inner_cortical_m <= 2.0e-3)
     states = [s for s in recorder.states if s[0] >= t_drill]
     truth_rows = [r for r in recorder.truth if r[0] >= t_drill]
-    row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows)
+    row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows, stop[0] if stop else None)
+    # The same peaks of the true thrust, block-averaged like the recognizer's force but before
+    # the sensor (core engine; the ROS pipeline publishes no such peaks): the sensor chain's
+    # share of F_out / F_in is the difference. 0 means the layer was not reached.
+    peaks = getattr(recorder, 'truth_peaks', None)
+    row['f_out_truth_n'], row['f_in_truth_n'] = (
+        (peaks[0] or None, peaks[1] or None) if peaks else (None, None))
+    row['protocol'] = getattr(recorder, 'protocol', 'recognition')
     t1 = stop[0] if stop else (recorder.truth[-1][0] if recorder.truth else t_drill)
     # Tracking while cutting: from the first contact to the stop. Before the first contact the
     # tip moves through air with no thrust and so no deflection; how long that lasts depends on

@@ -18,6 +18,7 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <fstream>
 #include <iostream>
@@ -80,6 +81,9 @@ json recordToJson(const pd::EngineTrialRecord& r) {
             {"inner_cortical_start_m", g.inner_cortical_start_m}}},
           {"states", states},
           {"key_points", key_points},
+          {"truth_peaks_n", {r.truth_peak_outer_n, r.truth_peak_inner_n}},
+          {"recognizer_stop_t",
+           std::isnan(r.recognizer_stop_t) ? json(nullptr) : json(r.recognizer_stop_t)},
           {"truth", truth},
           {"stops", stops},
           {"status", status},
@@ -123,6 +127,7 @@ struct Options {
   std::string compensator_class = "pedicle_drilling/PaperCompensator";
   std::vector<std::string> compensator_params;
   std::vector<std::string> simulator_params;
+  std::string protocol = "recognition";
   bool list_faults = false;
 };
 
@@ -194,6 +199,10 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "recognizer or compensator\")");
   app->add_option("--compensator-param", o->compensator_params,
                   "name=value for the compensator (repeatable)");
+  app->add_option("--protocol", o->protocol,
+                  "recognition (the recognizer stops the drill) or peak_forces (it observes; the "
+                  "drill goes through the inner layer: the paper's Sec. V-D force trials)")
+      ->check(CLI::IsMember({"recognition", "peak_forces"}));
   app->add_option("--simulator-param", o->simulator_params,
                   "name=value for the simulation, named as the Simulator nodelet's parameters "
                   "(repeatable; e.g. trial_distribution/patient/amplitude_scale_sd=0.2; `rosrun "
@@ -298,6 +307,7 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
       spec.feed_rate_mm_s = o.feed_rate;
       spec.max_duration_s = o.max_duration;
       spec.fault = pd::parseFaultKind(t.value("fault", std::string("none")));
+      spec.protocol = pd::parseTrialProtocol(o.protocol);
       const bool moving = spec.mode != "stationary";
       pd::PatientModel patient = stationary_model;
       if (moving) {
@@ -322,6 +332,7 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
       }
       spec.model = patient.motionModel();
       out["record"] = recordToJson(engine->run(spec));
+      out["record"]["protocol"] = o.protocol;
     } catch (const std::exception& e) {
       out["error"] = e.what();
     }

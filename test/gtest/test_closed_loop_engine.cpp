@@ -228,3 +228,50 @@ TEST(ClosedLoopEngine, ARefusedTrialIsAnErrorNamingTheReason) {
     EXPECT_NE(std::string(e.what()).find("mode"), std::string::npos) << e.what();
   }
 }
+
+// The paper's Sec. V-D force trials (issue 14): the recognizer observes without stopping, the
+// drill goes through the inner layer and is stopped with retreat there; the recognizer's stop
+// time and the ground-truth peaks (block means of the true thrust) are recorded. The same seed
+// under the recognition protocol has the same recognizer output up to its stop, and its
+// ground-truth peaks stop growing at that stop.
+TEST(ClosedLoopEngine, ThePeakForcesProtocolDrillsThroughWithTheRecognizerObserving) {
+  pd::ClosedLoopEngine engine(config());
+  pd::EngineTrialSpec s = spec("stationary", 5);
+  const pd::EngineTrialRecord recognition = engine.run(s);
+  s.protocol = pd::TrialProtocol::kPeakForces;
+  const pd::EngineTrialRecord peaks = engine.run(s);
+  std::cout << "[ trial ] peak_forces seed 5: " << statuses(peaks) << "; truth peaks "
+            << peaks.truth_peak_outer_n << " / " << peaks.truth_peak_inner_n << " N" << std::endl;
+  ASSERT_FALSE(peaks.stops.empty());
+  EXPECT_EQ(peaks.stops[0].source, "/protocol");
+  EXPECT_TRUE(peaks.stops[0].retreat);
+  EXPECT_TRUE(peaks.last_truth.breakthrough);
+  EXPECT_EQ(statuses(peaks), "moving_to_pose registering drilling retreating done");
+  // The recognizer would have stopped where it stopped the recognition trial.
+  ASSERT_FALSE(recognition.stops.empty());
+  EXPECT_EQ(recognition.recognizer_stop_t, recognition.stops[0].t);
+  EXPECT_EQ(peaks.recognizer_stop_t, recognition.recognizer_stop_t);
+  std::size_t shared = 0;
+  while (shared < recognition.states.size() &&
+         recognition.states[shared].t <= recognition.recognizer_stop_t) {
+    ASSERT_LT(shared, peaks.states.size());
+    EXPECT_EQ(peaks.states[shared].averaged_force, recognition.states[shared].averaged_force);
+    ++shared;
+  }
+  EXPECT_GT(shared, 100u);
+  // Both peaks are the stationary law's (about 3 N, doc/simulator_physics.md); the recognition
+  // trial's inner peak is taken up to its stop only, so it is not above the full layer's.
+  EXPECT_GT(peaks.truth_peak_outer_n, 2.0);
+  EXPECT_LT(peaks.truth_peak_outer_n, 4.5);
+  EXPECT_GT(peaks.truth_peak_inner_n, 2.0);
+  EXPECT_LT(peaks.truth_peak_inner_n, 4.5);
+  EXPECT_EQ(recognition.truth_peak_outer_n, peaks.truth_peak_outer_n);
+  EXPECT_LE(recognition.truth_peak_inner_n, peaks.truth_peak_inner_n);
+  EXPECT_GT(recognition.truth_peak_inner_n, 0.0);
+}
+
+TEST(ClosedLoopEngine, ProtocolNames) {
+  EXPECT_EQ(pd::parseTrialProtocol("peak_forces"), pd::TrialProtocol::kPeakForces);
+  EXPECT_STREQ(pd::toString(pd::TrialProtocol::kRecognition), "recognition");
+  EXPECT_THROW(pd::parseTrialProtocol("breakthrough"), std::invalid_argument);
+}

@@ -246,6 +246,7 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('version: 2\ntrials: 3\n', ['version 2 is not supported']),
     ('version: one\ntrials: 3\n', ['version']),
     ('\x00\x01binary', ['--scenario']),
+    ('trials: 1\nprotocol: breakthrough\n', ['protocol', 'breakthrough']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'
@@ -340,3 +341,26 @@ def test_fault_design_pairs_every_fault_with_the_fault_free_trial_of_the_same_se
     plain = build_design(['compensated'], [12000], 3, 7)
     assert [t['seed'] for t in plain] == [t['seed'] for t in design if t['fault'] == 'none']
     assert all('fault' not in t for t in plain)
+
+
+def test_the_peak_forces_protocol_is_refused_by_the_ros_engine(tmp_path):
+    scenario = tmp_path / 'peaks.yaml'
+    scenario.write_text('trials: 1\nprotocol: peak_forces\n')
+    out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
+                          '--scenario', str(scenario), '--out', str(tmp_path / 'out'),
+                          '--engine', 'ros'], capture_output=True, text=True, timeout=60)
+    assert out.returncode == 2, out.stderr
+    assert 'protocol' in out.stderr and 'peak_forces' in out.stderr
+    assert not (tmp_path / 'out').exists()
+
+
+def test_peak_forces_are_read_up_to_the_stop():
+    """F_out before the inner layer's entry, F_in after it, both up to the first stop (the
+    recognizer's averaged force after the stop is not the paper's reading)."""
+    from pd_campaign.worker import peak_forces
+    truth = [(0.0, 'outer_cortical'), (1.0, 'cancellous'), (2.0, 'inner_cortical')]
+    states = [(0.5, 3.0), (1.5, 1.0), (2.5, 2.5), (3.0, 2.8), (3.5, 9.0)]
+    assert peak_forces(states, truth) == (3.0, 9.0)
+    assert peak_forces(states, truth, t_stop=3.0) == (3.0, 2.8)
+    assert peak_forces(states, truth, t_stop=1.8) == (3.0, None)  # stopped before the layer
+    assert peak_forces(states, [(0.0, 'outer_cortical')]) == (9.0, None)

@@ -160,6 +160,38 @@ def test_scenario_simulator_section_reaches_the_core_engine(tmp_path):
     assert not (tmp_path / 'bad_core').exists()
 
 
+def test_the_peak_forces_protocol_reads_both_peaks_in_every_trial(tmp_path):
+    """protocol: peak_forces (paper Sec. V-D) on the core engine: the recognizer observes, every
+    trial goes through the inner layer and is stopped there by the protocol, F_out and F_in are
+    defined in every trial (the recognizer's and the ground truth's), and the report is the
+    peak-force report (no success table)."""
+    scenario = tmp_path / 'peaks.yaml'
+    scenario.write_text('cases: [stationary, uncompensated]\nrpms: [12000]\ntrials: 3\n'
+                        'seed: 77\nbone_motion: model\nprotocol: peak_forces\n')
+    out = tmp_path / 'peaks'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign', '--scenario', str(scenario), '--jobs', '2',
+         '--out', str(out), '--engine', 'core'], capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 6
+    for row in rows:
+        assert row['error'] == '', row['error']
+        assert row['protocol'] == 'peak_forces'
+        assert row['stop_source'] == '/protocol'
+        assert row['breakthrough'] == 'true' and row['success'] == 'false'
+        for column in ('f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n'):
+            assert float(row[column]) > 1.0, (column, row[column])
+    stationary = [r for r in rows if r['case'] == 'stationary']
+    for row in stationary:  # the stationary force law (doc/simulator_physics.md): about 3 N
+        assert 2.3 < float(row['f_out_n']) < 4.0 and 2.0 < float(row['f_in_n']) < 4.0
+    report = (out / 'report.md').read_text()
+    assert 'Peak forces (Fig. 16)' in report and 'Table III' not in report
+    with open(out / 'design.json') as handle:
+        assert json.load(handle)['meta']['protocol'] == 'peak_forces'
+
+
 def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
     """SIGINT to the campaign's process group (a Ctrl-C in its terminal) once a trial has
     finished: exit status 130, the finished trials kept in trials.csv and the report, the

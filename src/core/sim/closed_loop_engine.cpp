@@ -59,6 +59,16 @@ double startPhaseFraction(std::uint64_t seed) {
 
 }  // namespace
 
+const char* toString(TrialProtocol protocol) {
+  return protocol == TrialProtocol::kPeakForces ? "peak_forces" : "recognition";
+}
+
+TrialProtocol parseTrialProtocol(const std::string& name) {
+  if (name == "recognition") return TrialProtocol::kRecognition;
+  if (name == "peak_forces") return TrialProtocol::kPeakForces;
+  throw std::invalid_argument("protocol '" + name + "' is not one of: recognition, peak_forces");
+}
+
 struct ClosedLoopEngine::Impl {
   EngineConfig config;
   std::unique_ptr<ArmCompensation> arm;
@@ -84,6 +94,37 @@ struct ClosedLoopEngine::Impl {
   bool fault_pending = false;  // triggered, waiting for the next breath or command
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
+
+  // The protocol and the ground-truth peaks (record.truth_peak_*).
+  TrialProtocol protocol = TrialProtocol::kRecognition;
+  bool protocol_stopped = false;  // kPeakForces: the stop after the breakthrough was sent
+  double truth_block_sum = 0.0;   // true thrust over the current pre-average block
+  int truth_block_count = 0;
+
+  /** @brief Block means of the true thrust, their peaks per layer up to the first stop. */
+  void updateTruthPeaks(double thrust) {
+    truth_block_sum += thrust;
+    if (++truth_block_count < config.recognizer.pre_average) return;
+    const double mean = truth_block_sum / truth_block_count;
+    truth_block_sum = 0.0;
+    truth_block_count = 0;
+    if (!record.stops.empty()) return;
+    const SimulationGroundTruth g = sim->groundTruth();
+    double& peak = g.max_depth_cut_m > g.inner_cortical_start_m ? record.truth_peak_inner_n
+                                                                : record.truth_peak_outer_n;
+    peak = std::max(peak, mean);
+  }
+
+  /** @brief kPeakForces: once the tip is through the inner layer, stop with retreat. */
+  void updateProtocol() {
+    if (protocol != TrialProtocol::kPeakForces || protocol_stopped) return;
+    if (!sim->groundTruth().breakthrough) return;
+    protocol_stopped = true;
+    const std::string reason = "protocol peak_forces: through the inner cortical layer";
+    record.stops.push_back({now, "/protocol", reason, true});
+    sequencer->onStop(now, true, reason);
+    carryOut();
+  }
 
   void injectFault() {
     record.fault.injected = true;
@@ -229,12 +270,14 @@ struct ClosedLoopEngine::Impl {
   void onRecognizerSample(double t, double thrust) {
     const bool was_stopped = recognizer->output().stop;
     const RecognizerOutput& out = recognizer->push(t, thrust);
+    // Under kPeakForces the recognizer observes: its stop is recorded, never delivered.
+    const bool deliver = protocol == TrialProtocol::kRecognition;
     if (out.new_average) {
       record.states.push_back(
           {t, out.averaged_force, out.feature, toString(out.state), out.last_key_point});
       const int previous = record.key_points.empty() ? 0 : record.key_points.back().first;
       for (int k = previous + 1; k <= out.last_key_point; ++k) record.key_points.emplace_back(k, t);
-      const bool stop = out.stop;
+      const bool stop = out.stop && deliver;
       const std::string name = toString(out.state);
       const int kp = out.last_key_point;
       send(config.delays.stop_to_planner_s, [this, stop, name, kp]() {
@@ -242,7 +285,8 @@ struct ClosedLoopEngine::Impl {
         carryOut();
       });
     }
-    if (out.stop && !was_stopped) {
+    if (out.stop && !was_stopped) record.recognizer_stop_t = t;
+    if (out.stop && !was_stopped && deliver) {
       const std::string text = recognizer->stopReason();
       record.stops.push_back({t, "/state_recognizer", text, false});
       send(config.delays.stop_to_planner_s, [this, text]() {
@@ -292,6 +336,8 @@ struct ClosedLoopEngine::Impl {
   void step(std::uint64_t n) {
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
+    updateTruthPeaks(s.force.thrust_N);
+    updateProtocol();
     Eigen::Vector3d force = s.measured_wrench.head<3>();
     sequencer->onMonitorAlive(now);  // the monitor runs in this process, every step
     updateFault();
@@ -380,6 +426,10 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.fault_breath_index = -1;
   s.injector = FaultInjector(s.config.faults);
   s.injector.arm(spec.fault);
+  s.protocol = spec.protocol;
+  s.protocol_stopped = false;
+  s.truth_block_sum = 0.0;
+  s.truth_block_count = 0;
   s.now = s.sim->time();
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();

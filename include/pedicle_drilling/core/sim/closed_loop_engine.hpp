@@ -10,6 +10,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -77,6 +78,17 @@ struct EngineConfig {
   FaultParams faults;
 };
 
+/** @brief How a trial ends (EngineTrialSpec::protocol). */
+enum class TrialProtocol {
+  kRecognition,  ///< the recognizer stops the drill (paper Sec. V-E)
+  kPeakForces,   ///< the recognizer observes; the drill goes through the inner layer (Sec. V-D)
+};
+
+/** @brief "recognition" or "peak_forces". */
+const char* toString(TrialProtocol protocol);
+/** @brief Parses "recognition" or "peak_forces". @throws std::invalid_argument naming both. */
+TrialProtocol parseTrialProtocol(const std::string& name);
+
 /** @brief What one trial is run with. */
 struct EngineTrialSpec {
   std::uint64_t seed = 1;
@@ -95,6 +107,14 @@ struct EngineTrialSpec {
    *        breath's start (no step of the bone), the command faults with the next command.
    */
   FaultKind fault = FaultKind::kNone;
+  /**
+   * @brief The trial protocol. kRecognition (the default): the recognizer's stop ends the
+   *        drilling (paper Sec. V-E). kPeakForces: the paper's Sec. V-D force trials, whose
+   *        F_out and F_in (Fig. 16) need the drill through the inner layer: the recognizer
+   *        observes (its states and key points are recorded) but its stop is not delivered, and
+   *        the trial is stopped with retreat once the tip has broken through the inner layer.
+   */
+  TrialProtocol protocol = TrialProtocol::kRecognition;
 };
 
 /** @brief When and how a fault was injected. */
@@ -147,6 +167,18 @@ struct EngineTrialRecord {
   std::vector<EngineStop> stops;
   std::vector<std::pair<double, std::string>> status;  ///< (t, phase)
   EngineFaultRecord fault;
+  /**
+   * @brief Ground-truth peak thrust [N] before / after the tip's deepest cut enters the inner
+   *        cortical layer, up to the first stop command: the simulator's true thrust (no sensor,
+   *        no noise) averaged in blocks of the recognizer's pre-average (50 samples at 1 kHz),
+   *        the quantity the recognizer's averaged force estimates. 0 when the layer was not
+   *        reached. The sensor chain's effect is the difference to the recognizer's peaks.
+   */
+  double truth_peak_outer_n = 0.0;
+  double truth_peak_inner_n = 0.0;  ///< see truth_peak_outer_n
+  /** @brief The recognizer's own stop time [s] (also under kPeakForces, where it is not
+   *         delivered); NaN when it never stopped. */
+  double recognizer_stop_t = std::numeric_limits<double>::quiet_NaN();
 };
 
 /**
