@@ -147,7 +147,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
           pending_amplitude_.reset();
         }
         ++n;
-        publishWrench(step);
+        if (step.force_sampled) publishWrench(step);
         if (n % joint_state_period_ == 0) publishJointStates(t);
         if (n % tf_period_ == 0) publishTf(t);
         if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);

@@ -39,6 +39,9 @@ SCENARIO_KEYS = {
     # the drill goes through the inner layer; F_out / F_in of Fig. 16). Core engine only.
     'protocol': (str, None, None),
     'simulator': (dict, None, None),
+    # {name: value}: any of the Simulator's declared parameters (param_docs), e.g. the force
+    # sensor's chain (force_sensor_rate_hz, force_antialias_cutoff_hz). Core engine only.
+    'simulator_params': (dict, None, None),
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
     'recognizer': (str, None, None),  # a recognizer class (pluginlib name); --recognizer wins
@@ -235,6 +238,9 @@ def parse_args(argv):
                              '(use --engine ros)' % scenario.get('identification'))
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+    elif scenario.get('simulator_params'):
+        raise UsageError('scenario key simulator_params: run by --engine core only (the ROS '
+                         'pipeline\'s Simulator reads its parameters at its start)')
     elif scenario.get('protocol', 'recognition') != 'recognition':
         raise UsageError('scenario key protocol: %r is run by --engine core only (the ROS '
                          'pipeline\'s recognizer always stops the drill)' % scenario['protocol'])
@@ -408,12 +414,14 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['--%s %s does not load' % (kind, name)])[-1])
             return 2
-    if args.engine == 'core' and scenario.get('simulator'):
+    if args.engine == 'core' and (scenario.get('simulator') or scenario.get('simulator_params')):
         # The simulator section, checked by the Simulator's own declaration before anything is
         # written (the ROS engine's simulator checks it at its first reset).
         check = subprocess.run(
             engine_core.tool('trial_engine') + ['--check-simulator'] +
-            engine_core.simulator_params(scenario['simulator']), capture_output=True, text=True)
+            engine_core.simulator_params(scenario.get('simulator'),
+                                         scenario.get('simulator_params')),
+            capture_output=True, text=True)
         if check.returncode != 0:
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['the simulator section was refused'])[-1])
@@ -429,6 +437,7 @@ def run_campaign(argv=None):
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
             'protocol': scenario.get('protocol', 'recognition'),
+            'simulator_params': scenario.get('simulator_params') or {},
             'recognizer': recognizer,
             'compensator': compensator,
             'engine': args.engine}
@@ -484,7 +493,8 @@ def run_campaign(argv=None):
                 [(FAULT_PARAMS[k], float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
                 recognizer, compensator, params['recognizer'], params['compensator'],
-                scenario.get('simulator'), scenario.get('protocol', 'recognition'))))
+                scenario.get('simulator'), scenario.get('protocol', 'recognition'),
+                scenario.get('simulator_params'))))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

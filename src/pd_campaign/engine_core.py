@@ -37,7 +37,8 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                          fault_options=(), recognizer='pedicle_drilling/PaperRecognizer',
                          compensator='pedicle_drilling/PaperCompensator',
                          recognizer_params=None, compensator_params=None,
-                         simulator_overrides=None, protocol='recognition'):
+                         simulator_overrides=None, protocol='recognition',
+                         simulator_settings=None):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15);
     `simulator_overrides`: the scenario's `simulator:` section, {group: {key: value}}, passed as
     the Simulator's parameters trial_distribution/<group>/<key> (the same declaration checks
@@ -59,19 +60,21 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                            ('--compensator-param', compensator_params)):
         for name, value in sorted((params or {}).items()):
             command += [option, '%s=%s' % (name, value)]
-    for item in simulator_params(simulator_overrides):
+    for item in simulator_params(simulator_overrides, simulator_settings):
         command += ['--simulator-param', item]
     if protocol != 'recognition':
         command += ['--protocol', protocol]
     return command
 
 
-def simulator_params(section):
+def simulator_params(section, settings=None):
     """The scenario's `simulator:` section, {group: {key: value}}, as the Simulator's parameters
-    `trial_distribution/<group>/<key>=<value>`."""
+    `trial_distribution/<group>/<key>=<value>`, then its `simulator_params:` {name: value}."""
     return ['trial_distribution/%s/%s=%r' % (group, key, float(value))
             for group, values in sorted((section or {}).items())
-            for key, value in sorted(values.items())]
+            for key, value in sorted(values.items())] + [
+        '%s=%s' % (name, str(value).lower() if isinstance(value, bool) else value)
+        for name, value in sorted((settings or {}).items())]
 
 
 def fault_columns(row, record):

@@ -450,6 +450,9 @@ def write_peak_force_report(summary, meta, figures, path, notes=''):
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
                 meta['trials'], meta['seed']),
              bone_motion_sentence(meta),
+             'Simulator parameters: %s.' % (', '.join(
+                 '%s = %s' % kv for kv in sorted((meta.get('simulator_params') or {}).items()))
+                 or 'the defaults'),
              'Protocol peak_forces (paper Sec. V-D): the recognizer observes without stopping the '
              'drill, which goes through the inner cortical layer and is then stopped with '
              'retreat; successes are not defined. F_out and F_in are the peaks of the '

@@ -5,7 +5,10 @@
  */
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <stdexcept>
+#include <utility>
 #include <vector>
 
 #include "pedicle_drilling/core/drilling/force_sensor.hpp"
@@ -133,6 +136,95 @@ TEST(ForceSensor, DriftIsARandomWalk) {
     sum2 += s.bias()[2] * s.bias()[2];
   }
   EXPECT_NEAR(std::sqrt(sum2 / seeds), 0.005, 0.002);
+}
+
+// The measurement chain (issue 14): sample() at the physics rate with the default chain (1 kHz
+// output, no filter) is measure() bit for bit, so the default simulation is unchanged.
+TEST(ForceSensorChain, TheDefaultChainIsMeasureBitForBit) {
+  ForceSensor direct(9, ForceSensorParams());
+  ForceSensor chain(9, ForceSensorParams());
+  Wrench w = Wrench::Zero();
+  for (int i = 0; i < 2000; ++i) {
+    w[2] = 3.0 * std::sin(0.01 * i);
+    Wrench out;
+    ASSERT_TRUE(chain.sample(w, 12000.0, true, &out));
+    const Wrench expected = direct.measure(w, 12000.0, true);
+    for (int k = 0; k < 6; ++k) ASSERT_EQ(out[k], expected[k]) << i;
+  }
+}
+
+// A slower DAQ takes one sample every rate / output_rate calls, of the signal at that instant.
+TEST(ForceSensorChain, ASlowerDaqSamplesEveryNthCall) {
+  ForceSensorParams p = quietParams();
+  p.force_noise_sd_n = 0.0;
+  p.torque_noise_sd_nm = 0.0;
+  p.quantize = false;
+  p.output_rate_hz = 100.0;
+  ForceSensor sensor(3, p);
+  sensor.tare();
+  int samples = 0;
+  for (int i = 1; i <= 1000; ++i) {
+    Wrench w = Wrench::Zero();
+    w[2] = static_cast<double>(i);
+    Wrench out = Wrench::Constant(-1.0);
+    const bool taken = sensor.sample(w, 0.0, false, &out);
+    EXPECT_EQ(taken, i % 10 == 0) << i;
+    if (taken) {
+      ++samples;
+      EXPECT_DOUBLE_EQ(out[2], static_cast<double>(i));
+    }
+  }
+  EXPECT_EQ(samples, 100);
+  p.output_rate_hz = 300.0;  // does not divide 1000 Hz
+  EXPECT_THROW(ForceSensor(3, p), std::invalid_argument);
+}
+
+// The anti-alias Butterworth filter: unit gain at DC, -3 dB at the cut-off, and a 200 Hz
+// spindle tone (12000 rpm) far below the noise after a 4th-order 50 Hz filter. Without it, a
+// 100 Hz DAQ folds the 200 Hz tone onto DC (aliasing), which the recognizer's averaging
+// cannot remove.
+TEST(ForceSensorChain, TheAntiAliasFilterPassesDcAndStopsTheSpindleTone) {
+  // (smallest, largest) error of the samples taken after the filter settled, for the input
+  // 1 N + a sine of 1 N at f_hz.
+  auto errors = [](double cutoff_hz, int order, double f_hz, double output_hz) {
+    ForceSensorParams p = quietParams();
+    p.force_noise_sd_n = 0.0;
+    p.torque_noise_sd_nm = 0.0;
+    p.quantize = false;
+    p.antialias_cutoff_hz = cutoff_hz;
+    p.antialias_order = order;
+    p.output_rate_hz = output_hz;
+    ForceSensor sensor(5, p);
+    sensor.tare();
+    double low = 1e9;
+    double high = -1e9;
+    for (int i = 0; i < 4000; ++i) {
+      Wrench w = Wrench::Zero();
+      w[2] = 1.0 + (f_hz > 0.0 ? std::sin(2.0 * kPi * f_hz * i / 1000.0 + 0.3) : 0.0);
+      Wrench out;
+      if (sensor.sample(w, 0.0, false, &out) && i > 2000) {
+        low = std::min(low, out[2] - 1.0);
+        high = std::max(high, out[2] - 1.0);
+      }
+    }
+    return std::make_pair(low, high);
+  };
+  auto amplitude = [&errors](double cutoff_hz, int order, double f_hz) {
+    const auto [low, high] = errors(cutoff_hz, order, f_hz, 1000.0);
+    return std::max(std::abs(low), std::abs(high));
+  };
+  EXPECT_NEAR(amplitude(50.0, 2, 0.0), 0.0, 1e-9);  // unit gain at DC
+  for (int order = 1; order <= 4; ++order) {
+    EXPECT_NEAR(amplitude(50.0, order, 50.0), std::sqrt(0.5), 0.02) << order;  // -3 dB
+  }
+  EXPECT_LT(amplitude(50.0, 4, 200.0), 0.01);
+  // Aliasing at 100 Hz without a filter: the 200 Hz tone is sampled at the same phase every
+  // time, a constant error (the tone folded onto DC); with the filter it is gone.
+  const auto [low, high] = errors(0.0, 2, 200.0, 100.0);
+  EXPECT_NEAR(low, high, 1e-9);
+  EXPECT_GT(std::abs(low), 0.1);
+  const auto [flow, fhigh] = errors(40.0, 4, 200.0, 100.0);
+  EXPECT_LT(std::max(std::abs(flow), std::abs(fhigh)), 0.01);
 }
 
 }  // namespace

@@ -185,6 +185,9 @@ TEST(NodeParams, ChecksBetweenFieldsNameTheParameter) {
   pd::SimulatorNodeParams simulator;
   simulator.sim.arm_rate_hz = 300.0;
   EXPECT_EQ(errorOf([&] { simulator.validate(); }).rfind("arm_rate_hz", 0), 0u);
+  simulator = pd::SimulatorNodeParams();
+  simulator.sim.sensor.output_rate_hz = 300.0;  // not a divisor of the 1000 Hz physics
+  EXPECT_EQ(errorOf([&] { simulator.validate(); }).rfind("force_sensor_rate_hz", 0), 0u);
 }
 
 TEST(NodeParams, TheRecognizerTableServesPluginSettingsToo) {

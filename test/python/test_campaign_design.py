@@ -247,6 +247,8 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('version: one\ntrials: 3\n', ['version']),
     ('\x00\x01binary', ['--scenario']),
     ('trials: 1\nprotocol: breakthrough\n', ['protocol', 'breakthrough']),
+    ('trials: 1\nsimulator_params: {no_such_rate: 1}\n', ["unknown parameter 'no_such_rate'"]),
+    ('trials: 1\nsimulator_params: {force_sensor_rate_hz: 300}\n', ['force_sensor_rate_hz']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'
@@ -343,14 +345,18 @@ def test_fault_design_pairs_every_fault_with_the_fault_free_trial_of_the_same_se
     assert all('fault' not in t for t in plain)
 
 
-def test_the_peak_forces_protocol_is_refused_by_the_ros_engine(tmp_path):
+@pytest.mark.parametrize('text, named', [
+    ('trials: 1\nprotocol: peak_forces\n', 'peak_forces'),
+    ('trials: 1\nsimulator_params: {force_sensor_rate_hz: 200}\n', 'simulator_params'),
+])
+def test_core_engine_settings_are_refused_by_the_ros_engine(tmp_path, text, named):
     scenario = tmp_path / 'peaks.yaml'
-    scenario.write_text('trials: 1\nprotocol: peak_forces\n')
+    scenario.write_text(text)
     out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),
                           '--scenario', str(scenario), '--out', str(tmp_path / 'out'),
                           '--engine', 'ros'], capture_output=True, text=True, timeout=60)
     assert out.returncode == 2, out.stderr
-    assert 'protocol' in out.stderr and 'peak_forces' in out.stderr
+    assert named in out.stderr
     assert not (tmp_path / 'out').exists()
 
 

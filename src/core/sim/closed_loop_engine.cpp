@@ -100,11 +100,13 @@ struct ClosedLoopEngine::Impl {
   bool protocol_stopped = false;  // kPeakForces: the stop after the breakthrough was sent
   double truth_block_sum = 0.0;   // true thrust over the current pre-average block
   int truth_block_count = 0;
+  int sensor_decimation = 1;      // physics steps per force-sensor sample
 
   /** @brief Block means of the true thrust, their peaks per layer up to the first stop. */
   void updateTruthPeaks(double thrust) {
     truth_block_sum += thrust;
-    if (++truth_block_count < config.recognizer.pre_average) return;
+    // The recognizer's block: pre_average sensor samples, in physics steps.
+    if (++truth_block_count < config.recognizer.pre_average * sensor_decimation) return;
     const double mean = truth_block_sum / truth_block_count;
     truth_block_sum = 0.0;
     truth_block_count = 0;
@@ -341,7 +343,7 @@ struct ClosedLoopEngine::Impl {
     Eigen::Vector3d force = s.measured_wrench.head<3>();
     sequencer->onMonitorAlive(now);  // the monitor runs in this process, every step
     updateFault();
-    if (faultyForce(&force)) {
+    if (s.force_sampled && faultyForce(&force)) {
       const double thrust = force.z();  // config/recognizer.yaml axis: z
       const double t = now;
       // The StateRecognizer nodelet drops a non-finite sample (counted, warned); the monitor
@@ -430,6 +432,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.protocol_stopped = false;
   s.truth_block_sum = 0.0;
   s.truth_block_count = 0;
+  s.sensor_decimation = static_cast<int>(
+      std::lround(s.config.simulation.physics_rate_hz / s.config.simulation.sensor.output_rate_hz));
   s.now = s.sim->time();
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();

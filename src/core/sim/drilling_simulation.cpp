@@ -143,6 +143,21 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number(
             "force_noise_sd_n", [](const P& v) { return v.sensor.force_noise_sd_n; },
             [](P& v, double x) { v.sensor.force_noise_sd_n = x; }, Range::closed(0, 10), "N")
+        .number(
+            "force_sensor_rate_hz", [](const P& v) { return v.sensor.output_rate_hz; },
+            [](P& v, double x) { v.sensor.output_rate_hz = x; }, Range::aboveUpTo(0, 1000), "Hz")
+        .number(
+            "force_antialias_cutoff_hz", [](const P& v) { return v.sensor.antialias_cutoff_hz; },
+            [](P& v, double x) { v.sensor.antialias_cutoff_hz = x; }, Range::fromBelow(0, 500),
+            "Hz")
+        .integer(
+            "force_antialias_order",
+            [](const P& v) { return static_cast<double>(v.sensor.antialias_order); },
+            [](P& v, double x) { v.sensor.antialias_order = static_cast<int>(x); },
+            Range::closed(1, 8))
+        .number(
+            "force_resolution_n", [](const P& v) { return v.sensor.force_resolution_n; },
+            [](P& v, double x) { v.sensor.force_resolution_n = x; }, Range::closed(0, 1), "N")
         .flag("moving_bone", &P::moving_bone)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
@@ -157,6 +172,12 @@ void DrillingSimulationParams::validate() const {
   if (std::abs(physics_rate_hz / arm_rate_hz - std::round(physics_rate_hz / arm_rate_hz)) > 1e-9) {
     throw std::invalid_argument("arm_rate_hz must divide the " + Range::format(physics_rate_hz) +
                                 " Hz physics rate (e.g. 1000, 500, 250)");
+  }
+  const double decimation = physics_rate_hz / sensor.output_rate_hz;
+  if (std::abs(decimation - std::round(decimation)) > 1e-9) {
+    throw std::invalid_argument("force_sensor_rate_hz must divide the " +
+                                Range::format(physics_rate_hz) +
+                                " Hz physics rate (e.g. 1000, 500, 250, 100)");
   }
   ventilator.validate();
   specimen.validate();
@@ -559,6 +580,7 @@ struct DrillingSimulation::Impl {
     breathing.tv_max_ml = drawn.ventilator_tidal_volume_ml;
     breathing.validate();
     ForceSensorParams sensor_params = params.sensor;
+    sensor_params.rate_hz = params.physics_rate_hz;  // sample() is called every physics step
     if (params.sensor.force_noise_sd_n > 0.0) {
       const double noise_scale = drawn.force_noise_sd_n / params.sensor.force_noise_sd_n;
       sensor_params.force_noise_sd_n = drawn.force_noise_sd_n;
@@ -773,7 +795,8 @@ SimulationStep DrillingSimulation::stepOnce() {
   out.layer_changed = s.cutLayer() != before;
   Wrench truth = Wrench::Zero();
   truth[2] = s.last_force.thrust_N;
-  out.measured_wrench = s.sensor->measure(truth, s.spindle_rpm, s.last_force.contact);
+  out.force_sampled =
+      s.sensor->sample(truth, s.spindle_rpm, s.last_force.contact, &out.measured_wrench);
   return out;
 }
 

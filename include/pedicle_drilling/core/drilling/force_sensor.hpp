@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <random>
+#include <vector>
 
 #include "pedicle_drilling/core/sim/normal_source.hpp"
 
@@ -24,6 +25,16 @@ using Wrench = Eigen::Matrix<double, 6, 1>;
 /** @brief Sensor model parameters. Defaults and sources: doc/simulator_physics.md. */
 struct ForceSensorParams {
   double rate_hz = 1000.0;                      ///< output rate (one measure() call per sample)
+  /**
+   * @brief Rate [Hz] at which the DAQ samples the (filtered) signal: sample() is called at
+   *        rate_hz (the physics) and outputs one sample every rate_hz / output_rate_hz calls
+   *        (an integer). The paper does not state its sensor's rate (calibration.md).
+   */
+  double output_rate_hz = 1000.0;
+  /** @brief Anti-alias low-pass cut-off [Hz] before the sampling (Butterworth); 0: none. */
+  double antialias_cutoff_hz = 0.0;
+  /** @brief Order of the anti-alias Butterworth filter (1-8). */
+  int antialias_order = 2;
   double force_noise_sd_n = 0.03;               ///< white noise SD per force axis [N]
   double torque_noise_sd_nm = 0.5e-3;           ///< white noise SD per torque axis [N m]
   double force_bias_sd_n = 0.2;                 ///< SD of the initial (untared) force bias [N]
@@ -59,6 +70,16 @@ class ForceSensor {
    */
   Wrench measure(const Wrench& true_wrench, double spindle_rpm, bool in_contact = true);
 
+  /**
+   * @brief The measurement chain, called at rate_hz: the analog signal (true wrench and the
+   *        spindle vibration) through the anti-alias filter, sampled every rate_hz /
+   *        output_rate_hz calls, where noise, bias drift and quantisation are added.
+   * @param out the sample, written only when one is taken
+   * @return true when a sample was taken (this call is a DAQ sample instant)
+   * With output_rate_hz = rate_hz and no filter this is measure() exactly, bit for bit.
+   */
+  bool sample(const Wrench& true_wrench, double spindle_rpm, bool in_contact, Wrench* out);
+
   /** @brief Convenience: measured Fz for a pure axial thrust (true wrench = [0,0,F,0,0,0]). */
   double measureAxial(double true_thrust_n, double spindle_rpm, bool in_contact = true);
 
@@ -81,6 +102,18 @@ class ForceSensor {
   NormalSource normal_;  ///< noise, bias and phase deviates
   Wrench bias_ = Wrench::Zero();
   Wrench tare_offset_ = Wrench::Zero();
+  /** @brief One biquad section (direct form II transposed) per force/torque axis. */
+  struct Section {
+    double b0 = 1.0, b1 = 0.0, b2 = 0.0, a1 = 0.0, a2 = 0.0;
+    Wrench z1 = Wrench::Zero(), z2 = Wrench::Zero();
+  };
+  Wrench filter(const Wrench& x);
+  Wrench vibration(double spindle_rpm, bool in_contact, double dt);
+  Wrench finish(Wrench out, double dt);
+
+  std::vector<Section> sections_;  ///< the anti-alias filter (empty: none)
+  int decimation_ = 1;             ///< rate_hz / output_rate_hz
+  std::uint64_t calls_ = 0;        ///< sample() calls
   double spindle_phase_ = 0.0;
   double vibration_phase0_ = 0.0;
   std::uint64_t samples_ = 0;

@@ -199,6 +199,9 @@ std::uint64_t streamPeriodSteps(double physics_rate_hz, double rate_hz, const st
 struct SimulationStep {
   double time_s = 0.0;                      ///< simulation time at the end of the step
   Wrench measured_wrench = Wrench::Zero();  ///< force-sensor sample (sensor frame)
+  /** @brief A force-sensor sample was taken in this step (every step at the default 1 kHz
+   *         sensor; else every physics / sensor rate steps); measured_wrench is valid only then. */
+  bool force_sampled = true;
   ForceSample force;                        ///< true drilling output of the step
   double tip_depth_m = 0.0;    ///< tip depth below the bone top surface (negative: above)
   bool layer_changed = false;  ///< the layer at the deepest cut changed in this step

@@ -1,0 +1,72 @@
+"""The simulator's calibration against the paper's force figures (issue 14,
+doc/simulator_physics.md "Measurement chain"), re-checked: the peak_forces protocol at the
+calibrated DAQ rate, on the documented seed, reproduces Fig. 16 within the stated tolerances, and
+the documented row of that rate within sampling error. 40 trials per case here (200 in the doc)."""
+import csv
+import os
+import re
+import statistics
+import subprocess
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+# Paper Sec. V-D (Fig. 16): stationary medians (1.2 N / 0.38, 1.43 N / 0.497) and each moving
+# case's median difference to the stationary one, in percent.
+PAPER_STATIONARY = (3.16, 2.88)
+PAPER_DIFFERENCE = {'uncompensated': (-38.0, -49.7), 'compensated': (-13.0, -0.2)}
+STATIONARY_TOLERANCE = 0.20  # relative (issue 14: stationary medians within 20 %)
+DIFFERENCE_TOLERANCE = 16.0  # percentage points, 40 trials per case
+
+
+def documented_row(rate):
+    """(stationary F_out, F_in) of the calibration table's row for `rate` Hz."""
+    with open(os.path.join(ROOT, 'doc', 'simulator_physics.md')) as handle:
+        for line in handle:
+            m = re.match(r'^\|\s*\**%d Hz\**\s*\|\s*([\d.]+) / ([\d.]+)\s*\|' % rate, line)
+            if m:
+                return float(m.group(1)), float(m.group(2))
+    raise AssertionError('no %d Hz row in the calibration table' % rate)
+
+
+@pytest.fixture(scope='module')
+def calibrated(tmp_path_factory):
+    scenario_text = open(os.path.join(ROOT, 'config', 'scenario_peak_forces.yaml')).read()
+    rate = int(re.search(r'force_sensor_rate_hz:\s*(\d+)', scenario_text).group(1))
+    scenario = tmp_path_factory.mktemp('calibration') / 'scenario.yaml'
+    scenario.write_text(re.sub(r'(?m)^trials:.*$', 'trials: 40', scenario_text))
+    out = scenario.parent / 'out'
+    result = subprocess.run(['rosrun', 'pedicle_drilling', 'campaign', '--scenario',
+                             str(scenario), '--out', str(out), '--jobs', '2', '--engine', 'core'],
+                            capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(out / 'trials.csv') as handle:
+        rows = list(csv.DictReader(handle))
+    medians = {}
+    for case in ('stationary', 'uncompensated', 'compensated'):
+        sel = [r for r in rows if r['case'] == case]
+        assert len(sel) == 40 and all(r['f_in_n'] for r in sel), case  # F_in in every trial
+        medians[case] = (statistics.median(float(r['f_out_n']) for r in sel),
+                         statistics.median(float(r['f_in_n']) for r in sel))
+    return rate, medians
+
+
+def test_stationary_medians_are_the_papers(calibrated):
+    _, medians = calibrated
+    for ours, paper in zip(medians['stationary'], PAPER_STATIONARY):
+        assert abs(ours - paper) <= STATIONARY_TOLERANCE * paper, (ours, paper)
+
+
+@pytest.mark.parametrize('case', sorted(PAPER_DIFFERENCE))
+def test_moving_case_differences_are_the_papers(calibrated, case):
+    _, medians = calibrated
+    base = medians['stationary']
+    for ours, stationary, paper in zip(medians[case], base, PAPER_DIFFERENCE[case]):
+        difference = 100.0 * (ours - stationary) / stationary
+        assert abs(difference - paper) <= DIFFERENCE_TOLERANCE, (case, difference, paper)
+
+
+def test_the_documented_row_is_reproduced(calibrated):
+    rate, medians = calibrated
+    for ours, documented in zip(medians['stationary'], documented_row(rate)):
+        assert abs(ours - documented) <= 0.25, (ours, documented)
