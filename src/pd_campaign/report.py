@@ -461,6 +461,11 @@ def write_peak_force_report(summary, meta, figures, path, notes=''):
              'paper reads them off its force curves (Fig. 16); the ground-truth columns are the '
              'same peaks of the simulator\'s true thrust in 50-sample blocks, before the sensor '
              '(core engine).', '', '## Peak forces (Fig. 16)', '', peak_force_section(summary), '']
+    _write_with_notes_and_figures(lines, notes, figures, path)
+
+
+def _write_with_notes_and_figures(lines, notes, figures, path):
+    """Appends the notes and the figures to the report's lines and writes it atomically."""
     if notes:
         lines += [notes.strip(), '']
     if figures:
@@ -524,11 +529,4 @@ def write_report_md(summary, meta, figures, path, notes='', faults=None):
                   'delay: fault to the start of the retreat; residual: inner cortical thickness '
                   'left at the end of the trial (negative: broken through).', '',
                   fault_table(faults), '']
-    if notes:
-        lines += [notes.strip(), '']
-    if figures:
-        lines += ['## Figures', '']
-        for title, name in figures:
-            lines += ['### %s' % title, '', '![%s](%s)' % (title, name), '']
-    with atomic_write(path) as handle:
-        handle.write('\n'.join(lines) + '\n')
+    _write_with_notes_and_figures(lines, notes, figures, path)

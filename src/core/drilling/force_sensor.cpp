@@ -16,7 +16,8 @@ constexpr double kPi = 3.14159265358979323846;
 namespace {
 
 /** @brief Butterworth low-pass of order n at fc for sample rate fs: bilinear transform (cut-off
- *  pre-warped), as biquads with the Butterworth pole Qs, and one first-order section if n is odd. */
+ *  pre-warped), as biquads with the Butterworth pole Qs, and one first-order section if n is odd.
+ */
 template <class Section>
 std::vector<Section> butterworth(int n, double fc, double fs) {
   std::vector<Section> out;
@@ -66,8 +67,8 @@ ForceSensor::ForceSensor(std::uint64_t seed, ForceSensorParams params)
       throw std::invalid_argument(
           "ForceSensor: antialias_cutoff_hz must be below rate_hz / 2, antialias_order in 1..8");
     }
-    sections_ = butterworth<Section>(params_.antialias_order, params_.antialias_cutoff_hz,
-                                     params_.rate_hz);
+    sections_ =
+        butterworth<Section>(params_.antialias_order, params_.antialias_cutoff_hz, params_.rate_hz);
   }
   for (int i = 0; i < 3; ++i) bias_[i] = params_.force_bias_sd_n * normal();
   for (int i = 3; i < 6; ++i) bias_[i] = params_.torque_bias_sd_nm * normal();
@@ -80,40 +81,10 @@ void ForceSensor::tare() { tare_offset_ = bias_; }
 
 Wrench ForceSensor::measure(const Wrench& true_wrench, double spindle_rpm, bool in_contact) {
   const double dt = 1.0 / params_.rate_hz;
-  // Bias random walk.
-  const double sq = std::sqrt(dt);
-  for (int i = 0; i < 3; ++i) bias_[i] += params_.force_drift_n_per_sqrt_s * sq * normal();
-  for (int i = 3; i < 6; ++i) bias_[i] += params_.torque_drift_nm_per_sqrt_s * sq * normal();
-
-  Wrench out = true_wrench + bias_ - tare_offset_;
-  for (int i = 0; i < 3; ++i) out[i] += params_.force_noise_sd_n * normal();
-  for (int i = 3; i < 6; ++i) out[i] += params_.torque_noise_sd_nm * normal();
-
-  // Spindle-synchronous vibration (runout / imbalance at f = rpm/60, flute passing at 2f).
-  spindle_phase_ = std::fmod(spindle_phase_ + 2.0 * kPi * (spindle_rpm / 60.0) * dt, 2.0 * kPi);
-  const bool vibrate = spindle_rpm > 0.0 && (in_contact || !params_.vibration_only_in_contact);
-  if (vibrate) {
-    const double ph = spindle_phase_ + vibration_phase0_;
-    out[0] += params_.spindle_vibration_lateral_n * std::cos(ph);
-    out[1] += params_.spindle_vibration_lateral_n * std::sin(ph);
-    out[2] += params_.spindle_vibration_axial_n * std::sin(ph) +
-              params_.flute_harmonic_axial_n * std::sin(2.0 * ph);
-  }
-
-  if (params_.quantize) {
-    for (int i = 0; i < 3; ++i) {
-      if (params_.force_resolution_n > 0.0) {
-        out[i] = std::round(out[i] / params_.force_resolution_n) * params_.force_resolution_n;
-      }
-    }
-    for (int i = 3; i < 6; ++i) {
-      if (params_.torque_resolution_nm > 0.0) {
-        out[i] = std::round(out[i] / params_.torque_resolution_nm) * params_.torque_resolution_nm;
-      }
-    }
-  }
-  ++samples_;
-  return out;
+  // Spindle-synchronous vibration (runout / imbalance at f = rpm/60, flute passing at 2f),
+  // added after the noise as the direct chain always did.
+  const Wrench v = vibration(spindle_rpm, in_contact, dt);
+  return finish(true_wrench, dt, v);
 }
 
 Wrench ForceSensor::vibration(double spindle_rpm, bool in_contact, double dt) {
@@ -140,13 +111,15 @@ Wrench ForceSensor::filter(const Wrench& x) {
   return y;
 }
 
-Wrench ForceSensor::finish(Wrench out, double dt) {
+Wrench ForceSensor::finish(const Wrench& signal, double dt, const Wrench& late) {
+  // Bias random walk over the sample interval.
   const double sq = std::sqrt(dt);
   for (int i = 0; i < 3; ++i) bias_[i] += params_.force_drift_n_per_sqrt_s * sq * normal();
   for (int i = 3; i < 6; ++i) bias_[i] += params_.torque_drift_nm_per_sqrt_s * sq * normal();
-  out += bias_ - tare_offset_;
+  Wrench out = signal + bias_ - tare_offset_;
   for (int i = 0; i < 3; ++i) out[i] += params_.force_noise_sd_n * normal();
   for (int i = 3; i < 6; ++i) out[i] += params_.torque_noise_sd_nm * normal();
+  out += late;
   if (params_.quantize) {
     for (int i = 0; i < 3; ++i) {
       if (params_.force_resolution_n > 0.0) {
@@ -172,7 +145,7 @@ bool ForceSensor::sample(const Wrench& true_wrench, double spindle_rpm, bool in_
   const Wrench analog = true_wrench + vibration(spindle_rpm, in_contact, 1.0 / params_.rate_hz);
   const Wrench filtered = sections_.empty() ? analog : filter(analog);
   if (++calls_ % static_cast<std::uint64_t>(decimation_) != 0) return false;
-  *out = finish(filtered, static_cast<double>(decimation_) / params_.rate_hz);
+  *out = finish(filtered, static_cast<double>(decimation_) / params_.rate_hz, Wrench::Zero());
   return true;
 }
 

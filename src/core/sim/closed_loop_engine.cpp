@@ -100,7 +100,7 @@ struct ClosedLoopEngine::Impl {
   bool protocol_stopped = false;  // kPeakForces: the stop after the breakthrough was sent
   double truth_block_sum = 0.0;   // true thrust over the current pre-average block
   int truth_block_count = 0;
-  int sensor_decimation = 1;      // physics steps per force-sensor sample
+  int sensor_decimation = 1;  // physics steps per force-sensor sample
 
   /** @brief Block means of the true thrust, their peaks per layer up to the first stop. */
   void updateTruthPeaks(double thrust) {

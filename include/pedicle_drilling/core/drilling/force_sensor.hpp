@@ -24,7 +24,7 @@ using Wrench = Eigen::Matrix<double, 6, 1>;
 
 /** @brief Sensor model parameters. Defaults and sources: doc/simulator_physics.md. */
 struct ForceSensorParams {
-  double rate_hz = 1000.0;                      ///< output rate (one measure() call per sample)
+  double rate_hz = 1000.0;  ///< output rate (one measure() call per sample)
   /**
    * @brief Rate [Hz] at which the DAQ samples the (filtered) signal: sample() is called at
    *        rate_hz (the physics) and outputs one sample every rate_hz / output_rate_hz calls
@@ -109,7 +109,9 @@ class ForceSensor {
   };
   Wrench filter(const Wrench& x);
   Wrench vibration(double spindle_rpm, bool in_contact, double dt);
-  Wrench finish(Wrench out, double dt);
+  /** @brief The DAQ sample of @p signal: bias drift over @p dt, bias, noise, then @p late
+   *         (the direct chain's vibration), quantised. */
+  Wrench finish(const Wrench& signal, double dt, const Wrench& late);
 
   std::vector<Section> sections_;  ///< the anti-alias filter (empty: none)
   int decimation_ = 1;             ///< rate_hz / output_rate_hz

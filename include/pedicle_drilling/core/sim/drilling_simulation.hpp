@@ -202,7 +202,7 @@ struct SimulationStep {
   /** @brief A force-sensor sample was taken in this step (every step at the default 1 kHz
    *         sensor; else every physics / sensor rate steps); measured_wrench is valid only then. */
   bool force_sampled = true;
-  ForceSample force;                        ///< true drilling output of the step
+  ForceSample force;           ///< true drilling output of the step
   double tip_depth_m = 0.0;    ///< tip depth below the bone top surface (negative: above)
   bool layer_changed = false;  ///< the layer at the deepest cut changed in this step
 };
