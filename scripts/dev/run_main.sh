@@ -6,7 +6,9 @@
 #   2. beyond the paper: the exact compensation profile on the same bench (scenario_exact.yaml),
 #      and the bone moving as the virtual patient (lag, drift, small movements), compensated
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
-#      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core)
+#      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
+#      the fault campaign; Fig. 16's protocol at the calibrated sensor rate
+#      (scenario_peak_forces.yaml, 200 trials per case)
 #   3. the integration check: 10 trials per case of design 1 through the full ROS pipeline,
 #      twice, each trial beside the core engine's (engine_agreement.md)
 # Reports in results/campaign*/report.md.
@@ -35,6 +37,11 @@ done
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 50 unseen seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" --out "${OUT}/campaign_faults"
+# 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes
+#     through the inner layer; the force sensor at the DAQ rate calibrated against Fig. 16
+#     (doc/simulator_physics.md, "Measurement chain").
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/campaign_peak_forces"
 # 3. The integration check: the first trials of the paper's design through the full ROS
 #    pipeline, twice, trial by trial beside the core engine (the same seeds). The virtual
 #    patient's agreement is measured by test_engine_agreement.py (opt-in; README).
@@ -42,7 +49,6 @@ for run in ros ros_repeat; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
     --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_${run}"
 done
-export PYTHONPATH="${ROOT}/scripts:${PYTHONPATH:-}"
 {
   echo "# Engine agreement (same seeds)"
   echo
@@ -58,6 +64,7 @@ mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
 echo "main job: done in $(( $(date +%s) - start )) s"
 echo "  ${OUT}/campaign/report.md"
 echo "  ${OUT}/campaign_exact/report.md"
+echo "  ${OUT}/campaign_peak_forces/report.md"
 echo "  ${OUT}/campaign_virtual_patient/report.md"
 echo "  ${OUT}/campaign_hysteresis/report.md"
 echo "  ${OUT}/campaign_faults/report.md"
