@@ -5,10 +5,10 @@ import re
 import xml.etree.ElementTree as ET
 
 
-def readme_parameter_tables(readme_path):
-    """{node type: [(parameter name without ~, type, range text)]} from the README's tables under
-    each `### pedicle_drilling/<Node>` heading (rows `| `~name` [, `~name`] | type | default |
-    range |`; a row naming several parameters gives one entry per name)."""
+def readme_parameter_rows(readme_path):
+    """{node type: [(parameter name without ~, type, default, range text)]} from the README's
+    tables under each `### pedicle_drilling/<Node>` heading (rows `| `~name` [, `~name`] | type |
+    default | range |`; a row naming several parameters gives one entry per name)."""
     tables, node = {}, None
     with open(readme_path) as handle:
         for line in handle:
@@ -22,8 +22,15 @@ def readme_parameter_tables(readme_path):
             if node and row:
                 for name in re.findall(r'`~([^`]+)`', row.group(1)):
                     tables.setdefault(node, []).append(
-                        (name, row.group(2).strip(), row.group(4).strip()))
+                        (name, row.group(2).strip(), row.group(3).strip(), row.group(4).strip()))
     return tables
+
+
+def readme_parameter_tables(readme_path):
+    """{node type: [(parameter name without ~, type, range text)]}: readme_parameter_rows
+    without the default column."""
+    return {node: [(name, kind, rule) for name, kind, _, rule in rows]
+            for node, rows in readme_parameter_rows(readme_path).items()}
 
 
 def required_launch_args(path):

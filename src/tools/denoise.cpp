@@ -27,8 +27,6 @@ namespace {
 namespace pd = pedicle_drilling::core;
 namespace tools = pedicle_drilling::tools;
 
-constexpr int kMaxLevel = 32;
-
 /** @brief The levels of --keep: "none" is no level; else "3,4,5" (checked by the validator). */
 std::vector<int> keptLevels(const std::string& text) {
   return text == "none" ? std::vector<int>{} : pd::parseIntList(text, "--keep");
@@ -67,13 +65,7 @@ int main(int argc, char** argv) {
   std::string keep_text = "3,4,5";
   std::string mode_name = "symmetric";
   bool approx = false;
-  app.add_option("--wavelet", wavelet_name,
-                 "db1-db20, sym2-sym20, coif1-coif5, bior1.1 ... bior6.8")
-      ->required()
-      ->check(
-          tools::accepting([](const std::string& name) { return pd::findWavelet(name) != nullptr; },
-                           "a known wavelet"));
-  app.add_option("--level", level, "decomposition level")->check(CLI::Range(1, kMaxLevel));
+  tools::addDwtOptions(&app, &wavelet_name, &level, &mode_name);
   app.add_option("--keep", keep_text,
                  "comma-separated detail levels to keep, each in 1..L, or 'none' (then --approx "
                  "is required)")
@@ -87,8 +79,6 @@ int main(int argc, char** argv) {
             }
           },
           "'none' or comma-separated levels"));
-  app.add_option("--mode", mode_name, "signal extension")
-      ->check(CLI::IsMember({"symmetric", "periodization"}));
   app.add_flag("--approx", approx, "also keep the approximation a_L");
   if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
   const std::vector<int> keep = keptLevels(keep_text);

@@ -19,12 +19,6 @@
 #include "pedicle_drilling/core/common/text_parse.hpp"
 #include "tool_cli.hpp"
 
-namespace {
-
-constexpr int kMaxLevel = 32;
-
-}  // namespace
-
 int main(int argc, char** argv) {
   namespace pd = pedicle_drilling::core;
   namespace tools = pedicle_drilling::tools;
@@ -37,15 +31,7 @@ int main(int argc, char** argv) {
   std::string wavelet_name;
   int level = 6;
   std::string mode_name = "symmetric";
-  app.add_option("--wavelet", wavelet_name,
-                 "db1-db20, sym2-sym20, coif1-coif5, bior1.1 ... bior6.8")
-      ->required()
-      ->check(
-          tools::accepting([](const std::string& name) { return pd::findWavelet(name) != nullptr; },
-                           "a known wavelet"));
-  app.add_option("--level", level, "decomposition level")->check(CLI::Range(1, kMaxLevel));
-  app.add_option("--mode", mode_name, "signal extension")
-      ->check(CLI::IsMember({"symmetric", "periodization"}));
+  tools::addDwtOptions(&app, &wavelet_name, &level, &mode_name);
   if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
   try {
     const std::vector<double> x = pd::readNumberColumn(stdin);

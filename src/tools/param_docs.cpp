@@ -6,8 +6,9 @@
  *        (test_readme_parameters.py); `--format markdown` prints the rows to paste.
  */
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
-#include <cstdio>
+#include <cmath>
 #include <iostream>
 #include <string>
 
@@ -16,50 +17,33 @@
 
 namespace {
 
+using json = nlohmann::json;
 using pedicle_drilling::core::ParamInfo;
 
-std::string jsonString(const std::string& text) {
-  std::string out = "\"";
-  for (char c : text) {
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += c;
-    } else if (static_cast<unsigned char>(c) < 0x20) {
-      char buf[8];
-      std::snprintf(buf, sizeof(buf), "\\u%04x", c);
-      out += buf;
-    } else {
-      out += c;
-    }
-  }
-  return out + "\"";
+/** @brief A bound as JSON: a number, or "inf" / "-inf" (JSON has no infinity). */
+json jsonBound(double v) {
+  if (std::isinf(v)) return v > 0 ? "inf" : "-inf";
+  return v;
 }
 
-std::string jsonNumber(double v) {
-  if (std::isinf(v)) return v > 0 ? "\"inf\"" : "\"-inf\"";
-  return pedicle_drilling::core::Range::format(v);
-}
-
-void printJson(const std::string& node, const std::vector<ParamInfo>& params, bool first) {
-  std::cout << (first ? "" : ",\n") << "  " << jsonString(node) << ": [";
-  for (std::size_t i = 0; i < params.size(); ++i) {
-    const ParamInfo& p = params[i];
-    const bool numeric = p.kind == pedicle_drilling::core::ParamKind::kDouble ||
-                         p.kind == pedicle_drilling::core::ParamKind::kInt ||
-                         p.kind == pedicle_drilling::core::ParamKind::kIntList;
-    std::cout << (i ? "," : "") << "\n    {\"name\": " << jsonString(p.name)
-              << ", \"type\": " << jsonString(kindName(p.kind))
-              << ", \"default\": " << jsonString(p.default_text)
-              << ", \"rule\": " << jsonString(p.rule());
-    if (numeric) {
-      std::cout << ", \"min\": " << jsonNumber(p.range.min)
-                << ", \"max\": " << jsonNumber(p.range.max)
-                << ", \"open_min\": " << (p.range.open_min ? "true" : "false")
-                << ", \"open_max\": " << (p.range.open_max ? "true" : "false");
+json paramsJson(const std::vector<ParamInfo>& params) {
+  json out = json::array();
+  for (const ParamInfo& p : params) {
+    json entry = {{"name", p.name},
+                  {"type", kindName(p.kind)},
+                  {"default", p.default_text},
+                  {"rule", p.rule()}};
+    if (p.kind == pedicle_drilling::core::ParamKind::kDouble ||
+        p.kind == pedicle_drilling::core::ParamKind::kInt ||
+        p.kind == pedicle_drilling::core::ParamKind::kIntList) {
+      entry["min"] = jsonBound(p.range.min);
+      entry["max"] = jsonBound(p.range.max);
+      entry["open_min"] = p.range.open_min;
+      entry["open_max"] = p.range.open_max;
     }
-    std::cout << "}";
+    out.push_back(entry);
   }
-  std::cout << "\n  ]";
+  return out;
 }
 
 void printMarkdown(const std::string& node, const std::vector<ParamInfo>& params) {
@@ -97,17 +81,15 @@ int main(int argc, char** argv) {
   if (!known_node) {
     return tools::usageError(app, "--node: no nodelet class '" + node + "' (known:" + known + ")");
   }
-  if (format == "json") std::cout << "{\n";
-  bool first = true;
+  json all = json::object();
   for (const auto& [name, params] : docs) {
     if (!node.empty() && name != node) continue;
     if (format == "json") {
-      printJson(name, params, first);
+      all[name] = paramsJson(params);
     } else {
       printMarkdown(name, params);
     }
-    first = false;
   }
-  if (format == "json") std::cout << "\n}\n";
+  if (format == "json") std::cout << all.dump(2) << "\n";
   return 0;
 }

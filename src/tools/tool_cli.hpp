@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/core/breathing/wavelet.hpp"
 #include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/common/text_parse.hpp"
 
@@ -119,6 +120,23 @@ inline CLI::Validator accepting(std::function<bool(const std::string&)> accepts,
         return accepts(text) ? std::string() : "'" + text + "' is not " + what;
       },
       what);
+}
+
+/** @brief Deepest DWT level the generic DWT tools (denoise, dwt_coeffs) accept. */
+constexpr int kMaxDwtLevel = 32;
+
+/**
+ * @brief The options of the DWT tools (denoise, dwt_coeffs), PyWavelets' conventions: --wavelet
+ *        (required, a known basis), --level (1..kMaxDwtLevel) and --mode (signal extension).
+ */
+inline void addDwtOptions(CLI::App* app, std::string* wavelet, int* level, std::string* mode) {
+  app->add_option("--wavelet", *wavelet, "db1-db20, sym2-sym20, coif1-coif5, bior1.1 ... bior6.8")
+      ->required()
+      ->check(accepting([](const std::string& name) { return core::findWavelet(name) != nullptr; },
+                        "a known wavelet"));
+  app->add_option("--level", *level, "decomposition level")->check(CLI::Range(1, kMaxDwtLevel));
+  app->add_option("--mode", *mode, "signal extension")
+      ->check(CLI::IsMember({"symmetric", "periodization"}));
 }
 
 /**

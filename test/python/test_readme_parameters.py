@@ -16,7 +16,7 @@ import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'test'))
-from shipped_docs import readme_parameter_tables  # noqa: E402
+from shipped_docs import readme_parameter_rows, readme_parameter_tables  # noqa: E402
 CONFIGS = {
     'pedicle_drilling/Ventilator': 'ventilator.yaml',
     'pedicle_drilling/Simulator': 'simulator.yaml',
@@ -72,21 +72,8 @@ def declared(bin_dir):
 
 def readme_rows():
     """{node: {name: (type, default, range column)}} with the README's default column kept."""
-    import re
-    rows, node = {}, None
-    with open(os.path.join(ROOT, 'README.md')) as handle:
-        for line in handle:
-            heading = re.match(r'^### (pedicle_drilling/\w+)', line)
-            if heading:
-                node = heading.group(1)
-            elif line.startswith('## '):
-                node = None
-            row = re.match(r'^\|\s*(`~[^|]+?)\s*\|([^|]*)\|([^|]*)\|(.*)\|\s*$', line)
-            if node and row:
-                for name in re.findall(r'`~([^`]+)`', row.group(1)):
-                    rows.setdefault(node, {})[name] = (
-                        row.group(2).strip(), row.group(3).strip(), row.group(4).strip())
-    return rows
+    return {node: {name: (kind, default, rule) for name, kind, default, rule in rows}
+            for node, rows in readme_parameter_rows(os.path.join(ROOT, 'README.md')).items()}
 
 
 def test_every_nodelet_declares_its_parameters(declared):

@@ -52,6 +52,7 @@ def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
     ([], ['--simulator-param', 'trial_distribution/specimen/no_such_mm=1'],
      "unknown parameter 'trial_distribution/specimen/no_such_mm'"),
     ([], ['--simulator-param', 'arm_rate_hz'], '--simulator-param'),
+    ([], ['--protocol', 'breakthrough'], '--protocol'),
 ])
 def test_bad_input_exits_2_naming_it(bin_dir, tmp_path, trials, extra, named):
     path = trials_file(tmp_path, trials)

@@ -122,7 +122,7 @@ struct CompensationPlannerNodeParams {
   std::string monitor_status_name = "/safety_monitor: monitor";           ///< its DiagnosticStatus
   std::string compensator_class = "pedicle_drilling/PaperCompensator";    ///< plugin class
   core::TextPairs compensator_params;  ///< the class's own parameters
-  /** @brief Checks the declared ranges and the sequencer's own checks (no URDF yet). */
+  /** @brief Checks the declared ranges (the URDF-dependent checks come with the sequencer). */
   void validate() const;
   /** @brief The declaration of every parameter. */
   static const core::ParamTable<CompensationPlannerNodeParams>& table();
