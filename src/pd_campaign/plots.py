@@ -8,12 +8,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from .atomic import atomic_savefig  # noqa: E402
 from .design import CASES  # noqa: E402
-from .report import PAPER_TABLE_III  # noqa: E402
+from .report import PAPER_FIG15_COUNTS, PAPER_TABLE_III  # noqa: E402
 
 COLOURS = {'stationary': 'tab:green', 'uncompensated': 'tab:red', 'compensated': 'tab:blue'}
-PAPER_FIG15 = {  # Sec. V-C, compensated case; the others are given only as "highest" / lower
-    'compensated': {12000.0: 0.90, 16000.0: 0.50, 20000.0: 0.40},
-}
+PAPER_FIG15 = {case: {rpm: k / n for rpm, (k, n) in by_rpm.items()}  # Sec. V-C (report.py)
+               for case, by_rpm in PAPER_FIG15_COUNTS.items()}
 
 
 def _save(fig, out_dir, name):

@@ -370,3 +370,28 @@ def test_peak_forces_are_read_up_to_the_stop():
     assert peak_forces(states, truth, t_stop=3.0) == (3.0, 2.8)
     assert peak_forces(states, truth, t_stop=1.8) == (3.0, None)  # stopped before the layer
     assert peak_forces(states, [(0.0, 'outer_cortical')]) == (9.0, None)
+
+
+def test_report_tests_the_compensated_counts_against_fig15_at_every_speed(tmp_path):
+    """Fig. 15's compensated rates (90 / 50 / 40 %, read as 9/10, 5/10, 4/10) against the
+    campaign's counts at each speed by Fisher's exact test; speeds the campaign did not run are
+    not listed."""
+    d = design.build_design(['compensated'], [12000, 16000], 20, 5)
+    rows = []
+    for trial in d:
+        row = dict(trial)
+        row.update(success=trial['index'] < (19 if trial['rpm'] == 12000 else 10),
+                   residual_mm=1.0, f_out_n=3.0, f_in_n=2.8, max_depth_mm=4.0,
+                   inner_start_mm=3.0, stop_reason='key_point_4', stop_source='state_recognizer',
+                   tracking_rms_mm=0.04, error='')
+        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = report.summarise(rows)
+    path = tmp_path / 'report.md'
+    meta = {'cases': ['compensated'], 'rpms': [12000.0, 16000.0], 'trials': 20, 'seed': 5}
+    report.write_report_md(summary, meta, [], str(path))
+    text = path.read_text()
+    assert '## Paper, success against spindle speed (Fig. 15)' in text
+    # scipy's two-sided p of [[19, 1], [9, 1]] and [[10, 10], [5, 5]].
+    assert '| compensated | 12000 | 9/10 | 19/20 | %.2g |' % stats.fisher_exact(19, 20, 9, 10) in text
+    assert '| compensated | 16000 | 5/10 | 10/20 | 1 |' in text
+    assert '| compensated | 20000 |' not in text

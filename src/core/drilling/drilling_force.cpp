@@ -19,7 +19,8 @@ DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
     : specimen_(std::move(specimen)), params_(params) {
   if (!(params_.bit_diameter_m > 0.0) || !(params_.point_angle_deg > 0.0) ||
       !(params_.point_angle_deg < 180.0) || !(params_.ref_feed_per_rev_m > 0.0) ||
-      !(params_.ref_spindle_rpm > 0.0)) {
+      !(params_.ref_spindle_rpm > 0.0) || !(params_.contact_stiffness_n_per_m > 0.0) ||
+      !(params_.chisel_edge_share >= 0.0 && params_.chisel_edge_share < 1.0)) {
     throw std::invalid_argument("DrillingProcess: invalid drill parameters");
   }
   const double half_angle = 0.5 * params_.point_angle_deg * kPi / 180.0;
@@ -34,8 +35,10 @@ void DrillingProcess::reset() {
 double DrillingProcess::steadyThrust(double engaged_fraction, double feed_per_rev_m,
                                      double spindle_rpm) const {
   if (engaged_fraction <= 0.0 || feed_per_rev_m <= 0.0 || spindle_rpm <= 0.0) return 0.0;
+  const double s = params_.chisel_edge_share;
+  const double lips = std::pow(feed_per_rev_m / params_.ref_feed_per_rev_m, params_.feed_exponent);
   return params_.thrust_coefficient_n_per_m * params_.bit_diameter_m * engaged_fraction *
-         std::pow(feed_per_rev_m / params_.ref_feed_per_rev_m, params_.feed_exponent) *
+         (s == 0.0 ? lips : s + (1.0 - s) * lips) *
          std::pow(spindle_rpm / params_.ref_spindle_rpm, -params_.speed_exponent);
 }
 
@@ -52,15 +55,17 @@ ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_
   ForceSample out;
   out.material = specimen_.materialAt(tip_depth_m);
   const double advance = tip_depth_m - max_depth_cut_m_;
-  if (advance <= 0.0 || spindle_rpm <= 0.0) {
-    // Tip at or behind the hole bottom (or spindle stopped): no lip touches bone.
+  const bool rigid = std::isinf(params_.contact_stiffness_n_per_m);
+  if (advance <= 0.0 || (rigid && spindle_rpm <= 0.0)) {
+    // Tip at or behind the hole bottom (or, rigid, spindle stopped): no lip touches bone.
     thrust_N_ = 0.0;
     out.thrust_N = 0.0;
     return out;
   }
+  const double phi = engagedFraction(tip_depth_m);
+  if (!rigid) return stepElastic(dt, advance, phi, std::max(0.0, spindle_rpm));
   const double revolutions = dt * spindle_rpm / 60.0;
   const double feed_per_rev = advance / revolutions;
-  const double phi = engagedFraction(tip_depth_m);
   max_depth_cut_m_ = tip_depth_m;
   const double target = steadyThrust(phi, feed_per_rev, spindle_rpm);
   // First-order lag with tau = lag_revolutions spindle periods (exact discretisation).
@@ -72,6 +77,64 @@ ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_
   out.thrust_N = thrust_N_;
   out.feed_per_rev_m = feed_per_rev;
   out.engaged_fraction = phi;
+  return out;
+}
+
+ForceSample DrillingProcess::stepElastic(double dt, double advance, double phi, double rpm) {
+  ForceSample out;
+  out.material = specimen_.materialAt(max_depth_cut_m_ + advance);
+  out.engaged_fraction = phi;
+  if (!(phi > 0.0)) {
+    // Cutting air (before the surface, in the canal): nothing resists, the cut follows the tip.
+    max_depth_cut_m_ += advance;
+    thrust_N_ = 0.0;
+    return out;
+  }
+  const double k = params_.contact_stiffness_n_per_m;
+  const double revolutions = dt * rpm / 60.0;
+  // Cut advance u in [0, advance]: h(u) = F_law(u / revolutions) - k (advance - u) = 0 for
+  // u > 0, h increasing, h(advance) > 0; h(0+) = chisel - k advance. If h(0+) >= 0 the spring
+  // holds without cutting (u = 0); otherwise Newton in u, kept inside the bracket [lo, hi]
+  // (bisection when Newton leaves it), until the step is below 1e-12 of the advance.
+  double u = 0.0;
+  if (revolutions > 0.0) {
+    const double f0 = steadyThrust(phi, params_.ref_feed_per_rev_m, rpm);  // at f_ref
+    const double alpha = params_.feed_exponent;
+    const double share = params_.chisel_edge_share;
+    const double lips0 = f0 * (1.0 - share);
+    const double chisel = f0 * share;  // the force the chisel edge needs to indent at all
+    const auto lips = [&](double x) {
+      return x > 0.0 ? lips0 * std::pow(x / (revolutions * params_.ref_feed_per_rev_m), alpha)
+                     : 0.0;
+    };
+    // Below the chisel edge's indentation force nothing is cut: u = 0, the spring holds.
+    if (chisel < k * advance) {
+      double lo = 0.0;
+      double hi = advance;
+      u = advance * 0.5;
+      for (int it = 0; it < 100; ++it) {
+        const double fl = lips(u);
+        const double h = chisel + fl - k * (advance - u);
+        if (h > 0.0) {
+          hi = u;
+        } else {
+          lo = u;
+        }
+        const double dh = (u > 0.0 ? alpha * fl / u : 0.0) + k;
+        double next = u - h / dh;
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        const bool done = std::abs(next - u) <= 1e-15 + 1e-12 * advance;
+        u = next;
+        if (done) break;
+      }
+    }
+  }
+  max_depth_cut_m_ += u;
+  out.overlap_m = advance - u;
+  thrust_N_ = k * out.overlap_m;
+  out.thrust_N = thrust_N_;
+  out.contact = true;
+  out.feed_per_rev_m = revolutions > 0.0 ? u / revolutions : 0.0;
   return out;
 }
 

@@ -126,6 +126,12 @@ const ParamTable<TrialVariability>& TrialVariability::table() {
 
 void TrialVariability::validate() const { table().validate(*this); }
 
+ForceSensorParams DrillingSimulationParams::calibratedSensor() {
+  ForceSensorParams p;
+  p.output_rate_hz = 1000.0 / 3.0;
+  return p;
+}
+
 const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
   static const ParamTable<DrillingSimulationParams> t = [] {
     using P = DrillingSimulationParams;
@@ -158,6 +164,14 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number(
             "force_resolution_n", [](const P& v) { return v.sensor.force_resolution_n; },
             [](P& v, double x) { v.sensor.force_resolution_n = x; }, Range::closed(0, 1), "N")
+        .number(
+            "contact_stiffness_n_per_m",
+            [](const P& v) { return v.drill.contact_stiffness_n_per_m; },
+            [](P& v, double x) { v.drill.contact_stiffness_n_per_m = x; },
+            Range::aboveUpTo(0, std::numeric_limits<double>::infinity()), "N/m")
+        .number(
+            "chisel_edge_share", [](const P& v) { return v.drill.chisel_edge_share; },
+            [](P& v, double x) { v.drill.chisel_edge_share = x; }, Range::closed(0, 0.9))
         .flag("moving_bone", &P::moving_bone)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")

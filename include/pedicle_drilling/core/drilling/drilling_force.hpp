@@ -4,7 +4,7 @@
  *
  * Force law (per time step, while the tip advances past the deepest point cut so far):
  *
- *   F = K * D * phi_eff * (f_rev / f_ref)^alpha * (n / n_ref)^(-beta)
+ *   F = K * D * phi_eff * [s + (1 - s) * (f_rev / f_ref)^alpha] * (n / n_ref)^(-beta)
  *
  * - f_rev: actual feed per revolution = (new cut depth this step) / (revolutions this step);
  *   it comes from the relative motion of drill tip and bone along the drill axis, so a bone moving
@@ -13,13 +13,28 @@
  *   fraction (BV/TV) at the depth each lip point is cutting; the conical 118 deg point makes the
  *   lips span 0.75 mm of depth, which gives the gradual rise/fall at layer entry/exit.
  * - K: calibrated to the paper's stationary peak thrusts (see doc/simulator_physics.md).
- * A first-order lag of about one spindle revolution smooths the thrust while in contact
+ * - s: the chisel edge's share of the thrust at f_ref, an indentation that does not grow with
+ *   the chip load (s = 0: the whole thrust from the lips' power law).
+ * Rigid contact (contact_stiffness_n_per_m = +inf): the tip's whole advance is cut in the step,
+ * and a first-order lag of about one spindle revolution smooths the thrust while in contact
  * (the chip load is defined per flute passage; two flutes per revolution).
+ *
+ * Elastic contact (finite k_c): the cutting is in series with a spring. In each step the cut
+ * advance u in [0, delta] (delta = tip advance beyond the cut surface) solves
+ *
+ *   k_c * (delta - u) = F_law(phi, u / revolutions, n),
+ *
+ * implicitly (monotone, unique root), and the thrust is the spring force. So the chip load can
+ * never exceed what the contact transmits: as the spindle runs down the cut slows and the
+ * thrust is bounded by k_c times the approach, and a stopped drill (n = 0) that the bone presses
+ * against feels k_c * delta (no cutting at all).
  *
  * No ROS headers; C++17 and Eigen only.
  */
 #ifndef PEDICLE_DRILLING_CORE_DRILLING_FORCE_HPP
 #define PEDICLE_DRILLING_CORE_DRILLING_FORCE_HPP
+
+#include <limits>
 
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
 
@@ -33,10 +48,19 @@ struct DrillParameters {
   /// Calibrated to the paper's stationary peak thrusts (Fig. 16 medians 3.16 / 2.88 N).
   double thrust_coefficient_n_per_m = 1373.0;
   double feed_exponent = 0.5;          ///< alpha: sub-linear size effect (assumption, see doc)
+  /// s: chisel-edge share of the thrust at f_ref, feed-independent (indentation), in [0, 1).
+  /// 0.6: literature 50-70 %, calibrated with the DAQ rate against Fig. 16 (see doc).
+  double chisel_edge_share = 0.6;
   double speed_exponent = 0.1;         ///< beta: cutting-speed softening (assumption, see doc)
   double ref_feed_per_rev_m = 2.5e-6;  ///< 0.5 mm/s at 12000 rpm
   double ref_spindle_rpm = 12000.0;    ///< paper's chosen speed
-  double lag_revolutions = 1.0;        ///< thrust lag time constant in spindle revolutions
+  /// Thrust lag time constant in spindle revolutions; used by the rigid contact only (with an
+  /// elastic contact the series spring gives the dynamics).
+  double lag_revolutions = 1.0;
+  /// Stiffness of the elastic contact between the lips and the uncut bone, in series with the
+  /// cutting [N/m]; +inf is the rigid contact (the tip's whole advance is cut at once). Only the
+  /// compliance not simulated elsewhere belongs here (the arm's is the Bullet arm's).
+  double contact_stiffness_n_per_m = 1.0e6;  ///< doc/simulator_physics.md, section 2
 };
 
 /** @brief One output sample of the drilling process. */
@@ -46,6 +70,7 @@ struct ForceSample {
   bool contact = false;                ///< true iff the lips are cutting in this step
   double feed_per_rev_m = 0.0;         ///< actual feed per revolution this step
   double engaged_fraction = 0.0;       ///< phi_eff, radial mean solid fraction under the lips
+  double overlap_m = 0.0;  ///< elastic overlap of the tip beyond the cut surface (elastic contact)
 };
 
 /**
@@ -65,7 +90,8 @@ class DrillingProcess {
    * @brief Advances the process by `dt` seconds to a new tip depth.
    * @param dt time step [s], > 0
    * @param tip_depth_m drill-tip depth along the axis into the bone frame [m] (may move back)
-   * @param spindle_rpm spindle speed [rev/min]; with <= 0 nothing is cut and thrust is zero
+   * @param spindle_rpm spindle speed [rev/min]; with <= 0 nothing is cut (the rigid contact then
+   *        gives zero thrust, the elastic one the spring force of the overlap)
    */
   ForceSample step(double dt, double tip_depth_m, double spindle_rpm);
 
@@ -115,6 +141,9 @@ class DrillingProcess {
   const DrillParameters& parameters() const { return params_; }
 
  private:
+  /// @brief The elastic contact's step (finite contact_stiffness_n_per_m), see the file brief.
+  ForceSample stepElastic(double dt, double advance, double phi, double rpm);
+
   BoneSpecimen specimen_;
   DrillParameters params_;
   double cone_length_m_;

@@ -168,10 +168,17 @@ struct DrillingSimulationParams {
   SpecimenDistribution specimen;         ///< specimen distribution for reset(seed)
   TrialVariability variability;          ///< patient/ventilator/sensor/arm spread for reset(seed)
   DrillParameters drill;                 ///< drill and force-law constants
-  ForceSensorParams sensor;              ///< force/torque sensor model
+  /// Force/torque sensor model, at the DAQ rate calibrated against the paper's Fig. 16 and 18
+  /// (calibratedSensor()).
+  ForceSensorParams sensor = calibratedSensor();
   double tracker_noise_rms_mm = 0.25;    ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
+  /**
+   * @brief The sensor model with the DAQ rate calibrated against the paper's force figures:
+   *        1000/3 Hz, every third physics step (doc/simulator_physics.md, "Measurement chain").
+   */
+  static ForceSensorParams calibratedSensor();
 
   /**
    * @brief Checks the declared fields, the arm rate (a divisor of the physics rate) and the
