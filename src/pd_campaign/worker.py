@@ -185,7 +185,6 @@ BAG_REQUIRED = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tra
                 '/simulator/ground_truth', '/drilling_state', '/compensation/status',
                 '/arm_controller/command', '/spindle/command', '/ventilator/settings',
                 '/diagnostics']
-FORCE_PERIOD_S = 1e-3  # the sensor's sample period (the Simulator's 1 kHz)
 
 
 def start_bag(args, trial):
@@ -219,7 +218,9 @@ def stop_bag(process):
 def check_bag(path):
     """What a trial's bag holds and what it lost: message counts per topic, required topics
     with no message, and the gaps in the force stream (consecutive header stamps more than 1.5
-    sample periods apart: samples the recorder dropped). Returns the report (a dict)."""
+    sample periods apart: samples the recorder dropped). The sample period is the stream's own
+    median spacing, so any DAQ rate (the Simulator's ~force_sensor_rate_hz, a real sensor's) is
+    checked against itself. Returns the report (a dict)."""
     import rosbag
     counts = {topic: 0 for topic in BAG_TOPICS}
     stamps = []
@@ -228,8 +229,10 @@ def check_bag(path):
             counts[topic] += 1
             if topic == '/ft_sensor/wrench':
                 stamps.append(msg.header.stamp.to_sec())
-    gaps = [(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * FORCE_PERIOD_S]
-    lost = sum(int(round(dt / FORCE_PERIOD_S)) - 1 for _, dt in gaps)
+    steps = sorted(b - a for a, b in zip(stamps, stamps[1:]))
+    period = steps[len(steps) // 2] if steps else 0.0
+    gaps = [(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * period]
+    lost = sum(int(round(dt / period)) - 1 for _, dt in gaps)
     missing = [topic for topic in BAG_REQUIRED if counts[topic] == 0]
     summary = []
     if missing:

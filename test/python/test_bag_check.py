@@ -53,6 +53,20 @@ def test_dropped_force_samples_are_counted_with_the_longest_gap(tmp_path):
     assert '151 force samples lost in 2 gaps (longest 151 ms' in check['summary']
 
 
+def test_the_period_is_the_streams_own_so_the_default_daq_rate_loses_nothing(tmp_path):
+    """The Simulator's default DAQ runs at 1000/3 Hz (every 3 ms): a complete stream at that
+    rate loses nothing, and a gap of 30 ms there is 9 samples, not 29."""
+    times = [1.0 + 3e-3 * i for i in range(1000)]
+    path = tmp_path / 'daq.bag'
+    write_bag(path, times)
+    assert worker.check_bag(str(path))['force_samples_lost'] == 0
+    kept = [t for i, t in enumerate(times) if not 500 <= i < 509]
+    path = tmp_path / 'daq_gap.bag'
+    write_bag(path, kept)
+    check = worker.check_bag(str(path))
+    assert check['force_samples_lost'] == 9 and len(check['force_gaps']) == 1
+
+
 def test_every_required_topic_is_recorded():
     assert set(worker.BAG_REQUIRED) <= set(worker.BAG_TOPICS)
     for topic in ('/spindle/command', '/ventilator/settings', '/diagnostics'):
