@@ -76,10 +76,15 @@ RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = R
 }
 
 // Direct-drive helper: pre_average = window = 1 so each pushed value is fbar itself.
+// One averaged sample per pushed sample; the tests push one per second (t = 0, 1, 2, ...), so
+// the plausibility timeouts are set to what they are at 20 averaged samples per second (8 s and
+// 2 s: 160 and 40 samples).
 RecognizerParams directParams() {
   RecognizerParams p;
   p.pre_average = 1;
   p.window = 1;
+  p.outer_cortical_timeout_s = 160.0;
+  p.cancellous_timeout_s = 40.0;
   return p;
 }
 
@@ -187,17 +192,37 @@ TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
   EXPECT_FALSE(o.stop);
 }
 
+TEST(StateRecognizerTransitions, TheTimeoutsAreTimesWhateverTheSampleRate) {
+  // The same 8 s outer-layer timeout at 20 and at 6.67 averaged samples per second (50 raw
+  // samples at 1 kHz and at 1000/3 Hz): the stop comes 8 s after the contact in both.
+  for (double period : {0.05, 0.15}) {
+    SCOPED_TRACE(period);
+    RecognizerParams p = directParams();
+    p.outer_cortical_timeout_s = 8.0;
+    StateRecognizer rec(p);
+    rec.push(0.0, 0.0);
+    double f = 1.5;
+    double stop_t = -1.0;
+    for (int k = 1; k < 1000 && stop_t < 0.0; ++k, f += 0.01) {
+      if (rec.push(k * period, f).stop) stop_t = k * period;
+    }
+    // Contact at the first sample (t = period); the stop on the first sample 8 s or more later.
+    EXPECT_GE(stop_t - period, 8.0 - 1e-9);
+    EXPECT_LT(stop_t - period, 8.0 + period);
+  }
+}
+
 TEST(StateRecognizerTransitions, NoCancellousWithinTheTimeoutIsAnImplausibleForceStop) {
   RecognizerParams p = directParams();
   p.cancellous_confirm = 3;
-  p.cancellous_timeout = 6;
+  p.cancellous_timeout_s = 6.0;  // one sample per second here
   StateRecognizer rec(p);
   int i = 0;
-  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 at t = 2
   ASSERT_EQ(rec.output().last_key_point, 2);
   // A drifting sensor: A* stays above C1 after the outer layer.
-  for (int k = 0; k < 6; ++k) rec.push(i++, 2.5);
-  EXPECT_FALSE(rec.output().stop) << "the timeout is 6 samples: not yet";
+  for (int k = 0; k < 5; ++k) rec.push(i++, 2.5);
+  EXPECT_FALSE(rec.output().stop) << "5 s after key point 2: not yet";
   const RecognizerOutput& o = rec.push(i++, 2.5);
   ASSERT_TRUE(o.stop);
   EXPECT_TRUE(o.stop_implausible);
@@ -208,7 +233,7 @@ TEST(StateRecognizerTransitions, NoCancellousWithinTheTimeoutIsAnImplausibleForc
 
 TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
   RecognizerParams p = directParams();
-  p.cancellous_timeout = 0;
+  p.cancellous_timeout_s = 0.0;
   StateRecognizer rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);
@@ -219,15 +244,15 @@ TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
 
 TEST(StateRecognizerTransitions, NoEndOfTheOuterLayerWithinTheTimeoutIsAnImplausibleForceStop) {
   RecognizerParams p = directParams();
-  p.outer_cortical_timeout = 5;
+  p.outer_cortical_timeout_s = 5.0;  // one sample per second here
   StateRecognizer rec(p);
   int i = 0;
   rec.push(i++, 0.0);
   // Contact (F_max 1.5 N > F_th), then a force that drifts upwards and never falls below
   // K F_max: Algorithm 2 never fixes k, no key point comes.
   double f = 1.5;
-  for (int k = 0; k < 5; ++k, f += 0.1) rec.push(i++, f);  // contact sample + 4
-  EXPECT_FALSE(rec.output().stop) << "5 samples since the contact: not yet";
+  for (int k = 0; k < 5; ++k, f += 0.1) rec.push(i++, f);  // contact at t = 1, then to t = 5
+  EXPECT_FALSE(rec.output().stop) << "4 s since the contact: not yet";
   EXPECT_EQ(rec.output().state, DrillingState::kOuterCortical);
   const RecognizerOutput& o = rec.push(i++, f);
   ASSERT_TRUE(o.stop);
@@ -254,7 +279,7 @@ TEST(StateRecognizerTransitions, NoEndOfTheOuterLayerWithinTheTimeoutIsAnImplaus
 
 TEST(StateRecognizerTransitions, OuterCorticalTimeoutZeroDisablesIt) {
   RecognizerParams p = directParams();
-  p.outer_cortical_timeout = 0;
+  p.outer_cortical_timeout_s = 0.0;
   StateRecognizer rec(p);
   double f = 1.5;
   for (int k = 0; k < 1000; ++k, f += 0.01) rec.push(k, f);
@@ -539,10 +564,9 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
   bad("c3", [](RecognizerParams& p) { p.c3 = 1.0; });
   bad("c3", [](RecognizerParams& p) { p.c3 = std::numeric_limits<double>::infinity(); });
   bad("cancellous_confirm", [](RecognizerParams& p) { p.cancellous_confirm = 0; });
-  bad("outer_cortical_timeout", [](RecognizerParams& p) { p.outer_cortical_timeout = -1; });
-  bad("cancellous_timeout", [](RecognizerParams& p) { p.cancellous_timeout = -1; });
-  bad("cancellous_timeout",
-      [](RecognizerParams& p) { p.cancellous_timeout = p.cancellous_confirm; });
+  bad("outer_cortical_timeout_s", [](RecognizerParams& p) { p.outer_cortical_timeout_s = -1; });
+  bad("cancellous_timeout_s", [](RecognizerParams& p) { p.cancellous_timeout_s = -1; });
+  bad("cancellous_timeout_s", [](RecognizerParams& p) { p.cancellous_timeout_s = std::nan(""); });
   bad("inner_confirm", [](RecognizerParams& p) { p.inner_confirm = 0; });
   bad("stop_delay", [](RecognizerParams& p) { p.stop_delay = -1; });
 }

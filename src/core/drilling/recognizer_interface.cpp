@@ -49,8 +49,8 @@ std::vector<std::string> PaperRecognizer::parameterNames() const {
           "c2",
           "c3",
           "cancellous_confirm",
-          "outer_cortical_timeout",
-          "cancellous_timeout",
+          "outer_cortical_timeout_s",
+          "cancellous_timeout_s",
           "inner_confirm",
           "stop_delay",
           "normalize_feature"};

@@ -13,6 +13,10 @@ namespace pedicle_drilling::core {
 
 namespace {
 
+/// Slack [s] on the plausibility timeouts, so that sample times summed in floating point do not
+/// move a timeout by one sample.
+constexpr double kTimeTolerance = 1e-6;
+
 [[noreturn]] void fail(const std::string& name, const std::string& why, double value) {
   std::ostringstream os;
   os << name << ": " << why << " (got " << value << ")";
@@ -66,8 +70,9 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
         .number("c2", &P::c2, Range::aboveUpTo(0, 1000))
         .number("c3", &P::c3, Range::open(0, 1))
         .integer("cancellous_confirm", &P::cancellous_confirm, count, "samples")
-        .integer("outer_cortical_timeout", &P::outer_cortical_timeout, count_or_off, "samples")
-        .integer("cancellous_timeout", &P::cancellous_timeout, count_or_off, "samples")
+        .number("outer_cortical_timeout_s", &P::outer_cortical_timeout_s, Range::closed(0, 3600),
+                "s")
+        .number("cancellous_timeout_s", &P::cancellous_timeout_s, Range::closed(0, 3600), "s")
         .integer("inner_confirm", &P::inner_confirm, count, "samples")
         .integer("stop_delay", &P::stop_delay, count_or_off, "samples")
         .flag("normalize_feature", &P::normalize_feature);
@@ -79,9 +84,6 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
 void RecognizerParams::validate() const {
   table().validate(*this);
   if (!(c2 >= c1)) fail("c2", "must be >= c1 (hysteresis between cancellous and cortical)", c2);
-  if (cancellous_timeout > 0 && cancellous_timeout <= cancellous_confirm) {
-    fail("cancellous_timeout", "must be 0 or > cancellous_confirm", cancellous_timeout);
-  }
 }
 
 void RecognizerParams::set(const std::string& name, const std::string& value) {
@@ -151,8 +153,8 @@ void StateRecognizer::reset() {
   ring_pos_ = 0;
   ring_fill_ = 0;
   filtered_count_ = 0;
-  since_punctured_ = 0;
-  since_contact_ = 0;
+  punctured_t_ = 0.0;
+  contact_t_ = 0.0;
   cur_raw_index_ = 0;
   cur_t_ = 0.0;
   f_max_ = -std::numeric_limits<double>::infinity();
@@ -253,13 +255,14 @@ void StateRecognizer::onFiltered(double fbar) {
     }
     if (!contact_ && f_max_ > p.f_th) {
       contact_ = true;
+      contact_t_ = cur_t_;
       setLayerState(DrillingState::kOuterCortical);
     }
     if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
       out_.feature = 0.0;
-      // The contact sample counts as the first one (the outer layer's dwell starts with it).
-      if (contact_ && p.outer_cortical_timeout > 0 && ++since_contact_ > p.outer_cortical_timeout &&
-          !out_.stop) {
+      // The outer layer's dwell starts with the contact sample.
+      if (contact_ && p.outer_cortical_timeout_s > 0.0 &&
+          cur_t_ - contact_t_ >= p.outer_cortical_timeout_s - kTimeTolerance && !out_.stop) {
         commandStop();
         out_.stop_implausible = true;
       }
@@ -293,7 +296,7 @@ void StateRecognizer::onFiltered(double fbar) {
     records_.shrink_to_fit();
     setLayerState(DrillingState::kOuterPunctured);
     run_ = 0;
-    since_punctured_ = 0;
+    punctured_t_ = cur_t_;
     out_.feature = feature(p, fbar, out_.f_min, out_.d);
     return;  // the cancellous dwell starts with the next sample
   }
@@ -303,7 +306,8 @@ void StateRecognizer::onFiltered(double fbar) {
 
   switch (out_.layer_state) {
     case DrillingState::kOuterPunctured:
-      if (p.cancellous_timeout > 0 && ++since_punctured_ > p.cancellous_timeout && !out_.stop) {
+      if (p.cancellous_timeout_s > 0.0 &&
+          cur_t_ - punctured_t_ >= p.cancellous_timeout_s - kTimeTolerance && !out_.stop) {
         commandStop();
         out_.stop_implausible = true;
       }
