@@ -231,7 +231,8 @@ def check_bag(path):
                 stamps.append(msg.header.stamp.to_sec())
     steps = sorted(b - a for a, b in zip(stamps, stamps[1:]))
     period = steps[len(steps) // 2] if steps else 0.0
-    gaps = [(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * period]
+    gaps = ([(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * period]
+            if period > 0.0 else [])  # no spacing (fewer than two distinct stamps): no gap
     lost = sum(int(round(dt / period)) - 1 for _, dt in gaps)
     missing = [topic for topic in BAG_REQUIRED if counts[topic] == 0]
     summary = []

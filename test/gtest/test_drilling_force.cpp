@@ -379,26 +379,45 @@ TEST(DrillingForceElastic, RunDownThrustStaysBoundedAndTheStoppedDrillFeelsTheSp
 }
 
 TEST(DrillingForceElastic, AVeryStiffContactIsTheRigidLaw) {
-  DrillingProcess rigid(BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8), rigidContact());
-  DrillingProcess stiff(BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8), elastic(1e12));
+  // Same law (no chisel share), a feed that changes from 0.5 to 1.5 mm/s: the stiff contact's
+  // thrust follows the rigid one's at both chip loads (past the rigid law's own lag).
+  DrillParameters stiff_params = rigidContact();
+  stiff_params.contact_stiffness_n_per_m = 1e12;
+  DrillingProcess rigid(BoneSpecimen::uniform(3e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8), rigidContact());
+  DrillingProcess stiff(BoneSpecimen::uniform(3e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8), stiff_params);
   double worst = 0.0;
-  for (int i = 1; i <= 8000; ++i) {
-    const double tip = -0.5e-3 + kFeed * i * kDt;
+  double tip = -0.5e-3;
+  double slow = 0.0;
+  double fast = 0.0;
+  for (int i = 1; i <= 4000; ++i) {
+    tip += (i <= 3000 ? kFeed : 3.0 * kFeed) * kDt;
     const double a = rigid.step(kDt, tip, 12000.0).thrust_N;
     const double b = stiff.step(kDt, tip, 12000.0).thrust_N;
-    if (i > 2000) worst = std::max(worst, std::abs(a - b));  // past the rigid law's own lag
+    if ((i > 2500 && i <= 3000) || i > 3500) worst = std::max(worst, std::abs(a - b));
+    if (i == 3000) slow = b;
+    if (i == 4000) fast = b;
   }
   EXPECT_LT(worst, 0.02);
+  EXPECT_NEAR(fast / slow, std::sqrt(3.0), 0.02);  // the feed law (alpha = 0.5) at both loads
   EXPECT_NEAR(rigid.maxDepthCut(), stiff.maxDepthCut(), 1e-9);
 }
 
-TEST(DrillingForceElastic, NonPositiveStiffnessIsRefused) {
-  EXPECT_THROW(DrillingProcess(BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8),
-                               elastic(0.0)),
+TEST(DrillingForceElastic, BadParametersAndNonFiniteInputsAreRefused) {
+  const BoneSpecimen bone = BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8);
+  EXPECT_THROW(DrillingProcess(bone, elastic(0.0)), std::invalid_argument);
+  EXPECT_THROW(DrillingProcess(bone, elastic(std::nan(""))), std::invalid_argument);
+  for (double alpha : {0.0, -0.5, 1.5}) {  // the solve needs a monotone law with alpha in (0, 1]
+    DrillParameters d;
+    d.feed_exponent = alpha;
+    EXPECT_THROW(DrillingProcess(bone, d), std::invalid_argument) << alpha;
+  }
+  DrillingProcess p(bone);
+  p.step(kDt, 0.5e-3, 12000.0);
+  const double cut = p.maxDepthCut();
+  EXPECT_THROW(p.step(kDt, std::nan(""), 12000.0), std::invalid_argument);
+  EXPECT_THROW(p.step(kDt, 0.6e-3, std::numeric_limits<double>::infinity()),
                std::invalid_argument);
-  EXPECT_THROW(DrillingProcess(BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8),
-                               elastic(std::nan(""))),
-               std::invalid_argument);
+  EXPECT_EQ(p.maxDepthCut(), cut);  // a refused step leaves the state alone
 }
 
 TEST(DrillingForceChisel, TheChiselShareIsFeedIndependentAndKeepsTheThrustAtTheReferenceFeed) {

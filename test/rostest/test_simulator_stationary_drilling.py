@@ -3,7 +3,7 @@
 
 Moves the arm from home to the drilling pose (config/drilling_pose.yaml) through
 arm_controller/command, runs the spindle at 12000 rpm, feeds at 0.5 mm/s with the feed joint and
-checks, from the 1 kHz ft_sensor/wrench stream averaged over 50 samples (paper Sec. V-E), that
+checks, from the ft_sensor/wrench stream (at the declared DAQ rate) averaged over 50 samples (paper Sec. V-E), that
 the outer and inner cortical peaks fall in the calibrated ranges (calibration.md: outer 2.5-4.0 N,
 inner 2.2-3.8 N) with a lower cancellous level between them, and that simulator/ground_truth
 reports the depth reached."""

@@ -20,7 +20,10 @@ DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
   if (!(params_.bit_diameter_m > 0.0) || !(params_.point_angle_deg > 0.0) ||
       !(params_.point_angle_deg < 180.0) || !(params_.ref_feed_per_rev_m > 0.0) ||
       !(params_.ref_spindle_rpm > 0.0) || !(params_.contact_stiffness_n_per_m > 0.0) ||
-      !(params_.chisel_edge_share >= 0.0 && params_.chisel_edge_share < 1.0)) {
+      !(params_.chisel_edge_share >= 0.0 && params_.chisel_edge_share < 1.0) ||
+      !(params_.thrust_coefficient_n_per_m > 0.0) ||
+      !(params_.feed_exponent > 0.0 && params_.feed_exponent <= 1.0) ||
+      !std::isfinite(params_.speed_exponent)) {
     throw std::invalid_argument("DrillingProcess: invalid drill parameters");
   }
   const double half_angle = 0.5 * params_.point_angle_deg * kPi / 180.0;
@@ -52,6 +55,9 @@ double DrillingProcess::engagedFraction(double tip_depth_m) const {
 
 ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_rpm) {
   if (!(dt > 0.0)) throw std::invalid_argument("DrillingProcess::step: dt must be > 0");
+  if (!std::isfinite(tip_depth_m) || !std::isfinite(spindle_rpm)) {
+    throw std::invalid_argument("DrillingProcess::step: tip depth and spindle speed must be finite");
+  }
   ForceSample out;
   out.material = specimen_.materialAt(tip_depth_m);
   const double advance = tip_depth_m - max_depth_cut_m_;
@@ -121,11 +127,11 @@ ForceSample DrillingProcess::stepElastic(double dt, double advance, double phi, 
           lo = u;
         }
         const double dh = (u > 0.0 ? alpha * fl / u : 0.0) + k;
-        double next = u - h / dh;
+        const double step = h / dh;
+        if (std::abs(step) <= 1e-15 + 1e-12 * advance) break;  // converged (Newton's step)
+        double next = u - step;
         if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
-        const bool done = std::abs(next - u) <= 1e-15 + 1e-12 * advance;
         u = next;
-        if (done) break;
       }
     }
   }

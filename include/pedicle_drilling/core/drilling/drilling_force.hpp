@@ -67,7 +67,10 @@ struct DrillParameters {
 struct ForceSample {
   double thrust_N = 0.0;  ///< thrust along the drill axis, >= 0 (bone pushes the drill back)
   Material material = Material::kAir;  ///< material at the drill tip point
-  bool contact = false;                ///< true iff the lips are cutting in this step
+  /// Rigid contact: true iff the lips cut in this step. Elastic contact: true iff the tip
+  /// presses on the uncut bone (overlap > 0), cutting or, below the chisel edge's indentation
+  /// force or with the spindle stopped, not.
+  bool contact = false;
   double feed_per_rev_m = 0.0;         ///< actual feed per revolution this step
   double engaged_fraction = 0.0;       ///< phi_eff, radial mean solid fraction under the lips
   double overlap_m = 0.0;  ///< elastic overlap of the tip beyond the cut surface (elastic contact)
