@@ -5,9 +5,9 @@
  *        owns /clock (when ~publish_clock) and paces the simulation at ~real_time_factor.
  *
  * Interfaces (see README "pedicle_drilling/Simulator"): publishes /clock, joint_states,
- * ft_sensor/wrench (at ~force_sensor_rate_hz, 1000/3 Hz), tf + tf_static, tracker/marker_pose (8 Hz), simulator/ground_truth;
- * subscribes arm_controller/command (trajectory_msgs/JointTrajectory), spindle/command
- * (std_msgs/Float64, rpm); service simulator/reset (ResetSimulation).
+ * ft_sensor/wrench (at ~force_sensor_rate_hz, 1000/3 Hz), tf + tf_static, tracker/marker_pose (8
+ * Hz), simulator/ground_truth; subscribes arm_controller/command (trajectory_msgs/JointTrajectory),
+ * spindle/command (std_msgs/Float64, rpm); service simulator/reset (ResetSimulation).
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>

@@ -362,8 +362,8 @@ TEST(DrillingForceElastic, RunDownThrustStaysBoundedAndTheStoppedDrillFeelsTheSp
     if (rpm > 0.0) {
       // Never above what the cutting law asks to cut the whole approach in one step (the rigid
       // law's instantaneous force): the spring only delays the cut.
-      const double law = soft.steadyThrust(f.engaged_fraction,
-                                           (tip - cut_before) / (kDt * rpm / 60.0), rpm);
+      const double law =
+          soft.steadyThrust(f.engaged_fraction, (tip - cut_before) / (kDt * rpm / 60.0), rpm);
       EXPECT_LE(f.thrust_N, law * (1.0 + 1e-9)) << "rpm " << rpm;
     } else {
       // Stopped: nothing is cut, the spring takes every micrometre of the approach.
@@ -415,8 +415,7 @@ TEST(DrillingForceElastic, BadParametersAndNonFiniteInputsAreRefused) {
   p.step(kDt, 0.5e-3, 12000.0);
   const double cut = p.maxDepthCut();
   EXPECT_THROW(p.step(kDt, std::nan(""), 12000.0), std::invalid_argument);
-  EXPECT_THROW(p.step(kDt, 0.6e-3, std::numeric_limits<double>::infinity()),
-               std::invalid_argument);
+  EXPECT_THROW(p.step(kDt, 0.6e-3, std::numeric_limits<double>::infinity()), std::invalid_argument);
   EXPECT_EQ(p.maxDepthCut(), cut);  // a refused step leaves the state alone
 }
 
@@ -427,15 +426,17 @@ TEST(DrillingForceChisel, TheChiselShareIsFeedIndependentAndKeepsTheThrustAtTheR
   const DrillingProcess plain(bone, rigidContact());
   const DrillingProcess chisel(bone, with);
   const double f_ref = with.ref_feed_per_rev_m;
-  EXPECT_DOUBLE_EQ(chisel.steadyThrust(0.9, f_ref, 12000.0), plain.steadyThrust(0.9, f_ref, 12000.0));
+  EXPECT_DOUBLE_EQ(chisel.steadyThrust(0.9, f_ref, 12000.0),
+                   plain.steadyThrust(0.9, f_ref, 12000.0));
   const double f0 = plain.steadyThrust(0.9, f_ref, 12000.0);
   EXPECT_NEAR(chisel.steadyThrust(0.9, 4.0 * f_ref, 12000.0), f0 * (0.6 + 0.4 * 2.0), 1e-12);
   EXPECT_NEAR(plain.steadyThrust(0.9, 4.0 * f_ref, 12000.0), f0 * 2.0, 1e-12);
-  EXPECT_THROW(DrillingProcess(bone, [] {
-                 DrillParameters d;
-                 d.chisel_edge_share = 1.0;
-                 return d;
-               }()),
+  EXPECT_THROW(DrillingProcess(bone,
+                               [] {
+                                 DrillParameters d;
+                                 d.chisel_edge_share = 1.0;
+                                 return d;
+                               }()),
                std::invalid_argument);
 }
 
@@ -446,7 +447,7 @@ TEST(DrillingForceChisel, BelowTheChiselEdgesIndentationForceNothingIsCut) {
     with.contact_stiffness_n_per_m = 1e6;
     DrillingProcess p(BoneSpecimen::uniform(5e-3, 4e-3, 2e-3, 0.9, 0.25, 0.8), with);
     for (int i = 1; i <= 1000; ++i) p.step(kDt, kFeed * i * kDt, 12000.0);  // 0.5 mm in
-    p.step(kDt, 0.0, 12000.0);                                               // back off
+    p.step(kDt, 0.0, 12000.0);                                              // back off
     const double surface = p.maxDepthCut();
     *chisel = share * p.steadyThrust(p.engagedFraction(surface), with.ref_feed_per_rev_m, 12000.0);
     // Press slowly (0.05 mm/s, 0.05 N more per step through the spring) from the cut surface.

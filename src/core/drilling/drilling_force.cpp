@@ -56,7 +56,8 @@ double DrillingProcess::engagedFraction(double tip_depth_m) const {
 ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_rpm) {
   if (!(dt > 0.0)) throw std::invalid_argument("DrillingProcess::step: dt must be > 0");
   if (!std::isfinite(tip_depth_m) || !std::isfinite(spindle_rpm)) {
-    throw std::invalid_argument("DrillingProcess::step: tip depth and spindle speed must be finite");
+    throw std::invalid_argument(
+        "DrillingProcess::step: tip depth and spindle speed must be finite");
   }
   ForceSample out;
   out.material = specimen_.materialAt(tip_depth_m);

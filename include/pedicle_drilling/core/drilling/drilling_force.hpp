@@ -47,7 +47,7 @@ struct DrillParameters {
   /// Thrust per metre of bit diameter per unit solid fraction at f_ref and n_ref [N/m].
   /// Calibrated to the paper's stationary peak thrusts (Fig. 16 medians 3.16 / 2.88 N).
   double thrust_coefficient_n_per_m = 1373.0;
-  double feed_exponent = 0.5;          ///< alpha: sub-linear size effect (assumption, see doc)
+  double feed_exponent = 0.5;  ///< alpha: sub-linear size effect (assumption, see doc)
   /// s: chisel-edge share of the thrust at f_ref, feed-independent (indentation), in [0, 1).
   /// 0.6: literature 50-70 %, calibrated with the DAQ rate against Fig. 16 (see doc).
   double chisel_edge_share = 0.6;
@@ -71,8 +71,8 @@ struct ForceSample {
   /// presses on the uncut bone (overlap > 0), cutting or, below the chisel edge's indentation
   /// force or with the spindle stopped, not.
   bool contact = false;
-  double feed_per_rev_m = 0.0;         ///< actual feed per revolution this step
-  double engaged_fraction = 0.0;       ///< phi_eff, radial mean solid fraction under the lips
+  double feed_per_rev_m = 0.0;    ///< actual feed per revolution this step
+  double engaged_fraction = 0.0;  ///< phi_eff, radial mean solid fraction under the lips
   double overlap_m = 0.0;  ///< elastic overlap of the tip beyond the cut surface (elastic contact)
 };
 

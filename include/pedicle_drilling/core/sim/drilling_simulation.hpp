@@ -171,7 +171,7 @@ struct DrillingSimulationParams {
   /// Force/torque sensor model, at the DAQ rate calibrated against the paper's Fig. 16 and 18
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
-  double tracker_noise_rms_mm = 0.25;    ///< 3-D RMS position noise of the marker (NDI Polaris)
+  double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
   /**
