@@ -11,6 +11,7 @@ import statistics
 import subprocess
 
 import pytest
+import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 # Paper Sec. V-D (Fig. 16): stationary medians (1.2 N / 0.38, 1.43 N / 0.497) and each moving
@@ -45,7 +46,8 @@ def documented_row(rate, share):
 @pytest.fixture(scope='module')
 def calibrated(tmp_path_factory):
     scenario_text = open(os.path.join(ROOT, 'config', 'scenario_peak_forces.yaml')).read()
-    assert 'simulator_params' not in scenario_text  # the calibrated chain is the default
+    # The calibrated chain is the simulator's default: the scenario does not override it.
+    assert 'simulator_params' not in (yaml.safe_load(scenario_text) or {})
     rate = simulator_default('force_sensor_rate_hz')
     share = simulator_default('chisel_edge_share')
     scenario = tmp_path_factory.mktemp('calibration') / 'scenario.yaml'

@@ -241,6 +241,13 @@ void StateRecognizer::commandStop() {
   out_.state = DrillingState::kStopped;
 }
 
+void StateRecognizer::stopIfImplausible(double since_t, double timeout_s) {
+  if (timeout_s > 0.0 && cur_t_ - since_t >= timeout_s - kTimeTolerance && !out_.stop) {
+    commandStop();
+    out_.stop_implausible = true;
+  }
+}
+
 void StateRecognizer::onFiltered(double fbar) {
   out_.averaged_force = fbar;
   const RecognizerParams& p = params_;
@@ -261,11 +268,7 @@ void StateRecognizer::onFiltered(double fbar) {
     if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
       out_.feature = 0.0;
       // The outer layer's dwell starts with the contact sample.
-      if (contact_ && p.outer_cortical_timeout_s > 0.0 &&
-          cur_t_ - contact_t_ >= p.outer_cortical_timeout_s - kTimeTolerance && !out_.stop) {
-        commandStop();
-        out_.stop_implausible = true;
-      }
+      if (contact_) stopIfImplausible(contact_t_, p.outer_cortical_timeout_s);
       return;
     }
     out_.params_ready = true;
@@ -306,11 +309,7 @@ void StateRecognizer::onFiltered(double fbar) {
 
   switch (out_.layer_state) {
     case DrillingState::kOuterPunctured:
-      if (p.cancellous_timeout_s > 0.0 &&
-          cur_t_ - punctured_t_ >= p.cancellous_timeout_s - kTimeTolerance && !out_.stop) {
-        commandStop();
-        out_.stop_implausible = true;
-      }
+      stopIfImplausible(punctured_t_, p.cancellous_timeout_s);
       if (a < p.c1) {
         // Key point 3 is placed where the dwell is confirmed: the first sample known to be in
         // cancellous bone (the start of the dwell would coincide with key point 2).

@@ -208,6 +208,8 @@ class StateRecognizer {
   void processAverage(double f_block);
   void onFiltered(double fbar);
   void addKeyPoint(int id, std::size_t index, double t);
+  /// Stops with `implausible force` once timeout_s (> 0; 0 disables) has passed since since_t.
+  void stopIfImplausible(double since_t, double timeout_s);
   void commandStop();
   void setLayerState(DrillingState s);
 
