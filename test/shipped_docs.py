@@ -1,8 +1,20 @@
 """What the tests read from the shipped files, read once for all of them: the README's
-per-node parameter tables and the launch files' required arguments. Imported by the python
+per-node parameter tables, the launch files' required arguments, and a node's declared
+parameter defaults (param_docs). Imported by the python
 tests (test/python) and the rostest scripts (test/rostest) with test/ on sys.path."""
+import json
 import re
+import subprocess
 import xml.etree.ElementTree as ET
+
+
+def declared_default(node, name):
+    """The declared default of parameter `name` of nodelet class `node` (e.g.
+    'pedicle_drilling/Simulator'), as a float, read from `param_docs --format json` (the
+    declaration itself)."""
+    out = subprocess.run(['rosrun', 'pedicle_drilling', 'param_docs', '--node', node, '--format',
+                          'json'], capture_output=True, text=True, check=True).stdout
+    return float([r for r in json.loads(out)[node] if r['name'] == name][0]['default'])
 
 
 def readme_parameter_rows(readme_path):

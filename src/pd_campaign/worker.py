@@ -229,10 +229,11 @@ def check_bag(path):
             counts[topic] += 1
             if topic == '/ft_sensor/wrench':
                 stamps.append(msg.header.stamp.to_sec())
-    steps = sorted(b - a for a, b in zip(stamps, stamps[1:]))
+    spacing = [(a, b - a) for a, b in zip(stamps, stamps[1:])]
+    steps = sorted(dt for _, dt in spacing)
     period = steps[len(steps) // 2] if steps else 0.0
-    gaps = ([(a, b - a) for a, b in zip(stamps, stamps[1:]) if b - a > 1.5 * period]
-            if period > 0.0 else [])  # no spacing (fewer than two distinct stamps): no gap
+    # No spacing (fewer than two distinct stamps): no gap.
+    gaps = [(t, dt) for t, dt in spacing if dt > 1.5 * period] if period > 0.0 else []
     lost = sum(int(round(dt / period)) - 1 for _, dt in gaps)
     missing = [topic for topic in BAG_REQUIRED if counts[topic] == 0]
     summary = []

@@ -4,31 +4,26 @@ simulator's defaults (the calibrated DAQ rate and chisel-edge share), on the doc
 reproduces Fig. 16 within the stated tolerances, and the documented row of that rate within
 sampling error. 40 trials per case here (200 in the doc)."""
 import csv
-import json
 import os
 import re
 import statistics
 import subprocess
+import sys
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'test'))
+from shipped_docs import declared_default  # noqa: E402
+
+SIMULATOR = 'pedicle_drilling/Simulator'
 # Paper Sec. V-D (Fig. 16): stationary medians (1.2 N / 0.38, 1.43 N / 0.497) and each moving
 # case's median difference to the stationary one, in percent.
 PAPER_STATIONARY = (3.16, 2.88)
 PAPER_DIFFERENCE = {'uncompensated': (-38.0, -49.7), 'compensated': (-13.0, -0.2)}
 STATIONARY_TOLERANCE = 0.20  # relative (issue 14: stationary medians within 20 %)
 DIFFERENCE_TOLERANCE = 16.0  # percentage points, 40 trials per case
-
-
-def simulator_default(name):
-    """The declared default of a Simulator parameter (param_docs, the declaration itself)."""
-    out = subprocess.run(['rosrun', 'pedicle_drilling', 'param_docs', '--node',
-                          'pedicle_drilling/Simulator', '--format', 'json'],
-                         capture_output=True, text=True, check=True).stdout
-    rows = json.loads(out)['pedicle_drilling/Simulator']
-    return float([r for r in rows if r['name'] == name][0]['default'])
 
 
 def documented_row(rate, share):
@@ -48,8 +43,8 @@ def calibrated(tmp_path_factory):
     scenario_text = open(os.path.join(ROOT, 'config', 'scenario_peak_forces.yaml')).read()
     # The calibrated chain is the simulator's default: the scenario does not override it.
     assert 'simulator_params' not in (yaml.safe_load(scenario_text) or {})
-    rate = simulator_default('force_sensor_rate_hz')
-    share = simulator_default('chisel_edge_share')
+    rate = declared_default(SIMULATOR, 'force_sensor_rate_hz')
+    share = declared_default(SIMULATOR, 'chisel_edge_share')
     scenario = tmp_path_factory.mktemp('calibration') / 'scenario.yaml'
     scenario.write_text(re.sub(r'(?m)^trials:.*$', 'trials: 40', scenario_text))
     out = scenario.parent / 'out'

@@ -7,12 +7,12 @@ checks, from the ft_sensor/wrench stream (at the declared DAQ rate) averaged ove
 the outer and inner cortical peaks fall in the calibrated ranges (calibration.md: outer 2.5-4.0 N,
 inner 2.2-3.8 N) with a lower cancellous level between them, and that simulator/ground_truth
 reports the depth reached."""
-import json
-import subprocess
+import os
 import sys
 import threading
 import unittest
 
+import rospkg
 import rospy
 import rostest
 from geometry_msgs.msg import WrenchStamped
@@ -23,20 +23,13 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from pedicle_drilling.msg import GroundTruth
 from pedicle_drilling.srv import ResetSimulation
 
+sys.path.insert(0, os.path.join(rospkg.RosPack().get_path('pedicle_drilling'), 'test'))
+from shipped_docs import declared_default  # noqa: E402
+
 JOINTS = ['rsssii_joint%d' % i for i in range(1, 7)] + ['feed_joint']
 DRILLING_POSE = [0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0, 0.0]  # config/drilling_pose.yaml
 SEED = 3
 FEED_RATE = 0.5e-3  # m/s
-
-
-def declared_force_rate_hz():
-    """The Simulator's declared ~force_sensor_rate_hz (param_docs reads the declaration); the
-    test launch leaves it at its default."""
-    out = subprocess.run(['rosrun', 'pedicle_drilling', 'param_docs', '--node',
-                          'pedicle_drilling/Simulator', '--format', 'json'],
-                         capture_output=True, text=True, check=True).stdout
-    rows = json.loads(out)['pedicle_drilling/Simulator']
-    return float([r for r in rows if r['name'] == 'force_sensor_rate_hz'][0]['default'])
 
 
 class StationaryDrillingTest(unittest.TestCase):
@@ -115,7 +108,7 @@ class StationaryDrillingTest(unittest.TestCase):
             samples = sorted(self.wrenches)
             truths = list(self.truth)
         span = samples[-1][0] - samples[0][0]
-        rate = declared_force_rate_hz()
+        rate = declared_default('pedicle_drilling/Simulator', 'force_sensor_rate_hz')
         self.assertGreater(len(samples), 0.95 * span * rate,
                            'wrench stream not at %.1f Hz: %d samples over %.2f s'
                            % (rate, len(samples), span))

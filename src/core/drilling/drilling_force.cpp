@@ -41,7 +41,7 @@ double DrillingProcess::steadyThrust(double engaged_fraction, double feed_per_re
   const double s = params_.chisel_edge_share;
   const double lips = std::pow(feed_per_rev_m / params_.ref_feed_per_rev_m, params_.feed_exponent);
   return params_.thrust_coefficient_n_per_m * params_.bit_diameter_m * engaged_fraction *
-         (s == 0.0 ? lips : s + (1.0 - s) * lips) *
+         (s + (1.0 - s) * lips) *
          std::pow(spindle_rpm / params_.ref_spindle_rpm, -params_.speed_exponent);
 }
 
@@ -70,7 +70,7 @@ ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_
     return out;
   }
   const double phi = engagedFraction(tip_depth_m);
-  if (!rigid) return stepElastic(dt, advance, phi, std::max(0.0, spindle_rpm));
+  if (!rigid) return stepElastic(dt, advance, phi, std::max(0.0, spindle_rpm), out);
   const double revolutions = dt * spindle_rpm / 60.0;
   const double feed_per_rev = advance / revolutions;
   max_depth_cut_m_ = tip_depth_m;
@@ -87,9 +87,8 @@ ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_
   return out;
 }
 
-ForceSample DrillingProcess::stepElastic(double dt, double advance, double phi, double rpm) {
-  ForceSample out;
-  out.material = specimen_.materialAt(max_depth_cut_m_ + advance);
+ForceSample DrillingProcess::stepElastic(double dt, double advance, double phi, double rpm,
+                                         ForceSample out) {
   out.engaged_fraction = phi;
   if (!(phi > 0.0)) {
     // Cutting air (before the surface, in the canal): nothing resists, the cut follows the tip.

@@ -144,8 +144,9 @@ class DrillingProcess {
   const DrillParameters& parameters() const { return params_; }
 
  private:
-  /// @brief The elastic contact's step (finite contact_stiffness_n_per_m), see the file brief.
-  ForceSample stepElastic(double dt, double advance, double phi, double rpm);
+  /// @brief The elastic contact's step (finite contact_stiffness_n_per_m), see the file brief;
+  ///        completes `out` (its material already set by step()).
+  ForceSample stepElastic(double dt, double advance, double phi, double rpm, ForceSample out);
 
   BoneSpecimen specimen_;
   DrillParameters params_;
