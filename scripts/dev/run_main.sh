@@ -7,10 +7,12 @@
 #      and the bone moving as the virtual patient (lag, drift, small movements), compensated
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
-#      the fault campaign; Fig. 16's protocol at the calibrated sensor rate
-#      (scenario_peak_forces.yaml, 200 trials per case)
+#      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
+#      rate (scenario_peak_forces.yaml, 200 trials per case)
 #   3. the integration check: 10 trials per case of design 1 through the full ROS pipeline,
 #      twice, each trial beside the core engine's (engine_agreement.md)
+# Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
+# spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
@@ -34,7 +36,7 @@ for scenario in exact virtual_patient hysteresis; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_${scenario}.yaml" \
     --trials 200 --jobs "${JOBS}" --out "${OUT}/campaign_${scenario}"
 done
-# 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 50 unseen seeds.
+# 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" --out "${OUT}/campaign_faults"
 # 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes

@@ -10,11 +10,14 @@ from . import report, tools
 
 
 def outcome(row):
-    """Where a trial ended: success, or the ground-truth category of its failure."""
+    """Where a trial ended: success, or the ground-truth category of its failure (its failure
+    kind, pd_campaign.outcome, when the row has one)."""
     if row.get('error'):
         return 'error'
     if row['success']:
         return 'success'
+    if row.get('failure_kind'):
+        return row['failure_kind']
     if row['breakthrough']:
         return 'breakthrough'
     depth, inner = row.get('max_depth_mm'), row.get('inner_start_mm')

@@ -13,7 +13,7 @@ import yaml
 
 from . import engine_core, plots, report, tools
 from .atomic import atomic_path, atomic_write
-from .design import CASES, FAULTS, build_design, parse_shard, shard
+from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
 PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
@@ -28,6 +28,10 @@ SCENARIO_KEYS = {
     'rpms': (list, 1000.0, 60000.0),
     'trials': ((int, list), 1, 10000),  # per case and speed: one count, or one per rpm
     'seed': (int, 0, 2 ** 62),
+    # calibration | evaluation (design.SEED_SPACES): the disjoint seed space the trials are
+    # drawn from; constants are chosen on calibration seeds, numbers published on evaluation
+    # seeds (doc/experiments.md, "Seed spaces"). Default evaluation.
+    'seed_space': (str, None, None),
     'feed_rate_mm_s': (float, 0.05, 5.0),
     'max_duration_s': (float, 5.0, 600.0),
     'identification_window_s': (float, 5.0, 300.0),
@@ -199,6 +203,10 @@ def parse_args(argv):
     parser.add_argument('--trials', default=None,
                         help='trials per case and speed: N, or one count per --rpm (N1,N2,...)')
     parser.add_argument('--seed', type=int, default=None)
+    parser.add_argument('--seed-space', default=None,
+                        help='calibration | evaluation (default: the scenario\'s, else '
+                        'evaluation): the disjoint seed space of the trials. Choose constants '
+                        'on calibration seeds, publish numbers from evaluation seeds')
     parser.add_argument('--scenario', default=DEFAULT_SCENARIO)
     parser.add_argument('--recognizer', default=None,
                         help='drilling-state recognizer class (default: the scenario\'s, else '
@@ -291,6 +299,10 @@ def parse_args(argv):
     seed = args.seed if args.seed is not None else scenario.get('seed', 1)
     if not 0 <= seed <= SCENARIO_KEYS['seed'][2]:
         raise UsageError('--seed %d is out of range [0, 2^62]' % seed)
+    space = args.seed_space or scenario.get('seed_space', 'evaluation')
+    if space not in SEED_SPACES:
+        raise UsageError('--seed-space %r is not one of: %s' % (space, ', '.join(SEED_SPACES)))
+    args.seed_space = space
     shard_spec = None
     if args.shard:
         try:
@@ -357,7 +369,7 @@ def write_outputs(rows, meta, out_dir, notes=''):
             notes = notes + '\n\n## Table II (identification on the five virtual volunteers)\n\n' \
                 + handle.read()
     report.write_report_md(summary, meta, figures, os.path.join(out_dir, 'report.md'), notes,
-                           faults)
+                           faults, rows)
     return summary
 
 
@@ -426,12 +438,13 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['the simulator section was refused'])[-1])
             return 2
-    design = build_design(cases, rpms, trials, seed, faults)
+    design = build_design(cases, rpms, trials, seed, faults, args.seed_space)
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
     # The report's meta data describe the design only, so that merged shards report the same.
     meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
+            'seed_space': args.seed_space,
             'design_size': len(design), 'simulator': scenario.get('simulator') or {},
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
@@ -606,7 +619,7 @@ def run_merge(argv=None):
                 with open(os.path.join(traces, name)) as src, \
                         atomic_write(os.path.join(out_dir, 'traces', name)) as dst:
                     dst.write(src.read())
-    keys = ('cases', 'rpms', 'trials', 'seed', 'simulator', 'faults', 'fault_params')
+    keys = ('cases', 'rpms', 'trials', 'seed', 'seed_space', 'simulator', 'faults', 'fault_params')
     if any(tuple(m.get(k) for k in keys) != tuple(metas[0].get(k) for k in keys)
            for m in metas):
         sys.stderr.write('campaign_merge: the directories come from different designs\n')

@@ -114,8 +114,25 @@ def compare(rows_a, rows_b):
                                                   if not r.get('error')]),
             'median_residual_mm_b': stats.median([r.get('residual_mm') for r in in_b
                                                   if not r.get('error')]),
+            'no_penetration_a': sum(1 for r in in_a if not r.get('error')
+                                    and not r.get('breakthrough')),
+            'no_penetration_b': sum(1 for r in in_b if not r.get('error')
+                                    and not r.get('breakthrough')),
+            'failure_kinds_a': _kinds(in_a),
+            'failure_kinds_b': _kinds(in_b),
         })
     return groups
+
+
+def _kinds(rows):
+    """Failure kinds (pd_campaign.outcome) of the rows that did not error, by count."""
+    counts = {}
+    for row in rows:
+        if row.get('error'):
+            continue
+        kind = row.get('failure_kind') or ('success' if row['success'] else 'unknown')
+        counts[kind] = counts.get(kind, 0) + 1
+    return dict(sorted(counts.items()))
 
 
 def _mm(value):
@@ -143,6 +160,15 @@ def markdown(groups, label_a, label_b, dir_a, dir_b):
             g['case'], g['rpm'], n, rate(g['successes_a']), rate(g['successes_b']), g['both'],
             g['only_a'], g['only_b'], g['neither'], g['mcnemar_p'], diff,
             _mm(g['median_residual_mm_a']), _mm(g['median_residual_mm_b'])))
+    lines += ['', 'No penetration (no breakthrough of the inner layer) and the failure kinds '
+              '(src/pd_campaign/outcome.py) of each campaign:', '',
+              '| case | rpm | no penetration %s / %s | failure kinds %s | failure kinds %s |'
+              % (label_a, label_b, label_a, label_b), '|---|---|---|---|---|']
+    for g in groups:
+        lines.append('| %s | %.0f | %d / %d | %s | %s |' % (
+            g['case'], g['rpm'], g['no_penetration_a'], g['no_penetration_b'],
+            ', '.join('%s %d' % kv for kv in g['failure_kinds_a'].items()) or '-',
+            ', '.join('%s %d' % kv for kv in g['failure_kinds_b'].items()) or '-'))
     errors = [(g['case'], g['rpm'], g['errors_a'], g['errors_b']) for g in groups
               if g['errors_a'] or g['errors_b']]
     if errors:

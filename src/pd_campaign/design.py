@@ -1,8 +1,14 @@
 """The campaign's design: which trials run, with which seeds, and how shards split them.
 
-Every trial is identified by (case, rpm, index). Its seed depends on (base seed, rpm, index) but
-NOT on the case, so that the three cases at one speed drill the same specimens with the same
-virtual patients (a paired design: differences between cases are not specimen luck)."""
+Every trial is identified by (case, rpm, index). Its seed depends on (seed space, base seed, rpm,
+index) but NOT on the case, so that the three cases at one speed drill the same specimens with the
+same virtual patients (a paired design: differences between cases are not specimen luck).
+
+Seed spaces (issue 27): every choice made by looking at simulated outcomes (a timeout, a rate, a
+threshold) is made on `calibration` seeds; every published number comes from `evaluation` seeds.
+The two spaces are disjoint by construction: bit 62 of a trial seed is 1 in the evaluation space
+and 0 in the calibration space, whatever the base seed, so no base seed of one space can ever
+draw a specimen of the other (SEED_SPACE_BIT, seed_space_of)."""
 import hashlib
 
 CASES = ('stationary', 'uncompensated', 'compensated')
@@ -12,24 +18,39 @@ FAULTS = ('none', 'force_silent', 'force_nan', 'force_inf', 'force_spike', 'forc
           'breathing_rate_up', 'breathing_rate_down', 'command_lost', 'command_delayed')
 
 
-def trial_seed(base_seed, rpm, index):
-    """Stable 63-bit seed, independent of Python's hash randomisation."""
-    digest = hashlib.sha256(('%d/%d/%d' % (base_seed, int(rpm), index)).encode()).digest()
-    return int.from_bytes(digest[:8], 'big') >> 1
+SEED_SPACES = ('calibration', 'evaluation')
+# The bit that tells the spaces apart: set in every evaluation seed, clear in every calibration
+# seed (trial seeds are 63-bit, so they stay below 2^63 and fit the engine's uint64 and ROS's).
+SEED_SPACE_BIT = 1 << 62
 
 
-def build_design(cases, rpms, trials, base_seed, faults=None):
+def trial_seed(base_seed, rpm, index, space='evaluation'):
+    """Stable 63-bit seed of the given seed space, independent of Python's hash randomisation."""
+    if space not in SEED_SPACES:
+        raise ValueError('seed space %r is not one of: %s' % (space, ', '.join(SEED_SPACES)))
+    digest = hashlib.sha256(('%s/%d/%d/%d' % (space, base_seed, int(rpm), index)).encode()).digest()
+    seed = int.from_bytes(digest[:8], 'big') >> 2  # 62 bits
+    return seed | SEED_SPACE_BIT if space == 'evaluation' else seed
+
+
+def seed_space_of(seed):
+    """The seed space a trial seed belongs to."""
+    return 'evaluation' if int(seed) & SEED_SPACE_BIT else 'calibration'
+
+
+def build_design(cases, rpms, trials, base_seed, faults=None, space='evaluation'):
     """All trials in canonical order: by rpm, then index, then case, then fault. `trials` is the
     count per case and speed, or a list of one count per rpm (a trial's seed does not depend on
     it). With `faults` (a fault campaign), every case runs once per fault on the same seed, so
-    that each fault is paired with the fault-free trial of the same specimen and patient."""
+    that each fault is paired with the fault-free trial of the same specimen and patient.
+    `space`: the seed space the seeds are drawn from (calibration or evaluation)."""
     counts = trials if isinstance(trials, list) else [trials] * len(rpms)
     if len(counts) != len(rpms):
         raise ValueError('%d trial counts for %d spindle speeds' % (len(counts), len(rpms)))
     design = []
     for rpm, count in zip(rpms, counts):
         for index in range(count):
-            seed = trial_seed(base_seed, rpm, index)
+            seed = trial_seed(base_seed, rpm, index, space)
             for case in cases:
                 if not faults:
                     design.append({
@@ -38,6 +59,7 @@ def build_design(cases, rpms, trials, base_seed, faults=None):
                         'rpm': float(rpm),
                         'index': index,
                         'seed': seed,
+                        'seed_space': space,
                     })
                     continue
                 for fault in faults:
@@ -47,6 +69,7 @@ def build_design(cases, rpms, trials, base_seed, faults=None):
                         'rpm': float(rpm),
                         'index': index,
                         'seed': seed,
+                        'seed_space': space,
                         'fault': fault,
                     })
     return design

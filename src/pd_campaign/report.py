@@ -11,9 +11,12 @@ from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS
 
 TRIAL_COLUMNS = [
-    'trial_id', 'case', 'rpm', 'index', 'seed', 'fault', 'engine', 'success', 'residual_mm',
+    'trial_id', 'case', 'rpm', 'index', 'seed', 'seed_space', 'fault', 'engine', 'success',
+    'residual_mm',
     'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'protocol', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
-    'retreat_delay_s', 'breakthrough', 'max_depth_mm', 'inner_start_mm',
+    'retreat_delay_s', 'breakthrough', 'failure_kind', 'stop_depth_mm', 'stop_residual_mm',
+    'overshoot_mm', 'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'max_depth_mm',
+    'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
@@ -53,8 +56,10 @@ def normalise_row(row):
                 'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                 'force_noise_sd_n', 'arm_stiffness_scale',
                 'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
-                'sim_duration_s', 'wall_s'):
+                'sim_duration_s', 'wall_s', 'stop_depth_mm', 'stop_residual_mm', 'overshoot_mm',
+                'rundown_mm', 'detection_latency_ms', 'h1_error_mm'):
         out[key] = _number(row.get(key))
+    out['failure_kind'] = row.get('failure_kind') or None
     return out
 
 
@@ -167,6 +172,7 @@ def summarise(rows):
             'median_tracking_rms_mm_failures': stats.median(
                 [r['tracking_rms_mm'] for r in valid if not r['success']]),
         })
+        summary[-1].update(field_metrics(valid))
     # Moving cases against the stationary case on the same specimens (seeds are paired across
     # cases, design.py): McNemar's exact test on the discordant pairs.
     for g in summary:
@@ -180,6 +186,90 @@ def summarise(rows):
             'only_stationary': only_stationary, 'neither': neither,
             'mcnemar_p': stats.mcnemar_exact(only_case, only_stationary)}
     return summary
+
+
+def field_metrics(valid):
+    """The field's metrics of a group of trials (issue 27; Xia et al. 2024 report correct stops
+    and no penetration separately): correct-stop and no-penetration rates with Wilson 95 %
+    intervals, the failure kinds, and the medians (with quartiles) of the stop's distance from
+    the inner layer's end, the overshoot past the layer's entry and the detection latency
+    (pd_campaign.outcome defines each)."""
+    n = len(valid)
+    correct = sum(1 for r in valid if r['success'])
+    intact = sum(1 for r in valid if not r['breakthrough'])
+    return {
+        'correct_stop_rate': correct / n if n else None,
+        'correct_stop_wilson95': list(stats.wilson_interval(correct, n)),
+        'no_penetration': intact,
+        'no_penetration_rate': intact / n if n else None,
+        'no_penetration_wilson95': list(stats.wilson_interval(intact, n)),
+        'failure_kinds': _count(r.get('failure_kind') or outcome(r) for r in valid),
+        'quartiles_stop_residual_mm': _quartile_values([r.get('stop_residual_mm') for r in valid]),
+        'quartiles_overshoot_mm': _quartile_values([r.get('overshoot_mm') for r in valid]),
+        'quartiles_detection_latency_ms': _quartile_values(
+            [r.get('detection_latency_ms') for r in valid]),
+    }
+
+
+def metrics_table(summary):
+    """The field's metrics per case and speed (field_metrics)."""
+    lines = ['| case | rpm | correct stops (Wilson 95 %) | no penetration (Wilson 95 %) '
+             '| stop to the layer\'s end [mm] | overshoot past the entry [mm] '
+             '| detection latency [ms] | failure kinds |',
+             '|---|---|---|---|---|---|---|---|']
+    for g in summary:
+        lines.append('| %s | %.0f | %d/%d (%s-%s) | %d/%d (%s-%s) | %s | %s | %s | %s |' % (
+            g['case'], g['rpm'], g['successes'], g['trials'], _pct(g['correct_stop_wilson95'][0]),
+            _pct(g['correct_stop_wilson95'][1]), g['no_penetration'], g['trials'],
+            _pct(g['no_penetration_wilson95'][0]), _pct(g['no_penetration_wilson95'][1]),
+            _quartiles(g['quartiles_stop_residual_mm']), _quartiles(g['quartiles_overshoot_mm']),
+            _quartiles(g['quartiles_detection_latency_ms'], '%.0f'),
+            ', '.join('%s %d' % kv for kv in g['failure_kinds'].items() if kv[0] != 'success')
+            or '-'))
+    return '\n'.join(lines)
+
+
+def h1_by_volunteer(rows):
+    """The monitor's H1 stops (bone position error) per case and virtual volunteer, with the
+    prediction error they reported (trials without a fault). Empty when there was none."""
+    groups = {}
+    for row in rows:
+        if (row.get('fault') or 'none') != 'none' or row.get('error'):
+            continue
+        key = (row['case'], row['rpm'], row.get('volunteer_id'))
+        groups.setdefault(key, []).append(row)
+    out = []
+    for (case, rpm, volunteer), group in sorted(groups.items(), key=lambda kv: (
+            kv[0][1], CASES.index(kv[0][0]) if kv[0][0] in CASES else 9, str(kv[0][2]))):
+        h1 = [r for r in group if r.get('failure_kind') == 'safety_h1']
+        out.append({'case': case, 'rpm': rpm, 'volunteer_id': volunteer, 'trials': len(group),
+                    'h1_stops': len(h1),
+                    'quartiles_h1_error_mm': _quartile_values([r.get('h1_error_mm') for r in h1]),
+                    'max_h1_error_mm': _maximum([r.get('h1_error_mm') for r in h1])})
+    return out if any(g['h1_stops'] for g in out) else []
+
+
+def h1_table(groups):
+    """The H1 stops per volunteer (h1_by_volunteer)."""
+    lines = ['| case | rpm | volunteer | trials | H1 stops | share | position error at the stop: '
+             'quartiles / max [mm] |', '|---|---|---|---|---|---|---|']
+    for g in groups:
+        if g['case'] == 'stationary':
+            continue
+        lines.append('| %s | %.0f | %s | %d | %d | %s | %s / %s |' % (
+            g['case'], g['rpm'], _volunteer_label(g['volunteer_id']), g['trials'], g['h1_stops'],
+            _pct(g['h1_stops'] / g['trials'] if g['trials'] else None),
+            _quartiles(g['quartiles_h1_error_mm']), _num(g['max_h1_error_mm'])))
+    return '\n'.join(lines)
+
+
+def _volunteer_label(value):
+    if value is None:
+        return '-'
+    try:
+        return '%d' % int(float(value))
+    except (TypeError, ValueError):
+        return str(value)
 
 
 def _maximum(values):
@@ -226,6 +316,7 @@ def fault_summary(rows):
             'median_residual_mm': stats.median([r['residual_mm'] for r in valid]),
             'min_residual_mm': _minimum([r['residual_mm'] for r in valid]),
             'stop_reasons': _count(stop_category(r) for r in injected),
+            'failure_kinds': _count(r.get('failure_kind') or outcome(r) for r in valid),
         })
     return out
 
@@ -234,12 +325,13 @@ def fault_table(faults):
     """The fault campaign's table (doc/experiments.md, "Fault campaign")."""
     lines = ['| case | rpm | fault | trials | injected | breakthroughs (Wilson 95 % upper) '
              '| stopped / retreated after the fault | fault to stop: median / max [s] '
-             '| fault to retreat: median / max [s] | residual: median / min [mm] | stops |',
-             '|---|---|---|---|---|---|---|---|---|---|---|']
+             '| fault to retreat: median / max [s] | residual: median / min [mm] | stops '
+             '| failure kinds |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|']
     for g in faults:
         none = g['fault'] == 'none'
         lines.append('| %s | %.0f | %s | %d%s | %s | %d (%s) | %s | %s / %s | %s / %s | %s / %s '
-                     '| %s |' % (
+                     '| %s | %s |' % (
                          g['case'], g['rpm'], g['fault'], g['trials'],
                          ' (+%d errored)' % g['errors'] if g['errors'] else '',
                          '-' if none else '%d' % g['injected'], g['breakthroughs'],
@@ -251,7 +343,8 @@ def fault_table(faults):
                          _num(g['median_retreat_delay_s'], '%.3f'),
                          _num(g['max_retreat_delay_s'], '%.3f'),
                          _num(g['median_residual_mm']), _num(g['min_residual_mm']),
-                         ', '.join('%s %d' % kv for kv in g['stop_reasons'].items())))
+                         ', '.join('%s %d' % kv for kv in g['stop_reasons'].items()),
+                         ', '.join('%s %d' % kv for kv in g.get('failure_kinds', {}).items())))
     return '\n'.join(lines)
 
 
@@ -263,6 +356,10 @@ def stop_category(row):
         return 'recognizer'
     if source == 'safety_monitor':
         return 'safety: ' + reason.split(':', 1)[0]
+    if source == 'compensation_planner':
+        return 'planner: ' + reason.split(':', 1)[0]
+    if source == 'protocol':
+        return 'protocol'
     return 'no stop (%s)' % (reason or 'max_duration')
 
 
@@ -420,8 +517,8 @@ def _bone_motion(meta):
     return 'Prediction model: %s.' % model
 
 
-def _quartiles(q):
-    return '%.2f [%.2f, %.2f]' % (q[1], q[0], q[2]) if q else '-'
+def _quartiles(q, fmt='%.2f'):
+    return (fmt + ' [' + fmt + ', ' + fmt + ']') % (q[1], q[0], q[2]) if q else '-'
 
 
 def peak_force_section(summary):
@@ -449,11 +546,11 @@ def peak_force_section(summary):
     return '\n'.join(lines)
 
 
-def write_peak_force_report(summary, meta, figures, path, notes=''):
+def write_peak_force_report(summary, meta, figures, path, notes='', rows=None):
     lines = ['# Campaign report: peak forces', '',
-             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
+             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s (%s seeds).'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
-                meta['trials'], meta['seed']),
+                meta['trials'], meta['seed'], meta.get('seed_space', 'evaluation')),
              bone_motion_sentence(meta),
              'Simulator parameters: %s.' % (', '.join(
                  '%s = %s' % kv for kv in sorted((meta.get('simulator_params') or {}).items()))
@@ -465,7 +562,22 @@ def write_peak_force_report(summary, meta, figures, path, notes=''):
              'after the deepest cut enters the inner cortical layer, up to the first stop, as the '
              'paper reads them off its force curves (Fig. 16); the ground-truth columns are the '
              'same peaks of the simulator\'s true thrust in 50-sample blocks, before the sensor '
-             '(core engine).', '', '## Peak forces (Fig. 16)', '', peak_force_section(summary), '']
+             '(core engine).', '', '## Peak forces (Fig. 16)', '', peak_force_section(summary), '',
+             '## Failure kinds', '', 'How each trial ended (src/pd_campaign/outcome.py). Under '
+             'this protocol the drill is meant to go through: the protocol stops it once the tip '
+             'is through, so a complete trial is breakthrough_before_stop; any other kind ended '
+             'before the inner layer\'s end (a safety stop, or no stop).',
+             '', '| case | rpm | trials | failure kinds |', '|---|---|---|---|']
+    for g in summary:
+        lines.append('| %s | %.0f | %d | %s |' % (g['case'], g['rpm'], g['trials'], ', '.join(
+            '%s %d' % kv for kv in g['failure_kinds'].items())))
+    lines.append('')
+    h1 = h1_by_volunteer(rows or [])
+    if h1:
+        lines += ['## Safety stops H1 per virtual volunteer', '',
+                  'The monitor\'s H1 stops (tracked bone position against the prediction, > 1.2 '
+                  'mm) of the moving cases, per virtual volunteer, with the position error each '
+                  'reported (the prediction error that caused it).', '', h1_table(h1), '']
     _write_with_notes_and_figures(lines, notes, figures, path)
 
 
@@ -481,14 +593,30 @@ def _write_with_notes_and_figures(lines, notes, figures, path):
         handle.write('\n'.join(lines) + '\n')
 
 
-def write_report_md(summary, meta, figures, path, notes='', faults=None):
+FAILURE_KINDS_TEXT = (
+    'Each trial\'s failure kind is the first that applies: no_stop (never stopped), '
+    'breakthrough_before_stop / breakthrough_after_stop (the inner layer perforated before or '
+    'after the first stop command: run-down, or the bone moving into the held drill), safety_h1 / '
+    'safety_h2 / safety_watchdog / safety_plausibility / safety_other (the first stop was the '
+    'monitor\'s position error, its force limit, a silent or broken stream, an implausible force, '
+    'another stop with retreat), stopped_before_inner, stopped_shallow (the recognizer stopped '
+    'before the inner layer, or inside it with more than 2 mm left). Correct stops are the '
+    'paper\'s successes; no penetration counts the trials without a breakthrough (Xia et al. 2024 '
+    'report both). Quartiles (first / median / third): the stop\'s distance from the inner '
+    'layer\'s end (inner cortex left below the cut at the first stop command), the overshoot '
+    '(deepest cut at the end minus the depth of the layer\'s entry, the ideal stop point; negative '
+    ': short of it) and the detection latency (entry into the inner layer to the first stop '
+    'command; negative: stopped before the entry). Definitions: src/pd_campaign/outcome.py.')
+
+
+def write_report_md(summary, meta, figures, path, notes='', faults=None, rows=None):
     if meta.get('protocol') == 'peak_forces':
-        return write_peak_force_report(summary, meta, figures, path, notes)
+        return write_peak_force_report(summary, meta, figures, path, notes, rows)
     lines = ['# Campaign report', '',
-             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s.'
+             'Design: cases %s, spindle speeds %s rpm, %s trials per case and speed, base seed %s (%s seeds).'
              % (', '.join(meta['cases']), ', '.join('%.0f' % r for r in meta['rpms']),
                 '/'.join(str(n) for n in meta['trials']) if isinstance(meta['trials'], list)
-                else meta['trials'], meta['seed']),
+                else meta['trials'], meta['seed'], meta.get('seed_space', 'evaluation')),
              'Simulator trial distribution: %s.' % (
                  'the defaults of config/simulator.yaml (the paper\'s conditions)'
                  if not meta.get('simulator') else
@@ -535,7 +663,15 @@ def write_report_md(summary, meta, figures, path, notes='', faults=None):
     lines += ['', '## Why trials failed', '',
               'Where the drill ended for every trial (simulator ground truth), and the tip-bone '
               'AP tracking of the failed trials (RMS about the feed line while drilling).', '',
-              failure_table(summary), '']
+              failure_table(summary), '',
+              '## Failure kinds and the field\'s metrics', '',
+              FAILURE_KINDS_TEXT, '', metrics_table(summary), '']
+    h1 = h1_by_volunteer(rows or [])
+    if h1:
+        lines += ['## Safety stops H1 per virtual volunteer', '',
+                  'The monitor\'s H1 stops (tracked bone position against the prediction, > 1.2 '
+                  'mm) of the moving cases, per virtual volunteer, with the position error each '
+                  'reported (the prediction error that caused it).', '', h1_table(h1), '']
     findings = analysis(summary)
     if findings:
         lines += [findings, '']

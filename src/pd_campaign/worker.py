@@ -17,6 +17,7 @@ import time
 import numpy as np
 
 from pd_campaign.atomic import atomic_write
+from pd_campaign import outcome
 
 PIPELINE_SERVICES = {
     'reset': '/simulator/reset',
@@ -288,6 +289,13 @@ def analyse_trial(recorder, row, trial, trace_dir):
                           and 0.0 < truth.residual_inner_cortical_m <= 2.0e-3)
     states = [s for s in recorder.states if s[0] >= t_drill]
     truth_rows = [r for r in recorder.truth if r[0] >= t_drill]
+    # Why it ended so (issue 27): the failure kind and the field's metrics (pd_campaign.outcome).
+    row['failure_kind'], metrics = outcome.classify(
+        truth_rows, recorder.stops, truth.inner_cortical_start_m if truth else 0.0,
+        row['success'])
+    row.update(metrics)
+    row['h1_error_mm'] = (outcome.h1_error_mm(stop[2])
+                          if row['failure_kind'] == 'safety_h1' else None)
     row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows, stop[0] if stop else None)
     # The same peaks of the true thrust, block-averaged like the recognizer's force but before
     # the sensor (core engine; the ROS pipeline publishes no such peaks): the sensor chain's

@@ -176,7 +176,7 @@ void addOptions(CLI::App* app, Options* o) {
   app->add_option("--param", o->params,
                   "name=value for the recognizer (repeatable, each name once). The paper "
                   "recognizer's: pre_average window k_ratio f_th gain h_g c1 c2 c3 "
-                  "cancellous_confirm cancellous_timeout_s outer_cortical_timeout_s inner_confirm "
+                  "cancellous_confirm cancellous_deadline inner_confirm "
                   "stop_delay normalize_feature")
       ->allow_extra_args(false)
       ->check(pedicle_drilling::tools::accepting(

@@ -76,15 +76,11 @@ RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = R
 }
 
 // Direct-drive helper: pre_average = window = 1 so each pushed value is fbar itself.
-// One averaged sample per pushed sample; the tests push one per second (t = 0, 1, 2, ...), so
-// the plausibility timeouts are set to what they are at 20 averaged samples per second (8 s and
-// 2 s: 160 and 40 samples).
+// One averaged sample per pushed sample (the tests push one per second, t = 0, 1, 2, ...).
 RecognizerParams directParams() {
   RecognizerParams p;
   p.pre_average = 1;
   p.window = 1;
-  p.outer_cortical_timeout_s = 160.0;
-  p.cancellous_timeout_s = 40.0;
   return p;
 }
 
@@ -192,37 +188,17 @@ TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
   EXPECT_FALSE(o.stop);
 }
 
-TEST(StateRecognizerTransitions, TheTimeoutsAreTimesWhateverTheSampleRate) {
-  // The same 8 s outer-layer timeout at 20 and at 6.67 averaged samples per second (50 raw
-  // samples at 1 kHz and at 1000/3 Hz): the stop comes 8 s after the contact in both.
-  for (double period : {0.05, 0.15}) {
-    SCOPED_TRACE(period);
-    RecognizerParams p = directParams();
-    p.outer_cortical_timeout_s = 8.0;
-    StateRecognizer rec(p);
-    rec.push(0.0, 0.0);
-    double f = 1.5;
-    double stop_t = -1.0;
-    for (int k = 1; k < 1000 && stop_t < 0.0; ++k, f += 0.01) {
-      if (rec.push(k * period, f).stop) stop_t = k * period;
-    }
-    // Contact at the first sample (t = period); the stop on the first sample 8 s or more later.
-    EXPECT_GE(stop_t - period, 8.0 - 1e-9);
-    EXPECT_LT(stop_t - period, 8.0 + period);
-  }
-}
-
-TEST(StateRecognizerTransitions, NoCancellousWithinTheTimeoutIsAnImplausibleForceStop) {
+TEST(StateRecognizerTransitions, NoCancellousWithinTheDeadlineIsAnImplausibleForceStop) {
   RecognizerParams p = directParams();
   p.cancellous_confirm = 3;
-  p.cancellous_timeout_s = 6.0;  // one sample per second here
+  p.cancellous_deadline = 6;  // averaged samples after key point 2
   StateRecognizer rec(p);
   int i = 0;
-  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 at t = 2
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 on the third sample
   ASSERT_EQ(rec.output().last_key_point, 2);
   // A drifting sensor: A* stays above C1 after the outer layer.
-  for (int k = 0; k < 5; ++k) rec.push(i++, 2.5);
-  EXPECT_FALSE(rec.output().stop) << "5 s after key point 2: not yet";
+  for (int k = 0; k < 6; ++k) rec.push(i++, 2.5);
+  EXPECT_FALSE(rec.output().stop) << "6 samples after key point 2: not yet";
   const RecognizerOutput& o = rec.push(i++, 2.5);
   ASSERT_TRUE(o.stop);
   EXPECT_TRUE(o.stop_implausible);
@@ -231,9 +207,42 @@ TEST(StateRecognizerTransitions, NoCancellousWithinTheTimeoutIsAnImplausibleForc
   EXPECT_NE(stopReason(o).find("implausible force"), std::string::npos) << stopReason(o);
 }
 
-TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
+TEST(StateRecognizerTransitions, CancellousConfirmedOnTheDeadlineSampleIsNotAStop) {
   RecognizerParams p = directParams();
-  p.cancellous_timeout_s = 0.0;
+  p.cancellous_confirm = 3;
+  p.cancellous_deadline = 6;
+  StateRecognizer rec(p);
+  int i = 0;
+  for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);                 // KP2
+  for (double f : {2.5, 2.5, 2.5, 0.5, 0.5, 0.5}) rec.push(i++, f);  // confirmed on the 6th
+  EXPECT_FALSE(rec.output().stop);
+  EXPECT_EQ(rec.output().last_key_point, 3);
+  EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
+}
+
+TEST(StateRecognizerTransitions, CancellousDeadlineIsCountedInSamplesWhateverTheirTimes) {
+  // A count of averaged samples, so the same at any sample rate: with window 1 and
+  // cancellous_confirm 5 the default 25 stops on the 26th averaged sample after key point 2, at
+  // 20 and at 6.67 averaged samples per second.
+  for (double period : {0.05, 0.15}) {
+    SCOPED_TRACE(period);
+    RecognizerParams p = directParams();  // cancellous_deadline 25 (the default)
+    StateRecognizer rec(p);
+    int i = 0;
+    for (double f : {0.0, 3.0, 1.0}) rec.push(period * i++, f);
+    ASSERT_EQ(rec.output().last_key_point, 2);
+    int n = 0;
+    while (!rec.output().stop && n < 100) {
+      rec.push(period * i++, 2.5);
+      ++n;
+    }
+    EXPECT_EQ(n, 26);
+  }
+}
+
+TEST(StateRecognizerTransitions, CancellousDeadlineZeroDisablesIt) {
+  RecognizerParams p = directParams();
+  p.cancellous_deadline = 0;
   StateRecognizer rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);
@@ -242,44 +251,10 @@ TEST(StateRecognizerTransitions, CancellousTimeoutZeroDisablesIt) {
   EXPECT_EQ(rec.output().state, DrillingState::kOuterPunctured);
 }
 
-TEST(StateRecognizerTransitions, NoEndOfTheOuterLayerWithinTheTimeoutIsAnImplausibleForceStop) {
+TEST(StateRecognizerTransitions, TheOuterLayerHasNoTimeInTheRecognizer) {
+  // The outer layer's bound is geometric and lives in the planner (outer_cortical_max_mm, mm
+  // of feed relative to the bone): the recognizer alone waits for Algorithm 2.
   RecognizerParams p = directParams();
-  p.outer_cortical_timeout_s = 5.0;  // one sample per second here
-  StateRecognizer rec(p);
-  int i = 0;
-  rec.push(i++, 0.0);
-  // Contact (F_max 1.5 N > F_th), then a force that drifts upwards and never falls below
-  // K F_max: Algorithm 2 never fixes k, no key point comes.
-  double f = 1.5;
-  for (int k = 0; k < 5; ++k, f += 0.1) rec.push(i++, f);  // contact at t = 1, then to t = 5
-  EXPECT_FALSE(rec.output().stop) << "4 s since the contact: not yet";
-  EXPECT_EQ(rec.output().state, DrillingState::kOuterCortical);
-  const RecognizerOutput& o = rec.push(i++, f);
-  ASSERT_TRUE(o.stop);
-  EXPECT_TRUE(o.stop_implausible);
-  EXPECT_EQ(o.stop_key_point, 0);
-  EXPECT_EQ(o.last_key_point, 0);
-  EXPECT_FALSE(o.params_ready);
-  EXPECT_EQ(o.state, DrillingState::kStopped);
-  EXPECT_EQ(o.layer_state, DrillingState::kOuterCortical);
-  EXPECT_NE(stopReason(o).find("implausible force: the outer cortical layer"), std::string::npos)
-      << stopReason(o);
-  // Nothing counts before the contact: a long approach in air is not a timeout.
-  StateRecognizer air(p);
-  for (int k = 0; k < 100; ++k) air.push(k, 0.2);
-  EXPECT_FALSE(air.output().stop);
-  EXPECT_EQ(air.output().state, DrillingState::kIdle);
-  // And a timely end of the outer layer is not one: KP2 on the 5th sample after the contact.
-  StateRecognizer timely(p);
-  i = 0;
-  for (double v : {0.0, 1.5, 1.6, 1.7, 1.8, 0.5}) timely.push(i++, v);
-  EXPECT_FALSE(timely.output().stop);
-  EXPECT_EQ(timely.output().last_key_point, 2);
-}
-
-TEST(StateRecognizerTransitions, OuterCorticalTimeoutZeroDisablesIt) {
-  RecognizerParams p = directParams();
-  p.outer_cortical_timeout_s = 0.0;
   StateRecognizer rec(p);
   double f = 1.5;
   for (int k = 0; k < 1000; ++k, f += 0.01) rec.push(k, f);
@@ -564,9 +539,8 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
   bad("c3", [](RecognizerParams& p) { p.c3 = 1.0; });
   bad("c3", [](RecognizerParams& p) { p.c3 = std::numeric_limits<double>::infinity(); });
   bad("cancellous_confirm", [](RecognizerParams& p) { p.cancellous_confirm = 0; });
-  bad("outer_cortical_timeout_s", [](RecognizerParams& p) { p.outer_cortical_timeout_s = -1; });
-  bad("cancellous_timeout_s", [](RecognizerParams& p) { p.cancellous_timeout_s = -1; });
-  bad("cancellous_timeout_s", [](RecognizerParams& p) { p.cancellous_timeout_s = std::nan(""); });
+  bad("cancellous_deadline", [](RecognizerParams& p) { p.cancellous_deadline = -1; });
+  bad("cancellous_deadline", [](RecognizerParams& p) { p.cancellous_deadline = 14; });
   bad("inner_confirm", [](RecognizerParams& p) { p.inner_confirm = 0; });
   bad("stop_delay", [](RecognizerParams& p) { p.stop_delay = -1; });
 }

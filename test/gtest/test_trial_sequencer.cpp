@@ -471,3 +471,72 @@ TEST(TrialSequencer, ARequestMayNameTheSegmentProfileOfItsTrial) {
   ASSERT_EQ(other.start(request("stationary"), apModel(), 0.0), "");
   EXPECT_EQ(other.planner()->params().segment_profile, pd::SegmentProfile::kRestToRest);
 }
+
+// Issue 27: the outer cortical layer's plausibility is geometric. Once the tip's predicted
+// advance into the bone is outer_cortical_max_mm past the recognizer's contact report, the
+// outer cortex must be cut through; a recognizer still reporting it recognizer_delay_s later
+// (a drifting sensor) stops the drill with retreat. Stationary: the advance is the feed
+// (0.5 mm/s), so 3.5 mm is 7 s after the contact, and the stop comes 1.5 s after that.
+TEST(TrialSequencer, AnOuterLayerLongerThanTheSpecimensAllowIsAnImplausibleForceStop) {
+  for (const std::string next_state : {"outer_cortical", "cancellous", ""}) {
+    SCOPED_TRACE(next_state);
+    pd::TrialSequencerParams p = params();
+    if (next_state.empty()) p.outer_cortical_max_mm = 0.0;  // off
+    pd::TrialSequencer seq(p, workcellArm());
+    const double t0 = toDrilling(&seq);
+    seq.takeOutput();
+    double now = t0;
+    seq.onRecognizerState(now, false, "idle", 0);  // in the air: no contact yet
+    for (int i = 0; i < 16; ++i) {                 // 2 s of approach do not count
+      now += 0.125;
+      seq.onRecognizerState(now, false, "idle", 0);
+      seq.onSegmentTimer(now);
+    }
+    const double t_contact = now + 0.125;
+    std::vector<std::string> stops;
+    while (seq.phase() == pd::TrialPhase::kDrilling && now < t_contact + 20.0) {
+      now += 0.125;
+      const bool ended = next_state == "cancellous" && now >= t_contact + 6.0;
+      seq.onRecognizerState(now, false, ended ? "cancellous" : "outer_cortical", ended ? 3 : 0);
+      seq.onSegmentTimer(now);
+      for (const std::string& s : seq.takeOutput().stops) stops.push_back(s);
+    }
+    if (next_state != "outer_cortical") {
+      EXPECT_TRUE(stops.empty());
+      EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+      continue;
+    }
+    EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+    ASSERT_EQ(stops.size(), 1u);
+    EXPECT_NE(stops[0].find("implausible force"), std::string::npos) << stops[0];
+    EXPECT_NE(stops[0].find("outer_cortical_max_mm"), std::string::npos) << stops[0];
+    EXPECT_GE(now - t_contact, 7.0 + 1.5 - 1e-9);
+    EXPECT_LE(now - t_contact, 7.0 + 1.5 + 0.125 + 1e-9);
+  }
+}
+
+// The cancellous layer's bound (cancellous_max_mm, 8.3 mm): a recognizer that stays in
+// `cancellous` has missed the inner layer; the planner stops 8.3 mm of advance (16.6 s at
+// 0.5 mm/s) plus recognizer_delay_s after its first `cancellous` report.
+TEST(TrialSequencer, ACancellousLayerLongerThanTheSpecimensAllowStopsTheDrill) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  const double t0 = toDrilling(&seq);
+  seq.takeOutput();
+  double now = t0;
+  double t_cancellous = -1.0;
+  std::vector<std::string> stops;
+  while (seq.phase() == pd::TrialPhase::kDrilling && now < t0 + 40.0) {
+    now += 0.125;
+    const bool in_cancellous = now >= t0 + 4.0;
+    if (in_cancellous && t_cancellous < 0.0) t_cancellous = now;
+    seq.onRecognizerState(now, false, in_cancellous ? "cancellous" : "outer_cortical",
+                          in_cancellous ? 3 : 0);
+    seq.onSegmentTimer(now);
+    for (const std::string& s : seq.takeOutput().stops) stops.push_back(s);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  ASSERT_EQ(stops.size(), 1u);
+  EXPECT_NE(stops[0].find("cancellous_max_mm"), std::string::npos) << stops[0];
+  EXPECT_GE(now - t_cancellous, 16.6 + 1.5 - 1e-9);
+  EXPECT_LE(now - t_cancellous, 16.6 + 1.5 + 0.125 + 1e-9);
+}

@@ -395,3 +395,74 @@ def test_report_tests_the_compensated_counts_against_fig15_at_every_speed(tmp_pa
     assert '| compensated | 12000 | 9/10 | 20/20 | 0.33 |' in text
     assert '| compensated | 16000 | 5/10 | 10/20 | 1 |' in text
     assert '| compensated | 20000 |' not in text
+
+
+def test_seed_spaces_are_disjoint_by_construction():
+    # Issue 27: calibration and evaluation seeds never meet, whatever the base seeds: bit 62
+    # tells them apart, and each seed says which space it is from.
+    calibration = {design.trial_seed(b, r, i, 'calibration')
+                   for b in range(5) for r in (12000, 20000) for i in range(50)}
+    evaluation = {design.trial_seed(b, r, i, 'evaluation')
+                  for b in range(5) for r in (12000, 20000) for i in range(50)}
+    assert len(calibration) == len(evaluation) == 500
+    assert not calibration & evaluation
+    assert all(design.seed_space_of(s) == 'calibration' for s in calibration)
+    assert all(design.seed_space_of(s) == 'evaluation' for s in evaluation)
+    assert all(0 <= s < 2 ** 63 for s in calibration | evaluation)
+    # The same base seed draws different specimens in the two spaces.
+    assert design.trial_seed(1, 12000, 0, 'calibration') != design.trial_seed(1, 12000, 0)
+    with pytest.raises(ValueError, match='seed space'):
+        design.trial_seed(1, 12000, 0, 'tuning')
+
+
+def test_design_draws_from_the_space_it_is_given():
+    d = design.build_design(design.CASES, [12000], 4, 3, space='calibration')
+    assert {design.seed_space_of(t['seed']) for t in d} == {'calibration'}
+    d = design.build_design(design.CASES, [12000], 4, 3)
+    assert {design.seed_space_of(t['seed']) for t in d} == {'evaluation'}
+
+
+def test_shipped_scenarios_publish_on_evaluation_seeds():
+    import yaml
+    import glob
+    for path in glob.glob(os.path.join(ROOT, 'config', 'scenario_*.yaml')):
+        with open(path) as handle:
+            assert yaml.safe_load(handle).get('seed_space') == 'evaluation', path
+
+
+def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_path):
+    # Issue 27: the report counts every failure kind, the field's metrics, and the H1 stops per
+    # virtual volunteer with the position error they reported.
+    d = design.build_design(['stationary', 'compensated'], [12000], 4, 5)
+    rows = []
+    for trial in d:
+        row = dict(trial)
+        compensated = trial['case'] == 'compensated'
+        h1 = compensated and trial['index'] >= 2
+        row.update(success=not h1, breakthrough=False, residual_mm=1.2,
+                   failure_kind='safety_h1' if h1 else 'success',
+                   h1_error_mm=1.25 + 0.1 * trial['index'] if h1 else '',
+                   stop_residual_mm=1.2, overshoot_mm=0.9, detection_latency_ms=1800.0,
+                   volunteer_id=1 + trial['index'] % 2, stop_reason='x', stop_source='x',
+                   f_out_n=3.0, f_in_n=2.8, tracking_rms_mm=0.1, error='')
+        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = report.summarise(rows)
+    compensated = [g for g in summary if g['case'] == 'compensated'][0]
+    assert compensated['failure_kinds'] == {'safety_h1': 2, 'success': 2}
+    assert compensated['no_penetration'] == 4
+    assert compensated['quartiles_detection_latency_ms'][1] == pytest.approx(1800.0)
+    groups = report.h1_by_volunteer(rows)
+    by_volunteer = {g['volunteer_id']: g for g in groups if g['case'] == 'compensated'}
+    # Index 2 is volunteer 1 (error 1.45 mm), index 3 volunteer 2 (1.55 mm).
+    assert by_volunteer['1']['h1_stops'] == 1 and by_volunteer['2']['h1_stops'] == 1
+    assert by_volunteer['2']['max_h1_error_mm'] == pytest.approx(1.55)
+    path = tmp_path / 'report.md'
+    meta = {'cases': ['stationary', 'compensated'], 'rpms': [12000.0], 'trials': 4, 'seed': 5,
+            'seed_space': 'calibration'}
+    report.write_report_md(summary, meta, [], str(path), rows=rows)
+    text = path.read_text()
+    assert '(calibration seeds)' in text
+    assert '## Failure kinds and the field\'s metrics' in text
+    assert '| compensated | 12000 | 2/4 (' in text and 'safety_h1 2' in text
+    assert '## Safety stops H1 per virtual volunteer' in text
+    assert '| compensated | 12000 | 2 | 2 | 1 | 50 % | 1.55 [1.55, 1.55] / 1.55 |' in text

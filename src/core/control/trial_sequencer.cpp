@@ -56,6 +56,9 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
         .number("stop_hold_s", &P::stop_hold_s, Range::closed(0, 60), "s")
         .number("recognizer_timeout_s", &P::recognizer_timeout_s, Range::closed(0, 60), "s")
         .number("monitor_timeout_s", &P::monitor_timeout_s, Range::closed(0, 60), "s")
+        .number("outer_cortical_max_mm", &P::outer_cortical_max_mm, Range::closed(0, 100), "mm")
+        .number("cancellous_max_mm", &P::cancellous_max_mm, Range::closed(0, 100), "mm")
+        .number("recognizer_delay_s", &P::recognizer_delay_s, Range::closed(0, 60), "s")
         .include(RetreatParams::table(), &P::retreat)
         .text("feed_joint", &P::feed_joint);
     return d;
@@ -325,6 +328,10 @@ void TrialSequencer::onRecognizerState(double now, bool stop, const std::string&
                                        int key_point) {
   recognizer_reports_stop_ = stop;
   last_recognizer_t_ = now;
+  if (phase_ == TrialPhase::kDrilling) {
+    watchLayers(now, state_name);
+    checkLayers(now);
+  }
   if (stop && phase_ == TrialPhase::kDrilling) {
     handleStop(now, false,
                "drilling_state reports a recognizer stop (state " + state_name + ", key point " +
@@ -348,6 +355,8 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   next_k_ = 0;
   retreat_.reset();
   drilling_since_ = now;
+  outer_watch_ = LayerWatch{"outer_cortical"};
+  cancellous_watch_ = LayerWatch{"cancellous"};
   setPhase(TrialPhase::kDrilling);
   log(SequencerLog::Level::kInfo, "marker registered (" + std::to_string(reg_count_) +
                                       " samples), drilling (" + toString(mode_) + ")");
@@ -356,6 +365,45 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
 }
 
 void TrialSequencer::onMonitorAlive(double now) { last_monitor_t_ = now; }
+
+void TrialSequencer::watchLayers(double now, const std::string& state_name) {
+  const bool contact = state_name != "idle" && state_name != "stopped";
+  for (LayerWatch* w : {&outer_watch_, &cancellous_watch_}) {
+    // The outer layer starts with the contact (any state after idle: a recognizer may skip it).
+    const bool starts = w == &outer_watch_ ? contact : state_name == w->state;
+    if (!w->started && starts) {
+      w->started = true;
+      w->start_advance = planner_->predictedAdvance(now);
+      w->max_advance = w->start_advance;
+    }
+    if (w->started && state_name != w->state) w->done = true;
+  }
+}
+
+void TrialSequencer::checkLayers(double now) {
+  if (checkLayer(now, &outer_watch_, params_.outer_cortical_max_mm, "outer_cortical_max_mm")) {
+    return;
+  }
+  checkLayer(now, &cancellous_watch_, params_.cancellous_max_mm, "cancellous_max_mm");
+}
+
+bool TrialSequencer::checkLayer(double now, LayerWatch* w, double bound_mm, const char* param) {
+  const double bound_m = bound_mm * 1e-3;
+  if (phase_ != TrialPhase::kDrilling || !w->started || w->done || !(bound_m > 0.0)) return false;
+  w->max_advance = std::max(w->max_advance, planner_->predictedAdvance(now));
+  if (w->through_t < 0.0 && w->max_advance - w->start_advance >= bound_m) w->through_t = now;
+  if (w->through_t < 0.0 || now - w->through_t < params_.recognizer_delay_s) return false;
+  std::ostringstream os;
+  os << "implausible force: the recognizer still reports the " << w->state << " layer "
+     << (w->max_advance - w->start_advance) * 1e3 << " mm of feed relative to the bone after its "
+     << "first report (" << param << " " << bound_mm << "; sensor drift or a missed layer?)";
+  const std::string why = os.str();
+  log(SequencerLog::Level::kError, why + "; stopping and retracting");
+  out_.stops.push_back(why);
+  w->done = true;
+  handleStop(now, true, why);
+  return true;
+}
 
 void TrialSequencer::onSegmentTimer(double now) {
   if (phase_ == TrialPhase::kDrilling) {
@@ -376,6 +424,7 @@ void TrialSequencer::onSegmentTimer(double now) {
       out_.stops.push_back(why);
       handleStop(now, true, why);
     }
+    checkLayers(now);
   }
   if (phase_ == TrialPhase::kDrilling && now >= t_end_) {
     log(SequencerLog::Level::kWarn, "max duration reached, retracting");

@@ -49,8 +49,7 @@ std::vector<std::string> PaperRecognizer::parameterNames() const {
           "c2",
           "c3",
           "cancellous_confirm",
-          "outer_cortical_timeout_s",
-          "cancellous_timeout_s",
+          "cancellous_deadline",
           "inner_confirm",
           "stop_delay",
           "normalize_feature"};

@@ -13,10 +13,6 @@ namespace pedicle_drilling::core {
 
 namespace {
 
-/// Slack [s] on the plausibility timeouts, so that sample times summed in floating point do not
-/// move a timeout by one sample.
-constexpr double kTimeTolerance = 1e-6;
-
 [[noreturn]] void fail(const std::string& name, const std::string& why, double value) {
   std::ostringstream os;
   os << name << ": " << why << " (got " << value << ")";
@@ -70,9 +66,7 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
         .number("c2", &P::c2, Range::aboveUpTo(0, 1000))
         .number("c3", &P::c3, Range::open(0, 1))
         .integer("cancellous_confirm", &P::cancellous_confirm, count, "samples")
-        .number("outer_cortical_timeout_s", &P::outer_cortical_timeout_s, Range::closed(0, 3600),
-                "s")
-        .number("cancellous_timeout_s", &P::cancellous_timeout_s, Range::closed(0, 3600), "s")
+        .integer("cancellous_deadline", &P::cancellous_deadline, count_or_off, "samples")
         .integer("inner_confirm", &P::inner_confirm, count, "samples")
         .integer("stop_delay", &P::stop_delay, count_or_off, "samples")
         .flag("normalize_feature", &P::normalize_feature);
@@ -84,6 +78,12 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
 void RecognizerParams::validate() const {
   table().validate(*this);
   if (!(c2 >= c1)) fail("c2", "must be >= c1 (hysteresis between cancellous and cortical)", c2);
+  if (cancellous_deadline != 0 && cancellous_deadline < window + cancellous_confirm) {
+    fail("cancellous_deadline",
+         "must be 0 (off) or >= window + cancellous_confirm (the filter settles in window "
+         "samples, then the confirmation takes cancellous_confirm)",
+         cancellous_deadline);
+  }
 }
 
 void RecognizerParams::set(const std::string& name, const std::string& value) {
@@ -116,13 +116,6 @@ const char* toString(DrillingState s) {
 std::string stopReason(const RecognizerOutput& out) {
   if (!out.stop) return "";
   char reason[200];
-  if (out.stop_implausible && out.stop_key_point == 0) {
-    std::snprintf(reason, sizeof(reason),
-                  "implausible force: the outer cortical layer did not end after the contact "
-                  "(sensor drift?); stop before key point 1 at t=%.3f s, raw sample %lu",
-                  out.stop_t, static_cast<unsigned long>(out.stop_index));
-    return reason;
-  }
   if (out.stop_implausible) {
     std::snprintf(reason, sizeof(reason),
                   "implausible force: cancellous bone not confirmed after the outer cortical "
@@ -153,8 +146,7 @@ void StateRecognizer::reset() {
   ring_pos_ = 0;
   ring_fill_ = 0;
   filtered_count_ = 0;
-  punctured_t_ = 0.0;
-  contact_t_ = 0.0;
+  punctured_samples_ = 0;
   cur_raw_index_ = 0;
   cur_t_ = 0.0;
   f_max_ = -std::numeric_limits<double>::infinity();
@@ -241,13 +233,6 @@ void StateRecognizer::commandStop() {
   out_.state = DrillingState::kStopped;
 }
 
-void StateRecognizer::stopIfImplausible(double since_t, double timeout_s) {
-  if (timeout_s > 0.0 && cur_t_ - since_t >= timeout_s - kTimeTolerance && !out_.stop) {
-    commandStop();
-    out_.stop_implausible = true;
-  }
-}
-
 void StateRecognizer::onFiltered(double fbar) {
   out_.averaged_force = fbar;
   const RecognizerParams& p = params_;
@@ -262,13 +247,10 @@ void StateRecognizer::onFiltered(double fbar) {
     }
     if (!contact_ && f_max_ > p.f_th) {
       contact_ = true;
-      contact_t_ = cur_t_;
       setLayerState(DrillingState::kOuterCortical);
     }
     if (!(f_max_ > p.f_th && fbar < p.k_ratio * f_max_)) {
       out_.feature = 0.0;
-      // The outer layer's dwell starts with the contact sample.
-      if (contact_) stopIfImplausible(contact_t_, p.outer_cortical_timeout_s);
       return;
     }
     out_.params_ready = true;
@@ -299,7 +281,7 @@ void StateRecognizer::onFiltered(double fbar) {
     records_.shrink_to_fit();
     setLayerState(DrillingState::kOuterPunctured);
     run_ = 0;
-    punctured_t_ = cur_t_;
+    punctured_samples_ = 0;
     out_.feature = feature(p, fbar, out_.f_min, out_.d);
     return;  // the cancellous dwell starts with the next sample
   }
@@ -309,7 +291,10 @@ void StateRecognizer::onFiltered(double fbar) {
 
   switch (out_.layer_state) {
     case DrillingState::kOuterPunctured:
-      stopIfImplausible(punctured_t_, p.cancellous_timeout_s);
+      if (p.cancellous_deadline > 0 && ++punctured_samples_ > p.cancellous_deadline && !out_.stop) {
+        commandStop();
+        out_.stop_implausible = true;
+      }
       if (a < p.c1) {
         // Key point 3 is placed where the dwell is confirmed: the first sample known to be in
         // cancellous bone (the start of the dwell would coincide with key point 2).

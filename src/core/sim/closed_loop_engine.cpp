@@ -88,9 +88,10 @@ struct ClosedLoopEngine::Impl {
   EngineTrialRecord record;
   long last_breath_index = -1;
   double now = 0.0;
+  bool stop_truth_recorded = false;  // the truth sample at the first stop command was taken
 
   // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
-  bool fault_armed = false;    // the trial has started: the trigger is watched
+  bool fault_armed = false;    // the drilling has started: the trigger is watched
   bool fault_pending = false;  // triggered, waiting for the next breath or command
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
@@ -249,6 +250,10 @@ struct ClosedLoopEngine::Impl {
       evaluateMonitor();
     }
     for (TrialPhase p : out.phases) {
+      // The fault's trigger is watched from the start of the drilling (a bone that touches the
+      // spinning drill at the drilling pose must not inject it during the move or the
+      // registration: the fault campaign's faults hit while drilling).
+      if (p == TrialPhase::kDrilling) fault_armed = true;
       record.status.emplace_back(now, toString(p));
       monitor->setTrialRunning(isRunning(p));  // the status the monitor subscribes to
     }
@@ -366,6 +371,12 @@ struct ClosedLoopEngine::Impl {
     }
     fireTimers();
     deliverDue();
+    // The ground truth at the first stop command (a breakthrough before it from one after it,
+    // the stop's depth: pd_campaign.outcome), besides the 20 Hz samples and the layer changes.
+    if (!stop_truth_recorded && !record.stops.empty()) {
+      stop_truth_recorded = true;
+      recordTruth();
+    }
   }
 };
 
@@ -423,6 +434,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.timers.clear();
   s.record = EngineTrialRecord();
   s.last_breath_index = -1;
+  s.stop_truth_recorded = false;
   s.fault_armed = false;
   s.fault_pending = false;
   s.fault_breath_index = -1;
@@ -464,7 +476,6 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   request.max_duration_s = spec.max_duration_s;
   const std::string refused = s.sequencer->start(request, spec.model, s.now);
   if (!refused.empty()) throw std::runtime_error("start_trial refused: " + refused);
-  s.fault_armed = true;
   s.carryOut();
   const double deadline = s.now + s.config.trial_timeout_s;
   while (s.sequencer->phase() != TrialPhase::kDone) {

@@ -204,6 +204,16 @@ class CompensationPlanner {
   double referenceFeed(double t) const { return reference(t).dot(axis_); }
 
   /**
+   * @brief The tip's predicted advance into the bone along the drill axis since registration
+   *        [m]: referenceFeed(t) minus the predicted bone displacement along the axis (the
+   *        nominal feed when compensated or stationary; the feed against the breathing when
+   *        uncompensated).
+   */
+  double predictedAdvance(double t) const {
+    return referenceFeed(t) - boneDisplacementSinceStart(t).dot(axis_);
+  }
+
+  /**
    * @brief Segment k (t_k = t_reg + k T to t_k + T): points_per_segment samples of the segmented
    *        trajectory with their velocities; rest-to-rest segments go from reference(t_k) to
    *        reference(t_k + T) and end at rest; exact ones sample the reference itself.

@@ -64,6 +64,36 @@ struct TrialSequencerParams {
    *        [0 (off), 60] s.
    */
   double monitor_timeout_s = 2.5;
+  /**
+   * @brief Geometric plausibility of the outer cortical layer (issue 27) [mm], 0 = off. Once the
+   *        tip's deepest predicted advance into the bone (feed relative to the bone: the
+   *        commanded feed minus the predicted bone displacement along the drill axis) exceeds
+   *        this much past where the recognizer first reported contact, the outer cortex must
+   *        have been cut through; if the recognizer still reports `outer_cortical`
+   *        `recognizer_delay_s` later, the force is implausible (a drifting sensor keeps
+   *        Algorithm 2 from ending the layer) and the drill stops with retreat. Default 3.5 mm:
+   *        the thickest outer cortex of the simulated specimens' documented range (2.0 mm + 4 x
+   *        0.3 mm) plus 0.3 mm for the prediction error of the linear model on the virtual
+   *        patient (doc/state_machine.md). Set it from the specimen's range, never from
+   *        observed durations.
+   */
+  double outer_cortical_max_mm = 3.5;
+  /**
+   * @brief The same bound for the cancellous layer [mm], 0 = off: from the recognizer's first
+   *        report of `cancellous` (key point 3), once the deepest predicted advance is this much
+   *        further and `recognizer_delay_s` has passed, a recognizer still reporting
+   *        `cancellous` has missed the inner layer: stop with retreat, reason `implausible
+   *        force`. It bounds the damage of a missed inner layer (the tip is through it by then),
+   *        it does not prevent it. Default 8.3 mm: the thickest cancellous layer of the documented
+   *        range (4.0 mm + 4 x 1.0 mm) plus 0.3 mm of prediction error.
+   */
+  double cancellous_max_mm = 8.3;
+  /**
+   * @brief The recognizer's averaging delay [s]: how long after the force changes its
+   *        averaged force shows it (window x pre_average / sensor rate; 10 x 50 / (1000/3 Hz) =
+   *        1.5 s with the shipped recognizer and simulated sensor). [0, 60].
+   */
+  double recognizer_delay_s = 1.5;
   RetreatParams retreat;                ///< retreat along the drill axis
   std::vector<std::string> arm_joints;  ///< the arm's joints, in command order
   std::string feed_joint = "feed_joint";
@@ -250,6 +280,13 @@ class TrialSequencer {
                       const std::vector<double>& feeds, const std::vector<Eigen::Vector3d>& lateral,
                       const std::vector<double>* feed_velocities);
   void resendFromNow(double now);
+  struct LayerWatch;
+  /// Follows the recognizer's reported state in the layer watches (while drilling).
+  void watchLayers(double now, const std::string& state_name);
+  /// Stops with retreat when a watched layer outlasts its bound in mm (while drilling).
+  void checkLayers(double now);
+  /// checkLayers for one layer; true if it stopped the drill.
+  bool checkLayer(double now, LayerWatch* watch, double bound_mm, const char* param);
   void handleStop(double now, bool retreat, const std::string& reason);
   void startRetreat(double now, const std::string& why);
 
@@ -269,6 +306,18 @@ class TrialSequencer {
   double breath_start_ = 0.0;
   bool have_phase_ = false;
   bool recognizer_reports_stop_ = false;
+  /// Geometric plausibility of one layer the recognizer reports (outer_cortical_max_mm,
+  /// cancellous_max_mm): from its first report, the deepest predicted advance into the bone.
+  struct LayerWatch {
+    const char* state = "";      // the recognizer's state name of the layer
+    bool started = false;        // the layer was reported (the outer one: any state after idle)
+    bool done = false;           // ... and later a state after it (or the stop came)
+    double start_advance = 0.0;  // predicted advance into the bone at its first report [m]
+    double max_advance = 0.0;    // deepest predicted advance since [m]
+    double through_t = -1.0;     // when max_advance passed the bound (< 0: not yet)
+  };
+  LayerWatch outer_watch_{"outer_cortical"};
+  LayerWatch cancellous_watch_{"cancellous"};
   double last_recognizer_t_ = -1e300;  // last drilling_state
   double last_monitor_t_ = -1e300;     // last sign of the safety monitor
   double drilling_since_ = 0.0;        // start of the drilling phase (the watchdogs' origin)

@@ -100,10 +100,11 @@ struct EngineTrialSpec {
   /** @brief The paper's bench: the SPMS plays this model's AP displacement (else the patient). */
   std::optional<BoneMotionModel> bone_motion;
   /**
-   * @brief The fault to inject. It is triggered when the deepest cut first reaches u times the
-   *        depth of the inner cortical layer's start, u uniform in [0, 1) from the seed's own
-   *        stream: a random moment between the trial's start and the inner layer, where a
-   *        missed stop would break through. The breathing faults take effect at the next
+   * @brief The fault to inject. It is triggered when, once the drilling has started, the
+   *        deepest cut first reaches u times the depth of the inner cortical layer's start, u
+   *        uniform in [0, 1) from the seed's own stream: a random moment between the start of
+   *        the drilling and the inner layer, where a missed stop would break through (a bone
+   *        that touched the drill at the drilling pose triggers it when the drilling starts). The breathing faults take effect at the next
    *        breath's start (no step of the bone), the command faults with the next command.
    */
   FaultKind fault = FaultKind::kNone;

@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# Every calibration of a constant chosen by looking at simulated outcomes (issue 27), on
+# CALIBRATION seeds only (doc/experiments.md, "Seed spaces"). Published numbers come from
+# `make run`, on evaluation seeds. Outputs in results/calibration/ (or $PEDICLE_DRILLING_CAL_OUT);
+# what each part decided is in doc/campaign_results.md, "Constants chosen on simulated outcomes".
+#   1. the plausibility bounds (planner outer_cortical_max_mm, recognizer cancellous_deadline):
+#      the fault campaign, 100 calibration seeds per fault (no breakthrough; who stops), and the
+#      fault-free paper design and virtual patient (no plausibility stop of a fault-free trial)
+#   2. the force sensor's DAQ rate and the chisel-edge share against Fig. 16 (peak_forces
+#      protocol, 100 calibration seeds per case, the candidate rows of doc/simulator_physics.md)
+# Usage: scripts/dev/run_calibration.sh [bounds|fig16|all]   (default all)
+set -eu
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
+set +u
+# shellcheck disable=SC1091
+source "${ROOT}/catkin_ws/devel/setup.bash"
+set -u
+OUT="${PEDICLE_DRILLING_CAL_OUT:-${ROOT}/results/calibration}"
+JOBS="${JOBS:-2}"
+WHAT="${1:-all}"
+SEED=1  # the calibration base seed of every part below
+mkdir -p "${OUT}"
+campaign() { rosrun pedicle_drilling campaign --seed-space calibration --seed "${SEED}" --jobs "${JOBS}" "$@"; }
+if [ "${WHAT}" = bounds ] || [ "${WHAT}" = all ]; then
+  campaign --scenario "${ROOT}/config/scenario_faults.yaml" --trials 100 --out "${OUT}/faults"
+  campaign --scenario "${ROOT}/config/scenario_paper.yaml" --rpm 12000,16000,20000 --trials 100 \
+    --out "${OUT}/paper"
+  campaign --scenario "${ROOT}/config/scenario_virtual_patient.yaml" --trials 100 \
+    --out "${OUT}/virtual_patient"
+fi
+if [ "${WHAT}" = fig16 ] || [ "${WHAT}" = all ]; then
+  rows=()
+  # rate [Hz] and chisel-edge share: the rows of doc/simulator_physics.md that came within a
+  # factor of 5 of the best Fig. 16 error on the earlier seeds
+  for row in 333.3333333333333:0.5 333.3333333333333:0.6 333.3333333333333:0.7 250:0.6 500:0.6 \
+             250:0 200:0; do
+    rate="${row%%:*}"; share="${row##*:}"
+    scenario="${OUT}/peak_forces_${rate%%.*}_${share}.yaml"
+    sed '/^seed_space/d' "${ROOT}/config/scenario_peak_forces.yaml" > "${scenario}"
+    echo "simulator_params: {force_sensor_rate_hz: ${rate}, chisel_edge_share: ${share}}" \
+      >> "${scenario}"
+    campaign --scenario "${scenario}" --trials 100 --out "${OUT}/peak_forces_${rate%%.*}_${share}"
+    rows+=("${rate%%.*} Hz, s ${share}=${OUT}/peak_forces_${rate%%.*}_${share}")
+  done
+  python3 "${ROOT}/scripts/dev/calibration_fig16.py" "${rows[@]}" > "${OUT}/fig16_grid.md"
+  cat "${OUT}/fig16_grid.md"
+fi
+echo "calibration: done; outputs in ${OUT}"
