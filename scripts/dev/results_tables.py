@@ -32,12 +32,13 @@ def design_table(summary):
         cells = []
         for rpm in rpms:
             g = groups.get((case, rpm))
-            cells.append('%d/%d (%s-%s %%)' % (g['successes'], g['trials'],
-                                               pct(g['wilson95'][0]), pct(g['wilson95'][1])))
-        g = groups[(case, 12000.0)]
+            cells.append('-' if g is None else '%d/%d (%s-%s %%)' % (
+                g['successes'], g['trials'], pct(g['wilson95'][0]), pct(g['wilson95'][1])))
+        g = groups.get((case, 12000.0))
         paper = report.PAPER_TABLE_III[case]
-        p = stats.fisher_exact(g['successes'], g['trials'], paper[0], paper[1])
-        print('| %s | %s | %d/%d | %.2g |' % (case, ' | '.join(cells), paper[0], paper[1], p))
+        p = stats.fisher_exact(g['successes'], g['trials'], paper[0], paper[1]) if g else None
+        print('| %s | %s | %d/%d | %s |' % (case, ' | '.join(cells), paper[0], paper[1],
+                                            '-' if p is None else '%.2g' % p))
 
 
 def metrics_table(summary):
@@ -47,6 +48,9 @@ def metrics_table(summary):
     for g in summary['groups']:
         if g['rpm'] != 12000.0:
             continue
+        if 'failure_kinds' not in g:
+            sys.exit('results_tables: %s has no failure kinds (a campaign before issue 27)'
+                     % g['case'])
         q = g['quartiles_stop_residual_mm'], g['quartiles_overshoot_mm']
         lat = g['quartiles_detection_latency_ms']
         print('| %s | %d/%d | %d/%d | %s | %s | %s | %s |' % (
@@ -64,7 +68,7 @@ def fault_table(summary):
     for g in summary.get('faults', []):
         print('| %s | %d | %d (%s %%) | %s |' % (
             g['fault'], g['trials'], g['breakthroughs'], pct(g['breakthrough_wilson95'][1]),
-            ', '.join('%s %d' % kv for kv in g['failure_kinds'].items())))
+            ', '.join('%s %d' % kv for kv in g.get('failure_kinds', {}).items())))
 
 
 def main(argv):

@@ -167,6 +167,9 @@ def load_scenario(path):
                              % (path, value, ', '.join(PROTOCOLS)))
         if key == 'model' and value not in ('linear', 'hysteresis'):
             raise UsageError('--scenario %s: model %r is not linear or hysteresis' % (path, value))
+        if key == 'seed_space' and value not in SEED_SPACES:
+            raise UsageError('--scenario %s: seed_space %r is not one of %s'
+                             % (path, value, ', '.join(SEED_SPACES)))
         if key == 'faults':
             if not value:
                 raise UsageError('--scenario %s: faults is empty' % path)

@@ -4,9 +4,11 @@ both engines record (the ground-truth stream, the stop commands). Pure functions
 Failure kinds, one per trial, the first that applies:
   success                  the paper's success (recognizer stop inside the inner cortical layer,
                            residual in (0, 2 mm], no breakthrough)
-  no_stop                  no stop command at all (the trial ran to its maximum duration)
   breakthrough_before_stop the inner cortical layer was perforated before the first stop command
+                           (or with no stop command at all)
   breakthrough_after_stop  ... after it (spindle run-down, or the bone moving into the held drill)
+  no_stop                  no stop command at all, no breakthrough (the trial ran to its maximum
+                           duration)
   safety_h1                the first stop was the monitor's position error (> 1.2 mm)
   safety_h2                ... the monitor's force limit (> 10 N)
   safety_watchdog          ... a silent, stale, stuck or non-finite stream (monitor or planner)
@@ -21,15 +23,16 @@ Metrics (mm below the bone surface along the drill, ms of sim time):
                         end; more than the layer's thickness when it was not reached)
   overshoot_mm          deepest cut at the end of the trial minus the depth of the inner layer's
                         entry (the ideal stop point: the earliest at which a force recognizer can
-                        know it is in the inner cortex); negative: stopped short of it
+                        know it is in the inner cortex); None when the layer was not entered
   rundown_mm            deepest cut at the end minus at the first stop command
   detection_latency_ms  first stop command minus the moment the deepest cut entered the inner
-                        layer; negative: stopped before it (None when it never entered, or no stop)
+                        layer; negative when the layer was entered only after the stop command
+                        (run-down); None when it was never entered, or no stop
 """
 
 import re
 
-KINDS = ('success', 'no_stop', 'breakthrough_before_stop', 'breakthrough_after_stop',
+KINDS = ('success', 'breakthrough_before_stop', 'breakthrough_after_stop', 'no_stop',
          'safety_h1', 'safety_h2', 'safety_watchdog', 'safety_plausibility', 'safety_other',
          'stopped_before_inner', 'stopped_shallow')
 SAFETY_KINDS = tuple(k for k in KINDS if k.startswith('safety_'))
@@ -56,6 +59,11 @@ def stop_kind(stop):
     if retreat:
         return 'safety_other'
     return None
+
+
+def first_stop_kind(stops):
+    """The safety kind of the first stop command (stop_kind), or None."""
+    return stop_kind(stops[0]) if stops else None
 
 
 def h1_error_mm(reason):
@@ -95,16 +103,13 @@ def classify(truth, stops, inner_start_m, success):
         metrics['rundown_mm'] = (final[2] - at_stop[2]) * 1e3
     if stop is not None and t_enter is not None:
         metrics['detection_latency_ms'] = (stop[0] - t_enter) * 1e3
-    elif stop is not None and at_stop is not None and at_stop[2] <= inner_start_m:
-        # Never entered: the stop came before the layer (no latency to measure).
-        metrics['detection_latency_ms'] = None
     if success:
         return 'success', metrics
+    if t_break is not None:
+        return ('breakthrough_before_stop' if stop is None or t_break <= stop[0] + 1e-9
+                else 'breakthrough_after_stop'), metrics
     if stop is None:
         return 'no_stop', metrics
-    if t_break is not None:
-        return ('breakthrough_before_stop' if t_break <= stop[0] + 1e-9
-                else 'breakthrough_after_stop'), metrics
     kind = stop_kind(stop)
     if kind is not None:
         return kind, metrics

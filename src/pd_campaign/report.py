@@ -15,7 +15,8 @@ TRIAL_COLUMNS = [
     'residual_mm',
     'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'protocol', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
     'retreat_delay_s', 'breakthrough', 'failure_kind', 'stop_depth_mm', 'stop_residual_mm',
-    'overshoot_mm', 'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'max_depth_mm',
+    'overshoot_mm', 'rundown_mm', 'detection_latency_ms', 'first_stop_kind', 'h1_error_mm',
+    'max_depth_mm',
     'inner_start_mm',
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
@@ -60,6 +61,7 @@ def normalise_row(row):
                 'rundown_mm', 'detection_latency_ms', 'h1_error_mm'):
         out[key] = _number(row.get(key))
     out['failure_kind'] = row.get('failure_kind') or None
+    out['first_stop_kind'] = row.get('first_stop_kind') or None
     return out
 
 
@@ -241,7 +243,8 @@ def h1_by_volunteer(rows):
     out = []
     for (case, rpm, volunteer), group in sorted(groups.items(), key=lambda kv: (
             kv[0][1], CASES.index(kv[0][0]) if kv[0][0] in CASES else 9, str(kv[0][2]))):
-        h1 = [r for r in group if r.get('failure_kind') == 'safety_h1']
+        h1 = [r for r in group if (r.get('first_stop_kind') or r.get('failure_kind'))
+              == 'safety_h1']
         out.append({'case': case, 'rpm': rpm, 'volunteer_id': volunteer, 'trials': len(group),
                     'h1_stops': len(h1),
                     'quartiles_h1_error_mm': _quartile_values([r.get('h1_error_mm') for r in h1]),
@@ -594,9 +597,10 @@ def _write_with_notes_and_figures(lines, notes, figures, path):
 
 
 FAILURE_KINDS_TEXT = (
-    'Each trial\'s failure kind is the first that applies: no_stop (never stopped), '
-    'breakthrough_before_stop / breakthrough_after_stop (the inner layer perforated before or '
-    'after the first stop command: run-down, or the bone moving into the held drill), safety_h1 / '
+    'Each trial\'s failure kind is the first that applies: breakthrough_before_stop / '
+    'breakthrough_after_stop (the inner layer perforated before the first stop command, or with '
+    'none, or after it: run-down, or the bone moving into the held drill), no_stop (never '
+    'stopped, not perforated), safety_h1 / '
     'safety_h2 / safety_watchdog / safety_plausibility / safety_other (the first stop was the '
     'monitor\'s position error, its force limit, a silent or broken stream, an implausible force, '
     'another stop with retreat), stopped_before_inner, stopped_shallow (the recognizer stopped '
@@ -604,9 +608,11 @@ FAILURE_KINDS_TEXT = (
     'paper\'s successes; no penetration counts the trials without a breakthrough (Xia et al. 2024 '
     'report both). Quartiles (first / median / third): the stop\'s distance from the inner '
     'layer\'s end (inner cortex left below the cut at the first stop command), the overshoot '
-    '(deepest cut at the end minus the depth of the layer\'s entry, the ideal stop point; negative '
-    ': short of it) and the detection latency (entry into the inner layer to the first stop '
-    'command; negative: stopped before the entry). Definitions: src/pd_campaign/outcome.py.')
+    '(deepest cut at the end minus the depth of the layer\'s entry, the ideal stop point; only '
+    'for trials that entered it) and the detection latency (entry into the inner layer to the '
+    'first stop command; negative: entered only in the run-down after the stop). The H1 table '
+    'counts every trial whose first stop was H1, whatever followed. Definitions: '
+    'src/pd_campaign/outcome.py.')
 
 
 def write_report_md(summary, meta, figures, path, notes='', faults=None, rows=None):

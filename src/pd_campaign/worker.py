@@ -294,8 +294,10 @@ def analyse_trial(recorder, row, trial, trace_dir):
         truth_rows, recorder.stops, truth.inner_cortical_start_m if truth else 0.0,
         row['success'])
     row.update(metrics)
+    # The H1 stops whatever followed them (a run-down breakthrough after an H1 stop included).
+    row['first_stop_kind'] = outcome.first_stop_kind(recorder.stops)
     row['h1_error_mm'] = (outcome.h1_error_mm(stop[2])
-                          if row['failure_kind'] == 'safety_h1' else None)
+                          if row['first_stop_kind'] == 'safety_h1' else None)
     row['f_out_n'], row['f_in_n'] = peak_forces(states, truth_rows, stop[0] if stop else None)
     # The same peaks of the true thrust, block-averaged like the recognizer's force but before
     # the sensor (core engine; the ROS pipeline publishes no such peaks): the sensor chain's

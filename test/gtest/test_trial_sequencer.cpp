@@ -540,3 +540,62 @@ TEST(TrialSequencer, ACancellousLayerLongerThanTheSpecimensAllowStopsTheDrill) {
   EXPECT_GE(now - t_cancellous, 16.6 + 1.5 - 1e-9);
   EXPECT_LE(now - t_cancellous, 16.6 + 1.5 + 0.125 + 1e-9);
 }
+
+// Uncompensated, the tip moves against the breathing bone: the bound counts how much deeper the
+// cut went (the deepest predicted advance since the drilling began), not the stroke. Checked
+// against the planner's own prediction sampled densely, independently of the sequencer.
+TEST(TrialSequencer, TheLayerBoundCountsTheDeepestCutNotTheBreathingStroke) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setVentilator(pd::VentilatorSettings());
+  seq.setBreathStart(0.0);
+  ASSERT_EQ(seq.start(request("uncompensated"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  for (int i = 1; i <= 4; ++i) {
+    const double t = 12.5 + 0.125 * i;
+    seq.onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                 kNoLookup);
+  }
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  seq.takeOutput();
+  const pd::CompensationPlanner* planner = seq.planner();
+  ASSERT_NE(planner, nullptr);
+  const double t_reg = planner->registrationTime();
+  const auto deepest = [&](double t) {
+    double d = planner->predictedAdvance(t_reg);
+    for (double u = t_reg; u <= t; u += 0.001) d = std::max(d, planner->predictedAdvance(u));
+    return d;
+  };
+  // The stroke is real here: the prediction moves the bone along the drill axis.
+  double lo = 1.0, hi = -1.0;
+  for (double u = t_reg; u < t_reg + 5.0; u += 0.01) {
+    lo = std::min(lo, planner->predictedAdvance(u) - 0.0005 * (u - t_reg));
+    hi = std::max(hi, planner->predictedAdvance(u) - 0.0005 * (u - t_reg));
+  }
+  ASSERT_GT(hi - lo, 1e-3);
+  // The contact is reported where the tip is furthest back from the deepest cut (a trough of
+  // the stroke): counting from the tip's position there would stop the drill too early.
+  double t_contact = t_reg + 0.5;
+  for (double u = t_reg + 0.5; u < t_reg + 6.0; u += 0.125) {
+    if (deepest(u) - planner->predictedAdvance(u) >
+        deepest(t_contact) - planner->predictedAdvance(t_contact)) {
+      t_contact = u;
+    }
+  }
+  ASSERT_GT(deepest(t_contact) - planner->predictedAdvance(t_contact), 0.5e-3);
+  double now = t_reg + 0.125;
+  std::vector<std::string> stops;
+  while (seq.phase() == pd::TrialPhase::kDrilling && now < t_contact + 60.0) {
+    seq.onRecognizerState(now, false, now < t_contact - 1e-9 ? "idle" : "outer_cortical", 0);
+    seq.onSegmentTimer(now);
+    for (const std::string& s : seq.takeOutput().stops) stops.push_back(s);
+    now += 0.125;
+  }
+  ASSERT_EQ(stops.size(), 1u);
+  EXPECT_NE(stops[0].find("outer_cortical_max_mm"), std::string::npos) << stops[0];
+  const double t_stop = now - 0.125;
+  const double base = deepest(t_contact);
+  // The bound was passed at least recognizer_delay_s before the stop, and not more than one
+  // tick (plus the 5 ms sampling) earlier than that.
+  EXPECT_GE(deepest(t_stop - 1.5) - base, 3.5e-3 - 1e-5);
+  EXPECT_LT(deepest(t_stop - 1.5 - 0.125 - 0.006) - base, 3.5e-3);
+}

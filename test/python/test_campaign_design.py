@@ -466,3 +466,22 @@ def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_pat
     assert '| compensated | 12000 | 2/4 (' in text and 'safety_h1 2' in text
     assert '## Safety stops H1 per virtual volunteer' in text
     assert '| compensated | 12000 | 2 | 2 | 1 | 50 % | 1.55 [1.55, 1.55] / 1.55 |' in text
+
+
+@pytest.mark.parametrize('text, named', [
+    ('seed_space: tuning\n', 'seed_space'),
+])
+def test_a_bad_seed_space_in_a_scenario_is_refused_naming_the_key(tmp_path, text, named):
+    from pd_campaign import cli
+    path = tmp_path / 'scenario.yaml'
+    path.write_text('cases: [stationary]\n' + text)
+    with pytest.raises(cli.UsageError, match=named):
+        cli.load_scenario(str(path))
+
+
+def test_a_bad_seed_space_option_is_refused():
+    from pd_campaign import cli
+    with pytest.raises(cli.UsageError, match='--seed-space'):
+        cli.parse_args(['--seed-space', 'tuning'])
+    args = cli.parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
+    assert args.seed_space == 'calibration'

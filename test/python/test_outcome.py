@@ -46,7 +46,29 @@ def test_breakthrough_before_and_after_the_stop_command():
     after = [(13.0, '/state_recognizer', RECOGNIZER, False)]
     assert outcome.classify(rows, before, INNER, False)[0] == 'breakthrough_before_stop'
     assert outcome.classify(rows, after, INNER, False)[0] == 'breakthrough_after_stop'
-    assert outcome.classify(rows, [], INNER, False)[0] == 'no_stop'
+    # Never stopped: a breakthrough is still a breakthrough; without one, no_stop.
+    assert outcome.classify(rows, [], INNER, False)[0] == 'breakthrough_before_stop'
+    intact = truth((0.0, 'air', 0.0), (30.0, 'cancellous', 5.0))
+    assert outcome.classify(intact, [], INNER, False)[0] == 'no_stop'
+
+
+def test_a_safety_stop_before_a_breakthrough_is_a_breakthrough_after_the_stop():
+    # The first stop was H1, then the bone ran into the drill: the perforation is what counts.
+    rows = truth((0.0, 'air', 0.0), (10.0, 'inner_cortical', 6.0), (11.0, 'canal', 8.0))
+    h1 = (10.5, '/safety_monitor', 'position_error: bone position error 1.25 mm > 1.2 mm', True)
+    kind, m = outcome.classify(rows, [h1], INNER, False)
+    assert kind == 'breakthrough_after_stop'
+    assert outcome.first_stop_kind([h1]) == 'safety_h1'
+    assert m['detection_latency_ms'] == pytest.approx(500.0)
+
+
+def test_entry_after_the_stop_command_gives_a_negative_latency():
+    rows = truth((0.0, 'air', 0.0), (9.0, 'cancellous', 5.9), (9.4, 'inner_cortical', 6.0),
+                 (9.6, 'inner_cortical', 6.05))
+    kind, m = outcome.classify(rows, [(9.2, '/state_recognizer', RECOGNIZER, False)], INNER,
+                               False)
+    assert m['detection_latency_ms'] == pytest.approx(-200.0)
+    assert m['rundown_mm'] == pytest.approx(0.15)
 
 
 def test_early_and_shallow_stops():

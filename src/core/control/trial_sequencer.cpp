@@ -357,6 +357,8 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   drilling_since_ = now;
   outer_watch_ = LayerWatch{"outer_cortical"};
   cancellous_watch_ = LayerWatch{"cancellous"};
+  deepest_advance_ = 0.0;
+  deepest_t_ = -1.0;
   setPhase(TrialPhase::kDrilling);
   log(SequencerLog::Level::kInfo, "marker registered (" + std::to_string(reg_count_) +
                                       " samples), drilling (" + toString(mode_) + ")");
@@ -366,21 +368,41 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
 
 void TrialSequencer::onMonitorAlive(double now) { last_monitor_t_ = now; }
 
+void TrialSequencer::updateDeepest(double now) {
+  // The deepest predicted advance since the drilling began: the cut's depth, which a breathing
+  // bone (uncompensated) moves the tip back from. Sampled every 5 ms between calls, so that a
+  // stroke's peak between two segment ticks is not missed.
+  constexpr double kStep = 0.005;
+  if (deepest_t_ < 0.0) {
+    deepest_advance_ = planner_->predictedAdvance(now);
+    deepest_t_ = now;
+    return;
+  }
+  const double from = std::max(deepest_t_, now - 10.0);  // bounded work after a long gap
+  for (double t = from + kStep; t < now; t += kStep) {
+    deepest_advance_ = std::max(deepest_advance_, planner_->predictedAdvance(t));
+  }
+  deepest_advance_ = std::max(deepest_advance_, planner_->predictedAdvance(now));
+  deepest_t_ = std::max(deepest_t_, now);
+}
+
 void TrialSequencer::watchLayers(double now, const std::string& state_name) {
+  updateDeepest(now);
   const bool contact = state_name != "idle" && state_name != "stopped";
   for (LayerWatch* w : {&outer_watch_, &cancellous_watch_}) {
     // The outer layer starts with the contact (any state after idle: a recognizer may skip it).
     const bool starts = w == &outer_watch_ ? contact : state_name == w->state;
     if (!w->started && starts) {
       w->started = true;
-      w->start_advance = planner_->predictedAdvance(now);
-      w->max_advance = w->start_advance;
+      w->start_advance = deepest_advance_;
     }
     if (w->started && state_name != w->state) w->done = true;
   }
 }
 
 void TrialSequencer::checkLayers(double now) {
+  if (phase_ != TrialPhase::kDrilling) return;
+  updateDeepest(now);
   if (checkLayer(now, &outer_watch_, params_.outer_cortical_max_mm, "outer_cortical_max_mm")) {
     return;
   }
@@ -390,13 +412,13 @@ void TrialSequencer::checkLayers(double now) {
 bool TrialSequencer::checkLayer(double now, LayerWatch* w, double bound_mm, const char* param) {
   const double bound_m = bound_mm * 1e-3;
   if (phase_ != TrialPhase::kDrilling || !w->started || w->done || !(bound_m > 0.0)) return false;
-  w->max_advance = std::max(w->max_advance, planner_->predictedAdvance(now));
-  if (w->through_t < 0.0 && w->max_advance - w->start_advance >= bound_m) w->through_t = now;
+  if (w->through_t < 0.0 && deepest_advance_ - w->start_advance >= bound_m) w->through_t = now;
   if (w->through_t < 0.0 || now - w->through_t < params_.recognizer_delay_s) return false;
   std::ostringstream os;
   os << "implausible force: the recognizer still reports the " << w->state << " layer "
-     << (w->max_advance - w->start_advance) * 1e3 << " mm of feed relative to the bone after its "
-     << "first report (" << param << " " << bound_mm << "; sensor drift or a missed layer?)";
+     << (deepest_advance_ - w->start_advance) * 1e3
+     << " mm deeper into the bone (predicted) than at its first report (" << param << " "
+     << bound_mm << "; sensor drift or a missed layer?)";
   const std::string why = os.str();
   log(SequencerLog::Level::kError, why + "; stopping and retracting");
   out_.stops.push_back(why);

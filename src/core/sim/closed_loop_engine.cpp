@@ -423,7 +423,14 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, s.config.simulation, spec.seed);
   s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
   s.sim->reset(spec.seed, moving);
-  s.sequencer = std::make_unique<TrialSequencer>(s.config.sequencer, *s.arm);
+  TrialSequencerParams sequencer_params = s.config.sequencer;
+  if (spec.protocol == TrialProtocol::kPeakForces) {
+    // The protocol drills through the inner layer on purpose, with the recognizer observing:
+    // the planner's plausibility bounds on the recognizer's layers do not apply.
+    sequencer_params.outer_cortical_max_mm = 0.0;
+    sequencer_params.cancellous_max_mm = 0.0;
+  }
+  s.sequencer = std::make_unique<TrialSequencer>(sequencer_params, *s.arm);
   s.sequencer->setCompensatorFactory(s.config.make_compensator);
   s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
                                           : std::make_unique<PaperRecognizer>(s.config.recognizer);

@@ -83,9 +83,10 @@ struct TrialSequencerParams {
    *        report of `cancellous` (key point 3), once the deepest predicted advance is this much
    *        further and `recognizer_delay_s` has passed, a recognizer still reporting
    *        `cancellous` has missed the inner layer: stop with retreat, reason `implausible
-   *        force`. It bounds the damage of a missed inner layer (the tip is through it by then),
-   *        it does not prevent it. Default 8.3 mm: the thickest cancellous layer of the documented
-   *        range (4.0 mm + 4 x 1.0 mm) plus 0.3 mm of prediction error.
+   *        force`. By then the cut has passed the thickest cancellous layer of the range, so it
+   *        is in the inner layer or through it: the bound limits the damage of a missed inner
+   *        layer, it does not prevent it. Default 8.3 mm: the thickest cancellous layer of the
+   * documented range (4.0 mm + 4 x 1.0 mm) plus 0.3 mm of prediction error.
    */
   double cancellous_max_mm = 8.3;
   /**
@@ -281,6 +282,8 @@ class TrialSequencer {
                       const std::vector<double>* feed_velocities);
   void resendFromNow(double now);
   struct LayerWatch;
+  /// Samples the deepest predicted advance into the bone up to now (while drilling).
+  void updateDeepest(double now);
   /// Follows the recognizer's reported state in the layer watches (while drilling).
   void watchLayers(double now, const std::string& state_name);
   /// Stops with retreat when a watched layer outlasts its bound in mm (while drilling).
@@ -307,15 +310,16 @@ class TrialSequencer {
   bool have_phase_ = false;
   bool recognizer_reports_stop_ = false;
   /// Geometric plausibility of one layer the recognizer reports (outer_cortical_max_mm,
-  /// cancellous_max_mm): from its first report, the deepest predicted advance into the bone.
+  /// cancellous_max_mm): how much deeper the cut went after its first report.
   struct LayerWatch {
     const char* state = "";      // the recognizer's state name of the layer
     bool started = false;        // the layer was reported (the outer one: any state after idle)
     bool done = false;           // ... and later a state after it (or the stop came)
-    double start_advance = 0.0;  // predicted advance into the bone at its first report [m]
-    double max_advance = 0.0;    // deepest predicted advance since [m]
-    double through_t = -1.0;     // when max_advance passed the bound (< 0: not yet)
+    double start_advance = 0.0;  // deepest predicted advance at its first report [m]
+    double through_t = -1.0;     // when the deepest advance passed the bound (< 0: not yet)
   };
+  double deepest_advance_ = 0.0;  // deepest predicted advance into the bone while drilling [m]
+  double deepest_t_ = -1.0;       // up to when it was sampled (< 0: not yet)
   LayerWatch outer_watch_{"outer_cortical"};
   LayerWatch cancellous_watch_{"cancellous"};
   double last_recognizer_t_ = -1e300;  // last drilling_state

@@ -54,8 +54,8 @@ struct RecognizerParams {
   /**
    * @brief Averaged samples after key point 2 within which key point 3 must be confirmed, else
    *        the force is implausible and the drill is stopped (0 disables). From the filter, not
-   *        from observed durations (issue 27): at key point 2 fbar < K F_max, so A* < C1 already
-   *        (f* < 1/2, A* < 1/8 < C1 with the defaults); the Eq. 13 window holds only post-layer
+   *        from observed durations (issue 27): at key point 2 fbar < K F_max, so f* < 1/2 and
+   *        A* < D/8 (about C1 at the typical D of 3.2 N); the Eq. 13 window holds only post-layer
    *        blocks `window` samples later, and the confirmation takes `cancellous_confirm`.
    *        Hence it must be 0 or at least window + cancellous_confirm. The default 25 = 2 x
    *        window + cancellous_confirm also lets the confirmation restart once after one rebound

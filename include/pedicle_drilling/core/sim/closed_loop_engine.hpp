@@ -104,8 +104,9 @@ struct EngineTrialSpec {
    *        deepest cut first reaches u times the depth of the inner cortical layer's start, u
    *        uniform in [0, 1) from the seed's own stream: a random moment between the start of
    *        the drilling and the inner layer, where a missed stop would break through (a bone
-   *        that touched the drill at the drilling pose triggers it when the drilling starts). The breathing faults take effect at the next
-   *        breath's start (no step of the bone), the command faults with the next command.
+   *        that touched the drill at the drilling pose triggers it when the drilling starts). The
+   * breathing faults take effect at the next breath's start (no step of the bone), the command
+   * faults with the next command.
    */
   FaultKind fault = FaultKind::kNone;
   /**
@@ -114,6 +115,8 @@ struct EngineTrialSpec {
    *        F_out and F_in (Fig. 16) need the drill through the inner layer: the recognizer
    *        observes (its states and key points are recorded) but its stop is not delivered, and
    *        the trial is stopped with retreat once the tip has broken through the inner layer.
+   *        The planner's plausibility bounds on the recognizer's layers (outer_cortical_max_mm,
+   *        cancellous_max_mm) are off under it.
    */
   TrialProtocol protocol = TrialProtocol::kRecognition;
 };
