@@ -204,7 +204,11 @@ def test_ctrl_c_stops_cleanly_and_keeps_finished_trials(tmp_path):
         ['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'), '--case', 'stationary',
          '--rpm', '12000', '--trials', '6', '--jobs', '1', '--seed', '9', '--out', str(out),
          '--base-port', str(port), '--engine', 'ros'],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+        # A terminal's Ctrl-C reaches a process whose SIGINT is at its default; a test run
+        # started as a background job (nohup ... &) inherits it ignored, and Python then keeps
+        # ignoring it: restore the default, as a terminal has it.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.time() + 400.0
     finished = 0
     while time.time() < deadline and campaign.poll() is None and finished == 0:
