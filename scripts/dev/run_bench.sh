@@ -1,13 +1,9 @@
 #!/usr/bin/env bash
 # `make bench`: runs every benchmark program; each prints `BENCH <name> <value> <unit>` lines.
 set -eu
-export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
-# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
-set +u
-# shellcheck disable=SC1091
-source "${ROOT}/catkin_ws/devel/setup.bash"
-set -u
+# shellcheck source=scripts/dev/workspace_env.sh
+source "${ROOT}/scripts/dev/workspace_env.sh"
 BIN="${ROOT}/catkin_ws/devel/lib/pedicle_drilling"
 status=0
 for bench in "${BIN}"/bench_*; do

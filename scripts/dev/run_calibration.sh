@@ -10,12 +10,9 @@
 #      protocol, 100 calibration seeds per case, the candidate rows of doc/simulator_physics.md)
 # Usage: scripts/dev/run_calibration.sh [bounds|fig16|all]   (default all)
 set -eu
-export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
-set +u
-# shellcheck disable=SC1091
-source "${ROOT}/catkin_ws/devel/setup.bash"
-set -u
+# shellcheck source=scripts/dev/workspace_env.sh
+source "${ROOT}/scripts/dev/workspace_env.sh"
 OUT="${PEDICLE_DRILLING_CAL_OUT:-${ROOT}/results/calibration}"
 JOBS="${JOBS:-2}"
 WHAT="${1:-all}"

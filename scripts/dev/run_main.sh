@@ -15,13 +15,9 @@
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
 set -eu
-export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
-# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
-set +u
-# shellcheck disable=SC1091
-source "${ROOT}/catkin_ws/devel/setup.bash"
-set -u
+# shellcheck source=scripts/dev/workspace_env.sh
+source "${ROOT}/scripts/dev/workspace_env.sh"
 OUT="${PEDICLE_DRILLING_OUT:-${ROOT}/results}"
 JOBS="${JOBS:-2}"
 mkdir -p "${OUT}"

@@ -6,14 +6,10 @@
 # Needs a DISPLAY for the rviz scenario: `make test` runs this under xvfb-run.
 # Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
 set -u
-export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 WS="${ROOT}/catkin_ws"
-# setup.bash reads unset variables (ROS_DISTRO, ...): source it without `set -u`.
-set +u
-# shellcheck disable=SC1091
-source "${WS}/devel/setup.bash"
-set -u
+# shellcheck source=scripts/dev/workspace_env.sh
+source "${ROOT}/scripts/dev/workspace_env.sh"
 FILTER="${TEST_FILTER:-}"
 RESULTS="${WS}/build/test_results/pedicle_drilling"
 export PEDICLE_DRILLING_ARTIFACTS="${WS}/build/test_artifacts"

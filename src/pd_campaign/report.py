@@ -266,6 +266,18 @@ def h1_table(groups):
     return '\n'.join(lines)
 
 
+def h1_section(rows):
+    """The report's section of the H1 stops per volunteer (h1_table), as lines; none when no
+    trial had an H1 stop."""
+    h1 = h1_by_volunteer(rows or [])
+    if not h1:
+        return []
+    return ['## Safety stops H1 per virtual volunteer', '',
+            'The monitor\'s H1 stops (tracked bone position against the prediction, > 1.2 mm) of '
+            'the moving cases, per virtual volunteer, with the position error each reported (the '
+            'prediction error that caused it).', '', h1_table(h1), '']
+
+
 def _volunteer_label(value):
     if value is None:
         return '-'
@@ -575,12 +587,7 @@ def write_peak_force_report(summary, meta, figures, path, notes='', rows=None):
         lines.append('| %s | %.0f | %d | %s |' % (g['case'], g['rpm'], g['trials'], ', '.join(
             '%s %d' % kv for kv in g['failure_kinds'].items())))
     lines.append('')
-    h1 = h1_by_volunteer(rows or [])
-    if h1:
-        lines += ['## Safety stops H1 per virtual volunteer', '',
-                  'The monitor\'s H1 stops (tracked bone position against the prediction, > 1.2 '
-                  'mm) of the moving cases, per virtual volunteer, with the position error each '
-                  'reported (the prediction error that caused it).', '', h1_table(h1), '']
+    lines += h1_section(rows)
     _write_with_notes_and_figures(lines, notes, figures, path)
 
 
@@ -672,12 +679,7 @@ def write_report_md(summary, meta, figures, path, notes='', faults=None, rows=No
               failure_table(summary), '',
               '## Failure kinds and the field\'s metrics', '',
               FAILURE_KINDS_TEXT, '', metrics_table(summary), '']
-    h1 = h1_by_volunteer(rows or [])
-    if h1:
-        lines += ['## Safety stops H1 per virtual volunteer', '',
-                  'The monitor\'s H1 stops (tracked bone position against the prediction, > 1.2 '
-                  'mm) of the moving cases, per virtual volunteer, with the position error each '
-                  'reported (the prediction error that caused it).', '', h1_table(h1), '']
+    lines += h1_section(rows)
     findings = analysis(summary)
     if findings:
         lines += [findings, '']

@@ -329,7 +329,8 @@ void TrialSequencer::onRecognizerState(double now, bool stop, const std::string&
   recognizer_reports_stop_ = stop;
   last_recognizer_t_ = now;
   if (phase_ == TrialPhase::kDrilling) {
-    watchLayers(now, state_name);
+    updateDeepest(now);
+    watchLayers(state_name);
     checkLayers(now);
   }
   if (stop && phase_ == TrialPhase::kDrilling) {
@@ -386,8 +387,7 @@ void TrialSequencer::updateDeepest(double now) {
   deepest_t_ = std::max(deepest_t_, now);
 }
 
-void TrialSequencer::watchLayers(double now, const std::string& state_name) {
-  updateDeepest(now);
+void TrialSequencer::watchLayers(const std::string& state_name) {
   const bool contact = state_name != "idle" && state_name != "stopped";
   for (LayerWatch* w : {&outer_watch_, &cancellous_watch_}) {
     // The outer layer starts with the contact (any state after idle: a recognizer may skip it).
@@ -401,8 +401,6 @@ void TrialSequencer::watchLayers(double now, const std::string& state_name) {
 }
 
 void TrialSequencer::checkLayers(double now) {
-  if (phase_ != TrialPhase::kDrilling) return;
-  updateDeepest(now);
   if (checkLayer(now, &outer_watch_, params_.outer_cortical_max_mm, "outer_cortical_max_mm")) {
     return;
   }
@@ -411,7 +409,7 @@ void TrialSequencer::checkLayers(double now) {
 
 bool TrialSequencer::checkLayer(double now, LayerWatch* w, double bound_mm, const char* param) {
   const double bound_m = bound_mm * 1e-3;
-  if (phase_ != TrialPhase::kDrilling || !w->started || w->done || !(bound_m > 0.0)) return false;
+  if (!w->started || w->done || !(bound_m > 0.0)) return false;
   if (w->through_t < 0.0 && deepest_advance_ - w->start_advance >= bound_m) w->through_t = now;
   if (w->through_t < 0.0 || now - w->through_t < params_.recognizer_delay_s) return false;
   std::ostringstream os;
@@ -446,6 +444,9 @@ void TrialSequencer::onSegmentTimer(double now) {
       out_.stops.push_back(why);
       handleStop(now, true, why);
     }
+  }
+  if (phase_ == TrialPhase::kDrilling) {
+    updateDeepest(now);
     checkLayers(now);
   }
   if (phase_ == TrialPhase::kDrilling && now >= t_end_) {

@@ -284,9 +284,11 @@ class TrialSequencer {
   struct LayerWatch;
   /// Samples the deepest predicted advance into the bone up to now (while drilling).
   void updateDeepest(double now);
-  /// Follows the recognizer's reported state in the layer watches (while drilling).
-  void watchLayers(double now, const std::string& state_name);
-  /// Stops with retreat when a watched layer outlasts its bound in mm (while drilling).
+  /// Follows the recognizer's reported state in the layer watches (while drilling, after
+  /// updateDeepest).
+  void watchLayers(const std::string& state_name);
+  /// Stops with retreat when a watched layer outlasts its bound in mm (while drilling, after
+  /// updateDeepest).
   void checkLayers(double now);
   /// checkLayers for one layer; true if it stopped the drill.
   bool checkLayer(double now, LayerWatch* watch, double bound_mm, const char* param);
