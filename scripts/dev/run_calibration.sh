@@ -8,7 +8,11 @@
 #      fault-free paper design and virtual patient (no plausibility stop of a fault-free trial)
 #   2. the force sensor's DAQ rate and the chisel-edge share against Fig. 16 (peak_forces
 #      protocol, 100 calibration seeds per case, the candidate rows of doc/simulator_physics.md)
-# Usage: scripts/dev/run_calibration.sh [bounds|fig16|all]   (default all)
+#   3. the planner's stop_hold_s (hold after a recognizer stop, or retreat at once): the
+#      amplitude fault, 400 calibration seeds, and the paper design at 12000 rpm, 200 per case,
+#      each with a 1 s hold and without (paired seeds); then the retreat's acceleration
+#      (retreat_accel_m_s2, 0.05 against 1 m/s^2) on the same trials
+# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|all]   (default all)
 set -eu
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # shellcheck source=scripts/dev/workspace_env.sh
@@ -42,5 +46,28 @@ if [ "${WHAT}" = fig16 ] || [ "${WHAT}" = all ]; then
   done
   python3 "${ROOT}/scripts/dev/calibration_fig16.py" "${rows[@]}" > "${OUT}/fig16_grid.md"
   cat "${OUT}/fig16_grid.md"
+fi
+if [ "${WHAT}" = hold ] || [ "${WHAT}" = all ]; then
+  for hold in 1 0; do
+    scenario="${OUT}/amplitude_hold${hold}.yaml"
+    sed -e '/^seed_space/d' -e '/^faults:/,/command_delayed\]/d' \
+      "${ROOT}/config/scenario_faults.yaml" > "${scenario}"
+    printf 'faults: [breathing_amplitude]\nplanner_params: {stop_hold_s: %s}\n' "${hold}" \
+      >> "${scenario}"
+    campaign --scenario "${scenario}" --trials 400 --out "${OUT}/amplitude_hold${hold}"
+    scenario="${OUT}/paper_hold${hold}.yaml"
+    sed '/^seed_space/d' "${ROOT}/config/scenario_paper.yaml" > "${scenario}"
+    printf 'planner_params: {stop_hold_s: %s}\n' "${hold}" >> "${scenario}"
+    campaign --scenario "${scenario}" --rpm 12000 --trials 200 --out "${OUT}/paper_hold${hold}"
+  done
+  # Both runs above retreat at 1 m/s^2 (the default since); 0.05 m/s^2, the earlier default:
+  for name in amplitude_hold0 paper_hold0; do
+    sed 's/planner_params: {stop_hold_s: 0}/planner_params: {stop_hold_s: 0, retreat_accel_m_s2: 0.05}/' \
+      "${OUT}/${name}.yaml" > "${OUT}/${name}_slow_retreat.yaml"
+    args=(--trials 400)
+    [ "${name}" = paper_hold0 ] && args=(--rpm 12000 --trials 200)
+    campaign --scenario "${OUT}/${name}_slow_retreat.yaml" "${args[@]}" \
+      --out "${OUT}/${name}_slow_retreat"
+  done
 fi
 echo "calibration: done; outputs in ${OUT}"

@@ -15,6 +15,7 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -107,10 +108,33 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                           "different frames; position check skipped");
   }
 
-  /** @brief The planner's phase: while a trial runs, a stream never heard is a timeout too. */
+  /**
+   * @brief The planner's phase: while a trial runs, a stream never heard is a timeout too; when
+   *        a retreat ends (retreating -> done) the re-tare check, and a drift is published as a
+   *        StopCommand "force_offset: ..." (the drill is already out; the record keeps why).
+   */
   void onPlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->setTrialRunning(msg->running);
+    const bool retreat_ended =
+        msg->phase == TrialStatus::DONE && last_phase_ == TrialStatus::RETREATING;
+    last_phase_ = msg->phase;
+    if (!retreat_ended) return;
+    const core::RetareCheck check = supervisor_->retareCheck(now());
+    if (!check.done) {
+      NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
+    } else if (!check.drift) {
+      NODELET_INFO("SafetyMonitor: re-tare check: %.3f N from the tare after the retreat",
+                   check.offset_n);
+    } else {
+      StopCommand stop;
+      stop.header.stamp = ros::Time::now();
+      stop.source = getName();
+      stop.retreat = true;
+      stop.reason = check.message;
+      stop_pub_.publish(stop);
+      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());
+    }
   }
 
   void onCheck(const ros::TimerEvent&) {
@@ -172,6 +196,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
+  std::uint8_t last_phase_ = TrialStatus::IDLE;  ///< the planner's phase before the latest
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;
   ros::Subscriber wrench_sub_;

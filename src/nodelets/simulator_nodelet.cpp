@@ -21,9 +21,11 @@
 #include <trajectory_msgs/JointTrajectory.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -34,6 +36,7 @@
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
+#include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
@@ -47,7 +50,11 @@ namespace pedicle_drilling {
 class SimulatorNodelet : public nodelet::Nodelet {
  public:
   ~SimulatorNodelet() override {
-    running_ = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      running_ = false;
+    }
+    command_cv_.notify_all();  // a loop waiting for a trajectory ends now
     if (thread_.joinable()) thread_.join();
   }
 
@@ -66,6 +73,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       real_time_factor_ = params.real_time_factor;
       publish_clock_ = params.publish_clock;
       clock_period_steps_ = params.clock_period_ms;
+      command_wait_s_ = params.command_wait_s;
       const auto period = [](const std::string& name, double hz) {
         return core::streamPeriodSteps(1000.0, hz, name);
       };
@@ -101,6 +109,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
     trajectory_sub_ =
         nh.subscribe("arm_controller/command", 10, &SimulatorNodelet::onTrajectory, this);
     spindle_sub_ = nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
+    // The planner's phase says when trajectories stream (drilling, stopped, retreating): then
+    // sim time does not run past the last one received (waitForCommand).
+    status_sub_ = nh.subscribe("compensation/status", 10, &SimulatorNodelet::onPlannerStatus, this);
     reset_srv_ = nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
     start_trial_srv_ =
         nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
@@ -134,10 +145,17 @@ class SimulatorNodelet : public nodelet::Nodelet {
       sim0 = sim_->time();
     }
     std::uint64_t n = 0;
+    Clock::time_point pace_wall0 = wall0;
     while (running_ && ros::ok()) {
       double t = 0.0;
       {
-        std::lock_guard<std::mutex> lock(mutex_);
+        std::unique_lock<std::mutex> lock(mutex_);
+        if (waitForCommand(&lock)) {
+          // Machine load changes wall time, not the trial: the pacing restarts from here
+          // instead of catching up flat out.
+          pace_wall0 = Clock::now();
+          sim0 = sim_->time();
+        }
         const core::SimulationStep step = sim_->stepOnce();
         t = step.time_s;
         if (pending_amplitude_ && sim_->ventilator().breathIndex() != amplitude_breath_) {
@@ -161,14 +179,59 @@ class SimulatorNodelet : public nodelet::Nodelet {
       }
       if (real_time_factor_ > 0.0) {
         const Clock::time_point due =
-            wall0 + std::chrono::duration_cast<Clock::duration>(
-                        std::chrono::duration<double>((t - sim0) / real_time_factor_));
+            pace_wall0 + std::chrono::duration_cast<Clock::duration>(
+                             std::chrono::duration<double>((t - sim0) / real_time_factor_));
         // Sleep only when ahead by more than a millisecond (fewer system calls).
         if (due - Clock::now() > std::chrono::milliseconds(1)) std::this_thread::sleep_until(due);
       } else if (n % 1000 == 0) {
         std::this_thread::yield();  // as fast as possible, but let callbacks in
       }
     }
+  }
+
+  /**
+   * @brief While a trial streams trajectories, waits (wall time, at most ~command_wait_s) for
+   *        the next one rather than step past the end of the last one received: sim time waits
+   *        for the planner, as a lockstep would, so that a loaded machine slows the trial down
+   *        instead of making the arm hold and then rush. True if it waited.
+   */
+  bool waitForCommand(std::unique_lock<std::mutex>* lock) {
+    const double step = 1.0 / sim_->params().physics_rate_hz;
+    const auto starved = [this, step] {
+      return streaming_ && !wait_given_up_ && sim_->armTrajectoryEnd() < sim_->time() + step - 1e-9;
+    };
+    if (command_wait_s_ <= 0.0 || !starved()) return false;
+    using Clock = std::chrono::steady_clock;
+    const Clock::time_point start = Clock::now();
+    const Clock::time_point deadline = start + std::chrono::duration_cast<Clock::duration>(
+                                                   std::chrono::duration<double>(command_wait_s_));
+    // Woken by a trajectory, a phase or the destructor; a 50 ms slice sees a ROS shutdown.
+    while (running_ && ros::ok() && starved() && Clock::now() < deadline) {
+      command_cv_.wait_until(*lock,
+                             std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+    }
+    const bool expired = running_ && ros::ok() && starved();
+    ++command_waits_;
+    command_wait_wall_s_ += std::chrono::duration<double>(Clock::now() - start).count();
+    if (expired) {
+      wait_given_up_ = true;  // until the next trajectory or phase: one wait, not one per step
+      ++command_wait_expired_;
+      NODELET_WARN_THROTTLE(1.0,
+                            "Simulator: no arm trajectory beyond t=%.3f s after %.3f s of wall "
+                            "time (~command_wait_s): stepping on, the arm holds",
+                            sim_->armTrajectoryEnd(), command_wait_s_);
+    }
+    return true;
+  }
+
+  void onPlannerStatus(const TrialStatus::ConstPtr& msg) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      streaming_ = msg->phase == TrialStatus::DRILLING || msg->phase == TrialStatus::STOPPED ||
+                   msg->phase == TrialStatus::RETREATING;
+      wait_given_up_ = false;
+    }
+    command_cv_.notify_all();
   }
 
   void publishWrench(const core::SimulationStep& step) {
@@ -196,7 +259,21 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   void publishGroundTruth(double t) {
-    ground_truth_pub_.publish(toMsg(sim_->groundTruth(), stampOf(t)));
+    GroundTruth msg = toMsg(sim_->groundTruth(), stampOf(t));
+    msg.late_commands = late_commands_;
+    msg.max_command_lateness_s = max_command_lateness_s_;
+    msg.command_waits = command_waits_;
+    msg.command_wait_wall_s = command_wait_wall_s_;
+    msg.command_wait_expired = command_wait_expired_;
+    ground_truth_pub_.publish(msg);
+  }
+
+  void clearTransportCounters() {
+    late_commands_ = 0;
+    max_command_lateness_s_ = 0.0;
+    command_waits_ = 0;
+    command_wait_wall_s_ = 0.0;
+    command_wait_expired_ = 0;
   }
 
   void publishMarker(double t) {
@@ -216,6 +293,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     bool remounted = false;
     try {
       remounted = sim_->startTrial();
+      clearTransportCounters();
     } catch (const std::exception& e) {
       response.success = false;
       response.message = std::string("start_trial failed: ") + e.what();
@@ -262,9 +340,19 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
+    // Late: its start passed before it arrived (half a physics step of rounding allowed).
+    const double half_step = 0.5 / sim_->params().physics_rate_hz;
+    if (std::isfinite(command.start_time_s) && command.start_time_s < sim_->time() - half_step) {
+      ++late_commands_;  // a ros_control controller would start it now, as the executor does
+      max_command_lateness_s_ =
+          std::max(max_command_lateness_s_, sim_->time() - command.start_time_s);
+    }
     const core::TargetResult r = sim_->commandTrajectory(command);
+    wait_given_up_ = false;
+    lock.unlock();
+    command_cv_.notify_all();
     if (r.status == core::TargetStatus::kRejected) {
       NODELET_WARN_THROTTLE(1.0,
                             "Simulator: arm_controller/command rejected, previous "
@@ -312,6 +400,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       sim_->setTrialDistribution(distribution.sim.specimen, distribution.sim.variability);
       sim_->setBoneMotionModel(bone_motion);
       sim_->reset(req.seed, req.moving_bone);
+      streaming_ = false;  // an aborted trial's phase does not hold the next one's time
+      wait_given_up_ = false;
       pending_amplitude_.reset();
     } catch (const std::exception& e) {
       res.success = false;
@@ -326,7 +416,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
+  std::condition_variable command_cv_;  ///< a trajectory or a planner phase arrived
   std::unique_ptr<core::DrillingSimulation> sim_;
+  double command_wait_s_ = 1.0;
+  bool streaming_ = false;      ///< the planner streams trajectories (under mutex_)
+  bool wait_given_up_ = false;  ///< a wait ran out; no other until a trajectory or phase comes
+  std::uint32_t late_commands_ = 0;
+  double max_command_lateness_s_ = 0.0;
+  std::uint32_t command_waits_ = 0;
+  double command_wait_wall_s_ = 0.0;
+  std::uint32_t command_wait_expired_ = 0;
   std::atomic<bool> running_{false};
   std::thread thread_;
   double real_time_factor_ = 1.0;
@@ -354,6 +453,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
   ros::Subscriber trajectory_sub_;
   ros::Subscriber spindle_sub_;
+  ros::Subscriber status_sub_;
   ros::ServiceServer reset_srv_;
   ros::ServiceServer start_trial_srv_;
 };

@@ -46,6 +46,12 @@ SCENARIO_KEYS = {
     # {name: value}: any of the Simulator's declared parameters (param_docs), e.g. the force
     # sensor's chain (force_sensor_rate_hz, force_antialias_cutoff_hz). Core engine only.
     'simulator_params': (dict, None, None),
+    # {name: value}: any of the CompensationPlanner's declared trial-sequence parameters
+    # (param_docs), e.g. stop_hold_s, outer_cortical_max_mm. Core engine only.
+    'planner_params': (dict, None, None),
+    # {force_to_recognizer_s, stop_to_planner_s, command_to_arm_s}: the core engine's transport
+    # delays (core::EngineDelays, [0, 1] s; defaults 0, 1 ms, 1 ms). Core engine only.
+    'engine_delays': (dict, None, None),
     'faults': (list, None, None),
     'fault_params': (dict, None, None),
     'recognizer': (str, None, None),  # a recognizer class (pluginlib name); --recognizer wins
@@ -57,6 +63,11 @@ SCENARIO_KEYS = {
 SCENARIO_VERSION = 1
 DEFAULT_RECOGNIZER = 'pedicle_drilling/PaperRecognizer'
 DEFAULT_COMPENSATOR = 'pedicle_drilling/PaperCompensator'
+# planner_params that other scenario keys set for every trial (refused, naming the key).
+PLANNER_PARAMS_SET_ELSEWHERE = {'feed_rate_mm_s': 'feed_rate_mm_s', 'spindle_rpm': 'rpms',
+                                'max_duration_s': 'max_duration_s',
+                                'segment_profile': 'compensation_profile',
+                                'feed_joint': '(the workcell URDF)'}
 # fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
 FAULT_PARAMS = {
     'spike_n': '--fault-spike-n',
@@ -189,6 +200,20 @@ def load_scenario(path):
                 if isinstance(number, bool) or not isinstance(number, (int, float)):
                     raise UsageError('--scenario %s: fault_params.%s must be a number'
                                      % (path, name))
+        if key == 'planner_params':
+            for name in value:
+                if name in PLANNER_PARAMS_SET_ELSEWHERE:
+                    raise UsageError('--scenario %s: planner_params.%s is set by the scenario '
+                                     'key %s' % (path, name, PLANNER_PARAMS_SET_ELSEWHERE[name]))
+        if key == 'engine_delays':
+            for name, number in value.items():
+                if name not in engine_core.DELAY_OPTIONS:
+                    raise UsageError('--scenario %s: unknown key engine_delays.%s (known: %s)'
+                                     % (path, name, ', '.join(sorted(engine_core.DELAY_OPTIONS))))
+                if (isinstance(number, bool) or not isinstance(number, (int, float))
+                        or not 0.0 <= number <= 1.0):
+                    raise UsageError('--scenario %s: engine_delays.%s must be a number of '
+                                     'seconds in [0, 1]' % (path, name))
         if key == 'cases':
             for case in value:
                 if case not in CASES:
@@ -252,6 +277,12 @@ def parse_args(argv):
     elif scenario.get('simulator_params'):
         raise UsageError('scenario key simulator_params: run by --engine core only (the ROS '
                          'pipeline\'s Simulator reads its parameters at its start)')
+    elif scenario.get('engine_delays'):
+        raise UsageError('scenario key engine_delays: run by --engine core only (the ROS '
+                         'pipeline\'s delays are its transport\'s, measured per trial)')
+    elif scenario.get('planner_params'):
+        raise UsageError('scenario key planner_params: run by --engine core only (the ROS '
+                         'pipeline\'s CompensationPlanner reads its parameters at its start)')
     elif scenario.get('protocol', 'recognition') != 'recognition':
         raise UsageError('scenario key protocol: %r is run by --engine core only (the ROS '
                          'pipeline\'s recognizer always stops the drill)' % scenario['protocol'])
@@ -441,6 +472,14 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['the simulator section was refused'])[-1])
             return 2
+    if args.engine == 'core' and scenario.get('planner_params'):
+        check = subprocess.run(
+            engine_core.tool('trial_engine') + ['--check-planner'] +
+            engine_core.settings_list(scenario['planner_params']), capture_output=True, text=True)
+        if check.returncode != 0:
+            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
+                                                 ['the planner_params were refused'])[-1])
+            return 2
     design = build_design(cases, rpms, trials, seed, faults, args.seed_space)
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
@@ -454,6 +493,8 @@ def run_campaign(argv=None):
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
             'protocol': scenario.get('protocol', 'recognition'),
             'simulator_params': scenario.get('simulator_params') or {},
+            'planner_params': scenario.get('planner_params') or {},
+            'engine_delays': scenario.get('engine_delays') or {},
             'recognizer': recognizer,
             'compensator': compensator,
             'engine': args.engine}
@@ -510,7 +551,8 @@ def run_campaign(argv=None):
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
                 recognizer, compensator, params['recognizer'], params['compensator'],
                 scenario.get('simulator'), scenario.get('protocol', 'recognition'),
-                scenario.get('simulator_params'))))
+                scenario.get('simulator_params'), scenario.get('planner_params'),
+                scenario.get('engine_delays'))))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

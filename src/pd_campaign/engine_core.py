@@ -27,6 +27,9 @@ class RecordedTrial:
         # Ground-truth peaks (the core engine computes them at 1 kHz; see worker.peak_forces).
         self.truth_peaks = record.get('truth_peaks_n')
         self.protocol = record.get('protocol', 'recognition')
+        # The monitor's re-tare check when the retreat ended (SafetyMonitor::retareCheck).
+        retare = record.get('retare') or {}
+        self.retare = retare if retare.get('done') else None
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
@@ -38,7 +41,7 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                          compensator='pedicle_drilling/PaperCompensator',
                          recognizer_params=None, compensator_params=None,
                          simulator_overrides=None, protocol='recognition',
-                         simulator_settings=None):
+                         simulator_settings=None, planner_settings=None, delays=None):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15);
     `simulator_overrides`: the scenario's `simulator:` section, {group: {key: value}}, passed as
     the Simulator's parameters trial_distribution/<group>/<key> (the same declaration checks
@@ -62,9 +65,24 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
             command += [option, '%s=%s' % (name, value)]
     for item in simulator_params(simulator_overrides, simulator_settings):
         command += ['--simulator-param', item]
+    for item in settings_list(planner_settings):
+        command += ['--planner-param', item]
+    for name, value in sorted((delays or {}).items()):
+        command += [DELAY_OPTIONS[name], repr(float(value))]
     if protocol != 'recognition':
         command += ['--protocol', protocol]
     return command
+
+
+# scenario key engine_delays -> trial_engine option (core::EngineDelays)
+DELAY_OPTIONS = {'force_to_recognizer_s': '--force-delay-s', 'stop_to_planner_s': '--stop-delay-s',
+                 'command_to_arm_s': '--command-delay-s'}
+
+
+def settings_list(settings):
+    """{name: value} as NAME=VALUE strings, sorted (booleans as true/false)."""
+    return ['%s=%s' % (name, str(value).lower() if isinstance(value, bool) else value)
+            for name, value in sorted((settings or {}).items())]
 
 
 def simulator_params(section, settings=None):
@@ -72,9 +90,7 @@ def simulator_params(section, settings=None):
     `trial_distribution/<group>/<key>=<value>`, then its `simulator_params:` {name: value}."""
     return ['trial_distribution/%s/%s=%r' % (group, key, float(value))
             for group, values in sorted((section or {}).items())
-            for key, value in sorted(values.items())] + [
-        '%s=%s' % (name, str(value).lower() if isinstance(value, bool) else value)
-        for name, value in sorted((settings or {}).items())]
+            for key, value in sorted(values.items())] + settings_list(settings)
 
 
 def fault_columns(row, record):

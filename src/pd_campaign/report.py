@@ -21,7 +21,9 @@ TRIAL_COLUMNS = [
     'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
-    'sim_duration_s', 'wall_s', 'bag_lost', 'error',
+    'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
+    'command_wait_wall_s', 'command_wait_expired', 'retare_offset_n', 'drift_detected',
+    'bag_lost', 'error',
 ]
 
 PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}
@@ -52,13 +54,16 @@ def normalise_row(row):
     out['seed'] = int(row['seed'])
     out['success'] = str(row['success']).lower() in ('1', 'true')
     out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
+    out['drift_detected'] = str(row.get('drift_detected', '')).lower() in ('1', 'true')
     out['fault'] = row.get('fault') or 'none'
     for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s', 'residual_mm', 'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'max_depth_mm', 'inner_start_mm',
                 'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
                 'force_noise_sd_n', 'arm_stiffness_scale',
                 'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
                 'sim_duration_s', 'wall_s', 'stop_depth_mm', 'stop_residual_mm', 'overshoot_mm',
-                'rundown_mm', 'detection_latency_ms', 'h1_error_mm'):
+                'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'late_commands',
+                'max_command_lateness_ms', 'command_waits', 'command_wait_wall_s',
+                'command_wait_expired', 'retare_offset_n'):
         out[key] = _number(row.get(key))
     out['failure_kind'] = row.get('failure_kind') or None
     out['first_stop_kind'] = row.get('first_stop_kind') or None
@@ -332,6 +337,7 @@ def fault_summary(rows):
             'min_residual_mm': _minimum([r['residual_mm'] for r in valid]),
             'stop_reasons': _count(stop_category(r) for r in injected),
             'failure_kinds': _count(r.get('failure_kind') or outcome(r) for r in valid),
+            'drift_detected': sum(1 for r in valid if r.get('drift_detected')),
         })
     return out
 
@@ -341,12 +347,12 @@ def fault_table(faults):
     lines = ['| case | rpm | fault | trials | injected | breakthroughs (Wilson 95 % upper) '
              '| stopped / retreated after the fault | fault to stop: median / max [s] '
              '| fault to retreat: median / max [s] | residual: median / min [mm] | stops '
-             '| failure kinds |',
-             '|---|---|---|---|---|---|---|---|---|---|---|---|']
+             '| failure kinds | sensor drift at the re-tare check |',
+             '|---|---|---|---|---|---|---|---|---|---|---|---|---|']
     for g in faults:
         none = g['fault'] == 'none'
         lines.append('| %s | %.0f | %s | %d%s | %s | %d (%s) | %s | %s / %s | %s / %s | %s / %s '
-                     '| %s | %s |' % (
+                     '| %s | %s | %d |' % (
                          g['case'], g['rpm'], g['fault'], g['trials'],
                          ' (+%d errored)' % g['errors'] if g['errors'] else '',
                          '-' if none else '%d' % g['injected'], g['breakthroughs'],
@@ -359,7 +365,8 @@ def fault_table(faults):
                          _num(g['max_retreat_delay_s'], '%.3f'),
                          _num(g['median_residual_mm']), _num(g['min_residual_mm']),
                          ', '.join('%s %d' % kv for kv in g['stop_reasons'].items()),
-                         ', '.join('%s %d' % kv for kv in g.get('failure_kinds', {}).items())))
+                         ', '.join('%s %d' % kv for kv in g.get('failure_kinds', {}).items()),
+                         g.get('drift_detected', 0)))
     return '\n'.join(lines)
 
 
@@ -510,6 +517,13 @@ def bone_motion_sentence(meta):
     """What the SPMS played in the moving cases, the prediction model and the profile."""
     profile = meta.get('compensation_profile', 'paper')
     text = _bone_motion(meta)
+    planner = meta.get('planner_params') or {}
+    if planner:
+        text += ' Planner parameters: %s.' % ', '.join(
+            '%s = %s' % kv for kv in sorted(planner.items()))
+    delays = meta.get('engine_delays') or {}
+    if delays:
+        text += ' Engine delays: %s.' % ', '.join('%s = %s' % kv for kv in sorted(delays.items()))
     if profile == 'exact':
         return text + (' Compensation profile: exact (beyond the paper: the predicted reference '
                        'streamed with its analytic velocities, knots at the flow steps).')

@@ -9,6 +9,7 @@ import argparse
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -41,6 +42,7 @@ class TrialRecorder:
         self.stops = []           # (t, source, reason, retreat)
         self.status = []          # (t, phase name)
         self.phase = None         # the latest TrialStatus phase (ROS engine)
+        self.retare = None        # the monitor's re-tare check after the retreat (a drift only)
         self._last_kp = 0
 
     def on_state(self, msg):
@@ -59,6 +61,12 @@ class TrialRecorder:
                            msg.contact, msg.contact_loss_count))
 
     def on_stop(self, msg):
+        if msg.reason.startswith(RETARE_PREFIX):
+            # Not a stop of the trial: the monitor's re-tare check found the sensor drifted
+            # when the retreat had ended (SafetyMonitor; only a drift is published).
+            self.retare = {'t': msg.header.stamp.to_sec(), 'drift': True, 'message': msg.reason,
+                           'offset_n': retare_offset(msg.reason)}
+            return
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
     def on_status(self, msg):
@@ -68,6 +76,42 @@ class TrialRecorder:
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
+
+
+RETARE_PREFIX = 'force_offset:'
+_RETARE_OFFSET = re.compile(r'force_offset: ([0-9.eE+-]+) N')
+
+
+def retare_offset(reason):
+    """The sensor offset (N) a re-tare drift message reports, or None."""
+    match = _RETARE_OFFSET.match(reason or '')
+    return float(match.group(1)) if match else None
+
+
+def retare_columns(retare):
+    """retare_offset_n (the mean force against the tare when the retreat ended; the ROS
+    monitor publishes it only for a drift) and drift_detected."""
+    if not retare:
+        return {'retare_offset_n': None, 'drift_detected': False}
+    return {'retare_offset_n': retare.get('offset_n'), 'drift_detected': bool(retare['drift'])}
+
+
+TRANSPORT_COLUMNS = ('late_commands', 'max_command_lateness_ms', 'command_waits',
+                     'command_wait_wall_s', 'command_wait_expired')
+
+
+def transport_columns(last_truth):
+    """What the ROS transport did in the trial, as the Simulator nodelet counted it (the last
+    ground truth): arm trajectories that arrived after their own start and the latest of them,
+    and how often and how long sim time waited for the next trajectory (~command_wait_s). The
+    core engine has no transport: None."""
+    if last_truth is None or not hasattr(last_truth, 'late_commands'):
+        return dict.fromkeys(TRANSPORT_COLUMNS)
+    return {'late_commands': last_truth.late_commands,
+            'max_command_lateness_ms': 1e3 * last_truth.max_command_lateness_s,
+            'command_waits': last_truth.command_waits,
+            'command_wait_wall_s': last_truth.command_wait_wall_s,
+            'command_wait_expired': last_truth.command_wait_expired}
 
 
 def tracking_error(truth, t_start, t_end):
@@ -319,6 +363,8 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row['contact_loss_count'] = at_stop[-1][7] if at_stop else None
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
+    row.update(transport_columns(recorder.last_truth))
+    row.update(retare_columns(getattr(recorder, 'retare', None)))
     with atomic_write(os.path.join(trace_dir, trial['trial_id'] + '.json')) as handle:
         json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
                    'feature': [s[2] for s in states],

@@ -44,6 +44,7 @@ const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
         .number("real_time_factor", &P::real_time_factor, Range::closed(0, 1000))
         .flag("publish_clock", &P::publish_clock)
         .integer("clock_period_ms", &P::clock_period_ms, Range::closed(1, 100), "ms")
+        .number("command_wait_s", &P::command_wait_s, Range::closed(0, 60), "s")
         .number("joint_state_rate_hz", &P::joint_state_rate_hz, stream, "Hz")
         .number("tf_rate_hz", &P::tf_rate_hz, stream, "Hz")
         .number("ground_truth_rate_hz", &P::ground_truth_rate_hz, stream, "Hz")

@@ -82,6 +82,13 @@ json recordToJson(const pd::EngineTrialRecord& r) {
           {"states", states},
           {"key_points", key_points},
           {"truth_peaks_n", {r.truth_peak_outer_n, r.truth_peak_inner_n}},
+          {"retare",
+           {{"done", r.retare.done},
+            {"t", r.retare.t},
+            {"samples", r.retare.samples},
+            {"offset_n", r.retare.offset_n},
+            {"drift", r.retare.drift},
+            {"message", r.retare.message}}},
           {"recognizer_stop_t",
            std::isnan(r.recognizer_stop_t) ? json(nullptr) : json(r.recognizer_stop_t)},
           {"truth", truth},
@@ -127,6 +134,7 @@ struct Options {
   std::string compensator_class = "pedicle_drilling/PaperCompensator";
   std::vector<std::string> compensator_params;
   std::vector<std::string> simulator_params;
+  std::vector<std::string> planner_params;
   std::string protocol = "recognition";
   bool list_faults = false;
 };
@@ -155,6 +163,9 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->check(CLI::IsMember({"rest_to_rest", "exact"}));
   app->add_option("--command-delay-s", config->delays.command_to_arm_s,
                   "planner command -> arm controller transport delay, s")
+      ->check(tools::finiteNumber(0.0, 1.0));
+  app->add_option("--force-delay-s", config->delays.force_to_recognizer_s,
+                  "force sensor -> recognizer transport delay, s")
       ->check(tools::finiteNumber(0.0, 1.0));
   app->add_option("--stop-delay-s", config->delays.stop_to_planner_s,
                   "recognizer/monitor stop -> planner transport delay, s")
@@ -207,6 +218,10 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "name=value for the simulation, named as the Simulator nodelet's parameters "
                   "(repeatable; e.g. trial_distribution/patient/amplitude_scale_sd=0.2; `rosrun "
                   "pedicle_drilling param_docs --node pedicle_drilling/Simulator` lists them)");
+  app->add_option("--planner-param", o->planner_params,
+                  "name=value for the trial sequence, named as the CompensationPlanner nodelet's "
+                  "parameters (repeatable; e.g. stop_hold_s=0; `rosrun pedicle_drilling param_docs "
+                  "--node pedicle_drilling/CompensationPlanner` lists them)");
   app->add_flag("--list-faults", o->list_faults, "print the faults a trial may name, one per line");
   app->footer("Faults: " + [] {
     std::string names;
@@ -259,6 +274,25 @@ int checkSimulator(int argc, char** argv) {
     return 0;
   } catch (const std::exception& e) {
     std::cerr << "trial_engine: --simulator-param: " << e.what() << "\n";
+    return 2;
+  }
+}
+
+/**
+ * @brief `trial_engine --check-planner NAME=VALUE...`: the trial sequence's parameters set and
+ *        checked by their declaration (as --planner-param); exit 0, or 2 naming the bad one.
+ */
+int checkPlanner(int argc, char** argv) {
+  try {
+    pd::TrialSequencerParams params;
+    for (const auto& [name, value] :
+         parseSettings(std::vector<std::string>(argv + 2, argv + argc), "--check-planner")) {
+      pd::TrialSequencerParams::table().set(params, name, value);
+    }
+    pd::TrialSequencerParams::table().validate(params);
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: --planner-param: " << e.what() << "\n";
     return 2;
   }
 }
@@ -352,6 +386,7 @@ int main(int argc, char** argv) {
   // Alone, --list-faults needs none of the required options.
   if (argc == 2 && std::string(argv[1]) == "--list-faults") return printFaults();
   if (argc >= 2 && std::string(argv[1]) == "--check-simulator") return checkSimulator(argc, argv);
+  if (argc >= 2 && std::string(argv[1]) == "--check-planner") return checkPlanner(argc, argv);
   if (argc >= 3 && (std::string(argv[1]) == "--check-recognizer" ||
                     std::string(argv[1]) == "--check-compensator")) {
     return checkPlugin(argc, argv);
@@ -383,6 +418,15 @@ int main(int argc, char** argv) {
     config.simulation.validate();
   } catch (const std::exception& e) {
     return tools::usageError(app, std::string("--simulator-param: ") + e.what());
+  }
+  // The trial sequence's parameters by the same declaration as the CompensationPlanner nodelet's.
+  try {
+    for (const auto& [name, value] : parseSettings(o.planner_params, "--planner-param")) {
+      pd::TrialSequencerParams::table().set(config.sequencer, name, value);
+    }
+    pd::TrialSequencerParams::table().validate(config.sequencer);
+  } catch (const std::exception& e) {
+    return tools::usageError(app, std::string("--planner-param: ") + e.what());
   }
   // The recognizer and compensator classes, loaded and configured once here so that a bad one is
   // exit 2 before any trial; each trial then gets fresh instances.

@@ -34,6 +34,50 @@ TEST(SafetyMonitorTest, DefaultsAreThePapers) {
   EXPECT_NO_THROW(p.validate());
 }
 
+// Feeds `offset` N on z plus alternating +-noise at 1 kHz from t0 to t1 (a drill out of the bone).
+void atRest(SafetyMonitor& m, double t0, double t1, double offset, double noise = 0.03) {
+  int n = 0;
+  for (double t = t0; t < t1; t += 1e-3) {
+    m.onForce(t, Eigen::Vector3d(0.0, 0.0, offset + ((n++ % 2) ? noise : -noise)));
+  }
+}
+
+TEST(SafetyMonitorTest, RetareCheckMeasuresTheOffsetOverItsWindowOnly) {
+  SafetyMonitor m;            // 0.3 N, 0.25 s
+  atRest(m, 0.0, 1.0, 5.0);   // in the bone: 5 N, before the window
+  atRest(m, 1.0, 1.5, 0.05);  // out of the bone: 0.05 N from the tare
+  const RetareCheck ok = m.retareCheck(1.5);
+  EXPECT_TRUE(ok.done);
+  EXPECT_NEAR(ok.offset_n, 0.05, 0.01);
+  EXPECT_GE(ok.samples, 240);
+  EXPECT_LE(ok.samples, 251);
+  EXPECT_FALSE(ok.drift);
+  EXPECT_TRUE(ok.message.empty());
+  EXPECT_FALSE(m.stopped());  // a check, not a stop
+}
+
+TEST(SafetyMonitorTest, RetareCheckFlagsADriftAboveItsLimitOnly) {
+  SafetyMonitor m;
+  atRest(m, 0.0, 0.5, 0.45);  // a sensor that drifted 0.45 N (0.2 N/s for 2.25 s)
+  const RetareCheck drift = m.retareCheck(0.5);
+  EXPECT_TRUE(drift.drift);
+  EXPECT_NEAR(drift.offset_n, 0.45, 0.01);
+  EXPECT_EQ(drift.message.rfind("force_offset: 0.45", 0), 0u) << drift.message;
+  SafetyParams off;
+  off.retare_max_offset_n = 0.0;  // the check off
+  SafetyMonitor quiet(off);
+  atRest(quiet, 0.0, 0.5, 0.45);
+  EXPECT_FALSE(quiet.retareCheck(0.5).drift);
+  SafetyMonitor none;
+  EXPECT_FALSE(none.retareCheck(1.0).done);  // no sample: nothing to say
+  atRest(none, 0.0, 0.5, 0.45);
+  none.reset();
+  EXPECT_FALSE(none.retareCheck(0.5).done);  // reset forgets the window
+  SafetyParams bad;
+  bad.retare_max_offset_n = -1.0;
+  EXPECT_THROW(SafetyMonitor{bad}, std::invalid_argument);
+}
+
 TEST(SafetyMonitorTest, HealthyDataNeverStops) {
   SafetyMonitor m;
   healthy(m, 0.0, 5.0);
@@ -219,7 +263,10 @@ TEST(SafetyMonitorTest, ParameterValidationNamesField) {
 }
 
 TEST(RetreatPlannerTest, RetreatsAlongMinusAxisTrapezoidal) {
-  RetreatPlanner planner;  // 10 mm, 5 mm/s, 50 mm/s^2
+  EXPECT_DOUBLE_EQ(RetreatParams().accel_m_s2, 1.0);  // the default: backs out at once
+  RetreatParams slow;
+  slow.accel_m_s2 = 50e-3;  // 10 mm, 5 mm/s, 50 mm/s^2: a visible trapezoid
+  RetreatPlanner planner(slow);
   const Eigen::Vector3d tip(0.1, 0.2, 0.3);
   const Eigen::Vector3d axis(0, 0, -2.0);  // drilling downwards; not normalised
   const RetreatMotion r = planner.plan(3.0, tip, axis);

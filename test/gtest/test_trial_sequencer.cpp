@@ -193,7 +193,9 @@ TEST(TrialSequencer, RegistrationTimeoutFails) {
 }
 
 TEST(TrialSequencer, RecognizerStopHoldsThenRetractsThenDone) {
-  pd::TrialSequencer seq(params(), workcellArm());
+  pd::TrialSequencerParams p = params();
+  p.stop_hold_s = 1.0;  // a hold (the default is 0: the retreat at once, next test)
+  pd::TrialSequencer seq(p, workcellArm());
   const double t = toDrilling(&seq);
   seq.takeOutput();
   seq.onSegmentTimer(t + 0.125);
@@ -235,6 +237,32 @@ TEST(TrialSequencer, RecognizerStopHoldsThenRetractsThenDone) {
   double last_feed = 1.0;
   for (const auto& traj : out.trajectories) last_feed = traj.points.back().positions.back();
   EXPECT_NEAR(last_feed, 0.0, 1e-9);  // retracted to the feed's end (clamped)
+}
+
+TEST(TrialSequencer, RecognizerStopWithoutHoldRetreatsAtOnce) {
+  pd::TrialSequencerParams p = params();
+  p.stop_hold_s = 0.0;
+  pd::TrialSequencer seq(p, workcellArm());
+  const double t = toDrilling(&seq);
+  seq.takeOutput();
+  seq.onSegmentTimer(t + 0.125);
+  seq.onSegmentTimer(t + 0.25);
+  seq.takeOutput();
+  seq.onRecognizerState(t + 0.3, true, "stopped", 4);
+  // Not a tick later: a bone that moves more than predicted would cut into a held drill.
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  const pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_FALSE(out.spindle_rpm.empty());
+  EXPECT_EQ(out.spindle_rpm.back(), 0.0);
+  ASSERT_FALSE(out.trajectories.empty());
+  const auto& traj = out.trajectories[0];
+  EXPECT_DOUBLE_EQ(traj.start_time, t + 0.3);  // from the stop, not from the next segment
+  // The feed goes back from its first point on (the retreat starts at the stop).
+  ASSERT_GE(traj.points.size(), 2u);
+  EXPECT_LT(traj.points.back().positions.back(), traj.points.front().positions.back());
+  // The drill/stop that follows changes nothing.
+  seq.onStop(t + 0.31, false, "key point 4");
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
 }
 
 TEST(TrialSequencer, MonitorStopRetreatsAtOnce) {

@@ -249,6 +249,12 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('trials: 1\nprotocol: breakthrough\n', ['protocol', 'breakthrough']),
     ('trials: 1\nsimulator_params: {no_such_rate: 1}\n', ["unknown parameter 'no_such_rate'"]),
     ('trials: 1\nsimulator_params: {force_sensor_rate_hz: 300}\n', ['force_sensor_rate_hz']),
+    ('trials: 1\nplanner_params: {no_such_hold: 1}\n', ["unknown parameter 'no_such_hold'"]),
+    ('trials: 1\nplanner_params: {stop_hold_s: -1}\n', ['stop_hold_s']),
+    ('trials: 1\nplanner_params: [stop_hold_s]\n', ['planner_params']),
+    ('trials: 1\nplanner_params: {segment_profile: exact}\n', ['compensation_profile']),
+    ('trials: 1\nengine_delays: {command_delay: 0.1}\n', ['engine_delays.command_delay']),
+    ('trials: 1\nengine_delays: {command_to_arm_s: 2}\n', ['engine_delays.command_to_arm_s']),
 ])
 def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
     bad = tmp_path / 'bad.yaml'
@@ -348,6 +354,8 @@ def test_fault_design_pairs_every_fault_with_the_fault_free_trial_of_the_same_se
 @pytest.mark.parametrize('text, named', [
     ('trials: 1\nprotocol: peak_forces\n', 'peak_forces'),
     ('trials: 1\nsimulator_params: {force_sensor_rate_hz: 200}\n', 'simulator_params'),
+    ('trials: 1\nplanner_params: {stop_hold_s: 1}\n', 'planner_params'),
+    ('trials: 1\nengine_delays: {command_to_arm_s: 0.05}\n', 'engine_delays'),
 ])
 def test_core_engine_settings_are_refused_by_the_ros_engine(tmp_path, text, named):
     scenario = tmp_path / 'peaks.yaml'
@@ -485,3 +493,25 @@ def test_a_bad_seed_space_option_is_refused():
         cli.parse_args(['--seed-space', 'tuning'])
     args = cli.parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
     assert args.seed_space == 'calibration'
+
+
+def test_the_retare_drift_is_kept_apart_from_the_stops():
+    """The ROS monitor publishes a re-tare drift as a StopCommand after the retreat: the
+    recorder keeps it out of the trial's stops (the outcome is the drilling's) and the row has
+    it as drift_detected with the offset."""
+    import types
+    from pd_campaign.worker import TrialRecorder, retare_columns
+
+    def stop(t, reason):
+        stamp = types.SimpleNamespace(to_sec=lambda: t)
+        return types.SimpleNamespace(header=types.SimpleNamespace(stamp=stamp),
+                                     source='/safety_monitor', reason=reason, retreat=True)
+    recorder = TrialRecorder()
+    recorder.on_stop(stop(10.0, 'position_error: bone position error 1.3 mm > 1.2 mm'))
+    recorder.on_stop(stop(14.0, 'force_offset: 0.612 N from the tare after the retreat (mean of '
+                                '83 samples) > 0.300 N: the force sensor drifted'))
+    assert [s[0] for s in recorder.stops] == [10.0]
+    assert retare_columns(recorder.retare) == {'retare_offset_n': 0.612, 'drift_detected': True}
+    assert retare_columns(None) == {'retare_offset_n': None, 'drift_detected': False}
+    assert retare_columns({'offset_n': 0.01, 'drift': False}) == {
+        'retare_offset_n': 0.01, 'drift_detected': False}

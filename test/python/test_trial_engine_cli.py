@@ -84,3 +84,51 @@ def test_simulator_params_reach_the_trial(bin_dir, tmp_path):
                             'trial_distribution/arm/stiffness_scale_sd=0.2'],
                            capture_output=True, text=True)
     assert check.returncode == 0, check.stderr
+
+
+def test_planner_params_reach_the_trial(bin_dir, tmp_path):
+    """--planner-param sets the trial sequence by the CompensationPlanner nodelet's declaration:
+    with a 1 s hold the recognizer's stop is followed by `stopped`, then the retreat 1 s later;
+    with the default (0) the retreat starts at the stop."""
+    path = trials_file(tmp_path, [
+        {'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary', 'rpm': 12000}])
+    phases, stops = {}, {}
+    for hold in ('0', '1'):
+        result = run(bin_dir, '--trials', path, '--drilling-pose', POSE,
+                     '--planner-param', 'stop_hold_s=' + hold)
+        assert result.returncode == 0, result.stderr
+        record = json.loads(result.stdout.splitlines()[0])['record']
+        assert record['stops'] and record['stops'][0][3] is False, record['stops']  # recognizer
+        phases[hold] = {name: t for t, name in record['status']}
+        stops[hold] = record['stops'][0][0]
+        assert phases[hold]['retreating'] >= stops[hold]
+    assert 'stopped' not in phases['0']
+    assert phases['0']['retreating'] - stops['0'] < 0.01
+    assert abs(phases['1']['retreating'] - phases['1']['stopped'] - 1.0) < 0.13
+    bad = subprocess.run([os.path.join(bin_dir, 'trial_engine'), '--check-planner',
+                          'stop_hold_s=-1'], capture_output=True, text=True)
+    assert bad.returncode == 2 and 'stop_hold_s' in bad.stderr, bad.stderr
+    good = subprocess.run([os.path.join(bin_dir, 'trial_engine'), '--check-planner',
+                           'stop_hold_s=0.5'], capture_output=True, text=True)
+    assert good.returncode == 0, good.stderr
+
+
+def test_the_retare_check_tells_a_drifted_sensor_from_a_healthy_one(bin_dir, tmp_path):
+    """The monitor's re-tare check when the retreat ended: a healthy sensor reads its tare
+    within a few hundredths of a newton; one that drifted (the force_drift fault, 0.2 N/s from a
+    moment while drilling) is flagged, with the offset it read."""
+    path = trials_file(tmp_path, [
+        {'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary', 'rpm': 12000},
+        {'trial_id': 'stationary-force_drift-12000-000', 'seed': 5, 'case': 'stationary',
+         'rpm': 12000, 'fault': 'force_drift'}])
+    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+    assert result.returncode == 0, result.stderr
+    healthy, drifted = [json.loads(line)['record'] for line in result.stdout.splitlines()]
+    assert healthy['retare']['done'] and not healthy['retare']['drift']
+    assert healthy['retare']['offset_n'] < 0.05
+    assert drifted['fault']['injected']
+    assert drifted['retare']['done'] and drifted['retare']['drift'], drifted['retare']
+    assert drifted['retare']['offset_n'] > 0.3
+    assert drifted['retare']['message'].startswith('force_offset: ')
+    # Not a stop of the trial: the stops are the drilling's.
+    assert all(not s[2].startswith('force_offset') for s in drifted['stops'])

@@ -130,6 +130,19 @@ class FaultInjectionTest(unittest.TestCase):
         self.assertGreater(at_stop.residual_inner_cortical_m, 0.0, report)
         if expect:
             self.assertIn(expect, first.reason, report)
+        # A stop the monitor publishes after the trial (its re-tare check: ~expect_after).
+        expect_after = rospy.get_param('~expect_after', '')
+        if expect_after:
+            deadline = rospy.Time.now() + rospy.Duration(30.0)  # bounds a broken run only
+            later = []
+            while not rospy.is_shutdown() and rospy.Time.now() < deadline:
+                with lock:
+                    later = [s.reason for _, s in stops if expect_after in s.reason]
+                if later:
+                    break
+                rospy.sleep(0.05)
+            self.assertTrue(later, 'no stop naming %r after the trial: %s' % (expect_after,
+                                                                                  report))
 
 
 if __name__ == '__main__':

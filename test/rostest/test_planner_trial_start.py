@@ -160,8 +160,10 @@ class PlannerTrialStartTest(unittest.TestCase):
         self.assertEqual(status, 'drilling', seen)
         # The recognizer says stop, but its drill/stop never arrives: the planner stops anyway.
         ns.recognizer_state(stop=True)
+        # stop_hold_s 0 (the default): the retreat at once, without a `stopped` hold.
         status, seen = ns.wait_status(('stopped', 'retreating', 'done', 'failed'), before, 'stop')
-        self.assertEqual(status, 'stopped', seen)
+        self.assertEqual(status, 'retreating', seen)
+        self.assertNotIn('stopped', seen)
 
 
 if __name__ == '__main__':

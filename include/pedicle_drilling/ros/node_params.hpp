@@ -36,12 +36,15 @@ struct VentilatorNodeParams {
 
 /** @brief pedicle_drilling/Simulator. */
 struct SimulatorNodeParams {
-  std::string urdf_path;                ///< the workcell URDF (required)
-  int seed = 1;                         ///< specimen and patient of the first trial
-  core::DrillingSimulationParams sim;   ///< the simulation (core)
-  double real_time_factor = 1.0;        ///< 0: as fast as possible
-  bool publish_clock = true;            ///< publish /clock (sim time)
-  int clock_period_ms = 1;              ///< /clock every n physics steps
+  std::string urdf_path;               ///< the workcell URDF (required)
+  int seed = 1;                        ///< specimen and patient of the first trial
+  core::DrillingSimulationParams sim;  ///< the simulation (core)
+  double real_time_factor = 1.0;       ///< 0: as fast as possible
+  bool publish_clock = true;           ///< publish /clock (sim time)
+  int clock_period_ms = 1;             ///< /clock every n physics steps
+  /// Wall seconds the simulator waits, while a trial streams trajectories, rather than step past
+  /// the end of the last one it received (sim time waits for the planner); 0: never waits.
+  double command_wait_s = 1.0;
   double joint_state_rate_hz = 100.0;   ///< joint_states rate
   double tf_rate_hz = 100.0;            ///< tf rate
   double ground_truth_rate_hz = 100.0;  ///< simulator/ground_truth rate

@@ -30,7 +30,10 @@ const ParamTable<SafetyParams>& SafetyParams::table() {
         .number("force_timeout_s", &SafetyParams::force_timeout_s, Range::aboveUpTo(0, inf), "s")
         .number("tracker_timeout_s", &SafetyParams::tracker_timeout_s, Range::aboveUpTo(0, inf),
                 "s")
-        .number("force_stuck_s", &SafetyParams::force_stuck_s, Range::aboveUpTo(0, inf), "s");
+        .number("force_stuck_s", &SafetyParams::force_stuck_s, Range::aboveUpTo(0, inf), "s")
+        .number("retare_max_offset_n", &SafetyParams::retare_max_offset_n, Range::closed(0, 100),
+                "N")
+        .number("retare_window_s", &SafetyParams::retare_window_s, Range::aboveUpTo(0, 10), "s");
     return d;
   }();
   return t;
@@ -69,6 +72,7 @@ void SafetyMonitor::reset() {
   armed_ = false;
   have_force_ = false;
   have_tracker_ = false;
+  recent_forces_.clear();
 }
 
 void SafetyMonitor::arm(double t) {
@@ -95,6 +99,10 @@ void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
   have_force_ = true;
   last_force_t_ = t;
   last_force_ = force;
+  recent_forces_.emplace_back(t, force);
+  while (!recent_forces_.empty() && recent_forces_.front().first < t - params_.retare_window_s) {
+    recent_forces_.pop_front();
+  }
   if (t - same_force_since_ > params_.force_stuck_s) {
     trigger(SafetyVerdict::kForceStuck, t,
             fmt("force unchanged (%.4f N) for %.3f s > %.3f s: sensor frozen", force.norm(),
@@ -105,6 +113,31 @@ void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
     trigger(SafetyVerdict::kForceExceeded, t,
             fmt("force %.3f N > %.3f N at t=%.3f s", n, params_.force_threshold_N, t));
   }
+}
+
+RetareCheck SafetyMonitor::retareCheck(double t) const {
+  RetareCheck c;
+  c.t = t;
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  for (const auto& [ts, f] : recent_forces_) {
+    if (ts < t - params_.retare_window_s || ts > t) continue;
+    sum += f;
+    ++c.samples;
+  }
+  if (c.samples == 0) return c;
+  c.done = true;
+  c.offset_n = (sum / c.samples).norm();
+  c.drift = params_.retare_max_offset_n > 0.0 && c.offset_n > params_.retare_max_offset_n;
+  if (c.drift) {
+    std::ostringstream os;
+    os.setf(std::ios::fixed);
+    os.precision(3);
+    os << "force_offset: " << c.offset_n << " N from the tare after the retreat (mean of "
+       << c.samples << " samples) > " << params_.retare_max_offset_n
+       << " N: the force sensor drifted; the trial's force-based stop is not to be trusted";
+    c.message = os.str();
+  }
+  return c;
 }
 
 void SafetyMonitor::onTracked(double t, const Eigen::Vector3d& predicted_bone_pos,

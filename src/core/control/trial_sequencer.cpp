@@ -588,7 +588,9 @@ void TrialSequencer::handleStop(double now, bool retreat, const std::string& rea
     case TrialPhase::kStopped:
       spindle(0.0);
       planner_->holdFeed(now);
-      if (retreat) {
+      if (retreat || (params_.stop_hold_s == 0.0 && phase_ == TrialPhase::kDrilling)) {
+        // A safety stop, or a recognizer stop without a hold: back out at once (a bone that
+        // moves more than predicted keeps cutting into a drill held in it).
         startRetreat(now, reason);
       } else if (phase_ == TrialPhase::kDrilling) {
         hold_end_ = now + params_.stop_hold_s;

@@ -91,8 +91,9 @@ struct ClosedLoopEngine::Impl {
   bool stop_truth_recorded = false;  // the truth sample at the first stop command was taken
 
   // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
-  bool fault_armed = false;    // the drilling has started: the trigger is watched
-  bool fault_pending = false;  // triggered, waiting for the next breath or command
+  bool fault_armed = false;                   // the drilling has started: the trigger is watched
+  TrialPhase last_phase = TrialPhase::kIdle;  // the sequencer's phase, as the monitor hears it
+  bool fault_pending = false;                 // triggered, waiting for the next breath or command
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
 
@@ -256,6 +257,11 @@ struct ClosedLoopEngine::Impl {
       if (p == TrialPhase::kDrilling) fault_armed = true;
       record.status.emplace_back(now, toString(p));
       monitor->setTrialRunning(isRunning(p));  // the status the monitor subscribes to
+      // The retreat ended: the drill is out, the spindle off; the sensor should read its tare.
+      if (p == TrialPhase::kDone && last_phase == TrialPhase::kRetreating) {
+        record.retare = monitor->retareCheck(now);
+      }
+      last_phase = p;
     }
     if (out.stop_timers) timers.clear();
     for (const TimerRequest& r : out.start_timers) {
@@ -443,6 +449,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.last_breath_index = -1;
   s.stop_truth_recorded = false;
   s.fault_armed = false;
+  s.last_phase = TrialPhase::kIdle;
   s.fault_pending = false;
   s.fault_breath_index = -1;
   s.injector = FaultInjector(s.config.faults);

@@ -836,6 +836,8 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
   return impl_->arm_trajectory->command(command, impl_->time);
 }
 
+double DrillingSimulation::armTrajectoryEnd() const { return impl_->arm_trajectory->endTime(); }
+
 TargetResult DrillingSimulation::commandSpindle(double rpm) {
   if (!std::isfinite(rpm)) return {TargetStatus::kRejected, "spindle speed is NaN/inf"};
   if (rpm < 0.0) return {TargetStatus::kRejected, "spindle speed must be >= 0 rpm"};

@@ -12,7 +12,9 @@
 #ifndef PEDICLE_DRILLING_CORE_SAFETY_MONITOR_HPP_
 #define PEDICLE_DRILLING_CORE_SAFETY_MONITOR_HPP_
 
+#include <deque>
 #include <string>
+#include <utility>
 
 #include <Eigen/Core>
 
@@ -46,6 +48,17 @@ struct SafetyParams {
    * frozen driver or DAQ that still publishes. +inf disables (a noise-free sensor).
    */
   double force_stuck_s = 0.05;
+  /**
+   * @brief Re-tare check [N]: at the end of a trial's retreat (the drill out of the bone, the
+   * spindle off) the mean force over `retare_window_s` must be within this of the tare. Default
+   * 0.3 N: 10 x the sensor's noise SD (0.03 N; the mean of the window's ~80 samples has an SE of
+   * 0.003 N, the Nano17's resolution is 1/320 N, its bias random walk 1e-3 N/sqrt(s) adds under
+   * 0.01 N in a minute), and a fifth or less of the forces the recognizer separates (cancellous
+   * about 1 N, cortical 2-3 N): a drift that can move its key points is seen. 0: off.
+   */
+  double retare_max_offset_n = 0.3;
+  /** @brief Window [s] of the re-tare check's mean, ending at the retreat's end. */
+  double retare_window_s = 0.25;
 
   /**
    * @brief Check all fields against table() (thresholds finite and > 0; timeouts > 0, +inf
@@ -73,6 +86,16 @@ struct SafetyVerdict {
   Reason reason = kNone;  ///< First cause (latched).
   double t = 0.0;         ///< Time of the trigger [s] (valid if stop).
   std::string message;    ///< Human-readable explanation (empty if no stop).
+};
+
+/** @brief The re-tare check at the end of a trial's retreat (SafetyParams::retare_max_offset_n). */
+struct RetareCheck {
+  bool done = false;    ///< false: no force sample in the window (nothing to say)
+  double t = 0.0;       ///< time of the check [s]
+  int samples = 0;      ///< force samples averaged
+  double offset_n = 0;  ///< norm of their mean force [N]: the sensor's offset from its tare
+  bool drift = false;   ///< offset_n > retare_max_offset_n (and the check on)
+  std::string message;  ///< "force_offset: ..." when drift
 };
 
 /** @brief Name of a reason, e.g. "position_error". */
@@ -116,6 +139,12 @@ class SafetyMonitor {
   /** @brief True once a stop has been latched. */
   bool stopped() const { return verdict_.stop; }
 
+  /**
+   * @brief The re-tare check at time t, the end of a retreat: the mean of the force samples of
+   *        the last retare_window_s against the tare (zero). Does not latch a stop: the drill is
+   *        already out; a drift says the trial's force-based decisions are not to be trusted.
+   */
+  RetareCheck retareCheck(double t) const;
   /** @brief Clear the latch and forget all samples; timeouts re-arm on the next call. */
   void reset();
 
@@ -134,6 +163,7 @@ class SafetyMonitor {
   double last_force_t_ = 0.0;
   Eigen::Vector3d last_force_ = Eigen::Vector3d::Zero();
   double same_force_since_ = 0.0;  ///< time of the first sample of the current identical run
+  std::deque<std::pair<double, Eigen::Vector3d>> recent_forces_;  ///< the re-tare window
   bool have_tracker_ = false;
   double last_tracker_t_ = 0.0;
 };
@@ -145,8 +175,14 @@ struct RetreatParams {
   double distance_m = 10e-3;
   /** @brief Cruise speed [m/s]. Default 5 mm/s (10 x the 0.5 mm/s feed): out in about 2.1 s. */
   double speed_m_s = 5e-3;
-  /** @brief Acceleration [m/s^2]. Default 50 mm/s^2 = 10 x the speed (the paper's ratio). */
-  double accel_m_s2 = 50e-3;
+  /**
+   * @brief Acceleration [m/s^2]. Default 1 m/s^2, half the drill device's feed-drive limit
+   * (2 m/s^2, doc/simulator_physics.md): 5 mm/s within 5 ms, so that a bone moving into the
+   * stopped drill does not keep cutting while the retreat speeds up. Chosen on calibration seeds
+   * against the earlier 50 mm/s^2 (10 x the speed, the paper's segment ratio): the cut after the
+   * stop command fell from 0.17 to 0.03 mm at most (doc/campaign_results.md).
+   */
+  double accel_m_s2 = 1.0;
 
   /** @brief Check all fields against table(). @throws std::invalid_argument naming the field. */
   void validate() const;

@@ -109,6 +109,9 @@ class SafetySupervisor {
   /** @brief The latched verdict. */
   const SafetyVerdict& verdict() const { return monitor_.verdict(); }
 
+  /** @brief The re-tare check at the end of a retreat (SafetyMonitor::retareCheck). */
+  RetareCheck retareCheck(double now) const { return monitor_.retareCheck(now); }
+
   /** @brief True once both sensor streams were heard since construction or reset(). */
   bool heardBoth() const { return have_force_ && have_tracker_; }
 

@@ -51,7 +51,10 @@ struct TrialSequencerParams {
   double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
   int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
   double registration_timeout_s = 3.0;    ///< (0, 60]
-  double stop_hold_s = 1.0;               ///< hold after a recognizer stop, [0, 60]
+  /// Hold [s] after a recognizer stop before the retreat, [0, 60]; 0 (default): retreat at once
+  /// (chosen on calibration seeds, doc/campaign_results.md "Constants chosen on simulated
+  /// outcomes").
+  double stop_hold_s = 0.0;
   /**
    * @brief While drilling, the recognizer's drilling_state (every averaged sample, 20 Hz) must
    *        not be silent longer than this, else stop and retreat (its nodelet was unloaded or

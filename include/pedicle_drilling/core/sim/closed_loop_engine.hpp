@@ -183,6 +183,8 @@ struct EngineTrialRecord {
   /** @brief The recognizer's own stop time [s] (also under kPeakForces, where it is not
    *         delivered); NaN when it never stopped. */
   double recognizer_stop_t = std::numeric_limits<double>::quiet_NaN();
+  /** @brief The monitor's re-tare check when the retreat ended (done false: no retreat ended). */
+  RetareCheck retare;
 };
 
 /**

@@ -305,6 +305,8 @@ class DrillingSimulation {
    *        old trajectory continues). Out-of-limit positions are clamped (kClamped).
    */
   TargetResult commandTrajectory(const TrajectoryCommand& command);
+  /** @brief Time [s] of the last point of the arm's trajectory (-inf while it holds at rest). */
+  double armTrajectoryEnd() const;
   /** @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. */
   TargetResult commandSpindle(double rpm);
   /** @brief Queues new ventilator settings (take effect at the next breath); throws if bad. */

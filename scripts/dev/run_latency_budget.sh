@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The latency budget (issue 28): compensated drilling on the paper's bench, 12000 rpm, with one
+# transport delay of the core engine raised at a time (scenario key engine_delays): the command
+# to the arm controller, the stop to the planner, the force to the recognizer. EVALUATION seeds
+# (a measurement; no constant is chosen on it). Table: scripts/dev/latency_table.py; published
+# in doc/campaign_results.md ("Latency budget").
+# Usage: scripts/dev/run_latency_budget.sh [trials per cell, default 200]
+set -eu
+ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
+# shellcheck source=scripts/dev/workspace_env.sh
+source "${ROOT}/scripts/dev/workspace_env.sh"
+OUT="${PEDICLE_DRILLING_OUT:-${ROOT}/results}/latency_budget"
+JOBS="${JOBS:-2}"
+TRIALS="${1:-200}"
+mkdir -p "${OUT}"
+cells=(command_to_arm_s:0.001 command_to_arm_s:0.05 command_to_arm_s:0.1
+       command_to_arm_s:0.15 command_to_arm_s:0.25
+       stop_to_planner_s:0.05 stop_to_planner_s:0.1 stop_to_planner_s:0.25
+       force_to_recognizer_s:0.05 force_to_recognizer_s:0.1 force_to_recognizer_s:0.25)
+dirs=()
+for cell in "${cells[@]}"; do
+  name="${cell%%:*}"; value="${cell##*:}"
+  scenario="${OUT}/${name}_${value}.yaml"
+  grep -v '^cases:\|^rpms:' "${ROOT}/config/scenario_paper.yaml" > "${scenario}"
+  printf 'cases: [compensated]\nrpms: [12000]\nengine_delays: {%s: %s}\n' "${name}" "${value}" \
+    >> "${scenario}"
+  rosrun pedicle_drilling campaign --scenario "${scenario}" --trials "${TRIALS}" \
+    --jobs "${JOBS}" --out "${OUT}/${name}_${value}"
+  dirs+=("${name} = ${value} s=${OUT}/${name}_${value}")
+done
+python3 "${ROOT}/scripts/dev/latency_table.py" "${dirs[@]}" > "${OUT}/latency_table.md"
+cat "${OUT}/latency_table.md"

@@ -1,0 +1,118 @@
+#!/usr/bin/python3
+"""Scenario: sim time waits for the planner's next trajectory (Simulator ~command_wait_s).
+
+With compensation/status at DRILLING, the simulator stops at the end of the last arm trajectory
+it received; a following trajectory lets it go on, and so does a status that leaves the
+streaming phases (DONE). The ground truth counts the waits and the trajectories that arrived
+after their own start."""
+import sys
+import threading
+import time
+import unittest
+
+import rospy
+import rostest
+from rosgraph_msgs.msg import Clock
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from pedicle_drilling.msg import GroundTruth, TrialStatus
+
+STEP = 1e-3  # the simulator's physics step
+
+
+class CommandWaitTest(unittest.TestCase):
+    def setUp(self):
+        self.cond = threading.Condition()
+        self.clock = None
+        self.clock_stamp = None
+        self.truth = None
+        rospy.Subscriber('/clock', Clock, self.on_clock, queue_size=100)
+        rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=10)
+        self.command = rospy.Publisher('/arm_controller/command', JointTrajectory, queue_size=10)
+        self.status = rospy.Publisher('/compensation/status', TrialStatus, queue_size=10,
+                                      latch=True)
+
+    def on_clock(self, msg):
+        with self.cond:
+            self.clock = msg.clock.to_sec()
+            self.clock_stamp = msg.clock  # exact (ns): the stamps below are built from it
+            self.cond.notify_all()
+
+    def on_truth(self, msg):
+        with self.cond:
+            self.truth = msg
+            self.cond.notify_all()
+
+    def wait_for(self, predicate, what, bound=30.0):
+        """Waits (on events; the wall bound only ends a broken run) until predicate() holds."""
+        deadline = time.monotonic() + bound
+        with self.cond:
+            while not predicate():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    self.fail('%s: not reached (clock %r)' % (what, self.clock))
+                self.cond.wait(min(left, 0.2))
+
+    def publish_status(self, phase):
+        msg = TrialStatus()
+        msg.header.stamp = rospy.Time.from_sec(self.clock)
+        msg.phase = phase
+        self.status.publish(msg)
+
+    def trajectory(self, start, duration, feed):
+        """A feed_joint trajectory stamped `start` (rospy.Time), one point `duration` s later."""
+        traj = JointTrajectory()
+        traj.header.stamp = start
+        traj.joint_names = ['feed_joint']
+        point = JointTrajectoryPoint()
+        point.positions = [feed]
+        point.time_from_start = rospy.Duration.from_sec(duration)
+        traj.points.append(point)
+        return traj
+
+    def test_sim_time_waits_for_the_next_trajectory(self):
+        self.wait_for(lambda: self.clock is not None and self.truth is not None, 'simulator up')
+        deadline = time.monotonic() + 20.0
+        while (self.command.get_num_connections() == 0 or
+               self.status.get_num_connections() == 0) and time.monotonic() < deadline:
+            time.sleep(0.05)
+        self.publish_status(TrialStatus.DRILLING)
+        with self.cond:
+            start_stamp = self.clock_stamp + rospy.Duration(0.5)
+        end_stamp = start_stamp + rospy.Duration(0.3)
+        end = end_stamp.to_sec()
+        self.command.publish(self.trajectory(start_stamp, 0.3, 0.002))
+        # The simulator reaches the trajectory's end and waits there.
+        self.wait_for(lambda: self.clock >= end - 0.01, 'clock near the trajectory end')
+        time.sleep(1.0)  # 4 s of sim time at the real-time factor, were it not waiting
+        with self.cond:
+            stalled = self.clock
+        self.assertLessEqual(stalled, end + STEP + 1e-9, 'sim time ran past the last trajectory')
+        # The next trajectory, sent in time: sim time goes on, nothing was late.
+        self.command.publish(self.trajectory(end_stamp, 0.3, 0.004))
+        self.wait_for(lambda: self.clock > end + 0.1, 'clock past the first trajectory')
+        self.wait_for(lambda: self.truth.header.stamp.to_sec() > end + 0.1, 'ground truth')
+        with self.cond:
+            truth = self.truth
+        self.assertGreaterEqual(truth.command_waits, 1)
+        self.assertGreater(truth.command_wait_wall_s, 0.5)
+        self.assertEqual(truth.command_wait_expired, 0)
+        self.assertEqual(truth.late_commands, 0)
+        # Leaving the streaming phases releases sim time past the second trajectory's end.
+        self.publish_status(TrialStatus.DONE)
+        self.wait_for(lambda: self.clock > end + 0.3 + 0.5, 'clock past the second trajectory')
+        # A trajectory whose start has passed is counted, with its lateness.
+        with self.cond:
+            late_start = self.clock_stamp - rospy.Duration(0.5)
+        self.command.publish(self.trajectory(late_start, 1.0, 0.003))
+        self.wait_for(lambda: self.truth.late_commands >= 1, 'late command counted')
+        with self.cond:
+            truth = self.truth
+        self.assertEqual(truth.late_commands, 1)
+        self.assertGreaterEqual(truth.max_command_lateness_s, 0.5)
+        self.assertLess(truth.max_command_lateness_s, 2.0)
+
+
+if __name__ == '__main__':
+    rospy.init_node('test_simulator_command_wait')
+    rostest.rosrun('pedicle_drilling', 'simulator_command_wait', CommandWaitTest, sys.argv)
