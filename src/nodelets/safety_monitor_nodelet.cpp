@@ -21,6 +21,7 @@
 #include <optional>
 #include <string>
 
+#include "pedicle_drilling/RetareCheck.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
@@ -45,6 +46,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, true);
+    retare_pub_ = pnh.advertise<RetareCheck>("retare_check", 10, true);
     reset_srv_ = pnh.advertiseService("reset", &SafetyMonitorNodelet::onReset, this);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
     wrench_sub_ =
@@ -110,8 +112,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   /**
    * @brief The planner's phase: while a trial runs, a stream never heard is a timeout too; when
-   *        a retreat ends (retreating -> done) the re-tare check, and a drift is published as a
-   *        StopCommand "force_offset: ..." (the drill is already out; the record keeps why).
+   *        a retreat ends (retreating -> done) the re-tare check, published on ~retare_check
+   *        (latched); a drift also turns the diagnostics to WARN until ~reset.
    */
   void onPlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -121,19 +123,24 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     last_phase_ = msg->phase;
     if (!retreat_ended) return;
     const core::RetareCheck check = supervisor_->retareCheck(now());
+    RetareCheck result;
+    result.header.stamp = ros::Time::now();
+    result.done = check.done;
+    result.samples = check.samples;
+    result.offset_n = check.offset_n;
+    result.limit_n = supervisor_->params().safety.retare_max_offset_n;
+    result.drift = check.drift;
+    result.message = check.message;
+    retare_pub_.publish(result);
+    last_retare_ = result;
     if (!check.done) {
       NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
-    } else if (!check.drift) {
+    } else if (check.drift) {
+      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());
+      publishDiagnostics();
+    } else {
       NODELET_INFO("SafetyMonitor: re-tare check: %.3f N from the tare after the retreat",
                    check.offset_n);
-    } else {
-      StopCommand stop;
-      stop.header.stamp = ros::Time::now();
-      stop.source = getName();
-      stop.retreat = true;
-      stop.reason = check.message;
-      stop_pub_.publish(stop);
-      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());
     }
   }
 
@@ -172,6 +179,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (v.stop) {
       status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
       status.message = "stop and retreat: " + core::describe(v);
+    } else if (last_retare_ && last_retare_->drift) {
+      // Stays until ~reset (the next trial's start): the last trial's force is not trusted.
+      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
+      status.message = "re-tare check: " + last_retare_->message;
     } else {
       status.level = diagnostic_msgs::DiagnosticStatus::OK;
       status.message = supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker";
@@ -180,6 +191,12 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     kv.key = "reason";
     kv.value = core::toString(v.reason);
     status.values.push_back(kv);
+    if (last_retare_ && last_retare_->done) {
+      diagnostic_msgs::KeyValue offset;
+      offset.key = "retare_offset_n";
+      offset.value = std::to_string(last_retare_->offset_n);
+      status.values.push_back(offset);
+    }
     array.status.push_back(status);
     diagnostics_pub_.publish(array);
   }
@@ -188,6 +205,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::string previous = core::toString(supervisor_->verdict().reason);
     supervisor_->reset();
+    last_retare_.reset();
     publishDiagnostics();
     response.success = true;
     response.message = "monitor reset (previous verdict: " + previous + ")";
@@ -197,6 +215,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
   std::uint8_t last_phase_ = TrialStatus::IDLE;  ///< the planner's phase before the latest
+  ros::Publisher retare_pub_;
+  std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;
   ros::Subscriber wrench_sub_;

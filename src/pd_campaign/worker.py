@@ -9,7 +9,6 @@ import argparse
 import json
 import math
 import os
-import re
 import signal
 import subprocess
 import sys
@@ -42,7 +41,7 @@ class TrialRecorder:
         self.stops = []           # (t, source, reason, retreat)
         self.status = []          # (t, phase name)
         self.phase = None         # the latest TrialStatus phase (ROS engine)
-        self.retare = None        # the monitor's re-tare check after the retreat (a drift only)
+        self.retare = None        # the monitor's re-tare check when the retreat ended
         self._last_kp = 0
 
     def on_state(self, msg):
@@ -61,13 +60,13 @@ class TrialRecorder:
                            msg.contact, msg.contact_loss_count))
 
     def on_stop(self, msg):
-        if msg.reason.startswith(RETARE_PREFIX):
-            # Not a stop of the trial: the monitor's re-tare check found the sensor drifted
-            # when the retreat had ended (SafetyMonitor; only a drift is published).
-            self.retare = {'t': msg.header.stamp.to_sec(), 'drift': True, 'message': msg.reason,
-                           'offset_n': retare_offset(msg.reason)}
-            return
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
+
+    def on_retare(self, msg):
+        """pedicle_drilling/RetareCheck: the SafetyMonitor's re-tare check after the retreat."""
+        if msg.done:
+            self.retare = {'t': msg.header.stamp.to_sec(), 'drift': msg.drift,
+                           'offset_n': msg.offset_n, 'message': msg.message}
 
     def on_status(self, msg):
         """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
@@ -78,19 +77,9 @@ class TrialRecorder:
         return next((t for (t, s) in self.status if s == name), None)
 
 
-RETARE_PREFIX = 'force_offset:'
-_RETARE_OFFSET = re.compile(r'force_offset: ([0-9.eE+-]+) N')
-
-
-def retare_offset(reason):
-    """The sensor offset (N) a re-tare drift message reports, or None."""
-    match = _RETARE_OFFSET.match(reason or '')
-    return float(match.group(1)) if match else None
-
-
 def retare_columns(retare):
-    """retare_offset_n (the mean force against the tare when the retreat ended; the ROS
-    monitor publishes it only for a drift) and drift_detected."""
+    """retare_offset_n (the mean force against the tare when the retreat ended) and
+    drift_detected, from the monitor's re-tare check (None, False: no check recorded)."""
     if not retare:
         return {'retare_offset_n': None, 'drift_detected': False}
     return {'retare_offset_n': retare.get('offset_n'), 'drift_detected': bool(retare['drift'])}
@@ -307,6 +296,18 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     if recorder.phase == TrialStatus.FAILED:
         raise RuntimeError('the planner failed the trial (statuses: %s)'
                            % ' '.join(s for _, s in recorder.status))
+    # The monitor checks the sensor's tare when it hears the retreat end: wait for its result
+    # (an event; the bound only keeps a trial whose monitor is gone from hanging).
+    t_done = recorder.status_time('done')
+
+    def fresh():
+        return (recorder.retare is not None and t_done is not None
+                and recorder.retare['t'] >= t_done - 1e-3)
+    bound = time.time() + 5.0
+    while time.time() < bound and not fresh():
+        time.sleep(0.01)
+    if not fresh():
+        recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
     row['wall_s'] = time.time() - wall_start
     return analyse_trial(recorder, row, trial, trace_dir)
 
@@ -464,7 +465,8 @@ def main(argv=None):
         else:
             raise RuntimeError('roscore on port %d did not start' % args.port)
         import rospy  # after ROS_MASTER_URI is set
-        from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand, TrialStatus
+        from pedicle_drilling.msg import (DrillingState, GroundTruth, RetareCheck, StopCommand,
+                                          TrialStatus)
         from pedicle_drilling.srv import IdentifyMotion, ResetSimulation, StartTrial
         # The worker runs on wall time: it is initialised before /use_sim_time is set, so it
         # does not have to follow a /clock that runs many times faster than real time.
@@ -499,6 +501,8 @@ def main(argv=None):
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,
                          queue_size=10000)
         rospy.Subscriber('/drill/stop', StopCommand, recorder.on_stop, queue_size=100)
+        rospy.Subscriber('/safety_monitor/retare_check', RetareCheck, recorder.on_retare,
+                         queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, recorder.on_status, queue_size=100)
         for trial in trials:
             try:

@@ -495,22 +495,23 @@ def test_a_bad_seed_space_option_is_refused():
     assert args.seed_space == 'calibration'
 
 
-def test_the_retare_drift_is_kept_apart_from_the_stops():
-    """The ROS monitor publishes a re-tare drift as a StopCommand after the retreat: the
-    recorder keeps it out of the trial's stops (the outcome is the drilling's) and the row has
-    it as drift_detected with the offset."""
+def test_the_retare_check_is_recorded_apart_from_the_stops():
+    """The ROS monitor publishes its re-tare check on its own topic after the retreat: the
+    recorder keeps it apart from the trial's stops (the outcome is the drilling's), and the row
+    has it as drift_detected with the offset."""
     import types
     from pd_campaign.worker import TrialRecorder, retare_columns
 
-    def stop(t, reason):
+    def check(t, offset, drift, done=True):
         stamp = types.SimpleNamespace(to_sec=lambda: t)
-        return types.SimpleNamespace(header=types.SimpleNamespace(stamp=stamp),
-                                     source='/safety_monitor', reason=reason, retreat=True)
+        return types.SimpleNamespace(header=types.SimpleNamespace(stamp=stamp), done=done,
+                                     samples=83, offset_n=offset, limit_n=0.3, drift=drift,
+                                     message='force_offset: ...' if drift else '')
     recorder = TrialRecorder()
-    recorder.on_stop(stop(10.0, 'position_error: bone position error 1.3 mm > 1.2 mm'))
-    recorder.on_stop(stop(14.0, 'force_offset: 0.612 N from the tare after the retreat (mean of '
-                                '83 samples) > 0.300 N: the force sensor drifted'))
-    assert [s[0] for s in recorder.stops] == [10.0]
+    recorder.on_retare(check(14.0, 0.0, False, done=False))  # no sample: nothing to say
+    assert recorder.retare is None
+    recorder.on_retare(check(14.0, 0.612, True))
+    assert recorder.stops == []
     assert retare_columns(recorder.retare) == {'retare_offset_n': 0.612, 'drift_detected': True}
     assert retare_columns(None) == {'retare_offset_n': None, 'drift_detected': False}
     assert retare_columns({'offset_n': 0.01, 'drift': False}) == {

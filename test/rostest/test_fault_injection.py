@@ -19,7 +19,8 @@ import rostest
 
 from nodelet.srv import NodeletUnload
 
-from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus, VentilatorSettings
+from pedicle_drilling.msg import (GroundTruth, RetareCheck, StopCommand, TrialStatus,
+                                  VentilatorSettings)
 from pedicle_drilling.srv import (InjectFault, SetPatientAmplitude, SetVentilatorSettings,
                                   StartTrial)
 
@@ -51,6 +52,12 @@ class FaultInjectionTest(unittest.TestCase):
 
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, keep(truth), queue_size=1000)
         rospy.Subscriber('/drill/stop', StopCommand, keep(stops), queue_size=10)
+        retare = []
+
+        def on_retare(msg):
+            with lock:
+                retare.append(msg)
+        rospy.Subscriber('/safety_monitor/retare_check', RetareCheck, on_retare, queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, keep(status), queue_size=100)
         settings = []
         rospy.Subscriber('/ventilator/settings', VentilatorSettings, settings.append,
@@ -130,20 +137,22 @@ class FaultInjectionTest(unittest.TestCase):
         self.assertGreater(at_stop.residual_inner_cortical_m, 0.0, report)
         if expect:
             self.assertIn(expect, first.reason, report)
-        # A stop the monitor publishes after the trial (its re-tare check: ~expect_after).
-        expect_after = rospy.get_param('~expect_after', '')
-        if expect_after:
+        # The monitor's re-tare check when the retreat ended (~expect_drift: it finds one).
+        if rospy.get_param('~expect_drift', False):
             deadline = rospy.Time.now() + rospy.Duration(30.0)  # bounds a broken run only
-            later = []
+            found = []
             while not rospy.is_shutdown() and rospy.Time.now() < deadline:
                 with lock:
-                    later = [s.reason for _, s in stops if expect_after in s.reason]
-                if later:
+                    found = [c for c in retare if c.drift]
+                if found:
                     break
                 rospy.sleep(0.05)
-            self.assertTrue(later, 'no stop naming %r after the trial: %s' % (expect_after,
-                                                                                  report))
-
+            self.assertTrue(found, 'the re-tare check found no drift: %r %s' % (retare, report))
+            self.assertGreater(found[0].offset_n, found[0].limit_n)
+            self.assertTrue(found[0].message.startswith('force_offset: '), found[0].message)
+            with lock:
+                self.assertFalse([s for _, s in stops if 'force_offset' in s.reason],
+                                 'the re-tare check is not a stop')
 
 if __name__ == '__main__':
     rospy.init_node('test_fault_injection')

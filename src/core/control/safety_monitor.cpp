@@ -2,6 +2,7 @@
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
 
 #include <cmath>
+#include <cstddef>
 #include <cstdio>
 #include <limits>
 #include <sstream>
@@ -10,6 +11,10 @@
 namespace pedicle_drilling::core {
 
 namespace {
+
+// Bound of the re-tare window's queue: 10 s (the longest window) at a 1 kHz sensor, also when
+// time stands still.
+constexpr std::size_t kMaxRetareSamples = 10000;
 
 std::string fmt(const char* f, double a, double b, double c) {
   char buf[160];
@@ -99,8 +104,11 @@ void SafetyMonitor::onForce(double t, const Eigen::Vector3d& force) {
   have_force_ = true;
   last_force_t_ = t;
   last_force_ = force;
+  // Time that stands still or goes back (no /clock yet, a looping bag) restarts the window.
+  if (!recent_forces_.empty() && t < recent_forces_.back().first) recent_forces_.clear();
   recent_forces_.emplace_back(t, force);
-  while (!recent_forces_.empty() && recent_forces_.front().first < t - params_.retare_window_s) {
+  while (recent_forces_.front().first < t - params_.retare_window_s ||
+         recent_forces_.size() > kMaxRetareSamples) {
     recent_forces_.pop_front();
   }
   if (t - same_force_since_ > params_.force_stuck_s) {
@@ -133,8 +141,10 @@ RetareCheck SafetyMonitor::retareCheck(double t) const {
     os.setf(std::ios::fixed);
     os.precision(3);
     os << "force_offset: " << c.offset_n << " N from the tare after the retreat (mean of "
-       << c.samples << " samples) > " << params_.retare_max_offset_n
-       << " N: the force sensor drifted; the trial's force-based stop is not to be trusted";
+       << c.samples << " samples) > " << params_.retare_max_offset_n << " N: "
+       << (verdict_.reason == SafetyVerdict::kForceStuck ? "the force sensor is frozen"
+                                                         : "the force sensor drifted")
+       << "; the trial's force-based stop is not to be trusted";
     c.message = os.str();
   }
   return c;

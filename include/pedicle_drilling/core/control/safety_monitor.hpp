@@ -53,7 +53,7 @@ struct SafetyParams {
    * spindle off) the mean force over `retare_window_s` must be within this of the tare. Default
    * 0.3 N: 10 x the sensor's noise SD (0.03 N; the mean of the window's ~80 samples has an SE of
    * 0.003 N, the Nano17's resolution is 1/320 N, its bias random walk 1e-3 N/sqrt(s) adds under
-   * 0.01 N in a minute), and a fifth or less of the forces the recognizer separates (cancellous
+   * 0.01 N in a minute), and a third or less of the forces the recognizer separates (cancellous
    * about 1 N, cortical 2-3 N): a drift that can move its key points is seen. 0: off.
    */
   double retare_max_offset_n = 0.3;
