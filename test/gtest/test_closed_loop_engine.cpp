@@ -76,7 +76,12 @@ TEST(ClosedLoopEngine, StationaryTrialStopsInsideTheInnerLayer) {
   const pd::EngineTrialRecord r = engine.run(spec("stationary", 5));
   std::cout << "[ trial ] stationary seed 5: " << statuses(r) << "; residual "
             << r.last_truth.residual_inner_cortical_m * 1e3 << " mm" << std::endl;
-  EXPECT_EQ(statuses(r), "moving_to_pose registering drilling stopped retreating done");
+  // stop_hold_s 0 (the default): the recognizer's stop retracts at once, no `stopped` hold.
+  EXPECT_EQ(statuses(r), "moving_to_pose registering drilling retreating done");
+  // The monitor's re-tare check when the retreat ended: a healthy sensor reads its tare.
+  EXPECT_TRUE(r.retare.done);
+  EXPECT_FALSE(r.retare.drift);
+  EXPECT_LT(r.retare.offset_n, 0.05);
   ASSERT_FALSE(r.stops.empty());
   EXPECT_EQ(r.stops[0].source, "/state_recognizer");
   EXPECT_FALSE(r.stops[0].retreat);
