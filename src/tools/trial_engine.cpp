@@ -260,41 +260,36 @@ int checkPlugin(int argc, char** argv) {
 }
 
 /**
- * @brief `trial_engine --check-simulator NAME=VALUE...`: the simulation's parameters set and
- *        checked by their declaration (as --simulator-param); exit 0, or 2 naming the bad one.
+ * @brief Sets NAME=VALUE items on *params by P's declaration (P::table(), the nodelet's own).
+ * @throws std::exception naming the bad item.
  */
-int checkSimulator(int argc, char** argv) {
-  try {
-    pd::DrillingSimulationParams params;
-    for (const auto& [name, value] :
-         parseSettings(std::vector<std::string>(argv + 2, argv + argc), "--check-simulator")) {
-      pd::DrillingSimulationParams::table().set(params, name, value);
-    }
-    params.validate();
-    return 0;
-  } catch (const std::exception& e) {
-    std::cerr << "trial_engine: --simulator-param: " << e.what() << "\n";
-    return 2;
+template <class P>
+void applySettings(const std::vector<std::string>& items, const std::string& option, P* params) {
+  for (const auto& [name, value] : parseSettings(items, option)) {
+    P::table().set(*params, name, value);
   }
 }
 
 /**
- * @brief `trial_engine --check-planner NAME=VALUE...`: the trial sequence's parameters set and
- *        checked by their declaration (as --planner-param); exit 0, or 2 naming the bad one.
+ * @brief `trial_engine --check-simulator|--check-planner NAME=VALUE...`: P's parameters set and
+ *        checked by their declaration (as `option` would); exit 0, or 2 naming the bad one.
  */
-int checkPlanner(int argc, char** argv) {
+template <class P, class Validate>
+int checkSettings(int argc, char** argv, const std::string& option, Validate validate) {
   try {
-    pd::TrialSequencerParams params;
-    for (const auto& [name, value] :
-         parseSettings(std::vector<std::string>(argv + 2, argv + argc), "--check-planner")) {
-      pd::TrialSequencerParams::table().set(params, name, value);
-    }
-    pd::TrialSequencerParams::table().validate(params);
+    P params;
+    applySettings(std::vector<std::string>(argv + 2, argv + argc), argv[1], &params);
+    validate(params);
     return 0;
   } catch (const std::exception& e) {
-    std::cerr << "trial_engine: --planner-param: " << e.what() << "\n";
+    std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";
     return 2;
   }
+}
+
+/** @brief The trial sequence's declared ranges (the arm joints come from the URDF later). */
+void validatePlanner(const pd::TrialSequencerParams& p) {
+  pd::TrialSequencerParams::table().validate(p);
 }
 
 /** @brief The --trials file, every trial checked. @throws UsageError naming what is wrong. */
@@ -385,8 +380,14 @@ int main(int argc, char** argv) {
   addOptions(&app, &o, &config);
   // Alone, --list-faults needs none of the required options.
   if (argc == 2 && std::string(argv[1]) == "--list-faults") return printFaults();
-  if (argc >= 2 && std::string(argv[1]) == "--check-simulator") return checkSimulator(argc, argv);
-  if (argc >= 2 && std::string(argv[1]) == "--check-planner") return checkPlanner(argc, argv);
+  if (argc >= 2 && std::string(argv[1]) == "--check-simulator") {
+    return checkSettings<pd::DrillingSimulationParams>(
+        argc, argv, "--simulator-param",
+        [](const pd::DrillingSimulationParams& p) { p.validate(); });
+  }
+  if (argc >= 2 && std::string(argv[1]) == "--check-planner") {
+    return checkSettings<pd::TrialSequencerParams>(argc, argv, "--planner-param", validatePlanner);
+  }
   if (argc >= 3 && (std::string(argv[1]) == "--check-recognizer" ||
                     std::string(argv[1]) == "--check-compensator")) {
     return checkPlugin(argc, argv);
@@ -412,19 +413,15 @@ int main(int argc, char** argv) {
   }
   // The simulation's parameters by the same declaration as the Simulator nodelet's.
   try {
-    for (const auto& [name, value] : parseSettings(o.simulator_params, "--simulator-param")) {
-      pd::DrillingSimulationParams::table().set(config.simulation, name, value);
-    }
+    applySettings(o.simulator_params, "--simulator-param", &config.simulation);
     config.simulation.validate();
   } catch (const std::exception& e) {
     return tools::usageError(app, std::string("--simulator-param: ") + e.what());
   }
   // The trial sequence's parameters by the same declaration as the CompensationPlanner nodelet's.
   try {
-    for (const auto& [name, value] : parseSettings(o.planner_params, "--planner-param")) {
-      pd::TrialSequencerParams::table().set(config.sequencer, name, value);
-    }
-    pd::TrialSequencerParams::table().validate(config.sequencer);
+    applySettings(o.planner_params, "--planner-param", &config.sequencer);
+    validatePlanner(config.sequencer);
   } catch (const std::exception& e) {
     return tools::usageError(app, std::string("--planner-param: ") + e.what());
   }
