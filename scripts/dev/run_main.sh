@@ -9,8 +9,9 @@
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
 #      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
 #      rate (scenario_peak_forces.yaml, 200 trials per case)
-#   3. the integration check: 10 trials per case of design 1 through the full ROS pipeline,
-#      twice, each trial beside the core engine's (engine_agreement.md)
+#   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
+#      (lockstep, README "Lockstep"), twice, each trial beside the core engine's
+#      (engine_agreement.md)
 # Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
@@ -40,12 +41,12 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
   --jobs "${JOBS}" --out "${OUT}/campaign_peak_forces"
-# 3. The integration check: the first trials of the paper's design through the full ROS
-#    pipeline, twice, trial by trial beside the core engine (the same seeds). The virtual
-#    patient's agreement is measured by test_engine_agreement.py (opt-in; README).
+# 3. The integration check: the first 30 trials per case of the paper's design through the full
+#    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
+#    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
 for run in ros ros_repeat; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
-    --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_${run}"
+    --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_${run}"
 done
 {
   echo "# Engine agreement (same seeds)"

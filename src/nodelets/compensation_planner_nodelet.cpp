@@ -23,6 +23,7 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,7 @@
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/planner_conversions.hpp"
@@ -60,6 +62,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       patient_ = loadPatient();
       sequencer_ = makeSequencer(params_, loader, nh);
       loadCompensator(loader);
+      // Under the simulator's lockstep, the sequencer's timers run on its steps (the engine's
+      // rule, SequencerTimers), not on ROS timers.
+      lockstep_ = std::make_unique<LockstepParticipant>(nh, getName(),
+                                                        [this](const ros::Time& t) { onStep(t); });
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -119,10 +125,21 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     });
   }
 
-  /** @brief The file ~patient_model_path names, read at start and again for every trial. */
+  /**
+   * @brief The file ~patient_model_path names, read at start and again for every trial: the
+   *        parameter as it is then (a campaign sets each trial's patient model there).
+   */
   core::PatientModel loadPatient() const {
     const ros::NodeHandle& pnh = getPrivateNodeHandle();
-    const std::string& path = params_.patient_model_path;
+    std::string path = params_.patient_model_path;
+    XmlRpc::XmlRpcValue value;
+    if (pnh.getParam("patient_model_path", value)) {
+      if (value.getType() != XmlRpc::XmlRpcValue::TypeString) {
+        throw std::invalid_argument("parameter '" + pnh.resolveName("patient_model_path") +
+                                    "' must be a string (a file path)");
+      }
+      path = static_cast<std::string>(value);
+    }
     try {
       return core::readModelYaml(path);
     } catch (const std::exception& e) {
@@ -131,7 +148,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
   }
 
-  static double now() { return ros::Time::now().toSec(); }
+  /** @brief The planner's time: the lockstep's step, else ros::Time::now(). */
+  double now() const { return lockstep_->now().toSec(); }
+
+  /** @brief Rank of a stop among the messages of one step (the engine's emission order). */
+  int stopRank(const std::string& source) const {
+    if (source == getName()) return 2;  // the planner's own, heard back
+    return source.find("safety_monitor") != std::string::npos ? 1 : 0;
+  }
 
   // ------------------------------------------------------------------------------- inputs
 
@@ -145,6 +169,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void onTidalVolume(const TidalVolume::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     const double start = msg->header.stamp.toSec() - msg->time_in_breath_s;
     if (!std::isfinite(start)) {
@@ -155,6 +180,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void onMarker(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     const auto& p = msg->pose.position;
     const auto& o = msg->pose.orientation;
@@ -172,6 +198,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void onStop(const StopCommand::ConstPtr& msg) {
+    if (lockstep_->defer(msg->header.stamp, stopRank(msg->source),
+                         [this, msg] { handleStop(msg); })) {
+      return;
+    }
+    handleStop(msg);
+  }
+
+  void handleStop(const StopCommand::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     NODELET_WARN("CompensationPlanner: stop from %s (retreat %s): %s", msg->source.c_str(),
                  msg->retreat ? "yes" : "no", msg->reason.c_str());
@@ -183,13 +217,21 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
     for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
       if (status.name != params_.monitor_status_name) continue;
-      std::lock_guard<std::mutex> lock(mutex_);
-      sequencer_->onMonitorAlive(now());
+      const auto alive = [this] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        sequencer_->onMonitorAlive(now());
+      };
+      if (!lockstep_->defer(msg->header.stamp, 3, alive)) alive();
       return;
     }
   }
 
   void onDrillingState(const DrillingState::ConstPtr& msg) {
+    if (lockstep_->defer(msg->header.stamp, 0, [this, msg] { handleDrillingState(msg); })) return;
+    handleDrillingState(msg);
+  }
+
+  void handleDrillingState(const DrillingState::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     sequencer_->onRecognizerState(now(), msg->stop, msg->state_name, msg->last_key_point);
     carryOut();
@@ -254,11 +296,15 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     for (core::TrialPhase p : out.phases) publishStatus(p);
     for (const std::string& why : out.stops) {
       StopCommand stop;
-      stop.header.stamp = ros::Time::now();
+      stop.header.stamp = lockstep_->now();
       stop.source = getName();
       stop.reason = why;
       stop.retreat = true;
       stop_pub_.publish(stop);
+    }
+    if (lockstep_->enabled()) {
+      timers_.apply(out, now());
+      return;
     }
     if (out.stop_timers) {
       pose_timer_.stop();
@@ -305,13 +351,25 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     carryOut();
   }
 
-  void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, ros::Time::now())); }
+  /** @brief Under the lockstep: the sequencer's timers due at the step (before the stops and
+   *         states sent in the step before, which the lockstep hands over next). */
+  void onStep(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    while (const std::optional<core::TimerRequest::Kind> kind = timers_.popDue(t.toSec())) {
+      sequencer_->onTimer(*kind, t.toSec());
+      carryOut();
+    }
+  }
+
+  void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, lockstep_->now())); }
 
   std::mutex mutex_;
   CompensationPlannerNodeParams params_;  ///< every parameter, loaded once
   core::PatientModel patient_;
   CompensatorLoader compensator_loader_;  // before sequencer_: outlives what it made
   std::unique_ptr<core::TrialSequencer> sequencer_;
+  std::unique_ptr<LockstepParticipant> lockstep_;
+  core::SequencerTimers timers_;  ///< under the lockstep
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;

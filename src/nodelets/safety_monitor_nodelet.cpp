@@ -25,6 +25,7 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
+#include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
@@ -41,6 +42,13 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     try {
       ParamLoader(pnh).load(SafetyMonitorNodeParams::table(), &params);
       supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
+      check_rate_hz_ = params.check_rate_hz;
+      diagnostic_period_s_ = params.diagnostic_period_s;
+      // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
+      // at every step whose time is a multiple of 1 / check_rate_hz (the engine's), after the
+      // predicted poses and statuses sent in the step before.
+      lockstep_ = std::make_unique<LockstepParticipant>(
+          nh, getName(), [this](const ros::Time& t) { onStep(t); }, true);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -57,10 +65,12 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                                   &SafetyMonitorNodelet::onPredicted, this, hints);
     status_sub_ =
         nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus, this);
-    check_timer_ = nh.createTimer(ros::Duration(1.0 / params.check_rate_hz),
-                                  &SafetyMonitorNodelet::onCheck, this);
-    diagnostic_timer_ = nh.createTimer(ros::Duration(params.diagnostic_period_s),
-                                       &SafetyMonitorNodelet::onDiagnosticTimer, this);
+    if (!lockstep_->enabled()) {
+      check_timer_ = nh.createTimer(ros::Duration(1.0 / params.check_rate_hz),
+                                    &SafetyMonitorNodelet::onCheck, this);
+      diagnostic_timer_ = nh.createTimer(ros::Duration(params.diagnostic_period_s),
+                                         &SafetyMonitorNodelet::onDiagnosticTimer, this);
+    }
     const core::SafetyParams& p = supervisor_->params().safety;
     NODELET_INFO(
         "SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
@@ -70,9 +80,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     publishDiagnostics();
   }
 
-  static double now() { return ros::Time::now().toSec(); }
+  /** @brief The monitor's time: the lockstep's step, else ros::Time::now(). */
+  double now() const { return lockstep_->now().toSec(); }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     const auto& f = msg->wrench.force;
     supervisor_->onForce(now(), Eigen::Vector3d(f.x, f.y, f.z));
@@ -85,12 +97,18 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   void onTracked(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     warnIfMismatch(supervisor_->onTracked(now(), toPosition(*msg)));
     evaluate();
   }
 
   void onPredicted(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+    if (lockstep_->defer(msg->header.stamp, 0, [this, msg] { handlePredicted(msg); })) return;
+    handlePredicted(msg);
+  }
+
+  void handlePredicted(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     warnIfMismatch(supervisor_->onPredicted(now(), toPosition(*msg)));
     evaluate();
@@ -116,6 +134,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *        (latched); a drift also turns the diagnostics to WARN until ~reset.
    */
   void onPlannerStatus(const TrialStatus::ConstPtr& msg) {
+    if (lockstep_->defer(msg->header.stamp, 1, [this, msg] { handlePlannerStatus(msg); })) return;
+    handlePlannerStatus(msg);
+  }
+
+  void handlePlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->setTrialRunning(msg->running);
     const bool retreat_ended =
@@ -124,7 +147,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (!retreat_ended) return;
     const core::RetareCheck check = supervisor_->retareCheck(now());
     RetareCheck result;
-    result.header.stamp = ros::Time::now();
+    result.header.stamp = lockstep_->now();
     result.done = check.done;
     result.samples = check.samples;
     result.offset_n = check.offset_n;
@@ -144,6 +167,21 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
   }
 
+  /** @brief Under the lockstep: the check when the step is on the check grid, diagnostics every
+   *         diagnostic_period_s of sim time. */
+  void onStep(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const double x = t.toSec() * check_rate_hz_;
+    if (std::abs(x - std::round(x)) < 1e-6) {
+      supervisor_->check(now());
+      evaluate();
+    }
+    if (next_diagnostics_.isZero() || t >= next_diagnostics_) {
+      next_diagnostics_ = t + ros::Duration(diagnostic_period_s_);
+      publishDiagnostics();
+    }
+  }
+
   void onCheck(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->check(now());
@@ -155,7 +193,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     const std::optional<core::SafetyVerdict> v = supervisor_->takeNewStop();
     if (!v) return;
     StopCommand stop;
-    stop.header.stamp = ros::Time::now();
+    stop.header.stamp = lockstep_->now();
     stop.source = getName();
     stop.retreat = true;
     stop.reason = core::describe(*v);
@@ -171,7 +209,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   void publishDiagnostics() {
     diagnostic_msgs::DiagnosticArray array;
-    array.header.stamp = ros::Time::now();
+    array.header.stamp = lockstep_->now();
     diagnostic_msgs::DiagnosticStatus status;
     status.name = getName() + ": monitor";
     status.hardware_id = getName();
@@ -214,6 +252,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
+  std::unique_ptr<LockstepParticipant> lockstep_;
+  double check_rate_hz_ = 200.0;
+  double diagnostic_period_s_ = 1.0;
+  ros::Time next_diagnostics_;                   ///< under the lockstep
   std::uint8_t last_phase_ = TrialStatus::IDLE;  ///< the planner's phase before the latest
   ros::Publisher retare_pub_;
   std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset

@@ -11,6 +11,7 @@
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 #include <std_msgs/Float64.h>
@@ -26,6 +27,8 @@
 #include <chrono>
 #include <cmath>
 #include <condition_variable>
+#include <deque>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -36,9 +39,12 @@
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
+#include "pedicle_drilling/StepAck.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/VentilatorSettings.h"
+#include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
@@ -54,8 +60,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
       std::lock_guard<std::mutex> lock(mutex_);
       running_ = false;
     }
-    command_cv_.notify_all();  // a loop waiting for a trajectory ends now
+    command_cv_.notify_all();  // a loop waiting for a trajectory or on a hold ends now
+    ack_cv_.notify_all();      // ... or for the lockstep's answers
     if (thread_.joinable()) thread_.join();
+    if (lockstep_spinner_) lockstep_spinner_->stop();
+    if (trial_spinner_) trial_spinner_->stop();
   }
 
  private:
@@ -67,6 +76,12 @@ class SimulatorNodelet : public nodelet::Nodelet {
       const ParamLoader loader(pnh);
       const SimulatorNodeParams params = loadSimulatorParams(pnh);
       sim_ = makeSimulation(params, loader);
+      urdf_xml_ = loader.readFile("urdf_path", params.urdf_path);  // a reset builds a new one
+      lockstep_ = useSimLockstep();
+      lockstep_timeout_s_ = params.lockstep_timeout_s;
+      command_delay_s_ = params.command_delay_s;
+      command_jitter_s_ = params.command_jitter_s;
+      tracker_delay_s_ = params.tracker_delay_s;
       // Re-read at every reset; checked here too, so that a bad value refuses the start.
       loadBoneMotionModel(params, loader);
       urdf_path = params.urdf_path;
@@ -106,15 +121,39 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     static_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
+    // Under the lockstep, the commands, the participants' answers and simulator/resume share
+    // one queue and its own thread: a participant publishes its commands before its answer, so
+    // a command is handled before the answer that lets the simulator step (one nodelet manager:
+    // both are queued in publishing order), and the planner's first commands before the resume
+    // that ends the hold. The stepping thread waits for them whatever this nodelet's queue is
+    // doing.
+    ros::NodeHandle command_nh(nh);
+    if (lockstep_) command_nh.setCallbackQueue(&lockstep_queue_);
     trajectory_sub_ =
-        nh.subscribe("arm_controller/command", 10, &SimulatorNodelet::onTrajectory, this);
-    spindle_sub_ = nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
+        command_nh.subscribe("arm_controller/command", 10, &SimulatorNodelet::onTrajectory, this);
+    spindle_sub_ = command_nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
+    resume_srv_ =
+        command_nh.advertiseService("simulator/resume", &SimulatorNodelet::onResume, this);
     // The planner's phase says when trajectories stream (drilling, stopped, retreating): then
     // sim time does not run past the last one received (waitForCommand).
     status_sub_ = nh.subscribe("compensation/status", 10, &SimulatorNodelet::onPlannerStatus, this);
-    reset_srv_ = nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
+    // The trial services have a queue and threads of their own: start_trial waits for the hold,
+    // a reset builds a new simulation, and a nodelet must not hold the manager's worker threads
+    // (the other nodelets' callbacks wait behind them).
+    ros::NodeHandle trial_nh(nh);
+    trial_nh.setCallbackQueue(&trial_queue_);
+    reset_srv_ = trial_nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
+    if (lockstep_) {
+      step_pub_ = nh.advertise<rosgraph_msgs::Clock>("simulator/step", 10);
+      ack_sub_ = command_nh.subscribe("simulator/step_ack", 100, &SimulatorNodelet::onAck, this,
+                                      ros::TransportHints().tcpNoDelay());
+      lockstep_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &lockstep_queue_);
+      lockstep_spinner_->start();
+    }
     start_trial_srv_ =
-        nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
+        trial_nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
+    trial_spinner_ = std::make_unique<ros::AsyncSpinner>(2, &trial_queue_);
+    trial_spinner_->start();
     set_ventilator_srv_ = nh.advertiseService("simulator/set_ventilator_settings",
                                               &SimulatorNodelet::onSetVentilatorSettings, this);
     set_amplitude_srv_ = nh.advertiseService("simulator/set_patient_amplitude",
@@ -122,10 +161,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
     publishStaticTransforms();
     NODELET_INFO(
         "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
-        "factor %s, %s /clock",
+        "factor %s, %s /clock%s",
         urdf_path.c_str(), sim_->params().arm_rate_hz,
         real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
-        publish_clock_ ? "publishing" : "not publishing");
+        publish_clock_ ? "publishing" : "not publishing",
+        lockstep_ ? ", in lockstep with the participants of simulator/step" : "");
     running_ = true;
     thread_ = std::thread(&SimulatorNodelet::loop, this);
   }
@@ -138,44 +178,56 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void loop() {
     using Clock = std::chrono::steady_clock;
-    const Clock::time_point wall0 = Clock::now();
     double sim0 = 0.0;
     {
       std::lock_guard<std::mutex> lock(mutex_);
       sim0 = sim_->time();
     }
-    std::uint64_t n = 0;
-    Clock::time_point pace_wall0 = wall0;
+    Clock::time_point pace_wall0 = Clock::now();
     while (running_ && ros::ok()) {
       double t = 0.0;
+      ros::Time stamp;
       {
         std::unique_lock<std::mutex> lock(mutex_);
-        if (waitForCommand(&lock)) {
-          // Machine load changes wall time, not the trial: the pacing restarts from here
-          // instead of catching up flat out.
+        // Machine load, a hold or a reset change wall time, not the trial: the pacing restarts
+        // from here instead of catching up flat out.
+        if (waitForCommand(&lock) || holdAtTrialStart(&lock) || restart_pacing_) {
+          restart_pacing_ = false;
           pace_wall0 = Clock::now();
           sim0 = sim_->time();
         }
+        if (!running_ || !ros::ok()) break;
         const core::SimulationStep step = sim_->stepOnce();
         t = step.time_s;
+        stamp = stampOf(t);
         if (pending_amplitude_ && sim_->ventilator().breathIndex() != amplitude_breath_) {
           sim_->setPatientAmplitudeFactor(*pending_amplitude_);  // from this breath's start
           NODELET_WARN("Simulator: the patient's AP displacement x %.3f from now",
                        *pending_amplitude_);
           pending_amplitude_.reset();
         }
-        ++n;
+        // The step's index since the reset: the streams' phases are the engine's.
+        const std::uint64_t n =
+            static_cast<std::uint64_t>(std::llround(t * sim_->params().physics_rate_hz));
         if (step.force_sampled) publishWrench(step);
         if (n % joint_state_period_ == 0) publishJointStates(t);
         if (n % tf_period_ == 0) publishTf(t);
         if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);
         if (sim_->trackerDue(tracker_period_)) publishMarker(t);
+        publishDelayedMarkers(t);
         if (tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0) publishTidalVolume(t);
+        applyDueCommands(t);
+        if (publish_clock_ && n % clock_period_steps_ == 0) {
+          rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
+          c->clock = stamp;
+          clock_pub_.publish(c);
+        }
       }
-      if (publish_clock_ && n % clock_period_steps_ == 0) {
+      if (lockstep_) {
         rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
-        c->clock = stampOf(t);
-        clock_pub_.publish(c);
+        c->clock = stamp;
+        step_pub_.publish(c);  // after the step's messages: a participant's queue is FIFO
+        waitForAnswers(stamp);
       }
       if (real_time_factor_ > 0.0) {
         const Clock::time_point due =
@@ -183,10 +235,104 @@ class SimulatorNodelet : public nodelet::Nodelet {
                              std::chrono::duration<double>((t - sim0) / real_time_factor_));
         // Sleep only when ahead by more than a millisecond (fewer system calls).
         if (due - Clock::now() > std::chrono::milliseconds(1)) std::this_thread::sleep_until(due);
-      } else if (n % 1000 == 0) {
+      } else if (!lockstep_ && static_cast<std::uint64_t>(std::llround(t * 1000.0)) % 1000 == 0) {
         std::this_thread::yield();  // as fast as possible, but let callbacks in
       }
     }
+  }
+
+  /** @brief An arm or spindle command received under the lockstep, applied at the end of the
+   *         first step at or after `due` (~command_delay_s after the step it was sent in). */
+  struct PendingCommand {
+    double due = 0.0;
+    std::optional<core::TrajectoryCommand> trajectory;
+    double spindle_rpm = 0.0;
+  };
+
+  /** @brief The end of the step at `t`: the commands due by then, in the order received (the
+   *         engine's transport: its events due at a step are handled after the step's
+   *         measurements). */
+  void applyDueCommands(double t) {
+    std::vector<PendingCommand> later;
+    for (const PendingCommand& c : pending_) {
+      if (c.due <= t + 1e-9) {
+        apply(c);
+      } else {
+        later.push_back(c);
+      }
+    }
+    pending_.swap(later);
+  }
+
+  /** @brief Waits until every participant answered the step; a silent one is dropped (until
+   *         it answers again) after ~lockstep_timeout_s of wall time, counted and warned. */
+  void waitForAnswers(const ros::Time& step) {
+    using Clock = std::chrono::steady_clock;
+    std::unique_lock<std::mutex> lock(ack_mutex_);
+    const auto answered = [this, &step] {
+      for (const auto& participant : participants_) {
+        if (participant.second < step) return false;
+      }
+      return true;
+    };
+    const Clock::time_point deadline =
+        Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                           std::chrono::duration<double>(lockstep_timeout_s_));
+    while (running_ && ros::ok() && !answered() && Clock::now() < deadline) {
+      ack_cv_.wait_until(lock, std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+    }
+    if (!running_ || !ros::ok() || answered()) return;
+    for (auto it = participants_.begin(); it != participants_.end();) {
+      if (it->second < step) {
+        NODELET_WARN(
+            "Simulator: lockstep participant '%s' did not answer the step at %.3f s "
+            "within %.3f s of wall time (~lockstep_timeout_s): stepping on without it "
+            "until it answers again",
+            it->first.c_str(), step.toSec(), lockstep_timeout_s_);
+        it = participants_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    ++lockstep_timeouts_;
+  }
+
+  /** @brief simulator/step_ack: a participant joins with its first answer. */
+  void onAck(const StepAck::ConstPtr& msg) {
+    {
+      std::lock_guard<std::mutex> lock(ack_mutex_);
+      ros::Time& latest = participants_[msg->node];
+      latest = std::max(latest, msg->stamp);
+    }
+    ack_cv_.notify_all();
+  }
+
+  /**
+   * @brief At the trial's start drawn by the last reset (ResetSimulation hold_at_trial_start):
+   *        sim time stops until simulator/resume. True if it held.
+   */
+  bool holdAtTrialStart(std::unique_lock<std::mutex>* lock) {
+    if (!hold_at_ || sim_->time() < *hold_at_ - 1e-9) return false;
+    held_ = true;
+    publishGroundTruth(sim_->time());  // the worker sees the hold
+    command_cv_.notify_all();          // start_trial waits for it
+    // Until resumed, or until a reset replaced the simulation (its own hold is still ahead).
+    const std::uint64_t generation = reset_generation_;
+    while (running_ && ros::ok() && hold_at_ && generation == reset_generation_) {
+      command_cv_.wait_for(*lock, std::chrono::milliseconds(50));
+    }
+    held_ = false;
+    return true;
+  }
+
+  /** @brief Carries out a command received under the lockstep. */
+  void apply(const PendingCommand& c) {
+    if (!c.trajectory) {
+      reportSpindle(sim_->commandSpindle(c.spindle_rpm));
+      return;
+    }
+    noteLateness(*c.trajectory);
+    reportTrajectory(sim_->commandTrajectory(*c.trajectory));
   }
 
   /**
@@ -200,7 +346,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     const auto starved = [this, step] {
       return streaming_ && !wait_given_up_ && sim_->armTrajectoryEnd() < sim_->time() + step - 1e-9;
     };
-    if (command_wait_s_ <= 0.0 || !starved()) return false;
+    if (lockstep_ || command_wait_s_ <= 0.0 || !starved()) return false;
     using Clock = std::chrono::steady_clock;
     const Clock::time_point start = Clock::now();
     const Clock::time_point deadline = start + std::chrono::duration_cast<Clock::duration>(
@@ -265,6 +411,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     msg.command_waits = command_waits_;
     msg.command_wait_wall_s = command_wait_wall_s_;
     msg.command_wait_expired = command_wait_expired_;
+    msg.lockstep_timeouts = lockstep_timeouts_;
     ground_truth_pub_.publish(msg);
   }
 
@@ -274,14 +421,38 @@ class SimulatorNodelet : public nodelet::Nodelet {
     command_waits_ = 0;
     command_wait_wall_s_ = 0.0;
     command_wait_expired_ = 0;
+    lockstep_timeouts_ = 0;
   }
 
+  /** @brief A tracker sample: now, or ~tracker_delay_s later (its stamp kept). */
   void publishMarker(double t) {
     geometry_msgs::PoseStamped m;
     m.header.stamp = stampOf(t);
     m.header.frame_id = "tracker_camera";
     m.pose = tf2::toMsg(sim_->measureMarkerPose());
+    if (tracker_delay_s_ > 0.0) {
+      delayed_markers_.emplace_back(t + tracker_delay_s_, m);
+      return;
+    }
     marker_pub_.publish(m);
+  }
+
+  void publishDelayedMarkers(double t) {
+    while (!delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9) {
+      marker_pub_.publish(delayed_markers_.front().second);
+      delayed_markers_.pop_front();
+    }
+  }
+
+  /** @brief When a command received now takes effect: ~command_delay_s, its jitter (the
+   *         engine's draw for the trial's seed, commandJitterFraction) and never before the one
+   *         received before it. */
+  double commandDue() {
+    if (command_jitter_s_ <= 0.0) return sim_->time() + command_delay_s_;
+    const double jitter =
+        command_jitter_s_ * core::commandJitterFraction(trial_seed_, command_count_++);
+    last_command_due_ = std::max(sim_->time() + command_delay_s_ + jitter, last_command_due_);
+    return last_command_due_;
   }
 
   /**
@@ -289,7 +460,22 @@ class SimulatorNodelet : public nodelet::Nodelet {
    *        specimen already drilled is replaced by a fresh one (seed + 1), as on the bench.
    */
   bool onStartTrial(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
-    std::lock_guard<std::mutex> lock(mutex_);
+    std::unique_lock<std::mutex> lock(mutex_);
+    if (hold_at_ && !held_) {
+      // The trial starts at the hold the reset drew: wait for sim time to get there.
+      const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+      while (running_ && ros::ok() && hold_at_ && !held_ &&
+             std::chrono::steady_clock::now() < deadline) {
+        command_cv_.wait_for(lock, std::chrono::milliseconds(50));
+      }
+      if (hold_at_ && !held_) {
+        response.success = false;
+        response.message =
+            "start_trial: sim time did not reach the trial's start (the reset's "
+            "hold) within 120 s of wall time";
+        return true;
+      }
+    }
     bool remounted = false;
     try {
       remounted = sim_->startTrial();
@@ -342,17 +528,30 @@ class SimulatorNodelet : public nodelet::Nodelet {
   void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     std::unique_lock<std::mutex> lock(mutex_);
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
-    // Late: its start passed before it arrived (half a physics step of rounding allowed).
-    const double half_step = 0.5 / sim_->params().physics_rate_hz;
-    if (std::isfinite(command.start_time_s) && command.start_time_s < sim_->time() - half_step) {
-      ++late_commands_;  // a ros_control controller would start it now, as the executor does
-      max_command_lateness_s_ =
-          std::max(max_command_lateness_s_, sim_->time() - command.start_time_s);
+    if (lockstep_) {
+      pending_.push_back({commandDue(), command, 0.0});
+      return;
     }
+    noteLateness(command);
     const core::TargetResult r = sim_->commandTrajectory(command);
     wait_given_up_ = false;
     lock.unlock();
     command_cv_.notify_all();
+    reportTrajectory(r);
+  }
+
+  /** @brief Late: its start passed before it arrived (half a physics step of rounding allowed);
+   *         a ros_control controller would start it now, as the executor does. */
+  void noteLateness(const core::TrajectoryCommand& command) {
+    const double half_step = 0.5 / sim_->params().physics_rate_hz;
+    if (std::isfinite(command.start_time_s) && command.start_time_s < sim_->time() - half_step) {
+      ++late_commands_;
+      max_command_lateness_s_ =
+          std::max(max_command_lateness_s_, sim_->time() - command.start_time_s);
+    }
+  }
+
+  void reportTrajectory(const core::TargetResult& r) {
     if (r.status == core::TargetStatus::kRejected) {
       NODELET_WARN_THROTTLE(1.0,
                             "Simulator: arm_controller/command rejected, previous "
@@ -366,13 +565,35 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void onSpindle(const std_msgs::Float64::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const core::TargetResult r = sim_->commandSpindle(msg->data);
+    if (lockstep_) {
+      pending_.push_back({commandDue(), std::nullopt, msg->data});
+      return;
+    }
+    reportSpindle(sim_->commandSpindle(msg->data));
+  }
+
+  void reportSpindle(const core::TargetResult& r) {
     if (r.status == core::TargetStatus::kRejected) {
       NODELET_WARN_THROTTLE(1.0, "Simulator: spindle/command rejected, speed kept: %s",
                             r.message.c_str());
     } else if (r.status == core::TargetStatus::kClamped) {
       NODELET_WARN_THROTTLE(1.0, "Simulator: spindle/command clamped: %s", r.message.c_str());
     }
+  }
+
+  /** @brief simulator/resume: ends the hold at the trial's start (nothing else to do without
+   *         one). */
+  bool onResume(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      response.success = true;
+      response.message = hold_at_ ? (held_ ? "resumed at the trial's start"
+                                           : "the hold at the trial's start is cancelled")
+                                  : "no hold: sim time was running";
+      hold_at_.reset();
+    }
+    command_cv_.notify_all();
+    return true;
   }
 
   bool onReset(ResetSimulation::Request& req, ResetSimulation::Response& res) {
@@ -395,19 +616,58 @@ class SimulatorNodelet : public nodelet::Nodelet {
       res.message = refused + "; nothing was reset";
       return true;
     }
-    std::lock_guard<std::mutex> lock(mutex_);
-    try {
-      sim_->setTrialDistribution(distribution.sim.specimen, distribution.sim.variability);
-      sim_->setBoneMotionModel(bone_motion);
-      sim_->reset(req.seed, req.moving_bone);
-      streaming_ = false;  // an aborted trial's phase does not hold the next one's time
-      wait_given_up_ = false;
-      pending_amplitude_.reset();
-    } catch (const std::exception& e) {
+    if (req.hold_at_trial_start &&
+        !(std::isfinite(req.pre_trial_s) && req.pre_trial_s >= 0.0 && req.pre_trial_s <= 60.0)) {
       res.success = false;
-      res.message = std::string("reset failed: ") + e.what();
+      res.message = "pre_trial_s must be in [0, 60] s (got " + std::to_string(req.pre_trial_s) +
+                    "); nothing was reset";
       return true;
     }
+    // A new simulation, as the closed-loop engine builds one for every trial: sim time, the
+    // breathing, the tracker's phase and the physics all start again from the seed. Stamps go on
+    // from the present: the new trial's time 0 is the next multiple of 0.1 s (so that the
+    // periodic checks of the nodes fall on the same steps as in the engine), no gap a watchdog
+    // would take for a silent sensor.
+    std::unique_ptr<core::DrillingSimulation> fresh;
+    try {
+      fresh = std::make_unique<core::DrillingSimulation>(urdf_xml_, distribution.sim, req.seed);
+      fresh->setBoneMotionModel(bone_motion);
+      fresh->reset(req.seed, req.moving_bone);
+    } catch (const std::exception& e) {
+      res.success = false;
+      res.message = std::string("reset failed: ") + e.what() + "; nothing was reset";
+      return true;
+    }
+    std::unique_lock<std::mutex> lock(mutex_);
+    const std::uint64_t present_ns = stampOf(sim_->time()).toNSec();
+    const std::uint64_t grid_ns = 100000000ULL;
+    sim_ = std::move(fresh);
+    time_offset_ = static_cast<double>((present_ns / grid_ns + 1) * grid_ns) * 1e-9;
+    restart_pacing_ = true;
+    streaming_ = false;  // an aborted trial's phase does not hold the next one's time
+    wait_given_up_ = false;
+    pending_amplitude_.reset();
+    pending_.clear();  // the last trial's commands do not drive this one
+    command_delay_s_ = distribution.command_delay_s;
+    command_jitter_s_ = distribution.command_jitter_s;
+    tracker_delay_s_ = distribution.tracker_delay_s;
+    trial_seed_ = req.seed;
+    command_count_ = 0;
+    last_command_due_ = 0.0;
+    delayed_markers_.clear();
+    last_breath_index_ = -1;
+    last_settings_msg_ = VentilatorSettings();  // the new breathing is announced
+    clearTransportCounters();
+    hold_at_.reset();
+    held_ = false;  // the new simulation's hold (if any) is still ahead
+    ++reset_generation_;
+    if (req.hold_at_trial_start) {
+      const double breath_s = 60.0 / sim_->trialConditions().ventilator_rate_bpm;
+      hold_at_ = core::trialStartTime(req.seed, sim_->time(), req.pre_trial_s, breath_s, true);
+      res.trial_start = stampOf(*hold_at_);
+    }
+    res.reset_time = stampOf(sim_->time());
+    command_cv_.notify_all();
     res.success = true;
     res.message = resetSummary(*sim_, req, bone_motion);
     fillResetResponse(*sim_, &res);
@@ -416,7 +676,33 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  std::condition_variable command_cv_;  ///< a trajectory or a planner phase arrived
+  std::condition_variable command_cv_;  ///< a trajectory, a planner phase, a hold or a resume
+  std::string urdf_xml_;                ///< the workcell, for the simulation of each reset
+  bool restart_pacing_ = false;         ///< a reset restarted sim time
+  std::optional<double> hold_at_;       ///< the trial's start drawn by the reset (sim time)
+  bool held_ = false;                   ///< sim time stands at hold_at_
+  std::uint64_t reset_generation_ = 0;  ///< counts resets (a hold ends with its simulation)
+  bool lockstep_ = false;               ///< /use_sim_lockstep
+  double lockstep_timeout_s_ = 5.0;
+  double command_delay_s_ = 1e-3;  ///< under the lockstep (re-read at every reset)
+  double command_jitter_s_ = 0.0;  ///< under the lockstep (re-read at every reset)
+  double tracker_delay_s_ = 0.0;   ///< (re-read at every reset)
+  std::uint64_t trial_seed_ = 0;   ///< the last reset's seed: the jitter's stream
+  std::uint64_t command_count_ = 0;
+  double last_command_due_ = 0.0;
+  std::deque<std::pair<double, geometry_msgs::PoseStamped>> delayed_markers_;
+  std::vector<PendingCommand> pending_;  ///< under the lockstep, for the next step
+  std::uint32_t lockstep_timeouts_ = 0;
+  std::mutex ack_mutex_;
+  std::condition_variable ack_cv_;
+  std::map<std::string, ros::Time> participants_;  ///< latest step each one answered
+  ros::CallbackQueue lockstep_queue_;  ///< commands, answers and resume under the lockstep
+  ros::CallbackQueue trial_queue_;     ///< reset, start_trial, resume
+  std::unique_ptr<ros::AsyncSpinner> trial_spinner_;
+  std::unique_ptr<ros::AsyncSpinner> lockstep_spinner_;
+  ros::Subscriber ack_sub_;
+  ros::Publisher step_pub_;
+  ros::ServiceServer resume_srv_;
   std::unique_ptr<core::DrillingSimulation> sim_;
   double command_wait_s_ = 1.0;
   bool streaming_ = false;      ///< the planner streams trajectories (under mutex_)

@@ -22,6 +22,7 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+#include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
@@ -50,6 +51,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
           loader.fail("recognizer", "= '" + params.recognizer_class + "': " + e.what());
         }
       }
+      // Under the simulator's lockstep it answers each step after the step's force samples.
+      lockstep_ = std::make_unique<LockstepParticipant>(nh, getName(), nullptr);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -116,7 +119,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     recognizer_->reset();
     // Say at once that the latch is cleared (a planner refuses to feed while the latest state
     // reports a stop).
-    publishState(ros::Time::now(), recognizer_->output());
+    publishState(lockstep_->now(), recognizer_->output());
     response.success = true;
     response.message = "recognizer reset (" + std::to_string(non_finite_count_) +
                        " non-finite samples ignored since start)";
@@ -126,6 +129,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   std::mutex mutex_;
   RecognizerLoader loader_;  // before recognizer_: outlives the instance it made
   std::unique_ptr<core::RecognizerInterface> recognizer_;
+  std::unique_ptr<LockstepParticipant> lockstep_;
   int axis_index_ = 2;
   double axis_sign_ = 1.0;
   std::size_t non_finite_count_ = 0;

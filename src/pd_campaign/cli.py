@@ -63,6 +63,9 @@ SCENARIO_KEYS = {
 SCENARIO_VERSION = 1
 DEFAULT_RECOGNIZER = 'pedicle_drilling/PaperRecognizer'
 DEFAULT_COMPENSATOR = 'pedicle_drilling/PaperCompensator'
+# scenario key engine_delays on --engine ros: the Simulator's transport under the lockstep.
+ROS_DELAYS = {'command_to_arm_s': 'command_delay_s', 'command_jitter_s': 'command_jitter_s',
+              'tracker_to_pipeline_s': 'tracker_delay_s'}
 # planner_params that other scenario keys set for every trial (refused, naming the key).
 PLANNER_PARAMS_SET_ELSEWHERE = {'feed_rate_mm_s': 'feed_rate_mm_s', 'spindle_rpm': 'rpms',
                                 'max_duration_s': 'max_duration_s',
@@ -277,9 +280,11 @@ def parse_args(argv):
     elif scenario.get('simulator_params'):
         raise UsageError('scenario key simulator_params: run by --engine core only (the ROS '
                          'pipeline\'s Simulator reads its parameters at its start)')
-    elif scenario.get('engine_delays'):
-        raise UsageError('scenario key engine_delays: run by --engine core only (the ROS '
-                         'pipeline\'s delays are its transport\'s, measured per trial)')
+    elif set(scenario.get('engine_delays') or {}) - set(ROS_DELAYS):
+        raise UsageError('scenario key engine_delays: on --engine ros only %s (the Simulator\'s '
+                         'transport under the lockstep); %s run by --engine core only' % (
+                             ', '.join(sorted(ROS_DELAYS)), ', '.join(sorted(
+                                 set(scenario['engine_delays']) - set(ROS_DELAYS)))))
     elif scenario.get('planner_params'):
         raise UsageError('scenario key planner_params: run by --engine core only (the ROS '
                          'pipeline\'s CompensationPlanner reads its parameters at its start)')
@@ -571,6 +576,8 @@ def run_campaign(argv=None):
                    '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
                    '--recognizer', recognizer,
                    '--compensator', compensator]
+        for name, value in sorted((scenario.get('engine_delays') or {}).items()):
+            command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
         if args.bags:
             command.append('--bags')
         # The worker imports pd_campaign as this process did: catkin's devel space has it.

@@ -76,7 +76,8 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
 
 # scenario key engine_delays -> trial_engine option (core::EngineDelays)
 DELAY_OPTIONS = {'force_to_recognizer_s': '--force-delay-s', 'stop_to_planner_s': '--stop-delay-s',
-                 'command_to_arm_s': '--command-delay-s'}
+                 'command_to_arm_s': '--command-delay-s', 'command_jitter_s': '--command-jitter-s',
+                 'tracker_to_pipeline_s': '--tracker-delay-s'}
 
 
 def settings_list(settings):

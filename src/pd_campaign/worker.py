@@ -23,6 +23,7 @@ PIPELINE_SERVICES = {
     'reset': '/simulator/reset',
     'identify': '/motion_identification/identify',
     'start_trial': '/compensation_planner/start_trial',
+    'resume': '/simulator/resume',
 }
 
 
@@ -32,7 +33,9 @@ class TrialRecorder:
     def __init__(self):
         self.clear()
 
-    def clear(self):
+    def clear(self, min_stamp=0.0):
+        # Messages stamped before min_stamp are the previous trial's, still in transit: dropped.
+        self.min_stamp = min_stamp
         self.states = []          # (t, averaged_force, feature, state_name, last_key_point)
         self.key_points = []      # (id, t)
         self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact,
@@ -46,6 +49,8 @@ class TrialRecorder:
 
     def on_state(self, msg):
         t = msg.header.stamp.to_sec()
+        if t < self.min_stamp:
+            return
         self.states.append((t, msg.averaged_force, msg.feature, msg.state_name,
                             msg.last_key_point))
         if msg.last_key_point > self._last_kp:
@@ -54,22 +59,28 @@ class TrialRecorder:
             self._last_kp = msg.last_key_point
 
     def on_truth(self, msg):
+        if msg.header.stamp.to_sec() < self.min_stamp:
+            return
         self.last_truth = msg
         self.truth.append((msg.header.stamp.to_sec(), msg.specimen_layer, msg.max_depth_cut_m,
                            msg.residual_inner_cortical_m, msg.breakthrough, msg.relative_ap_m,
                            msg.contact, msg.contact_loss_count))
 
     def on_stop(self, msg):
+        if msg.header.stamp.to_sec() < self.min_stamp:
+            return
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
     def on_retare(self, msg):
         """pedicle_drilling/RetareCheck: the SafetyMonitor's re-tare check after the retreat."""
-        if msg.done:
+        if msg.done and msg.header.stamp.to_sec() >= self.min_stamp:
             self.retare = {'t': msg.header.stamp.to_sec(), 'drift': msg.drift,
                            'offset_n': msg.offset_n, 'message': msg.message}
 
     def on_status(self, msg):
         """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
+        if msg.header.stamp.to_sec() < self.min_stamp:
+            return
         self.phase = msg.phase
         self.status.append((msg.header.stamp.to_sec(), msg.phase_name))
 
@@ -86,7 +97,7 @@ def retare_columns(retare):
 
 
 TRANSPORT_COLUMNS = ('late_commands', 'max_command_lateness_ms', 'command_waits',
-                     'command_wait_wall_s', 'command_wait_expired')
+                     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts')
 
 
 def transport_columns(last_truth):
@@ -100,7 +111,8 @@ def transport_columns(last_truth):
             'max_command_lateness_ms': 1e3 * last_truth.max_command_lateness_s,
             'command_waits': last_truth.command_waits,
             'command_wait_wall_s': last_truth.command_wait_wall_s,
-            'command_wait_expired': last_truth.command_wait_expired}
+            'command_wait_expired': last_truth.command_wait_expired,
+            'lockstep_timeouts': getattr(last_truth, 'lockstep_timeouts', None)}
 
 
 def tracking_error(truth, t_start, t_end):
@@ -135,9 +147,11 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row['engine'] = 'ros'
     recorder.clear()
     moving = trial['case'] != 'stationary'
-    reply = srv['reset'](seed=trial['seed'], moving_bone=moving)
-    if not reply.success:
-        raise RuntimeError('simulator reset failed: %s' % reply.message)
+    # The trial starts where the core engine starts the seed's trial: the simulator holds sim
+    # time there (pre_trial_s after the reset, then a breath phase drawn from the seed) until
+    # the planner has started it (simulator/resume below).
+    reply = _reset(srv, trial, moving, args)
+    recorder.clear(reply.reset_time.to_sec())
     row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
     row['volunteer_id'] = reply.volunteer_id
     row['amplitude_scale'] = reply.patient_amplitude_scale
@@ -146,10 +160,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row['force_noise_sd_n'] = reply.force_noise_sd_n
     row['arm_stiffness_scale'] = reply.arm_stiffness_scale
     # The recognizer and the safety monitor are reset by the planner's start_trial (the trial
-    # sequence owns that). Messages of the previous trial may still be queued: let them drain,
-    # then forget them.
-    time.sleep(0.3)
-    recorder.clear()
+    # sequence owns that); what the previous trial still had in transit is older than the reset.
     model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
     if moving and args.models_dir:
         # The simulator's virtual patient is one of the five virtual volunteers (the reset
@@ -160,8 +171,9 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
         if not os.path.exists(model_path):
             raise RuntimeError('no identified model %s' % model_path)
     elif moving:
-        # Record breathing for the identification window (sim time), then identify.
-        _wait_sim(rospy, recorder, args.identification_window_s)
+        # Record breathing for the identification window (sim time: the hold is after it),
+        # then identify.
+        _wait_sim_until(recorder, reply.trial_start.to_sec())
         ident = srv['identify'](model=args.model, method='ceres', output_path=model_path)
         if not ident.success:
             raise RuntimeError('identification failed: %s' % ident.message)
@@ -175,17 +187,19 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
         # the displacement the patient's model predicts. The same seed draws the same trial
         # again; only what the bone plays changes.
         rospy.set_param('/simulator/bone_motion_model_path', model_path)
-        reply = srv['reset'](seed=trial['seed'], moving_bone=moving)
-        rospy.set_param('/simulator/bone_motion_model_path', '')
-        if not reply.success:
-            raise RuntimeError('simulator reset failed: %s' % reply.message)
-        time.sleep(0.3)
-        recorder.clear()
+        try:
+            reply = _reset(srv, trial, moving, args)
+        finally:
+            rospy.set_param('/simulator/bone_motion_model_path', '')
+        recorder.clear(reply.reset_time.to_sec())
     bag = start_bag(args, trial) if args.bags else None
     try:
-        reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
-                                   feed_rate_mm_s=args.feed_rate,
-                                   max_duration_s=args.max_duration)
+        try:
+            reply = srv['start_trial'](mode=trial['case'], spindle_rpm=trial['rpm'],
+                                       feed_rate_mm_s=args.feed_rate,
+                                       max_duration_s=args.max_duration)
+        finally:
+            srv['resume']()  # started or refused, sim time runs on
         if not reply.success:
             raise RuntimeError('start_trial failed: %s' % reply.message)
         row = finish_trial(recorder, row, trial, args, trace_dir, wall_start)
@@ -308,6 +322,18 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
         time.sleep(0.01)
     if not fresh():
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
+    # Each topic has its own connection: on a loaded machine the ground truth and the
+    # recognizer's states may trail the status that said DONE. Wait until both have reached the
+    # trial's end (events: the simulator and the recognizer go on publishing after it), so that
+    # nothing the trial recorded is cut off; the bound only keeps a dead node from hanging it.
+    def caught_up():
+        truth = recorder.last_truth
+        return (t_done is not None and truth is not None
+                and truth.header.stamp.to_sec() >= t_done
+                and (not recorder.states or recorder.states[-1][0] >= t_done))
+    bound = time.time() + 30.0
+    while time.time() < bound and not caught_up():
+        time.sleep(0.01)
     row['wall_s'] = time.time() - wall_start
     return analyse_trial(recorder, row, trial, trace_dir)
 
@@ -375,19 +401,24 @@ def analyse_trial(recorder, row, trial, trace_dir):
     return row
 
 
-def _wait_sim(rospy, recorder, seconds):
-    """Waits until `seconds` of sim time have passed, judged from ground-truth stamps."""
-    start = recorder.last_truth.header.stamp.to_sec() if recorder.last_truth else None
-    deadline = time.time() + 10 + seconds
+def _reset(srv, trial, moving, args):
+    """simulator/reset for the trial, holding sim time at the engine's start of the trial."""
+    reply = srv['reset'](seed=trial['seed'], moving_bone=moving, hold_at_trial_start=True,
+                         pre_trial_s=args.pre_trial_s)
+    if not reply.success:
+        raise RuntimeError('simulator reset failed: %s' % reply.message)
+    return reply
+
+
+def _wait_sim_until(recorder, stamp):
+    """Waits until the ground truth reaches sim time `stamp` (the simulator's hold)."""
+    deadline = time.time() + 120.0
     while time.time() < deadline:
-        if recorder.last_truth is not None:
-            now = recorder.last_truth.header.stamp.to_sec()
-            if start is None:
-                start = now
-            elif now - start >= seconds:
-                return
+        if recorder.last_truth is not None and \
+                recorder.last_truth.header.stamp.to_sec() >= stamp - 1e-6:
+            return
         time.sleep(0.01)
-    raise RuntimeError('sim time did not advance %.0f s' % seconds)
+    raise RuntimeError('sim time did not reach %.3f s' % stamp)
 
 
 def main(argv=None):
@@ -401,6 +432,10 @@ def main(argv=None):
     parser.add_argument('--max-duration', type=float, default=60.0)
     parser.add_argument('--trial-timeout', type=float, default=120.0)
     parser.add_argument('--identification-window-s', type=float, default=30.0)
+    parser.add_argument('--pre-trial-s', type=float, default=None,
+                        help='sim time from the reset to the trial (then a breath phase drawn '
+                        'from the seed); default: 1 s (the core engine\'s), or the '
+                        'identification window when the model is identified online')
     parser.add_argument('--default-model', required=True)
     parser.add_argument('--models-dir', default='',
                         help='identified volunteer models (volunteer_<id>_<model>.yaml); '
@@ -420,9 +455,14 @@ def main(argv=None):
     parser.add_argument('--simulator-overrides', default='{}',
                         help='JSON of the scenario\'s simulator section: '
                         '{group: {key: value}} under /simulator/trial_distribution')
+    parser.add_argument('--simulator-param', action='append', default=[],
+                        help='NAME=VALUE: a Simulator parameter read at every reset (scenario '
+                        'key engine_delays: command_delay_s, command_jitter_s, tracker_delay_s)')
     parser.add_argument('--launch', default='campaign_pipeline.launch')
     parser.add_argument('--real-time-factor', type=float, default=20.0)
     args = parser.parse_args(argv)
+    if args.pre_trial_s is None:
+        args.pre_trial_s = args.identification_window_s if not args.models_dir else 1.0
     with open(args.trials) as handle:
         trials = json.load(handle)
     # Loopback only, whatever the shell exported (README, "Network: loopback by default"): the
@@ -479,22 +519,27 @@ def main(argv=None):
              'segment_profile:=%s' % args.segment_profile,
              'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
-        types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial}
+        from std_srvs.srv import Trigger
+        types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial,
+                 'resume': Trigger}
         srv = {}
         for key, name in PIPELINE_SERVICES.items():
             rospy.wait_for_service(name, timeout=60.0)
             srv[key] = rospy.ServiceProxy(name, types[key])
         # The scenario's simulator section: set after the launch loaded config/simulator.yaml,
         # read by the simulator at every reset. One reset checks it before any trial.
+        for setting in args.simulator_param:  # read at every reset
+            name, value = setting.split('=', 1)
+            rospy.set_param('/simulator/%s' % name, float(value))
         overrides = json.loads(args.simulator_overrides)
         for group, values in overrides.items():
             for key, value in values.items():
                 rospy.set_param('/simulator/trial_distribution/%s/%s' % (group, key), value)
-        if overrides and trials:
+        if (overrides or args.simulator_param) and trials:
             reply = srv['reset'](seed=trials[0]['seed'], moving_bone=False)
             if not reply.success:
-                sys.stderr.write('campaign worker: the scenario\'s simulator section was '
-                                 'refused: %s\n' % reply.message)
+                sys.stderr.write('campaign worker: the scenario\'s simulator section or '
+                                 'command delay was refused: %s\n' % reply.message)
                 sys.exit(2)
         recorder = TrialRecorder()
         rospy.Subscriber('/drilling_state', DrillingState, recorder.on_state, queue_size=10000)

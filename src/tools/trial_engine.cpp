@@ -170,6 +170,13 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
   app->add_option("--stop-delay-s", config->delays.stop_to_planner_s,
                   "recognizer/monitor stop -> planner transport delay, s")
       ->check(tools::finiteNumber(0.0, 1.0));
+  app->add_option("--command-jitter-s", config->delays.command_jitter_s,
+                  "extra command delay, uniform in [0, this] per command (drawn from the seed; "
+                  "the order kept), s")
+      ->check(tools::finiteNumber(0.0, 1.0));
+  app->add_option("--tracker-delay-s", config->delays.tracker_to_pipeline_s,
+                  "tracker -> planner and monitor transport delay (the stamp kept), s")
+      ->check(tools::finiteNumber(0.0, 1.0));
   app->add_option("--pre-trial-s", config->pre_trial_s,
                   "sim time from the reset to the earliest trial start, s")
       ->check(tools::finiteNumber(0.0, 60.0));

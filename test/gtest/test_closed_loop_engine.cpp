@@ -206,6 +206,25 @@ TEST(ClosedLoopEngine, OneSeedGivesTheSameTrialBitForBitWhateverRanBefore) {
   EXPECT_FALSE(first.last_truth.breakthrough);
 }
 
+// The trial's start: pre_trial_s after the reset plus a breath phase drawn from the seed, the
+// step the Simulator nodelet holds for (ResetSimulation hold_at_trial_start), so that both
+// engines start a seed's trial at the same step.
+TEST(ClosedLoopEngine, ATrialStartsAtTheStepTheSimulatorNodeletHoldsFor) {
+  const pd::EngineConfig c = config();
+  pd::ClosedLoopEngine engine(c);
+  const pd::EngineTrialRecord r = engine.run(spec("stationary", 7));
+  ASSERT_FALSE(r.status.empty());
+  const double breath_s = 60.0 / r.conditions.ventilator_rate_bpm;
+  const double start = pd::trialStartTime(7, 0.0, c.pre_trial_s, breath_s, c.draw_start_phase);
+  EXPECT_GE(start, c.pre_trial_s);
+  EXPECT_LT(start, c.pre_trial_s + breath_s);
+  // The first step at or after it (1 ms steps).
+  EXPECT_GE(r.status.front().first, start - 1e-9);
+  EXPECT_LT(r.status.front().first, start + 1e-3);
+  EXPECT_NE(start, pd::trialStartTime(8, 0.0, c.pre_trial_s, breath_s, true));
+  EXPECT_DOUBLE_EQ(pd::trialStartTime(7, 2.0, 1.0, breath_s, false), 3.0);
+}
+
 TEST(ClosedLoopEngine, BadConfigurationNamesTheField) {
   pd::EngineConfig c = config();
   c.delays.stop_to_planner_s = -1.0;

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -626,4 +627,50 @@ TEST(TrialSequencer, TheLayerBoundCountsTheDeepestCutNotTheBreathingStroke) {
   // tick (plus the 5 ms sampling) earlier than that.
   EXPECT_GE(deepest(t_stop - 1.5) - base, 3.5e-3 - 1e-5);
   EXPECT_LT(deepest(t_stop - 1.5 - 0.125 - 0.006) - base, 3.5e-3);
+}
+
+// The timers both drivers run (the closed-loop engine, and the planner nodelet under the
+// simulator's lockstep): one rule, so that a timer fires at the same step in both.
+TEST(SequencerTimers, FireInDueOrderPeriodicOnesAgainAndAStopClearsThem) {
+  pd::SequencerTimers timers;
+  EXPECT_TRUE(timers.empty());
+  pd::SequencerOutput out;
+  out.start_timers.push_back({pd::TimerRequest::Kind::kSegment, 0.125, true});
+  out.start_timers.push_back({pd::TimerRequest::Kind::kPoseReached, 0.05, false});
+  timers.apply(out, 10.0);
+  EXPECT_FALSE(timers.popDue(10.049).has_value());
+  // 1 ns of rounding allowed: a tick at the due time's neighbour still fires it.
+  const auto pose = timers.popDue(10.05 - 5e-10);
+  ASSERT_TRUE(pose.has_value());
+  EXPECT_EQ(*pose, pd::TimerRequest::Kind::kPoseReached);
+  EXPECT_FALSE(timers.popDue(10.1).has_value());
+  // A late tick fires a periodic timer once per period missed, earliest first.
+  int segments = 0;
+  while (const auto k = timers.popDue(10.3)) {
+    EXPECT_EQ(*k, pd::TimerRequest::Kind::kSegment);
+    ++segments;
+  }
+  EXPECT_EQ(segments, 2);  // due at 10.125 and 10.25
+  const auto next = timers.popDue(10.375);
+  ASSERT_TRUE(next.has_value());
+  pd::SequencerOutput stop;
+  stop.stop_timers = true;
+  timers.apply(stop, 10.4);
+  EXPECT_TRUE(timers.empty());
+  EXPECT_FALSE(timers.popDue(100.0).has_value());
+}
+
+TEST(SequencerTimers, TheSequencerDispatchesAFiredTimerToItsHandler) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 1.0), "");
+  pd::SequencerTimers timers;
+  timers.apply(seq.takeOutput(), 1.0);
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kMovingToPose);
+  // The move's timer fires at its due time and the sequencer goes on to the registration.
+  double t = 1.0;
+  std::optional<pd::TimerRequest::Kind> kind;
+  while (!(kind = timers.popDue(t))) t += 0.001;
+  EXPECT_EQ(*kind, pd::TimerRequest::Kind::kPoseReached);
+  seq.onTimer(*kind, t);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
 }

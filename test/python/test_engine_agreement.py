@@ -1,30 +1,30 @@
-"""The two engines checked against each other (opt-in: PEDICLE_DRILLING_SLOW_TESTS=1, about
-6 minutes): the same seeds through the core engine and twice through the ROS pipeline, trial by
-trial: 10 per case of the paper's design at 12000 rpm and 20 of the virtual patient with the
-hysteresis model (the scenario where the engines once disagreed). Both agreements are printed and
-written to the test artifacts (engine_agreement.md).
+"""The two engines run the same trial (issue 28): the same seeds through the core engine and
+through the ROS pipeline (the Simulator in lockstep with the planner, the recognizer and the
+monitor; README "Lockstep"), trial by trial: 2 per case of the paper's design at 12000 rpm and 2
+of the virtual patient (the bone's true motion, lag, drift and small movements).
 
-The ROS pipeline is not deterministic (its agreement with itself is what is measured), so the
-verdict is a test, not a comparison of two counts: the core engine fails when it disagrees with
-the ROS pipeline significantly more often than the ROS pipeline disagrees with itself (one-sided
-Fisher exact test, p < 0.01; a chance failure when both disagree equally often is below 1 %)."""
+The pipeline's trial of a seed is the engine's, so the pass criterion is equality, not a
+statistic: every pair has the same outcome and the same recognizer stop (raw sample and key
+point), and the inner cortex left differs by no more than the ground truth's sampling can make
+it (the ROS side reads it from simulator/ground_truth at 20 Hz; the engine at every step). A
+trial where a lockstep participant missed a step is no longer the engine's: it fails the test by
+name. The 30-per-case measurement is in `make run` (results/engine_agreement.md)."""
 import os
+import re
 import subprocess
-
-import pytest
-from scipy.stats import fisher_exact
 
 from pd_campaign import agreement, report
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-SLOW = os.environ.get('PEDICLE_DRILLING_SLOW_TESTS') == '1'
+# The ground truth's sampling: the residual at the ROS side's last 20 Hz sample after the stop.
+RESIDUAL_TOLERANCE_MM = 0.01
 
 
 def campaign(out, engine, port):
     rows = []
-    for name, args in [('paper', ['--case', 'all', '--rpm', '12000', '--trials', '10']),
-                       ('hysteresis', ['--scenario', os.path.join(
-                           ROOT, 'config', 'scenario_hysteresis.yaml'), '--trials', '20'])]:
+    for name, args in [('paper', ['--case', 'all', '--rpm', '12000', '--trials', '2']),
+                       ('virtual_patient', ['--scenario', os.path.join(
+                           ROOT, 'config', 'scenario_virtual_patient.yaml'), '--trials', '2'])]:
         result = subprocess.run(
             ['rosrun', 'pedicle_drilling', 'campaign'] + args +
             ['--seed', '31', '--jobs', '2', '--engine', engine, '--out', str(out / name),
@@ -37,27 +37,29 @@ def campaign(out, engine, port):
     return rows
 
 
-@pytest.mark.skipif(not SLOW, reason='opt-in: PEDICLE_DRILLING_SLOW_TESTS=1 (about 6 min)')
-def test_core_engine_agrees_with_ros_as_well_as_ros_with_itself(tmp_path):
+def raw_stop(row):
+    """The recognizer's stop as its reason names it: (key point, raw sample), or None."""
+    match = re.search(r'key point (\d+).*raw sample (\d+)', row.get('stop_reason') or '')
+    return (int(match.group(1)), int(match.group(2))) if match else None
+
+
+def test_ros_pipeline_runs_the_core_engines_trial(tmp_path):
     core = campaign(tmp_path / 'core', 'core', 14100)
     ros = campaign(tmp_path / 'ros', 'ros', 14300)
-    ros_again = campaign(tmp_path / 'ros_again', 'ros', 14500)
-    pairs_core, core_vs_ros = agreement.compare(ros, core)
-    pairs_ros, ros_vs_ros = agreement.compare(ros, ros_again)
-    text = (agreement.markdown(pairs_core, core_vs_ros, 'ros', 'core') + '\n' +
-            agreement.markdown(pairs_ros, ros_vs_ros, 'ros', 'ros (second run)'))
+    pairs, figures = agreement.compare(ros, core)
+    text = agreement.markdown(pairs, figures, 'ros', 'core')
     print(text)
     artifacts = os.environ.get('PEDICLE_DRILLING_ARTIFACTS')
     if artifacts:
         os.makedirs(artifacts, exist_ok=True)
         with open(os.path.join(artifacts, 'engine_agreement.md'), 'w') as handle:
             handle.write(text)
-    assert core_vs_ros['paired'] == ros_vs_ros['paired'] == 50
-    n = core_vs_ros['paired']
-    differ_core = n - core_vs_ros['same_outcome']
-    differ_ros = n - ros_vs_ros['same_outcome']
-    p = fisher_exact([[differ_core, n - differ_core], [differ_ros, n - differ_ros]],
-                     alternative='greater')[1]
-    print('outcomes differ: core vs ros %d of %d, ros vs ros %d of %d; one-sided Fisher p = %.3g'
-          % (differ_core, n, differ_ros, n, p))
-    assert p >= 0.01, text
+    assert figures['paired'] == 8
+    for a, b in pairs:
+        assert not a.get('error') and not b.get('error'), (a.get('error'), b.get('error'))
+        assert not a.get('lockstep_timeouts'), \
+            '%s: a lockstep participant missed %s steps' % (a['trial_id'], a['lockstep_timeouts'])
+        assert agreement.outcome(a) == agreement.outcome(b), a['trial_id']
+        assert raw_stop(a) == raw_stop(b), (a['trial_id'], a['stop_reason'], b['stop_reason'])
+        assert abs(a['residual_mm'] - b['residual_mm']) <= RESIDUAL_TOLERANCE_MM, \
+            (a['trial_id'], a['residual_mm'], b['residual_mm'])

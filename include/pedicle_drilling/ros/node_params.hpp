@@ -45,6 +45,14 @@ struct SimulatorNodeParams {
   /// Wall seconds the simulator waits, while a trial streams trajectories, rather than step past
   /// the end of the last one it received (sim time waits for the planner); 0: never waits.
   double command_wait_s = 1.0;
+  double lockstep_timeout_s = 5.0;  ///< wall time to wait for a lockstep participant
+  /// Under the lockstep: sim time from a command's step to its effect on the arm or spindle
+  /// (the engine's command_to_arm_s; re-read at every reset).
+  double command_delay_s = 1e-3;
+  /// Under the lockstep: extra command delay, uniform in [0, this] per command, drawn from the
+  /// trial's seed as the engine draws it (the order kept).
+  double command_jitter_s = 0.0;
+  double tracker_delay_s = 0.0;  ///< tracker/marker_pose published this much later (stamp kept)
   double joint_state_rate_hz = 100.0;   ///< joint_states rate
   double tf_rate_hz = 100.0;            ///< tf rate
   double ground_truth_rate_hz = 100.0;  ///< simulator/ground_truth rate

@@ -621,4 +621,40 @@ void TrialSequencer::startRetreat(double now, const std::string& why) {
   resendFromNow(now);
 }
 
+void TrialSequencer::onTimer(TimerRequest::Kind kind, double now) {
+  switch (kind) {
+    case TimerRequest::Kind::kPoseReached:
+      onPoseReached(now);
+      break;
+    case TimerRequest::Kind::kRegistrationTimeout:
+      onRegistrationTimeout(now);
+      break;
+    case TimerRequest::Kind::kSegment:
+      onSegmentTimer(now);
+      break;
+  }
+}
+
+void SequencerTimers::apply(const SequencerOutput& out, double now) {
+  if (out.stop_timers) timers_.clear();
+  for (const TimerRequest& r : out.start_timers) {
+    timers_.push_back({r.kind, now + r.delay_s, r.periodic ? r.delay_s : 0.0});
+  }
+}
+
+std::optional<TimerRequest::Kind> SequencerTimers::popDue(double now) {
+  auto best = timers_.end();
+  for (auto it = timers_.begin(); it != timers_.end(); ++it) {
+    if (it->due <= now + 1e-9 && (best == timers_.end() || it->due < best->due)) best = it;
+  }
+  if (best == timers_.end()) return std::nullopt;
+  const TimerRequest::Kind kind = best->kind;
+  if (best->period > 0.0) {
+    best->due += best->period;
+  } else {
+    timers_.erase(best);
+  }
+  return kind;
+}
+
 }  // namespace pedicle_drilling::core

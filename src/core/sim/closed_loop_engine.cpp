@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <sstream>
@@ -24,6 +25,8 @@ void EngineDelays::validate() const {
   check(force_to_recognizer_s, "force_to_recognizer_s");
   check(stop_to_planner_s, "stop_to_planner_s");
   check(command_to_arm_s, "command_to_arm_s");
+  check(command_jitter_s, "command_jitter_s");
+  check(tracker_to_pipeline_s, "tracker_to_pipeline_s");
 }
 
 namespace {
@@ -45,19 +48,21 @@ struct Event {
   std::function<void()> handle;
 };
 
-/** @brief A timer the sequencer asked for. */
-struct Timer {
-  TimerRequest::Kind kind;
-  double due;
-  double period;  // 0: one shot
-};
-
 /** @brief The trial's start phase in [0, 1): its own stream of the seed. */
 double startPhaseFraction(std::uint64_t seed) {
   return uniformFromSeed(seed + 0x5851f42d4c957f2dULL);
 }
 
 }  // namespace
+
+double commandJitterFraction(std::uint64_t seed, std::uint64_t index) {
+  return uniformFromSeed((seed + 0x9e3779b97f4a7c15ULL) * 0xbf58476d1ce4e5b9ULL + index);
+}
+
+double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s, double breath_s,
+                      bool draw_phase) {
+  return reset_time + pre_trial_s + (draw_phase ? startPhaseFraction(seed) * breath_s : 0.0);
+}
 
 const char* toString(TrialProtocol protocol) {
   return protocol == TrialProtocol::kPeakForces ? "peak_forces" : "recognition";
@@ -84,7 +89,7 @@ struct ClosedLoopEngine::Impl {
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
-  std::vector<Timer> timers;
+  SequencerTimers timers;
   EngineTrialRecord record;
   long last_breath_index = -1;
   double now = 0.0;
@@ -96,6 +101,19 @@ struct ClosedLoopEngine::Impl {
   bool fault_pending = false;                 // triggered, waiting for the next breath or command
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
+
+  // Transport (config.delays): the trial's seed for the command jitter, the commands sent so
+  // far and the latest one's delivery time; the tracker samples in transit.
+  std::uint64_t seed = 0;
+  std::uint64_t command_count = 0;
+  double last_command_due = 0.0;
+  struct DelayedMarker {
+    double due;
+    double stamp;
+    Eigen::Vector3d position;
+    Eigen::Quaterniond orientation;
+  };
+  std::deque<DelayedMarker> delayed_markers;
 
   // The protocol and the ground-truth peaks (record.truth_peak_*).
   TrialProtocol protocol = TrialProtocol::kRecognition;
@@ -198,29 +216,8 @@ struct ClosedLoopEngine::Impl {
   }
 
   void fireTimers() {
-    for (;;) {
-      auto best = timers.end();
-      for (auto it = timers.begin(); it != timers.end(); ++it) {
-        if (it->due <= now + 1e-9 && (best == timers.end() || it->due < best->due)) best = it;
-      }
-      if (best == timers.end()) return;
-      const TimerRequest::Kind kind = best->kind;
-      if (best->period > 0.0) {
-        best->due += best->period;
-      } else {
-        timers.erase(best);
-      }
-      switch (kind) {
-        case TimerRequest::Kind::kPoseReached:
-          sequencer->onPoseReached(now);
-          break;
-        case TimerRequest::Kind::kRegistrationTimeout:
-          sequencer->onRegistrationTimeout(now);
-          break;
-        case TimerRequest::Kind::kSegment:
-          sequencer->onSegmentTimer(now);
-          break;
-      }
+    while (const std::optional<TimerRequest::Kind> kind = timers.popDue(now)) {
+      sequencer->onTimer(*kind, now);
       carryOut();
     }
   }
@@ -231,11 +228,11 @@ struct ClosedLoopEngine::Impl {
     for (const std::string& why : out.stops) {
       record.stops.push_back({now, "/compensation_planner", why, true});
     }
-    const double delay = config.delays.command_to_arm_s;
     for (double rpm : out.spindle_rpm) {
-      send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
+      send(commandDelay(), [this, rpm]() { sim->commandSpindle(rpm); });
     }
     for (JointTrajectoryCommand& c : out.trajectories) {
+      const double delay = commandDelay();
       const double extra = commandFault();
       if (extra < 0.0) continue;  // lost
       TrajectoryCommand command;
@@ -263,10 +260,17 @@ struct ClosedLoopEngine::Impl {
       }
       last_phase = p;
     }
-    if (out.stop_timers) timers.clear();
-    for (const TimerRequest& r : out.start_timers) {
-      timers.push_back({r.kind, now + r.delay_s, r.periodic ? r.delay_s : 0.0});
-    }
+    timers.apply(out, now);
+  }
+
+  /** @brief The next command's delay: command_to_arm_s, its jitter, and never before the
+   *         command sent before it (the arm's commands keep their order). */
+  double commandDelay() {
+    const EngineDelays& d = config.delays;
+    if (d.command_jitter_s <= 0.0) return d.command_to_arm_s;
+    const double jitter = d.command_jitter_s * commandJitterFraction(seed, command_count++);
+    last_command_due = std::max(now + d.command_to_arm_s + jitter, last_command_due);
+    return last_command_due - now;
   }
 
   void evaluateMonitor() {
@@ -309,12 +313,32 @@ struct ClosedLoopEngine::Impl {
     }
   }
 
+  /** @brief A tracker sample: to the pipeline now, or tracker_to_pipeline_s later (its stamp
+   *         kept), handled where a sample is (before the step's timers). */
   void onMarker() {
     const Eigen::Isometry3d pose = sim->measureMarkerPose();
     Eigen::Vector3d marker = pose.translation();
     Eigen::Quaterniond orientation(pose.linear());
     double stamp = now;
     if (!injector.trackedPose(&marker, &orientation, &stamp)) return;  // silent tracker
+    if (config.delays.tracker_to_pipeline_s <= 0.0) {
+      deliverMarker(stamp, marker, orientation);
+      return;
+    }
+    delayed_markers.push_back(
+        {now + config.delays.tracker_to_pipeline_s, stamp, marker, orientation});
+  }
+
+  void deliverDelayedMarkers() {
+    while (!delayed_markers.empty() && delayed_markers.front().due <= now + 1e-9) {
+      const DelayedMarker m = delayed_markers.front();
+      delayed_markers.pop_front();
+      deliverMarker(m.stamp, m.position, m.orientation);
+    }
+  }
+
+  void deliverMarker(double stamp, const Eigen::Vector3d& marker,
+                     const Eigen::Quaterniond& orientation) {
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
@@ -345,6 +369,25 @@ struct ClosedLoopEngine::Impl {
     record.last_truth = g;
   }
 
+  /**
+   * @brief The planner's trial-start chain (~trial_start_services of the pipeline): the
+   *        simulator's start_trial, then the recognizer's and the monitor's resets. The reset
+   *        recognizer announces its cleared state, as the StateRecognizer nodelet publishes it.
+   */
+  void startComponents() {
+    sim->startTrial();
+    recognizer->reset();
+    const RecognizerOutput& r = recognizer->output();
+    const std::string name = toString(r.state);
+    const int kp = r.last_key_point;
+    const bool stop = r.stop;
+    send(config.delays.stop_to_planner_s, [this, stop, name, kp]() {
+      sequencer->onRecognizerState(now, stop, name, kp);
+      carryOut();
+    });
+    monitor->reset();
+  }
+
   /** @brief One 1 ms physics step and everything the pipeline does in it. */
   void step(std::uint64_t n) {
     const SimulationStep s = sim->stepOnce();
@@ -370,6 +413,7 @@ struct ClosedLoopEngine::Impl {
     }
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
     if (sim->trackerDue(tracker_period)) onMarker();
+    deliverDelayedMarkers();
     if (n % tidal_period == 0) onTidalVolume();
     if (n % check_period == 0) {
       monitor->check(now);
@@ -453,6 +497,10 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.fault_pending = false;
   s.fault_breath_index = -1;
   s.injector = FaultInjector(s.config.faults);
+  s.seed = spec.seed;
+  s.command_count = 0;
+  s.last_command_due = 0.0;
+  s.delayed_markers.clear();
   s.injector.arm(spec.fault);
   s.protocol = spec.protocol;
   s.protocol_stopped = false;
@@ -479,10 +527,9 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   // contact at the same phase.
   const double breath_s = 60.0 / s.record.conditions.ventilator_rate_bpm;
   const double t_start =
-      s.now + s.config.pre_trial_s +
-      (s.config.draw_start_phase ? startPhaseFraction(spec.seed) * breath_s : 0.0);
+      trialStartTime(spec.seed, s.now, s.config.pre_trial_s, breath_s, s.config.draw_start_phase);
   while (s.now < t_start - 1e-9) s.step(++n);
-  s.sim->startTrial();
+  s.startComponents();
   TrialRequest request;
   request.mode = spec.mode;
   request.spindle_rpm = spec.spindle_rpm;

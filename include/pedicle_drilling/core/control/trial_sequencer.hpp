@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -174,6 +175,34 @@ struct SequencerOutput {
   bool empty() const;
 };
 
+/**
+ * @brief The timers a TrialSequencer asked for, run on explicit time: the closed-loop engine's
+ *        and, under the simulator's lockstep, the CompensationPlanner nodelet's (one rule, so
+ *        that both fire the same timer at the same step).
+ */
+class SequencerTimers {
+ public:
+  /** @brief Applies an output's timer requests made at `now` (stop_timers first). */
+  void apply(const SequencerOutput& out, double now);
+  /**
+   * @brief The earliest timer due at `now` (1e-9 s of rounding allowed), advanced by its period
+   *        or removed when one-shot; nullopt when none is due.
+   */
+  std::optional<TimerRequest::Kind> popDue(double now);
+  /** @brief Forget every timer. */
+  void clear() { timers_.clear(); }
+  /** @brief No timer is pending. */
+  bool empty() const { return timers_.empty(); }
+
+ private:
+  struct Timer {
+    TimerRequest::Kind kind;
+    double due;
+    double period;  // 0: one shot
+  };
+  std::vector<Timer> timers_;
+};
+
 /** @brief Makes the compensator of a trial (issue 17); configured, one per trial. */
 using CompensatorFactory = std::function<std::unique_ptr<CompensatorInterface>()>;
 
@@ -258,6 +287,8 @@ class TrialSequencer {
 
   /** @brief Take (and clear) what the calls since the last take produced. */
   SequencerOutput takeOutput();
+  /** @brief Calls the on*() method of a timer that fired (SequencerTimers::popDue). */
+  void onTimer(TimerRequest::Kind kind, double now);
 
  private:
   struct ResolvedRequest {

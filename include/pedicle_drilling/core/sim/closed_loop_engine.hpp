@@ -36,9 +36,31 @@ struct EngineDelays {
   double force_to_recognizer_s = 0.0;  ///< ft_sensor/wrench -> StateRecognizer
   double stop_to_planner_s = 1e-3;     ///< drill/stop and drilling_state -> CompensationPlanner
   double command_to_arm_s = 1e-3;      ///< arm_controller/command and spindle -> controller
+  /** @brief Extra command delay, uniform in [0, command_jitter_s] per command, drawn from the
+   *         trial's seed (commandJitterFraction); commands keep their order (TCP). */
+  double command_jitter_s = 0.0;
+  /** @brief tracker/marker_pose -> planner and monitor (the sample keeps its stamp). */
+  double tracker_to_pipeline_s = 0.0;
   /** @brief Check every field (finite, in [0, 1] s). @throws std::invalid_argument naming it. */
   void validate() const;
 };
+
+/**
+ * @brief The sim time at which a trial of `seed` starts after a reset at `reset_time`:
+ *        `pre_trial_s` later, then a breath phase drawn from the seed (uniform over one breath
+ *        of `breath_s`) unless `draw_phase` is false. The engine's rule, and the Simulator
+ *        nodelet's hold (ResetSimulation's pre_trial_s), so that both start a seed's trial at the
+ *        same step.
+ */
+double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s, double breath_s,
+                      bool draw_phase);
+
+/**
+ * @brief The `index`-th command's jitter of the trial of `seed`, as a fraction in [0, 1) of
+ *        EngineDelays::command_jitter_s: its own stream of the seed, drawn in the order the
+ *        commands are sent, by the engine and by the Simulator nodelet (~command_jitter_s).
+ */
+double commandJitterFraction(std::uint64_t seed, std::uint64_t index);
 
 /** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
 struct EngineConfig {

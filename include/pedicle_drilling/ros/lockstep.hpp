@@ -1,0 +1,94 @@
+/**
+ * @file lockstep.hpp
+ * @brief The simulator's lockstep (README "Lockstep"; issue 28): with the global parameter
+ *        /use_sim_lockstep true, the Simulator publishes `simulator/step` (rosgraph_msgs/Clock)
+ *        after each physics step's messages and steps again only when every participant has
+ *        answered it on `simulator/step_ack` (pedicle_drilling/StepAck). A participant's step
+ *        callback runs after the step's simulator messages (one nodelet manager: its callback
+ *        queue is FIFO), so sim time never runs ahead of the nodes, and a loaded machine
+ *        changes wall time, not the trial: the pipeline's trial of a seed is the core engine's.
+ *
+ * What a participant receives from another participant (a stop, a recognizer state, a predicted
+ * pose) is handled at the first step after the one it was sent in (defer()), in stamp order,
+ * whichever thread delivered it first: the engine's 1 ms transport, the same in every run.
+ */
+#pragma once
+
+#include <ros/ros.h>
+#include <rosgraph_msgs/Clock.h>
+
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+namespace pedicle_drilling {
+
+/**
+ * @brief Reads /use_sim_lockstep (bool, default false).
+ * @throws std::invalid_argument naming the parameter when it is set to something else.
+ */
+bool useSimLockstep();
+
+/** @brief A node's side of the lockstep; inert (wall or /clock time) when it is off. */
+class LockstepParticipant {
+ public:
+  /** @brief Called at each step with its sim time, before the deferred messages due then. */
+  using StepFn = std::function<void(const ros::Time& t)>;
+
+  /**
+   * @brief Subscribes `simulator/step` on @p nh's callback queue (the nodelet's: FIFO with its
+   *        other subscriptions) and advertises `simulator/step_ack`, when /use_sim_lockstep.
+   * @param node the name in the answers (the nodelet's name).
+   * @param deferred_first handle the messages sent in earlier steps before @p on_step (the
+   *        engine's order for the safety monitor: a predicted pose, then the step's check);
+   *        false: after it (the planner's: the step's timers, then the stops delivered).
+   */
+  LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
+                      bool deferred_first = false);
+
+  /** @brief Whether the lockstep is on. */
+  bool enabled() const { return enabled_; }
+
+  /**
+   * @brief The node's clock: under the lockstep the latest step or simulator stamp it has
+   *        handled (so the step's messages see the step's time before its step callback); else
+   *        ros::Time::now().
+   */
+  ros::Time now() const;
+
+  /** @brief A simulator message stamped @p stamp is being handled (its step is now). */
+  void observe(const ros::Time& stamp);
+
+  /**
+   * @brief Under the lockstep, keeps @p handle until the first step later than @p stamp (the
+   *        sender's step) and returns true; then handles such messages in (stamp, rank, arrival)
+   *        order. Off: returns false (the caller handles the message now).
+   * @param rank orders messages of the same stamp from different publishers (lower first).
+   */
+  bool defer(const ros::Time& stamp, int rank, std::function<void()> handle);
+
+ private:
+  struct Deferred {
+    ros::Time stamp;
+    int rank;
+    std::uint64_t seq;
+    std::function<void()> handle;
+  };
+  void onStep(const rosgraph_msgs::Clock::ConstPtr& msg);
+
+  bool enabled_ = false;
+  bool deferred_first_ = false;
+  std::string node_;
+  StepFn on_step_;
+  mutable std::mutex mutex_;
+  ros::Time last_step_;
+  ros::Time last_seen_;
+  std::vector<Deferred> deferred_;
+  std::uint64_t seq_ = 0;
+  ros::Subscriber step_sub_;
+  ros::Publisher ack_pub_;
+};
+
+}  // namespace pedicle_drilling

@@ -1,0 +1,84 @@
+/**
+ * @file lockstep.cpp
+ * @brief LockstepParticipant (lockstep.hpp).
+ */
+#include "pedicle_drilling/ros/lockstep.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+#include <utility>
+
+#include "pedicle_drilling/StepAck.h"
+
+namespace pedicle_drilling {
+
+bool useSimLockstep() {
+  XmlRpc::XmlRpcValue value;
+  if (!ros::param::get("/use_sim_lockstep", value)) return false;
+  if (value.getType() != XmlRpc::XmlRpcValue::TypeBoolean) {
+    throw std::invalid_argument("/use_sim_lockstep: must be true or false");
+  }
+  return static_cast<bool>(value);
+}
+
+LockstepParticipant::LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
+                                         bool deferred_first)
+    : enabled_(useSimLockstep()),
+      deferred_first_(deferred_first),
+      node_(std::move(node)),
+      on_step_(std::move(on_step)) {
+  if (!enabled_) return;
+  ack_pub_ = nh.advertise<StepAck>("simulator/step_ack", 10);
+  step_sub_ = nh.subscribe("simulator/step", 10, &LockstepParticipant::onStep, this,
+                           ros::TransportHints().tcpNoDelay());
+}
+
+ros::Time LockstepParticipant::now() const {
+  if (!enabled_) return ros::Time::now();
+  std::lock_guard<std::mutex> lock(mutex_);
+  return std::max(last_step_, last_seen_);
+}
+
+void LockstepParticipant::observe(const ros::Time& stamp) {
+  if (!enabled_) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  last_seen_ = std::max(last_seen_, stamp);
+}
+
+bool LockstepParticipant::defer(const ros::Time& stamp, int rank, std::function<void()> handle) {
+  if (!enabled_) return false;
+  std::lock_guard<std::mutex> lock(mutex_);
+  deferred_.push_back({stamp, rank, seq_++, std::move(handle)});
+  return true;
+}
+
+void LockstepParticipant::onStep(const rosgraph_msgs::Clock::ConstPtr& msg) {
+  const ros::Time t = msg->clock;
+  std::vector<Deferred> due;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    last_step_ = std::max(last_step_, t);
+    // Sent in an earlier step: everything sent then is here (the simulator waited for its
+    // sender's answer before this step). What was sent in this step waits for the next one.
+    const auto sent_before = [&t](const Deferred& d) { return d.stamp < t; };
+    std::stable_partition(deferred_.begin(), deferred_.end(),
+                          [&](const Deferred& d) { return !sent_before(d); });
+    const auto first_due = std::find_if(deferred_.begin(), deferred_.end(), sent_before);
+    due.assign(std::make_move_iterator(first_due), std::make_move_iterator(deferred_.end()));
+    deferred_.erase(first_due, deferred_.end());
+  }
+  std::sort(due.begin(), due.end(), [](const Deferred& a, const Deferred& b) {
+    if (a.stamp != b.stamp) return a.stamp < b.stamp;
+    if (a.rank != b.rank) return a.rank < b.rank;
+    return a.seq < b.seq;
+  });
+  if (!deferred_first_ && on_step_) on_step_(t);
+  for (const Deferred& d : due) d.handle();
+  if (deferred_first_ && on_step_) on_step_(t);
+  StepAck ack;
+  ack.stamp = t;
+  ack.node = node_;
+  ack_pub_.publish(ack);
+}
+
+}  // namespace pedicle_drilling

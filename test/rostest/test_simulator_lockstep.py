@@ -1,0 +1,115 @@
+#!/usr/bin/python3
+"""Scenario: the simulator's lockstep and its hold at the trial's start.
+
+A participant of this test answers simulator/step, then stops answering: sim time stands at the
+unanswered step; after ~lockstep_timeout_s the simulator drops it (GroundTruth
+lockstep_timeouts) and steps on. A reset with hold_at_trial_start holds sim time at the trial's
+start (pre_trial_s after the reset, plus a breath phase drawn from the seed) until
+simulator/resume."""
+import sys
+import threading
+import time
+import unittest
+
+import rospy
+import rostest
+from rosgraph_msgs.msg import Clock
+from std_srvs.srv import Trigger
+
+from pedicle_drilling.msg import GroundTruth, StepAck
+from pedicle_drilling.srv import ResetSimulation
+
+
+class LockstepTest(unittest.TestCase):
+    def setUp(self):
+        self.cond = threading.Condition()
+        self.clock = None
+        self.truth = None
+        self.last_step = None
+        self.answering = True
+        self.ack = rospy.Publisher('/simulator/step_ack', StepAck, queue_size=100)
+        rospy.Subscriber('/clock', Clock, self.on_clock, queue_size=100)
+        rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=10)
+        rospy.Subscriber('/simulator/step', Clock, self.on_step, queue_size=100)
+
+    def on_clock(self, msg):
+        with self.cond:
+            self.clock = msg.clock.to_sec()
+            self.cond.notify_all()
+
+    def on_truth(self, msg):
+        with self.cond:
+            self.truth = msg
+            self.cond.notify_all()
+
+    def on_step(self, msg):
+        with self.cond:
+            self.last_step = msg.clock
+            answer = self.answering
+            self.cond.notify_all()
+        if answer:
+            self.ack.publish(StepAck(stamp=msg.clock, node='/test_participant'))
+
+    def wait_for(self, predicate, what, bound=60.0):
+        """Waits (on events; the wall bound only ends a broken run) until predicate() holds."""
+        deadline = time.monotonic() + bound
+        with self.cond:
+            while not predicate():
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    self.fail('%s: not reached (clock %r)' % (what, self.clock))
+                self.cond.wait(min(left, 0.2))
+
+    def test_lockstep_waits_drops_and_holds(self):
+        self.wait_for(lambda: self.last_step is not None and self.truth is not None,
+                      'simulator stepping')
+        # Joined once an answer reaches the simulator: sim time then advances with our answers.
+        deadline = time.monotonic() + 30.0
+        while self.ack.get_num_connections() == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        self.assertGreater(self.ack.get_num_connections(), 0, 'the simulator hears no answer')
+        with self.cond:
+            first = self.last_step.to_sec()
+        self.wait_for(lambda: self.last_step.to_sec() > first + 0.05, 'steps answered')
+        # Silent: sim time stands at the step we did not answer.
+        with self.cond:
+            self.answering = False
+        time.sleep(0.3)  # the answers in transit arrive; then one step is left unanswered
+        with self.cond:
+            stalled = self.last_step.to_sec()
+        time.sleep(1.0)  # 4 s of sim time at the real-time factor, were it not waiting
+        with self.cond:
+            self.assertEqual(self.last_step.to_sec(), stalled,
+                             'sim time stepped past a step the participant did not answer')
+        # After ~lockstep_timeout_s (3 s) the simulator drops us and steps on, counted.
+        self.wait_for(lambda: self.last_step.to_sec() > stalled + 0.05, 'stepping on without us')
+        self.wait_for(lambda: self.truth.header.stamp.to_sec() > stalled and
+                      self.truth.lockstep_timeouts >= 1, 'the timeout counted')
+        # The hold at the trial's start (we stay silent: dropped, we do not hold it up).
+        rospy.wait_for_service('/simulator/reset', 10.0)
+        reset = rospy.ServiceProxy('/simulator/reset', ResetSimulation)
+        resume = rospy.ServiceProxy('/simulator/resume', Trigger)
+        reply = reset(seed=7, moving_bone=True, hold_at_trial_start=True, pre_trial_s=0.5)
+        self.assertTrue(reply.success, reply.message)
+        start = reply.trial_start.to_sec()
+        since_reset = start - reply.reset_time.to_sec()
+        breath_s = 60.0 / reply.ventilator_rate_bpm
+        self.assertGreaterEqual(since_reset, 0.5 - 1e-6)
+        self.assertLessEqual(since_reset, 0.5 + breath_s + 1e-6)
+        self.assertGreater(reply.reset_time.to_sec(), stalled, 'sim time went back at the reset')
+        self.wait_for(lambda: self.clock is not None and self.clock >= start - 0.011,
+                      'sim time at the trial start')
+        time.sleep(1.0)  # 4 s of sim time, were it not held
+        with self.cond:
+            # The hold is the first step at or after the drawn start (1 ms steps).
+            self.assertLessEqual(self.last_step.to_sec(), start + 0.001 + 1e-6,
+                                 'sim time ran past the hold')
+            self.assertGreaterEqual(self.last_step.to_sec(), start - 1e-6)
+        answer = resume()
+        self.assertTrue(answer.success, answer.message)
+        self.wait_for(lambda: self.last_step.to_sec() > start + 0.1, 'sim time after resume')
+
+
+if __name__ == '__main__':
+    rospy.init_node('test_simulator_lockstep')
+    rostest.rosrun('pedicle_drilling', 'simulator_lockstep', LockstepTest, sys.argv)
