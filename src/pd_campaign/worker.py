@@ -33,9 +33,12 @@ class TrialRecorder:
     def __init__(self):
         self.clear()
 
-    def clear(self, min_stamp=0.0):
+    def clear(self, min_stamp=0.0, trial_start=0.0):
         # Messages stamped before min_stamp are the previous trial's, still in transit: dropped.
+        # Stops before the trial's start are not the trial's (a monitor that stops between the
+        # reset and the start is reset by the start; the core engine's cannot stop before it).
         self.min_stamp = min_stamp
+        self.trial_start = max(min_stamp, trial_start)
         self.states = []          # (t, averaged_force, feature, state_name, last_key_point)
         self.key_points = []      # (id, t)
         self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact,
@@ -67,7 +70,7 @@ class TrialRecorder:
                            msg.contact, msg.contact_loss_count))
 
     def on_stop(self, msg):
-        if msg.header.stamp.to_sec() < self.min_stamp:
+        if msg.header.stamp.to_sec() < self.trial_start:
             return
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
@@ -151,7 +154,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     # time there (pre_trial_s after the reset, then a breath phase drawn from the seed) until
     # the planner has started it (simulator/resume below).
     reply = _reset(srv, trial, moving, args)
-    recorder.clear(reply.reset_time.to_sec())
+    recorder.clear(reply.reset_time.to_sec(), reply.trial_start.to_sec())
     row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
     row['volunteer_id'] = reply.volunteer_id
     row['amplitude_scale'] = reply.patient_amplitude_scale
@@ -191,7 +194,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
             reply = _reset(srv, trial, moving, args)
         finally:
             rospy.set_param('/simulator/bone_motion_model_path', '')
-        recorder.clear(reply.reset_time.to_sec())
+        recorder.clear(reply.reset_time.to_sec(), reply.trial_start.to_sec())
     bag = start_bag(args, trial) if args.bags else None
     try:
         try:
