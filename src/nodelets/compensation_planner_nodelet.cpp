@@ -198,11 +198,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void onStop(const StopCommand::ConstPtr& msg) {
-    if (lockstep_->defer(msg->header.stamp, stopRank(msg->source),
-                         [this, msg] { handleStop(msg); })) {
-      return;
-    }
-    handleStop(msg);
+    lockstep_->deliver(msg->header.stamp, stopRank(msg->source), [this, msg] { handleStop(msg); });
   }
 
   void handleStop(const StopCommand::ConstPtr& msg) {
@@ -217,18 +213,16 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
     for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
       if (status.name != params_.monitor_status_name) continue;
-      const auto alive = [this] {
+      lockstep_->deliver(msg->header.stamp, 3, [this] {
         std::lock_guard<std::mutex> lock(mutex_);
         sequencer_->onMonitorAlive(now());
-      };
-      if (!lockstep_->defer(msg->header.stamp, 3, alive)) alive();
+      });
       return;
     }
   }
 
   void onDrillingState(const DrillingState::ConstPtr& msg) {
-    if (lockstep_->defer(msg->header.stamp, 0, [this, msg] { handleDrillingState(msg); })) return;
-    handleDrillingState(msg);
+    lockstep_->deliver(msg->header.stamp, 0, [this, msg] { handleDrillingState(msg); });
   }
 
   void handleDrillingState(const DrillingState::ConstPtr& msg) {

@@ -104,8 +104,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   void onPredicted(const geometry_msgs::PoseStamped::ConstPtr& msg) {
-    if (lockstep_->defer(msg->header.stamp, 0, [this, msg] { handlePredicted(msg); })) return;
-    handlePredicted(msg);
+    lockstep_->deliver(msg->header.stamp, 0, [this, msg] { handlePredicted(msg); });
   }
 
   void handlePredicted(const geometry_msgs::PoseStamped::ConstPtr& msg) {
@@ -134,8 +133,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *        (latched); a drift also turns the diagnostics to WARN until ~reset.
    */
   void onPlannerStatus(const TrialStatus::ConstPtr& msg) {
-    if (lockstep_->defer(msg->header.stamp, 1, [this, msg] { handlePlannerStatus(msg); })) return;
-    handlePlannerStatus(msg);
+    lockstep_->deliver(msg->header.stamp, 1, [this, msg] { handlePlannerStatus(msg); });
   }
 
   void handlePlannerStatus(const TrialStatus::ConstPtr& msg) {

@@ -79,8 +79,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       urdf_xml_ = loader.readFile("urdf_path", params.urdf_path);  // a reset builds a new one
       lockstep_ = useSimLockstep();
       lockstep_timeout_s_ = params.lockstep_timeout_s;
-      command_delay_s_ = params.command_delay_s;
-      command_jitter_s_ = params.command_jitter_s;
+      command_transport_ = core::CommandTransport(params.command_delay_s, params.command_jitter_s,
+                                                  static_cast<std::uint64_t>(params.seed));
       tracker_delay_s_ = params.tracker_delay_s;
       // Re-read at every reset; checked here too, so that a bad value refuses the start.
       loadBoneMotionModel(params, loader);
@@ -444,16 +444,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
   }
 
-  /** @brief When a command received now takes effect: ~command_delay_s, its jitter (the
-   *         engine's draw for the trial's seed, commandJitterFraction) and never before the one
-   *         received before it. */
-  double commandDue() {
-    if (command_jitter_s_ <= 0.0) return sim_->time() + command_delay_s_;
-    const double jitter =
-        command_jitter_s_ * core::commandJitterFraction(trial_seed_, command_count_++);
-    last_command_due_ = std::max(sim_->time() + command_delay_s_ + jitter, last_command_due_);
-    return last_command_due_;
-  }
+  /** @brief When a command received now takes effect (the engine's rule, CommandTransport). */
+  double commandDue() { return sim_->time() + command_transport_.delay(sim_->time()); }
 
   /**
    * @brief simulator/start_trial: ground truth measures the relative AP motion from now; a
@@ -648,12 +640,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
     wait_given_up_ = false;
     pending_amplitude_.reset();
     pending_.clear();  // the last trial's commands do not drive this one
-    command_delay_s_ = distribution.command_delay_s;
-    command_jitter_s_ = distribution.command_jitter_s;
+    command_transport_ = core::CommandTransport(distribution.command_delay_s,
+                                                distribution.command_jitter_s, req.seed);
     tracker_delay_s_ = distribution.tracker_delay_s;
-    trial_seed_ = req.seed;
-    command_count_ = 0;
-    last_command_due_ = 0.0;
     delayed_markers_.clear();
     last_breath_index_ = -1;
     last_settings_msg_ = VentilatorSettings();  // the new breathing is announced
@@ -684,12 +673,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::uint64_t reset_generation_ = 0;  ///< counts resets (a hold ends with its simulation)
   bool lockstep_ = false;               ///< /use_sim_lockstep
   double lockstep_timeout_s_ = 5.0;
-  double command_delay_s_ = 1e-3;  ///< under the lockstep (re-read at every reset)
-  double command_jitter_s_ = 0.0;  ///< under the lockstep (re-read at every reset)
-  double tracker_delay_s_ = 0.0;   ///< (re-read at every reset)
-  std::uint64_t trial_seed_ = 0;   ///< the last reset's seed: the jitter's stream
-  std::uint64_t command_count_ = 0;
-  double last_command_due_ = 0.0;
+  core::CommandTransport command_transport_;  ///< under the lockstep (set at every reset)
+  double tracker_delay_s_ = 0.0;              ///< (re-read at every reset)
   std::deque<std::pair<double, geometry_msgs::PoseStamped>> delayed_markers_;
   std::vector<PendingCommand> pending_;  ///< under the lockstep, for the next step
   std::uint32_t lockstep_timeouts_ = 0;

@@ -45,11 +45,13 @@ void LockstepParticipant::observe(const ros::Time& stamp) {
   last_seen_ = std::max(last_seen_, stamp);
 }
 
-bool LockstepParticipant::defer(const ros::Time& stamp, int rank, std::function<void()> handle) {
-  if (!enabled_) return false;
+void LockstepParticipant::deliver(const ros::Time& stamp, int rank, std::function<void()> handle) {
+  if (!enabled_) {
+    handle();
+    return;
+  }
   std::lock_guard<std::mutex> lock(mutex_);
   deferred_.push_back({stamp, rank, seq_++, std::move(handle)});
-  return true;
 }
 
 void LockstepParticipant::onStep(const rosgraph_msgs::Clock::ConstPtr& msg) {

@@ -225,6 +225,27 @@ TEST(ClosedLoopEngine, ATrialStartsAtTheStepTheSimulatorNodeletHoldsFor) {
   EXPECT_DOUBLE_EQ(pd::trialStartTime(7, 2.0, 1.0, breath_s, false), 3.0);
 }
 
+// The command path's transport both engines use: the delay alone without jitter; with it, the
+// seed's draws in sending order, and never a command before the one sent before it.
+TEST(CommandTransport, DelayJitterFromTheSeedAndTheOrderKept) {
+  pd::CommandTransport plain(0.001, 0.0, 7);
+  EXPECT_EQ(plain.delay(1.0), 0.001);
+  pd::CommandTransport a(0.05, 0.2, 7);
+  pd::CommandTransport b(0.05, 0.2, 7);
+  double last_due = 0.0;
+  for (int i = 0; i < 50; ++i) {
+    const double now = 1.0 + 0.001 * i;
+    const double d = a.delay(now);
+    EXPECT_EQ(d, b.delay(now));  // the same seed, the same draws
+    EXPECT_GE(d, 0.05 - 1e-12);
+    EXPECT_LE(d, 0.25 + 1e-12);
+    EXPECT_GE(now + d, last_due - 1e-12);  // never overtakes the one before
+    last_due = now + d;
+  }
+  pd::CommandTransport other(0.05, 0.2, 8);
+  EXPECT_NE(pd::CommandTransport(0.05, 0.2, 7).delay(1.0), other.delay(1.0));
+}
+
 TEST(ClosedLoopEngine, BadConfigurationNamesTheField) {
   pd::EngineConfig c = config();
   c.delays.stop_to_planner_s = -1.0;

@@ -6,52 +6,25 @@ it received; a following trajectory lets it go on, and so does a status that lea
 streaming phases (DONE). The ground truth counts the waits and the trajectories that arrived
 after their own start."""
 import sys
-import threading
 import time
 import unittest
 
 import rospy
 import rostest
-from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from pedicle_drilling.msg import GroundTruth, TrialStatus
+from pedicle_drilling.msg import TrialStatus
+from simulator_events import SimulatorEvents
 
 STEP = 1e-3  # the simulator's physics step
 
 
-class CommandWaitTest(unittest.TestCase):
+class CommandWaitTest(SimulatorEvents, unittest.TestCase):
     def setUp(self):
-        self.cond = threading.Condition()
-        self.clock = None
-        self.clock_stamp = None
-        self.truth = None
-        rospy.Subscriber('/clock', Clock, self.on_clock, queue_size=100)
-        rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=10)
+        self.watch_simulator()
         self.command = rospy.Publisher('/arm_controller/command', JointTrajectory, queue_size=10)
         self.status = rospy.Publisher('/compensation/status', TrialStatus, queue_size=10,
                                       latch=True)
-
-    def on_clock(self, msg):
-        with self.cond:
-            self.clock = msg.clock.to_sec()
-            self.clock_stamp = msg.clock  # exact (ns): the stamps below are built from it
-            self.cond.notify_all()
-
-    def on_truth(self, msg):
-        with self.cond:
-            self.truth = msg
-            self.cond.notify_all()
-
-    def wait_for(self, predicate, what, bound=30.0):
-        """Waits (on events; the wall bound only ends a broken run) until predicate() holds."""
-        deadline = time.monotonic() + bound
-        with self.cond:
-            while not predicate():
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    self.fail('%s: not reached (clock %r)' % (what, self.clock))
-                self.cond.wait(min(left, 0.2))
 
     def publish_status(self, phase):
         msg = TrialStatus()

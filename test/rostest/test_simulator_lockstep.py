@@ -7,7 +7,6 @@ lockstep_timeouts) and steps on. A reset with hold_at_trial_start holds sim time
 start (pre_trial_s after the reset, plus a breath phase drawn from the seed) until
 simulator/resume."""
 import sys
-import threading
 import time
 import unittest
 
@@ -16,31 +15,20 @@ import rostest
 from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
-from pedicle_drilling.msg import GroundTruth, StepAck
+from pedicle_drilling.msg import StepAck
 from pedicle_drilling.srv import ResetSimulation
+from simulator_events import SimulatorEvents
 
 
-class LockstepTest(unittest.TestCase):
+class LockstepTest(SimulatorEvents, unittest.TestCase):
+    WAIT_BOUND_S = 60.0
+
     def setUp(self):
-        self.cond = threading.Condition()
-        self.clock = None
-        self.truth = None
+        self.watch_simulator()
         self.last_step = None
         self.answering = True
         self.ack = rospy.Publisher('/simulator/step_ack', StepAck, queue_size=100)
-        rospy.Subscriber('/clock', Clock, self.on_clock, queue_size=100)
-        rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=10)
         rospy.Subscriber('/simulator/step', Clock, self.on_step, queue_size=100)
-
-    def on_clock(self, msg):
-        with self.cond:
-            self.clock = msg.clock.to_sec()
-            self.cond.notify_all()
-
-    def on_truth(self, msg):
-        with self.cond:
-            self.truth = msg
-            self.cond.notify_all()
 
     def on_step(self, msg):
         with self.cond:
@@ -49,16 +37,6 @@ class LockstepTest(unittest.TestCase):
             self.cond.notify_all()
         if answer:
             self.ack.publish(StepAck(stamp=msg.clock, node='/test_participant'))
-
-    def wait_for(self, predicate, what, bound=60.0):
-        """Waits (on events; the wall bound only ends a broken run) until predicate() holds."""
-        deadline = time.monotonic() + bound
-        with self.cond:
-            while not predicate():
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    self.fail('%s: not reached (clock %r)' % (what, self.clock))
-                self.cond.wait(min(left, 0.2))
 
     def test_lockstep_waits_drops_and_holds(self):
         self.wait_for(lambda: self.last_step is not None and self.truth is not None,

@@ -9,7 +9,7 @@
  *        changes wall time, not the trial: the pipeline's trial of a seed is the core engine's.
  *
  * What a participant receives from another participant (a stop, a recognizer state, a predicted
- * pose) is handled at the first step after the one it was sent in (defer()), in stamp order,
+ * pose) is handled at the first step after the one it was sent in (deliver()), in stamp order,
  * whichever thread delivered it first: the engine's 1 ms transport, the same in every run.
  */
 #pragma once
@@ -62,12 +62,12 @@ class LockstepParticipant {
   void observe(const ros::Time& stamp);
 
   /**
-   * @brief Under the lockstep, keeps @p handle until the first step later than @p stamp (the
-   *        sender's step) and returns true; then handles such messages in (stamp, rank, arrival)
-   *        order. Off: returns false (the caller handles the message now).
+   * @brief A message from another participant: without the lockstep, @p handle runs now; under
+   *        it, at the first step later than @p stamp (the sender's step), with the other such
+   *        messages in (stamp, rank, arrival) order.
    * @param rank orders messages of the same stamp from different publishers (lower first).
    */
-  bool defer(const ros::Time& stamp, int rank, std::function<void()> handle);
+  void deliver(const ros::Time& stamp, int rank, std::function<void()> handle);
 
  private:
   struct Deferred {

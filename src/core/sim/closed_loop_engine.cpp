@@ -59,6 +59,13 @@ double commandJitterFraction(std::uint64_t seed, std::uint64_t index) {
   return uniformFromSeed((seed + 0x9e3779b97f4a7c15ULL) * 0xbf58476d1ce4e5b9ULL + index);
 }
 
+double CommandTransport::delay(double now) {
+  if (jitter_s_ <= 0.0) return delay_s_;
+  const double jitter = jitter_s_ * commandJitterFraction(seed_, count_++);
+  last_due_ = std::max(now + delay_s_ + jitter, last_due_);
+  return last_due_ - now;
+}
+
 double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s, double breath_s,
                       bool draw_phase) {
   return reset_time + pre_trial_s + (draw_phase ? startPhaseFraction(seed) * breath_s : 0.0);
@@ -102,11 +109,9 @@ struct ClosedLoopEngine::Impl {
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
 
-  // Transport (config.delays): the trial's seed for the command jitter, the commands sent so
-  // far and the latest one's delivery time; the tracker samples in transit.
-  std::uint64_t seed = 0;
-  std::uint64_t command_count = 0;
-  double last_command_due = 0.0;
+  // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
+  // the tracker samples in transit.
+  CommandTransport command_transport;
   struct DelayedMarker {
     double due;
     double stamp;
@@ -229,10 +234,10 @@ struct ClosedLoopEngine::Impl {
       record.stops.push_back({now, "/compensation_planner", why, true});
     }
     for (double rpm : out.spindle_rpm) {
-      send(commandDelay(), [this, rpm]() { sim->commandSpindle(rpm); });
+      send(command_transport.delay(now), [this, rpm]() { sim->commandSpindle(rpm); });
     }
     for (JointTrajectoryCommand& c : out.trajectories) {
-      const double delay = commandDelay();
+      const double delay = command_transport.delay(now);
       const double extra = commandFault();
       if (extra < 0.0) continue;  // lost
       TrajectoryCommand command;
@@ -261,16 +266,6 @@ struct ClosedLoopEngine::Impl {
       last_phase = p;
     }
     timers.apply(out, now);
-  }
-
-  /** @brief The next command's delay: command_to_arm_s, its jitter, and never before the
-   *         command sent before it (the arm's commands keep their order). */
-  double commandDelay() {
-    const EngineDelays& d = config.delays;
-    if (d.command_jitter_s <= 0.0) return d.command_to_arm_s;
-    const double jitter = d.command_jitter_s * commandJitterFraction(seed, command_count++);
-    last_command_due = std::max(now + d.command_to_arm_s + jitter, last_command_due);
-    return last_command_due - now;
   }
 
   void evaluateMonitor() {
@@ -497,9 +492,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.fault_pending = false;
   s.fault_breath_index = -1;
   s.injector = FaultInjector(s.config.faults);
-  s.seed = spec.seed;
-  s.command_count = 0;
-  s.last_command_due = 0.0;
+  s.command_transport = CommandTransport(s.config.delays.command_to_arm_s,
+                                         s.config.delays.command_jitter_s, spec.seed);
   s.delayed_markers.clear();
   s.injector.arm(spec.fault);
   s.protocol = spec.protocol;

@@ -62,6 +62,29 @@ double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s,
  */
 double commandJitterFraction(std::uint64_t seed, std::uint64_t index);
 
+/**
+ * @brief The command path's transport, one rule for the engine and the Simulator nodelet: each
+ *        command takes effect `delay_s` after it was sent, plus its jitter (uniform in
+ *        [0, jitter_s], commandJitterFraction of the trial's seed, in sending order), and never
+ *        before the command sent before it (the order kept, as TCP keeps it).
+ */
+class CommandTransport {
+ public:
+  CommandTransport() = default;
+  /** @brief For a trial of `seed`: the draws start again. */
+  CommandTransport(double delay_s, double jitter_s, std::uint64_t seed)
+      : delay_s_(delay_s), jitter_s_(jitter_s), seed_(seed) {}
+  /** @brief The delay of a command sent at `now` (the next draw when there is jitter). */
+  double delay(double now);
+
+ private:
+  double delay_s_ = 1e-3;
+  double jitter_s_ = 0.0;
+  std::uint64_t seed_ = 0;
+  std::uint64_t count_ = 0;
+  double last_due_ = 0.0;
+};
+
 /** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
 struct EngineConfig {
   std::string urdf_xml;                 ///< the workcell (urdf/workcell.urdf)
