@@ -495,7 +495,15 @@ def main(argv=None):
             except subprocess.TimeoutExpired:
                 os.killpg(child.pid, signal.SIGKILL)
 
-    signal.signal(signal.SIGTERM, lambda *_: (shutdown(), sys.exit(143)))
+    def terminate(*_):
+        # Stop the children, then leave at once: an exception raised here (SystemExit) would
+        # surface inside whatever rospy call the main thread was in, and rospy turns some of
+        # those into its own errors, which the trial loop records and goes on past (a master
+        # gone: five trials of 'unable to contact master').
+        shutdown()
+        os._exit(143)
+
+    signal.signal(signal.SIGTERM, terminate)
     devnull = open(os.path.join(log_dir, 'children.log'), 'w')  # not atomic: a live log
     try:
         children.append(subprocess.Popen(['roscore', '-p', str(args.port)], stdout=devnull,
@@ -560,8 +568,11 @@ def main(argv=None):
                 row['engine'] = 'ros'
                 row['success'] = False
                 row['error'] = str(error).replace('\n', ' ')[:300]
+            # A finished trial's line is written whole: SIGTERM waits until it is out.
+            signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
             sys.stdout.write(json.dumps(row) + '\n')
             sys.stdout.flush()
+            signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
     finally:
         shutdown()
         devnull.close()
