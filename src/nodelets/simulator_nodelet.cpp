@@ -42,6 +42,7 @@
 #include "pedicle_drilling/StepAck.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/VentilatorSettings.h"
+#include "pedicle_drilling/core/common/wait_deadline.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
@@ -275,11 +276,22 @@ class SimulatorNodelet : public nodelet::Nodelet {
       }
       return true;
     };
-    const Clock::time_point deadline =
-        Clock::now() + std::chrono::duration_cast<Clock::duration>(
-                           std::chrono::duration<double>(lockstep_timeout_s_));
-    while (running_ && ros::ok() && !answered() && Clock::now() < deadline) {
-      ack_cv_.wait_until(lock, std::min(deadline, Clock::now() + std::chrono::milliseconds(50)));
+    // A freeze of the machine stops this thread and the participants alike: the time this
+    // thread did not run (a wake-up over 0.5 s late) is not counted against them.
+    core::WaitDeadline deadline(Clock::now(),
+                                std::chrono::duration_cast<Clock::duration>(
+                                    std::chrono::duration<double>(lockstep_timeout_s_)),
+                                std::chrono::milliseconds(500));
+    while (running_ && ros::ok() && !answered() && !deadline.expired(Clock::now())) {
+      const Clock::time_point due = deadline.sliceEnd(Clock::now(), std::chrono::milliseconds(50));
+      ack_cv_.wait_until(lock, due);
+      deadline.woke(due, Clock::now());
+    }
+    if (deadline.stalled() > Clock::duration(0)) {
+      NODELET_WARN(
+          "Simulator: this process did not run for %.1f s of wall time at the step at "
+          "%.3f s (a stalled machine); the lockstep's deadline was moved by as much",
+          std::chrono::duration<double>(deadline.stalled()).count(), step.toSec());
     }
     if (!running_ || !ros::ok() || answered()) return;
     for (auto it = participants_.begin(); it != participants_.end();) {

@@ -191,6 +191,29 @@ TEST(JointTrajectoryExecutor, OutOfLimitPositionsAreClampedAndTooFastSegmentsRep
   EXPECT_NE(r.message.find("above its velocity limit 2"), std::string::npos) << r.message;
 }
 
+TEST(JointTrajectoryExecutor, APointARoundingErrorFromTheTakeoverIsAtIt) {
+  // The same late command, its times exact (the core engine) and as they come back from
+  // nanosecond stamps (the pipeline): a point 1e-10 s after the takeover is the point at it,
+  // not a 1e-10 s segment.
+  for (double rounding : {0.0, 1e-10, -1e-10}) {
+    pd::JointTrajectoryExecutor ex = runningRamp();
+    ASSERT_TRUE(ex.command(command({"a"}, 1.0 + rounding,
+                                   {{2.0 + rounding, {-1.0}}, {3.0 + rounding, {0.9}}}),
+                           2.0)
+                    .ok());
+    EXPECT_NEAR(q(ex, 2.0), 0.2, 1e-9) << rounding;  // from the ramp's state, not the point
+    EXPECT_NEAR(q(ex, 2.5), 0.55, 1e-9) << rounding;
+    EXPECT_NEAR(qd(ex, 2.5), 0.7, 1e-6) << rounding;
+  }
+  // A command whose last point is a rounding error after now has arrived at its end.
+  pd::JointTrajectoryExecutor ex = runningRamp();
+  const pd::TargetResult r =
+      ex.command(command({"a"}, 1.0, {{1.5, {0.0}}, {3.0 + 1e-10, {0.8}}}), 3.0);
+  EXPECT_NE(r.message.find("every point lies in the past"), std::string::npos) << r.message;
+  EXPECT_NEAR(q(ex, 3.75), 0.55, 1e-9);  // over its last interval (1.5 s), not at once
+  EXPECT_NEAR(q(ex, 4.6), 0.8, 1e-12);
+}
+
 TEST(JointTrajectoryExecutor, ACommandThatArrivesAfterItsEndGoesToItsFinalPoint) {
   pd::JointTrajectoryExecutor ex = runningRamp();
   const pd::TargetResult r = ex.command(command({"a"}, 1.0, {{1.5, {0.0}}, {2.0, {0.8}}}), 3.0);

@@ -10,6 +10,11 @@ namespace pedicle_drilling::core {
 
 namespace {
 
+// Times within this of each other are one time: a stamp that crossed ROS (nanoseconds) or
+// another machine's clock is never exactly the double it was made from, and a point a rounding
+// error after the takeover would otherwise be a spline segment of 1e-10 s (unbounded speed).
+constexpr double kSameTime = 1e-6;
+
 /** @brief Position, velocity and acceleration of one joint on one segment at s in [0, h]. */
 struct Scalar {
   double q, v, a;
@@ -201,7 +206,7 @@ TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, 
   const TargetResult valid = validate(command, &map);
   if (!valid.ok()) return valid;
   const double last_t = command.points.back().time_s;
-  if (last_t <= now) {
+  if (last_t <= now + kSameTime) {
     // A streamed command that arrived after its own end (a late message, e.g. when sim time
     // runs faster than the planner can follow): go to its final point over the duration of its
     // last interval, instead of dropping it and leaving the joints on an outdated reference.
@@ -222,9 +227,10 @@ TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, 
     }
     return result;
   }
-  const double takeover = std::isfinite(command.start_time_s) && command.start_time_s > now
-                              ? std::min(command.start_time_s, last_t)
-                              : now;
+  const double takeover =
+      std::isfinite(command.start_time_s) && command.start_time_s > now + kSameTime
+          ? std::min(command.start_time_s, last_t)
+          : now;
   const auto state_knot = [this](double t) {
     const TrajectoryState st = sample(t);
     Knot k;
@@ -237,7 +243,7 @@ TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, 
   std::vector<Knot> knots{state_knot(now)};
   if (takeover > now) {
     for (const Knot& k : knots_) {
-      if (k.t > now && k.t < takeover) knots.push_back(k);
+      if (k.t > now + kSameTime && k.t < takeover - kSameTime) knots.push_back(k);
     }
     Knot at = state_knot(takeover);
     // The old segment that contains the takeover keeps its spline up to it (after the old end:
@@ -254,7 +260,7 @@ TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, 
   TargetResult result;
   const auto n = static_cast<Eigen::Index>(names_.size());
   for (const TrajectoryPoint& pt : command.points) {
-    if (pt.time_s <= takeover) continue;  // already due: dropped
+    if (pt.time_s <= takeover + kSameTime) continue;  // already due: dropped
     Knot k;
     k.t = pt.time_s;
     k.q = knots.back().q;  // joints not named keep their reference

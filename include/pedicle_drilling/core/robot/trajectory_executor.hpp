@@ -20,6 +20,11 @@
  *  - Positions outside the joint limits are clamped, and a segment faster than a joint's
  *    velocity limit is reported (kClamped): the joint's servo follows at its limit.
  *
+ * Times within 1 us of each other are one time (a point "at" the takeover is dropped, a start
+ * "at" now is now): a stamp that went through ROS's nanoseconds or another machine's clock is
+ * never exactly the double it was made from, and a point 1e-10 s after the takeover would make a
+ * segment of unbounded speed. The core engine (exact doubles) and the pipeline (stamps) agree.
+ *
  * Beyond ros_control (which rejects a trajectory whose points all lie in the past): a streamed
  * command that arrives after its own end goes to its final point over its last interval.
  */
