@@ -21,6 +21,7 @@ PACKAGES=(
   python3-numpy python3-scipy python3-yaml python3-pywt python3-matplotlib python3-pytest
   xvfb xauth x11-utils imagemagick liburdfdom-tools libgl1-mesa-dri mesa-utils
   clang-14 libfuzzer-14-dev libclang-rt-14-dev clang-format-14
+  slurm-wlm munge
 )
 missing=()
 for p in "${PACKAGES[@]}"; do
