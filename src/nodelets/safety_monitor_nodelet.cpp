@@ -24,6 +24,7 @@
 #include "pedicle_drilling/RetareCheck.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
+#include "pedicle_drilling/core/common/stream_stats.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
@@ -86,6 +87,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
+    force_stats_.observe(msg->header.stamp.toSec(), now());
     const auto& f = msg->wrench.force;
     supervisor_->onForce(now(), Eigen::Vector3d(f.x, f.y, f.z));
     evaluate();
@@ -99,6 +101,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onTracked(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
+    tracker_stats_.observe(msg->header.stamp.toSec(), now());
     warnIfMismatch(supervisor_->onTracked(now(), toPosition(*msg)));
     evaluate();
   }
@@ -141,7 +144,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     supervisor_->setTrialRunning(msg->running);
     const bool retreat_ended =
         msg->phase == TrialStatus::DONE && last_phase_ == TrialStatus::RETREATING;
+    const bool trial_ended = msg->phase == TrialStatus::DONE && last_phase_ != TrialStatus::DONE;
     last_phase_ = msg->phase;
+    // At the trial's end (after the re-tare check when it retreated): the trial's inputs as
+    // received, complete (the campaign records them).
+    if (trial_ended && !retreat_ended) publishDiagnostics();
     if (!retreat_ended) return;
     const core::RetareCheck check = supervisor_->retareCheck(now());
     RetareCheck result;
@@ -157,12 +164,12 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (!check.done) {
       NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
     } else if (check.drift) {
-      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());
-      publishDiagnostics();
+      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());  // WARN below, until ~reset
     } else {
       NODELET_INFO("SafetyMonitor: re-tare check: %.3f N from the tare after the retreat",
                    check.offset_n);
     }
+    publishDiagnostics();
   }
 
   /** @brief Under the lockstep: the check when the step is on the check grid, diagnostics every
@@ -227,6 +234,21 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     kv.key = "reason";
     kv.value = core::toString(v.reason);
     status.values.push_back(kv);
+    // Each input stream as this monitor received it since ~reset: samples, samples missing
+    // (gaps in the stamps), the largest delay from stamp to handling.
+    const auto add = [&status](const std::string& key, const std::string& value) {
+      diagnostic_msgs::KeyValue item;
+      item.key = key;
+      item.value = value;
+      status.values.push_back(item);
+    };
+    for (const auto& [name, stats] :
+         {std::pair<std::string, const core::StreamStats*>("force", &force_stats_),
+          {"tracker", &tracker_stats_}}) {
+      add(name + "_samples", std::to_string(stats->count()));
+      add(name + "_samples_missing", std::to_string(stats->missing()));
+      add(name + "_delay_max_ms", std::to_string(1e3 * stats->maxDelay()));
+    }
     if (last_retare_ && last_retare_->done) {
       diagnostic_msgs::KeyValue offset;
       offset.key = "retare_offset_n";
@@ -242,6 +264,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     const std::string previous = core::toString(supervisor_->verdict().reason);
     supervisor_->reset();
     last_retare_.reset();
+    force_stats_.reset();
+    tracker_stats_.reset();
     publishDiagnostics();
     response.success = true;
     response.message = "monitor reset (previous verdict: " + previous + ")";
@@ -256,6 +280,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   ros::Time next_diagnostics_;                   ///< under the lockstep
   std::uint8_t last_phase_ = TrialStatus::IDLE;  ///< the planner's phase before the latest
   ros::Publisher retare_pub_;
+  core::StreamStats force_stats_;           ///< the F/T stream since ~reset
+  core::StreamStats tracker_stats_;         ///< the tracker stream since ~reset
   std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;

@@ -48,6 +48,7 @@ class TrialRecorder:
         self.status = []          # (t, phase name)
         self.phase = None         # the latest TrialStatus phase (ROS engine)
         self.retare = None        # the monitor's re-tare check when the retreat ended
+        self.inputs = None        # (t, {key: value}): the monitor's input streams, latest
         self._last_kp = 0
 
     def on_state(self, msg):
@@ -80,6 +81,15 @@ class TrialRecorder:
             self.retare = {'t': msg.header.stamp.to_sec(), 'drift': msg.drift,
                            'offset_n': msg.offset_n, 'message': msg.message}
 
+    def on_diagnostics(self, msg):
+        """/diagnostics: the SafetyMonitor's status carries its input streams as received."""
+        t = msg.header.stamp.to_sec()
+        if t < self.min_stamp:
+            return
+        for status in msg.status:
+            if status.name.endswith(': monitor'):
+                self.inputs = (t, {kv.key: kv.value for kv in status.values})
+
     def on_status(self, msg):
         """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
         if msg.header.stamp.to_sec() < self.min_stamp:
@@ -97,6 +107,30 @@ def retare_columns(retare):
     if not retare:
         return {'retare_offset_n': None, 'drift_detected': False}
     return {'retare_offset_n': retare.get('offset_n'), 'drift_detected': bool(retare['drift'])}
+
+
+INPUT_COLUMNS = ('force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms',
+                 'tracker_samples_missing')
+
+
+def input_columns(inputs):
+    """The SafetyMonitor's input streams in the trial (its diagnostics at the trial's end): the
+    largest delay from a sample's stamp to its handling and the samples missing from the
+    stamps' gaps, for the F/T sensor and the tracker. None when not recorded (the core engine,
+    whose delays are its configuration)."""
+    if inputs is None:
+        return dict.fromkeys(INPUT_COLUMNS)
+    values = inputs[1]
+
+    def number(key, kind):
+        try:
+            return kind(float(values[key]))
+        except (KeyError, ValueError):
+            return None
+    return {'force_delay_max_ms': number('force_delay_max_ms', float),
+            'force_samples_missing': number('force_samples_missing', int),
+            'tracker_delay_max_ms': number('tracker_delay_max_ms', float),
+            'tracker_samples_missing': number('tracker_samples_missing', int)}
 
 
 TRANSPORT_COLUMNS = ('late_commands', 'max_command_lateness_ms', 'command_waits',
@@ -325,6 +359,11 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
         time.sleep(0.01)
     if not fresh():
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
+    # The monitor's diagnostics at the trial's end (its input streams, complete).
+    bound = time.time() + 5.0
+    while time.time() < bound and not (recorder.inputs is not None and t_done is not None
+                                        and recorder.inputs[0] >= t_done - 1e-3):
+        time.sleep(0.01)
     # Each topic has its own connection: on a loaded machine the ground truth and the
     # recognizer's states may trail the status that said DONE. Wait until both have reached the
     # trial's end (events: the simulator and the recognizer go on publishing after it), so that
@@ -394,6 +433,7 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
         else None
     row.update(transport_columns(recorder.last_truth))
+    row.update(input_columns(getattr(recorder, 'inputs', None)))
     row.update(retare_columns(getattr(recorder, 'retare', None)))
     with atomic_write(os.path.join(trace_dir, trial['trial_id'] + '.json')) as handle:
         json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
@@ -560,6 +600,9 @@ def main(argv=None):
         rospy.Subscriber('/safety_monitor/retare_check', RetareCheck, recorder.on_retare,
                          queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, recorder.on_status, queue_size=100)
+        from diagnostic_msgs.msg import DiagnosticArray
+        rospy.Subscriber('/diagnostics', DiagnosticArray, recorder.on_diagnostics,
+                         queue_size=100)
         for trial in trials:
             try:
                 row = run_trial(rospy, srv, None, recorder, trial, args, trace_dir)

@@ -59,6 +59,12 @@ def test_ros_pipeline_runs_the_core_engines_trial(tmp_path):
         assert not a.get('error') and not b.get('error'), (a.get('error'), b.get('error'))
         assert not a.get('lockstep_timeouts'), \
             '%s: a lockstep participant missed %s steps' % (a['trial_id'], a['lockstep_timeouts'])
+        # The monitor's inputs as received (its diagnostics at the trial's end): under the
+        # lockstep every F/T and tracker sample arrives, in the step it was stamped in.
+        assert a['force_samples_missing'] == 0 and a['tracker_samples_missing'] == 0, a
+        assert 0.0 <= a['force_delay_max_ms'] <= 1.0, a['force_delay_max_ms']
+        assert 0.0 <= a['tracker_delay_max_ms'] <= 1.0, a['tracker_delay_max_ms']
+        assert b['force_delay_max_ms'] is None  # the core engine: its delays are configured
         assert agreement.outcome(a) == agreement.outcome(b), a['trial_id']
         assert raw_stop(a) == raw_stop(b), (a['trial_id'], a['stop_reason'], b['stop_reason'])
         assert abs(a['residual_mm'] - b['residual_mm']) <= RESIDUAL_TOLERANCE_MM, \
