@@ -68,6 +68,26 @@ void SimulatorNodeParams::validate() const {
 
 // ---------------------------------------------------------------------------------------------
 
+const ParamTable<TfPoseRelayNodeParams>& TfPoseRelayNodeParams::table() {
+  static const ParamTable<TfPoseRelayNodeParams> t = [] {
+    using P = TfPoseRelayNodeParams;
+    ParamTable<P> d;
+    d.text("tracker_frame", &P::tracker_frame).text("marker_frame", &P::marker_frame);
+    return d;
+  }();
+  return t;
+}
+
+void TfPoseRelayNodeParams::validate() const {
+  table().validate(*this);
+  if (tracker_frame == marker_frame) {
+    throw std::invalid_argument("marker_frame: must differ from tracker_frame ('" + tracker_frame +
+                                "')");
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+
 const ParamTable<MotionIdentificationParams>& MotionIdentificationParams::table() {
   static const ParamTable<MotionIdentificationParams> t = [] {
     using P = MotionIdentificationParams;
@@ -240,6 +260,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
   const StateRecognizerNodeParams recognizer;
   const SafetyMonitorNodeParams monitor;
   const FaultInjectorNodeParams faults;
+  const TfPoseRelayNodeParams relay;
   return {
       {"pedicle_drilling/Ventilator", VentilatorNodeParams::table().describe(ventilator)},
       {"pedicle_drilling/Simulator", SimulatorNodeParams::table().describe(simulator)},
@@ -249,6 +270,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
       {"pedicle_drilling/SafetyMonitor", SafetyMonitorNodeParams::table().describe(monitor)},
       {"pedicle_drilling/CompensationPlanner", planner},
       {"pedicle_drilling/FaultInjector", FaultInjectorNodeParams::table().describe(faults)},
+      {"pedicle_drilling/TfPoseRelay", TfPoseRelayNodeParams::table().describe(relay)},
   };
 }
 

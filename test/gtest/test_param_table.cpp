@@ -161,8 +161,9 @@ TEST(NodeParams, EveryDeclarationAcceptsItsDefaults) {
   EXPECT_NO_THROW(pd::SafetyMonitorNodeParams().validate());
   EXPECT_NO_THROW(pd::CompensationPlannerNodeParams().validate());
   EXPECT_NO_THROW(pd::FaultInjectorNodeParams().validate());
+  EXPECT_NO_THROW(pd::TfPoseRelayNodeParams().validate());
   const auto docs = pd::nodeParameterDocs();
-  ASSERT_EQ(docs.size(), 7u);
+  ASSERT_EQ(docs.size(), 8u);
   for (const auto& [node, params] : docs) EXPECT_FALSE(params.empty()) << node;
 }
 
@@ -188,6 +189,9 @@ TEST(NodeParams, ChecksBetweenFieldsNameTheParameter) {
   simulator = pd::SimulatorNodeParams();
   simulator.sim.sensor.output_rate_hz = 300.0;  // not a divisor of the 1000 Hz physics
   EXPECT_EQ(errorOf([&] { simulator.validate(); }).rfind("force_sensor_rate_hz", 0), 0u);
+  pd::TfPoseRelayNodeParams relay;
+  relay.marker_frame = relay.tracker_frame;
+  EXPECT_EQ(errorOf([&] { relay.validate(); }).rfind("marker_frame", 0), 0u);
 }
 
 TEST(NodeParams, TheRecognizerTableServesPluginSettingsToo) {

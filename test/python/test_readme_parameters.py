@@ -25,6 +25,7 @@ CONFIGS = {
     'pedicle_drilling/SafetyMonitor': 'safety_monitor.yaml',
     'pedicle_drilling/CompensationPlanner': 'compensation_planner.yaml',
     'pedicle_drilling/FaultInjector': 'fault_injector.yaml',
+    'pedicle_drilling/TfPoseRelay': 'tf_pose_relay.yaml',
 }
 
 

@@ -35,6 +35,7 @@ NODES = {
     'pedicle_drilling/CompensationPlanner': ('compensation_planner.launch',
                                              'compensation_planner', []),
     'pedicle_drilling/FaultInjector': ('fault_injector.launch', 'fault_injector', []),
+    'pedicle_drilling/TfPoseRelay': ('tf_pose_relay.launch', 'tf_pose_relay', []),
 }
 
 # Parameters whose every value of the right type is valid (no range to leave), with the reason.

@@ -90,6 +90,16 @@ struct MotionIdentificationParams {
   static const core::ParamTable<MotionIdentificationParams>& table();
 };
 
+/** @brief pedicle_drilling/TfPoseRelay: the tracker on tf as a PoseStamped stream. */
+struct TfPoseRelayNodeParams {
+  std::string tracker_frame = "tracker_camera";  ///< frame of the relayed poses
+  std::string marker_frame = "tracker_marker";   ///< the tracked marker's frame
+  /** @brief Checks that the two frames are named and differ. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<TfPoseRelayNodeParams>& table();
+};
+
 /** @brief pedicle_drilling/StateRecognizer. */
 struct StateRecognizerNodeParams {
   std::string axis = "z";             ///< thrust component of the wrench, with sign
