@@ -8,7 +8,8 @@
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
 #      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
-#      rate (scenario_peak_forces.yaml, 200 trials per case)
+#      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench, first stage
+#      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's
 #      (engine_agreement.md)
@@ -41,6 +42,14 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
   --jobs "${JOBS}" --out "${OUT}/campaign_peak_forces"
+# 2d. The realistic bench, first stage (scenario_realistic.yaml, issue 29): the paper's design
+#     on the same specimens with the imperfections the simulator can express at sourced values
+#     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
+#     --benches: McNemar per case and speed).
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/campaign_realistic"
+rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
+  --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
@@ -67,5 +76,6 @@ echo "  ${OUT}/campaign_peak_forces/report.md"
 echo "  ${OUT}/campaign_virtual_patient/report.md"
 echo "  ${OUT}/campaign_hysteresis/report.md"
 echo "  ${OUT}/campaign_faults/report.md"
+echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.md"
 echo "  ${OUT}/engine_agreement.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

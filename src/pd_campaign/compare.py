@@ -8,7 +8,10 @@ residuals; written as Markdown, JSON and a figure.
 
 Two campaigns whose designs differ in anything but the algorithm compared (scenario keys
 `compensation_profile`, `recognizer`, `compensator`, their `*_params`, and the engine) are
-refused: their trials are not the same specimens under the same conditions.
+refused: their trials are not the same specimens under the same conditions. With `--benches`
+the bench may differ too (`bone_motion`, `model`, `simulator`, `simulator_params`,
+`engine_delays`): the same specimens and patients on two benches, e.g. the paper's and the
+realistic one (config/scenario_realistic.yaml).
 """
 import json
 import math
@@ -21,6 +24,11 @@ from .atomic import atomic_savefig, atomic_write
 # Design keys (design.json "meta") that name the algorithm under comparison: they may differ.
 COMPARED_KEYS = ('compensation_profile', 'recognizer', 'compensator', 'recognizer_params',
                  'compensator_params', 'engine')
+
+
+# Design keys that make the bench: they may differ with --benches (the trials' specimens and
+# patients, drawn from the seeds, stay the same).
+BENCH_KEYS = ('bone_motion', 'model', 'simulator', 'simulator_params', 'engine_delays')
 
 
 class DesignMismatch(ValueError):
@@ -68,10 +76,11 @@ def read_campaign(directory):
     return meta, report.read_trials_csv(trials_path)
 
 
-def check_same_design(meta_a, meta_b, rows_a, rows_b):
-    """Raises DesignMismatch naming the first difference that makes the pairing meaningless."""
+def check_same_design(meta_a, meta_b, rows_a, rows_b, may_differ=()):
+    """Raises DesignMismatch naming the first difference that makes the pairing meaningless
+    (`may_differ`: further keys allowed to differ, e.g. BENCH_KEYS)."""
     for key in sorted(set(meta_a) | set(meta_b)):
-        if key in COMPARED_KEYS or key == 'design_size':
+        if key in COMPARED_KEYS or key in may_differ or key == 'design_size':
             continue
         if meta_a.get(key) != meta_b.get(key):
             raise DesignMismatch('the designs differ in %r (A: %s, B: %s): not the same specimens '
@@ -223,6 +232,9 @@ def main(argv=None):
                         '(default: ./compare_<A>_vs_<B>)')
     parser.add_argument('--label-a', help='name of A in the tables (default: its folder name)')
     parser.add_argument('--label-b', help='name of B in the tables (default: its folder name)')
+    parser.add_argument('--benches', action='store_true',
+                        help='the same specimens on two benches: the bench keys (%s) may '
+                        'differ too' % ', '.join(BENCH_KEYS))
     args = parser.parse_args(argv)
     name_a = os.path.basename(os.path.normpath(args.dir_a))
     name_b = os.path.basename(os.path.normpath(args.dir_b))
@@ -232,14 +244,16 @@ def main(argv=None):
     try:
         meta_a, rows_a = read_campaign(args.dir_a)
         meta_b, rows_b = read_campaign(args.dir_b)
-        check_same_design(meta_a, meta_b, rows_a, rows_b)
+        check_same_design(meta_a, meta_b, rows_a, rows_b,
+                          BENCH_KEYS if args.benches else ())
         groups = compare(rows_a, rows_b)
         text = markdown(groups, label_a, label_b, args.dir_a, args.dir_b)
         os.makedirs(out, exist_ok=True)
     except (OSError, ValueError) as error:
         sys.stderr.write('campaign_compare: %s\n' % error)
         return 2
-    differing = {k: [meta_a.get(k), meta_b.get(k)] for k in COMPARED_KEYS
+    differing = {k: [meta_a.get(k), meta_b.get(k)]
+                 for k in COMPARED_KEYS + (BENCH_KEYS if args.benches else ())
                  if meta_a.get(k) != meta_b.get(k)}
     _write_text(os.path.join(out, 'compare.json'), json.dumps(
         {'a': {'dir': args.dir_a, 'label': label_a}, 'b': {'dir': args.dir_b, 'label': label_b},

@@ -131,6 +131,22 @@ def test_different_designs_are_refused_naming_the_difference(tmp_path, meta_b, r
     assert not (tmp_path / 'out').exists()  # nothing written
 
 
+def test_two_benches_compare_with_benches_only(tmp_path):
+    # The same specimens on another bench: refused as a design difference, accepted with
+    # --benches, which names what differs; a different seed is still refused.
+    a, b = _pair(tmp_path, {'bone_motion': 'virtual_patient',
+                            'engine_delays': {'command_to_arm_s': 0.035}})
+    result = _run(a, b, '--benches', '--out', str(tmp_path / 'out'), cwd=str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    with open(tmp_path / 'out' / 'compare.json') as handle:
+        compared = json.load(handle)['compared']
+    assert compared['bone_motion'] == ['model', 'virtual_patient']
+    assert compared['engine_delays'] == [None, {'command_to_arm_s': 0.035}]
+    a, b = _pair(tmp_path / 'other', {'bone_motion': 'virtual_patient', 'seed': 8})
+    result = _run(a, b, '--benches', '--out', str(tmp_path / 'out2'), cwd=str(tmp_path))
+    assert result.returncode == 2 and "'seed'" in result.stderr
+
+
 def test_a_folder_that_is_not_a_campaign_is_refused(tmp_path):
     a, _ = _pair(tmp_path)
     result = _run(a, str(tmp_path / 'nowhere'), cwd=str(tmp_path))
