@@ -322,11 +322,11 @@ void DrillingPanel::refreshReadouts() {
   const core::TrialVerdict verdict = view_.verdict();
   std::string banner = view_.phase().empty() ? "no trial" : view_.phase();
   if (verdict == core::TrialVerdict::kSuccess || verdict == core::TrialVerdict::kFailure) {
-    banner = std::string(verdict == core::TrialVerdict::kSuccess ? "SUCCESS" : "FAILURE") +
-             ", residual " +
-             std::find_if(readouts.begin(), readouts.end(), [](const core::Readout& r) {
-               return r.label == "residual";
-             })->value;
+    banner = verdict == core::TrialVerdict::kSuccess ? "SUCCESS" : "FAILURE";
+    const auto residual =
+        std::find_if(readouts.begin(), readouts.end(),
+                     [](const core::Readout& r) { return r.label == "residual"; });
+    if (residual != readouts.end()) banner += ", residual " + residual->value;
   }
   verdict_label_->setText(QString::fromStdString(banner));
   verdict_label_->setStyleSheet(verdict == core::TrialVerdict::kSuccess   ? "color: #40d040;"
