@@ -142,14 +142,17 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void handlePlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->setTrialRunning(msg->running);
-    const bool retreat_ended =
-        msg->phase == TrialStatus::DONE && last_phase_ == TrialStatus::RETREATING;
     const bool trial_ended = msg->phase == TrialStatus::DONE && last_phase_ != TrialStatus::DONE;
+    const bool retreat_ended = trial_ended && last_phase_ == TrialStatus::RETREATING;
     last_phase_ = msg->phase;
-    // At the trial's end (after the re-tare check when it retreated): the trial's inputs as
-    // received, complete (the campaign records them).
-    if (trial_ended && !retreat_ended) publishDiagnostics();
-    if (!retreat_ended) return;
+    if (retreat_ended) checkRetare();
+    // At the trial's end (after the re-tare check when it retreated): the verdict and the
+    // trial's inputs as received, complete (the campaign records them).
+    if (trial_ended) publishDiagnostics();
+  }
+
+  /** @brief The re-tare check when a retreat ended, on ~retare_check (latched). */
+  void checkRetare() {
     const core::RetareCheck check = supervisor_->retareCheck(now());
     RetareCheck result;
     result.header.stamp = lockstep_->now();
@@ -164,12 +167,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (!check.done) {
       NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
     } else if (check.drift) {
-      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());  // WARN below, until ~reset
+      NODELET_ERROR("SafetyMonitor: %s", check.message.c_str());  // diagnostics WARN, to ~reset
     } else {
       NODELET_INFO("SafetyMonitor: re-tare check: %.3f N from the tare after the retreat",
                    check.offset_n);
     }
-    publishDiagnostics();
   }
 
   /** @brief Under the lockstep: the check when the step is on the check grid, diagnostics every

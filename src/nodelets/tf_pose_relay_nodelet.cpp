@@ -99,7 +99,6 @@ class TfPoseRelayNodelet : public nodelet::Nodelet {
                             stamp.toSec(), e.what());
       return;
     }
-    if (!finite(t)) return;  // a frame of the chain went non-finite (tf2 refuses those)
     const auto& p = t.transform.translation;
     const auto& q = t.transform.rotation;
     last_stamp_ = stamp;

@@ -122,15 +122,13 @@ def input_columns(inputs):
         return dict.fromkeys(INPUT_COLUMNS)
     values = inputs[1]
 
-    def number(key, kind):
+    def number(key):
         try:
-            return kind(float(values[key]))
+            value = float(values[key])
         except (KeyError, ValueError):
             return None
-    return {'force_delay_max_ms': number('force_delay_max_ms', float),
-            'force_samples_missing': number('force_samples_missing', int),
-            'tracker_delay_max_ms': number('tracker_delay_max_ms', float),
-            'tracker_samples_missing': number('tracker_samples_missing', int)}
+        return int(value) if key.endswith('_missing') else value  # counts are integers
+    return {key: number(key) for key in INPUT_COLUMNS}
 
 
 TRANSPORT_COLUMNS = ('late_commands', 'max_command_lateness_ms', 'command_waits',
@@ -334,14 +332,21 @@ def check_bag(path):
             'complete': not summary, 'summary': '; '.join(summary)}
 
 
+def _wait_until(predicate, bound_s, period_s=0.01):
+    """Polls predicate() until it holds (True) or `bound_s` of wall time passed (False): the
+    bound only keeps a dead node from hanging the worker."""
+    deadline = time.time() + bound_s
+    while not predicate():
+        if time.time() >= deadline:
+            return False
+        time.sleep(period_s)
+    return True
+
+
 def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     from pedicle_drilling.msg import TrialStatus  # ROS engine only
-    deadline = time.time() + args.trial_timeout
-    while time.time() < deadline:
-        if recorder.phase in (TrialStatus.DONE, TrialStatus.FAILED):
-            break
-        time.sleep(0.02)
-    else:
+    if not _wait_until(lambda: recorder.phase in (TrialStatus.DONE, TrialStatus.FAILED),
+                       args.trial_timeout, 0.02):
         raise RuntimeError('trial did not finish within %.0f s wall (status: %s)' % (
             args.trial_timeout, recorder.status[-1][1] if recorder.status else 'none'))
     if recorder.phase == TrialStatus.FAILED:
@@ -354,16 +359,11 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     def fresh():
         return (recorder.retare is not None and t_done is not None
                 and recorder.retare['t'] >= t_done - 1e-3)
-    bound = time.time() + 5.0
-    while time.time() < bound and not fresh():
-        time.sleep(0.01)
-    if not fresh():
+    if not _wait_until(fresh, 5.0):
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
     # The monitor's diagnostics at the trial's end (its input streams, complete).
-    bound = time.time() + 5.0
-    while time.time() < bound and not (recorder.inputs is not None and t_done is not None
-                                        and recorder.inputs[0] >= t_done - 1e-3):
-        time.sleep(0.01)
+    _wait_until(lambda: (recorder.inputs is not None and t_done is not None
+                         and recorder.inputs[0] >= t_done - 1e-3), 5.0)
     # Each topic has its own connection: on a loaded machine the ground truth and the
     # recognizer's states may trail the status that said DONE. Wait until both have reached the
     # trial's end (events: the simulator and the recognizer go on publishing after it), so that
@@ -373,9 +373,7 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
         return (t_done is not None and truth is not None
                 and truth.header.stamp.to_sec() >= t_done
                 and (not recorder.states or recorder.states[-1][0] >= t_done))
-    bound = time.time() + 30.0
-    while time.time() < bound and not caught_up():
-        time.sleep(0.01)
+    _wait_until(caught_up, 30.0)
     row['wall_s'] = time.time() - wall_start
     return analyse_trial(recorder, row, trial, trace_dir)
 
@@ -455,13 +453,10 @@ def _reset(srv, trial, moving, args):
 
 def _wait_sim_until(recorder, stamp):
     """Waits until the ground truth reaches sim time `stamp` (the simulator's hold)."""
-    deadline = time.time() + 120.0
-    while time.time() < deadline:
-        if recorder.last_truth is not None and \
-                recorder.last_truth.header.stamp.to_sec() >= stamp - 1e-6:
-            return
-        time.sleep(0.01)
-    raise RuntimeError('sim time did not reach %.3f s' % stamp)
+    if not _wait_until(lambda: (recorder.last_truth is not None and
+                                recorder.last_truth.header.stamp.to_sec() >= stamp - 1e-6),
+                       120.0):
+        raise RuntimeError('sim time did not reach %.3f s' % stamp)
 
 
 def main(argv=None):

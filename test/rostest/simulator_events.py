@@ -1,12 +1,13 @@
 """What the simulator scenarios' tests watch, shared: /clock and simulator/ground_truth under one
-condition, and a wait on them bounded only to end a broken run (tests wait on events)."""
+condition, and a wait on them bounded only to end a broken run (tests wait on events); and a
+lockstep participant for the lockstep's scenarios."""
 import threading
 import time
 
 import rospy
 from rosgraph_msgs.msg import Clock
 
-from pedicle_drilling.msg import GroundTruth
+from pedicle_drilling.msg import GroundTruth, StepAck
 
 
 class SimulatorEvents:
@@ -41,3 +42,45 @@ class SimulatorEvents:
                 if left <= 0:
                     self.fail('%s: not reached (clock %r)' % (what, self.clock))
                 self.cond.wait(min(left, 0.2))
+
+
+class StepParticipant(SimulatorEvents):
+    """Mixin: the test is a lockstep participant (README "Lockstep"). Call participate(node) in
+    setUp. It answers simulator/step while self.answering (under self.cond); a step it does not
+    answer is kept in self.unanswered."""
+
+    def participate(self, node):
+        self.watch_simulator()
+        self.node = node
+        self.last_step = None
+        self.answering = True
+        self.unanswered = None
+        self.ack = rospy.Publisher('/simulator/step_ack', StepAck, queue_size=100)
+        rospy.Subscriber('/simulator/step', Clock, self.on_step, queue_size=100)
+
+    def on_step(self, msg):
+        with self.cond:
+            self.last_step = msg.clock
+            answer = self.answering
+            if not answer:
+                self.unanswered = msg.clock
+            self.cond.notify_all()
+        if answer:
+            self.answer(msg.clock)
+
+    def answer(self, stamp):
+        self.ack.publish(StepAck(stamp=stamp, node=self.node))
+
+    def join_lockstep(self):
+        """Waits until the simulator steps on this test's answers; returns the step then."""
+        self.wait_for(lambda: self.last_step is not None and self.truth is not None,
+                      'simulator stepping')
+        # Joined once an answer reaches the simulator: sim time then advances with our answers.
+        deadline = time.monotonic() + 30.0
+        while self.ack.get_num_connections() == 0 and time.monotonic() < deadline:
+            time.sleep(0.05)
+        self.assertGreater(self.ack.get_num_connections(), 0, 'the simulator hears no answer')
+        with self.cond:
+            first = self.last_step.to_sec()
+        self.wait_for(lambda: self.last_step.to_sec() > first + 0.05, 'steps answered')
+        return first

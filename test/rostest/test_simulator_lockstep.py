@@ -12,43 +12,20 @@ import unittest
 
 import rospy
 import rostest
-from rosgraph_msgs.msg import Clock
 from std_srvs.srv import Trigger
 
-from pedicle_drilling.msg import StepAck
 from pedicle_drilling.srv import ResetSimulation
-from simulator_events import SimulatorEvents
+from simulator_events import StepParticipant
 
 
-class LockstepTest(SimulatorEvents, unittest.TestCase):
+class LockstepTest(StepParticipant, unittest.TestCase):
     WAIT_BOUND_S = 60.0
 
     def setUp(self):
-        self.watch_simulator()
-        self.last_step = None
-        self.answering = True
-        self.ack = rospy.Publisher('/simulator/step_ack', StepAck, queue_size=100)
-        rospy.Subscriber('/simulator/step', Clock, self.on_step, queue_size=100)
-
-    def on_step(self, msg):
-        with self.cond:
-            self.last_step = msg.clock
-            answer = self.answering
-            self.cond.notify_all()
-        if answer:
-            self.ack.publish(StepAck(stamp=msg.clock, node='/test_participant'))
+        self.participate('/test_participant')
 
     def test_lockstep_waits_drops_and_holds(self):
-        self.wait_for(lambda: self.last_step is not None and self.truth is not None,
-                      'simulator stepping')
-        # Joined once an answer reaches the simulator: sim time then advances with our answers.
-        deadline = time.monotonic() + 30.0
-        while self.ack.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        self.assertGreater(self.ack.get_num_connections(), 0, 'the simulator hears no answer')
-        with self.cond:
-            first = self.last_step.to_sec()
-        self.wait_for(lambda: self.last_step.to_sec() > first + 0.05, 'steps answered')
+        self.join_lockstep()
         # Silent: sim time stands at the step we did not answer.
         with self.cond:
             self.answering = False

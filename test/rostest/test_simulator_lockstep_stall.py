@@ -15,10 +15,8 @@ import xmlrpc.client
 import rosgraph
 import rospy
 import rostest
-from rosgraph_msgs.msg import Clock
 
-from pedicle_drilling.msg import StepAck
-from simulator_events import SimulatorEvents
+from simulator_events import StepParticipant
 
 NODE = '/test_participant'
 
@@ -33,43 +31,20 @@ def process_publishing(topic):
     return pid
 
 
-class LockstepStallTest(SimulatorEvents, unittest.TestCase):
+class LockstepStallTest(StepParticipant, unittest.TestCase):
     def setUp(self):
-        self.watch_simulator()
-        self.last_step = None
-        self.withhold = False
-        self.withheld = None
-        self.ack = rospy.Publisher('/simulator/step_ack', StepAck, queue_size=100)
-        rospy.Subscriber('/simulator/step', Clock, self.on_step, queue_size=100)
-
-    def on_step(self, msg):
-        with self.cond:
-            self.last_step = msg.clock
-            if self.withhold:
-                self.withheld = msg.clock
-                self.cond.notify_all()
-                return
-            self.cond.notify_all()
-        self.ack.publish(StepAck(stamp=msg.clock, node=NODE))
+        self.participate(NODE)
 
     def test_a_stall_is_not_a_timeout(self):
-        self.wait_for(lambda: self.last_step is not None and self.truth is not None,
-                      'simulator stepping')
-        deadline = time.monotonic() + 30.0
-        while self.ack.get_num_connections() == 0 and time.monotonic() < deadline:
-            time.sleep(0.05)
-        self.assertGreater(self.ack.get_num_connections(), 0, 'the simulator hears no answer')
-        with self.cond:
-            first = self.last_step.to_sec()
-        self.wait_for(lambda: self.last_step.to_sec() > first + 0.05, 'steps answered')
+        first = self.join_lockstep()
         self.wait_for(lambda: self.truth.header.stamp.to_sec() > first + 0.05, 'ground truth')
         self.assertEqual(self.truth.lockstep_timeouts, 0)
         pid = process_publishing('/simulator/step')
         self.assertNotEqual(pid, os.getpid())
         with self.cond:
-            self.withhold = True
+            self.answering = False
         # The simulator now waits for our answer to this step: stop its process at once.
-        self.wait_for(lambda: self.withheld is not None, 'a step to withhold')
+        self.wait_for(lambda: self.unanswered is not None, 'a step to withhold')
         os.kill(pid, signal.SIGSTOP)
         try:
             time.sleep(3.0)  # the stall itself (three lockstep timeouts), not a wait on an event
@@ -77,9 +52,9 @@ class LockstepStallTest(SimulatorEvents, unittest.TestCase):
             os.kill(pid, signal.SIGCONT)
         time.sleep(0.3)  # the answer comes well within the timeout of the running process
         with self.cond:
-            self.withhold = False
-            stamp = self.withheld
-        self.ack.publish(StepAck(stamp=stamp, node=NODE))
+            self.answering = True
+            stamp = self.unanswered
+        self.answer(stamp)
         self.wait_for(lambda: self.last_step.to_sec() > stamp.to_sec() + 0.1, 'stepping on')
         self.wait_for(lambda: self.truth.header.stamp.to_sec() > stamp.to_sec() + 0.1,
                       'ground truth after the stall')
