@@ -187,7 +187,7 @@ TidalVolume tidalVolumeMsg(const core::DrillingSimulation& sim, const ros::Time&
   m.volume_ml = sim.ventilatorSample().volume_ml;
   m.flow_ml_s = sim.ventilatorSample().flow_ml_s;
   m.breath_index = static_cast<uint32_t>(ventilator.breathIndex());
-  m.time_in_breath_s = std::max(0.0, sim.ventilatorSample().t - ventilator.breathStart());
+  m.time_in_breath_s = sim.sensedTimeInBreath();
   return m;
 }
 

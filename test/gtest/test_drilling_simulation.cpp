@@ -204,6 +204,94 @@ TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
   EXPECT_GE(phases.size(), 5u);  // six seeds, 125 possible phases
 }
 
+// The breath phase as a bench senses it (issue 29): exact by default; with a 64 Hz flow sensor
+// each breath start is seen at the sensor's first sample of the breath (16 ms grid, the square
+// waveform's flow jumps at the start), until then the previous breath's start holds; a clock
+// offset shifts every sensed start.
+TEST(DrillingSimulation, TheSensedBreathPhaseIsExactByDefault) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  for (int k = 0; k < 12000; ++k) {
+    sim.stepOnce();
+    ASSERT_EQ(sim.sensedTimeInBreath(),
+              std::max(0.0, sim.ventilatorSample().t - sim.ventilator().breathStart()));
+  }
+}
+
+namespace {
+// Steps 24.5 s (five breaths at 12/min) and returns sensed - exact time in breath per step.
+std::vector<double> sensedMinusExact(double rate_hz, double offset_s, std::vector<double>* exact,
+                                     double latency_s = 0.0) {
+  DrillingSimulationParams p;
+  p.breath_sensor_rate_hz = rate_hz;
+  p.breath_clock_offset_s = offset_s;
+  p.breath_sensor_latency_s = latency_s;
+  DrillingSimulation sim(workcell(), p, 1);
+  std::vector<double> diff;
+  for (int k = 0; k < 24500; ++k) {
+    sim.stepOnce();
+    const double e = sim.ventilatorSample().t - sim.ventilator().breathStart();
+    exact->push_back(e);
+    diff.push_back(sim.sensedTimeInBreath() - e);
+  }
+  return diff;
+}
+}  // namespace
+
+TEST(DrillingSimulation, AFlowSensorSeesEachBreathStartAtItsNextSample) {
+  std::vector<double> exact;
+  const std::vector<double> diff = sensedMinusExact(64.0, 0.0, &exact);
+  int detections = 0, late_steps = 0;
+  for (size_t k = 1000; k < diff.size(); ++k) {
+    if (exact[k] < exact[k - 1]) {  // a new breath starts at this step
+      // Until the sensor's next sample the previous breath's start holds.
+      size_t j = k;
+      while (j < diff.size() && diff[j] > 1.0) {
+        ++late_steps;
+        ++j;
+      }
+      ASSERT_LT(j, diff.size());
+      EXPECT_LT(j - k, 16u) << "detected within one 16 ms sensor period";
+      EXPECT_EQ((j + 1) % 16, 0u) << "on the sensor's grid (step index " << j + 1 << ")";
+      // Detected: behind the exact phase by the detection delay, never ahead of it.
+      EXPECT_NEAR(diff[j], -1e-3 * static_cast<double>(j - k), 1e-9);
+      ++detections;
+    }
+  }
+  EXPECT_EQ(detections, 4);  // breaths 2-5 start after the first second
+  EXPECT_GT(late_steps, 0);  // the grid's phase differs from breath to breath
+}
+
+TEST(DrillingSimulation, TheBreathSensorsClockOffsetAndLatencyShiftTheSensedStart) {
+  std::vector<double> exact, exact2, exact3;
+  const std::vector<double> base = sensedMinusExact(64.0, 0.0, &exact);
+  const std::vector<double> shifted = sensedMinusExact(64.0, -0.002, &exact2);
+  const std::vector<double> late = sensedMinusExact(64.0, 0.0, &exact3, 0.03);
+  int compared = 0;
+  for (size_t k = 1000; k < base.size(); ++k) {
+    // Before a detection has arrived the previous breath's start holds (the difference is a
+    // breath period, 5 s): compared only where each run has the current breath's start.
+    if (std::abs(base[k]) > 0.1 || std::abs(late[k]) > 0.1 || exact[k] < 0.05) continue;
+    EXPECT_NEAR(shifted[k] - base[k], 0.002, 1e-9) << k;
+    EXPECT_NEAR(late[k] - base[k], -0.03, 1e-9) << k;
+    ++compared;
+  }
+  EXPECT_GT(compared, 20000);  // of 23500 steps
+}
+
+TEST(DrillingSimulation, BreathSensorParametersAreValidated) {
+  DrillingSimulationParams p;
+  p.breath_sensor_rate_hz = -1.0;
+  EXPECT_THROW(p.validate(), std::invalid_argument);
+  p = DrillingSimulationParams();
+  p.breath_clock_offset_s = 0.5;
+  try {
+    p.validate();
+    FAIL() << "an offset of 0.5 s was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("breath_clock_offset_s"), std::string::npos) << e.what();
+  }
+}
+
 // A separation is a gap of at least 10 ms without cutting after a cut: drill 1 mm into a
 // stationary specimen, then pull the drill back 0.5 mm. (Re-engaging a drilled hole, the
 // compliant arm makes the lips chatter, which counts as well: the count is of interruptions of

@@ -11,6 +11,8 @@
 #include <random>
 #include <stdexcept>
 
+#include "pedicle_drilling/core/common/portable_random.hpp"
+
 namespace pedicle_drilling::core {
 
 namespace {
@@ -102,7 +104,7 @@ FitResult fitPso(ModelKind kind, const AxisSamples& samples, const PsoOptions& o
   const Fitness fitness(kind, samples);
 
   std::mt19937_64 rng(options.seed);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const auto unit = [](std::mt19937_64& r) { return canonical(r); };  // portable_random.hpp
 
   std::vector<std::vector<double>> x(pop, std::vector<double>(dim));
   std::vector<std::vector<double>> v(pop, std::vector<double>(dim));

@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "pedicle_drilling/core/common/atomic_file.hpp"
+#include "pedicle_drilling/core/common/portable_random.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -235,8 +236,9 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
     throw std::invalid_argument("generateVolunteer: invalid parameters");
   }
   std::mt19937_64 rng(p.seed);
-  std::normal_distribution<double> normal(0.0, 1.0);
-  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  // Portable transforms (common/portable_random.hpp): the same recording on every library.
+  PolarNormal normal;
+  const auto unit = [](std::mt19937_64& r) { return canonical(r); };
 
   // Breaths: AR(1) unit-variance fluctuations of duration and depth, clipped to +-2.5 sigma.
   const double rho = p.breath_autocorrelation;
@@ -266,7 +268,9 @@ VolunteerData generateVolunteer(const VolunteerParams& p) {
   // Small patient movements: Poisson process over the recording.
   std::vector<PatientMovement> moves;
   if (p.movements_per_min > 0.0) {
-    std::exponential_distribution<double> gap(p.movements_per_min / 60.0);
+    const auto gap = [&p](std::mt19937_64& r) {
+      return exponential(r, p.movements_per_min / 60.0);
+    };
     double tm = gap(rng);
     while (tm < p.duration_s) {
       PatientMovement m;

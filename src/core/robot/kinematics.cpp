@@ -15,6 +15,8 @@
 #include <kdl/frames.hpp>
 #include <kdl/jntarray.hpp>
 
+#include "pedicle_drilling/core/common/portable_random.hpp"
+
 namespace pedicle_drilling::core {
 
 namespace {
@@ -173,7 +175,7 @@ IkResult KinematicChain::inverse(const Eigen::Isometry3d& target, const Eigen::V
       for (unsigned int i = 0; i < n; ++i) {
         const double lo = std::isfinite(lower_(i)) ? lower_(i) : -kPi;
         const double hi = std::isfinite(upper_(i)) ? upper_(i) : kPi;
-        q0(i) = std::uniform_real_distribution<double>(lo, hi)(rng);
+        q0(i) = uniform(rng, lo, hi);
       }
     }
     ik.CartToJnt(q0, goal, q);

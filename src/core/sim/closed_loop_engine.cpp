@@ -352,8 +352,7 @@ struct ClosedLoopEngine::Impl {
       last_breath_index = ventilator.breathIndex();
       sequencer->setVentilator(ventilator.model().settings());
     }
-    const VentilatorSample& v = sim->ventilatorSample();
-    sequencer->setBreathStart(now - std::max(0.0, v.t - ventilator.breathStart()));
+    sequencer->setBreathStart(now - sim->sensedTimeInBreath());
   }
 
   void recordTruth() {

@@ -16,6 +16,7 @@
 #include <stdexcept>
 
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
+#include "pedicle_drilling/core/common/portable_random.hpp"
 #include "pedicle_drilling/core/robot/stage_axis.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
@@ -146,6 +147,11 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number("bench_period_s", &P::bench_period_s, Range::closed(0.01, 1), "s")
         .number("spindle_accel_rpm_s", &P::spindle_accel_rpm_s, Range::aboveUpTo(0, 1e6), "rpm/s")
         .number("tracker_noise_rms_mm", &P::tracker_noise_rms_mm, Range::closed(0, 10), "mm")
+        .number("breath_sensor_rate_hz", &P::breath_sensor_rate_hz, Range::closed(0, 1000), "Hz")
+        .number("breath_trigger_flow_ml_s", &P::breath_trigger_flow_ml_s, Range::closed(0, 2000),
+                "ml/s")
+        .number("breath_sensor_latency_s", &P::breath_sensor_latency_s, Range::closed(0, 0.5), "s")
+        .number("breath_clock_offset_s", &P::breath_clock_offset_s, Range::closed(-0.1, 0.1), "s")
         .number(
             "force_noise_sd_n", [](const P& v) { return v.sensor.force_noise_sd_n; },
             [](P& v, double x) { v.sensor.force_noise_sd_n = x; }, Range::closed(0, 10), "N")
@@ -268,6 +274,33 @@ struct DrillingSimulation::Impl {
   int steps_per_arm_block = 4;
   double dt = 1e-3;
   std::uint64_t step_index = 0;
+  // The sensed breath start (breath_sensor_rate_hz): the flow sensor's period in steps (0: off),
+  // the last breath detected and its start on the pipeline's clock.
+  // A detection reaches the pipeline breath_sensor_latency_s later, stamped on its arrival.
+  std::uint64_t breath_sensor_period = 0;
+  long detected_breath_index = -1;
+  double detection_arrives = std::numeric_limits<double>::infinity();
+  long sensed_breath_index = -1;
+  double sensed_breath_start = 0.0;
+
+  /**
+   * @brief On a flow-sensor sample: a breath not yet detected whose flow passed the trigger is
+   *        detected; a detection whose latency has passed becomes the sensed start.
+   */
+  void senseBreath() {
+    if (breath_sensor_period == 0) return;
+    if (ventilator.breathIndex() != detected_breath_index &&
+        step_index % breath_sensor_period == 0 &&
+        vent_now.flow_ml_s > params.breath_trigger_flow_ml_s) {
+      detected_breath_index = ventilator.breathIndex();
+      detection_arrives = time + params.breath_sensor_latency_s;
+    }
+    if (time >= detection_arrives - 1e-9) {
+      sensed_breath_index = detected_breath_index;
+      sensed_breath_start = detection_arrives + params.breath_clock_offset_s;
+      detection_arrives = std::numeric_limits<double>::infinity();
+    }
+  }
   double time = 0.0;
   std::uint64_t seed = 1;
   bool moving_bone = true;
@@ -746,6 +779,11 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
         std::vector<JointLimit>{stroke, stroke, stroke}, s.sliders);
     s.bench_period_steps = streamPeriodSteps(params.physics_rate_hz, 1.0 / params.bench_period_s,
                                              "bench_period_s (as a rate)");
+    s.breath_sensor_period =
+        params.breath_sensor_rate_hz > 0.0
+            ? streamPeriodSteps(params.physics_rate_hz, params.breath_sensor_rate_hz,
+                                "breath_sensor_rate_hz")
+            : 0;
   }
   s.updatePlatform();  // home pose at t = 0 (platform not moving yet)
   {
@@ -782,6 +820,7 @@ SimulationStep DrillingSimulation::stepOnce() {
   s.physics_tip = s.tip_block_start + frac * (s.tip_block_end - s.tip_block_start);
 
   s.vent_now = s.ventilator.sample(s.time);
+  s.senseBreath();
   s.updatePlatform();
 
   // Tip depth below the bone's top surface along the surface normal (the bone frame's z; the
@@ -933,6 +972,14 @@ const DrillingProcess& DrillingSimulation::process() const { return *impl_->proc
 const VirtualPatient& DrillingSimulation::patient() const { return impl_->patient; }
 const VentilatorSample& DrillingSimulation::ventilatorSample() const { return impl_->vent_now; }
 
+double DrillingSimulation::sensedTimeInBreath() const {
+  const Impl& s = *impl_;
+  const double start = s.breath_sensor_period == 0 || s.sensed_breath_index < 0
+                           ? s.ventilator.breathStart()
+                           : s.sensed_breath_start;
+  return std::max(0.0, s.vent_now.t - start);
+}
+
 const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
 
 bool DrillingSimulation::startTrial() {
@@ -1017,7 +1064,9 @@ Eigen::Isometry3d DrillingSimulation::measureMarkerPose() {
   const Eigen::Isometry3d marker_world =
       s.spms_base_world * s.platformInBase() * s.marker_in_platform;
   Eigen::Isometry3d m = s.camera_world.inverse() * marker_world;
-  std::normal_distribution<double> n(0.0, 1e-3 * s.params.tracker_noise_rms_mm / std::sqrt(3.0));
+  // A fresh generator per measurement (a pair's second deviate is not kept across samples), as
+  // every trial recorded so far drew it; portable (common/portable_random.hpp).
+  PolarNormal n(0.0, 1e-3 * s.params.tracker_noise_rms_mm / std::sqrt(3.0));
   m.translation() += Eigen::Vector3d(n(s.tracker_rng), n(s.tracker_rng), n(s.tracker_rng));
   return m;
 }

@@ -172,6 +172,19 @@ struct DrillingSimulationParams {
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
+  /// The breath phase as a bench senses it (issue 29): each breath's start is detected on a
+  /// flow sensor sampled at this rate (the nearest whole number of physics steps), at its first
+  /// sample whose flow exceeds breath_trigger_flow_ml_s; the paper records with a gas-flow sensor
+  /// at 64 Hz. 0: the ventilator's own breath start, exact (the paper's bench as simulated).
+  double breath_sensor_rate_hz = 0.0;
+  /// Inspiratory flow that marks a breath's start on the sensed signal [ml/s] (2 L/min).
+  double breath_trigger_flow_ml_s = 100.0 / 3.0;
+  /// Latency from the flow sensor's sample to the pipeline [s]: a detected breath start
+  /// arrives this much later and is stamped on its arrival (sensor response and export path).
+  double breath_sensor_latency_s = 0.0;
+  /// Offset of the breath sensor's clock against the pipeline's [s] (two PCs), added to each
+  /// sensed breath start; with breath_sensor_rate_hz 0 it is not used.
+  double breath_clock_offset_s = 0.0;
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
   /**
@@ -367,6 +380,14 @@ class DrillingSimulation {
   int trialCount() const;
   /** @brief Internal ventilator sample of the last step (unlagged). */
   const VentilatorSample& ventilatorSample() const;
+  /**
+   * @brief Time since the current breath's start as the pipeline senses it (>= 0): from the
+   *        ventilator's own start with breath_sensor_rate_hz 0, else from the last breath start
+   *        detected on the flow sensor (the previous breath's until the new one is detected),
+   *        shifted by breath_clock_offset_s. The TidalVolume stream's time_in_breath_s and the
+   *        core engine's breath phase, one rule for both.
+   */
+  double sensedTimeInBreath() const;
   /** @brief The internal ventilator (breath index and start, current settings). */
   const BreathScheduler& ventilator() const;
   /** @brief Whether the bone follows the patient. */
