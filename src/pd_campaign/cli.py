@@ -44,7 +44,8 @@ SCENARIO_KEYS = {
     'protocol': (str, None, None),
     'simulator': (dict, None, None),
     # {name: value}: any of the Simulator's declared parameters (param_docs), e.g. the force
-    # sensor's chain (force_sensor_rate_hz, force_antialias_cutoff_hz). Core engine only.
+    # sensor's chain (force_sensor_rate_hz, force_antialias_cutoff_hz). Both engines (the ROS
+    # pipeline's Simulator reads them at every reset).
     'simulator_params': (dict, None, None),
     # {name: value}: any of the CompensationPlanner's declared trial-sequence parameters
     # (param_docs), e.g. stop_hold_s, outer_cortical_max_mm. Core engine only.
@@ -277,9 +278,6 @@ def parse_args(argv):
                              '(use --engine ros)' % scenario.get('identification'))
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
-    elif scenario.get('simulator_params'):
-        raise UsageError('scenario key simulator_params: run by --engine core only (the ROS '
-                         'pipeline\'s Simulator reads its parameters at its start)')
     elif set(scenario.get('engine_delays') or {}) - set(ROS_DELAYS):
         raise UsageError('scenario key engine_delays: on --engine ros only %s (the Simulator\'s '
                          'transport under the lockstep); %s run by --engine core only' % (
@@ -484,9 +482,10 @@ def run_campaign(argv=None):
             sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
                                                  ['--%s %s does not load' % (kind, name)])[-1])
             return 2
-    if args.engine == 'core' and (scenario.get('simulator') or scenario.get('simulator_params')):
+    if scenario.get('simulator') or scenario.get('simulator_params'):
         # The simulator section, checked by the Simulator's own declaration before anything is
-        # written (the ROS engine's simulator checks it at its first reset).
+        # written, on either engine (the ROS pipeline's Simulator re-reads its parameters at every
+        # reset, so the same names and ranges; it checks them again at its first reset).
         check = subprocess.run(
             engine_core.tool('trial_engine') + ['--check-simulator'] +
             engine_core.simulator_params(scenario.get('simulator'),
@@ -597,6 +596,8 @@ def run_campaign(argv=None):
                    '--compensator', compensator]
         for name, value in sorted((scenario.get('engine_delays') or {}).items()):
             command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
+        for name, value in sorted((scenario.get('simulator_params') or {}).items()):
+            command += ['--simulator-param', '%s=%s' % (name, json.dumps(value))]
         if args.bags:
             command.append('--bags')
         # The worker imports pd_campaign as this process did: catkin's devel space has it.

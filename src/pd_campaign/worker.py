@@ -494,8 +494,9 @@ def main(argv=None):
                         help='JSON of the scenario\'s simulator section: '
                         '{group: {key: value}} under /simulator/trial_distribution')
     parser.add_argument('--simulator-param', action='append', default=[],
-                        help='NAME=VALUE: a Simulator parameter read at every reset (scenario '
-                        'key engine_delays: command_delay_s, command_jitter_s, tracker_delay_s)')
+                        help='NAME=VALUE (VALUE in JSON): a Simulator parameter read at every '
+                        'reset (scenario keys simulator_params, and engine_delays as '
+                        'command_delay_s, command_jitter_s, tracker_delay_s)')
     parser.add_argument('--launch', default='campaign_pipeline.launch')
     parser.add_argument('--real-time-factor', type=float, default=20.0)
     args = parser.parse_args(argv)
@@ -576,7 +577,7 @@ def main(argv=None):
         # read by the simulator at every reset. One reset checks it before any trial.
         for setting in args.simulator_param:  # read at every reset
             name, value = setting.split('=', 1)
-            rospy.set_param('/simulator/%s' % name, float(value))
+            rospy.set_param('/simulator/%s' % name, json.loads(value))  # a number or a flag
         overrides = json.loads(args.simulator_overrides)
         for group, values in overrides.items():
             for key, value in values.items():

@@ -204,6 +204,39 @@ TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
   EXPECT_GE(phases.size(), 5u);  // six seeds, 125 possible phases
 }
 
+// Registration error (issue 29): the declared magnitudes, a direction per seed, none by default.
+TEST(DrillingSimulation, TheRegistrationErrorHasItsMagnitudeAndADirectionPerSeed) {
+  const Eigen::Isometry3d none = registrationError(7, 0.0, 0.0);
+  EXPECT_TRUE(none.matrix() == Eigen::Matrix4d::Identity());
+  std::set<long> directions;
+  for (std::uint64_t seed = 1; seed <= 20; ++seed) {
+    const Eigen::Isometry3d e = registrationError(seed, 1.5, 0.1);
+    EXPECT_NEAR(e.translation().norm(), 1.5e-3, 1e-12);
+    EXPECT_NEAR(Eigen::AngleAxisd(e.linear()).angle(), 0.1 * M_PI / 180.0, 1e-12);
+    directions.insert(std::lround(1e4 * e.translation().x()));
+  }
+  EXPECT_GE(directions.size(), 15u);
+}
+
+TEST(DrillingSimulation, TheTrackerMeasuresInTheTrueCameraFrame) {
+  DrillingSimulationParams exact;
+  exact.tracker_noise_rms_mm = 0.0;
+  DrillingSimulationParams off = exact;
+  off.registration_error_mm = 2.0;
+  DrillingSimulation a(workcell(), exact, 3), b(workcell(), off, 3);
+  a.reset(3, false);
+  b.reset(3, false);
+  const Eigen::Isometry3d ma = a.measureMarkerPose(), mb = b.measureMarkerPose();
+  // A pure translation of the camera by 2 mm moves every measurement by 2 mm.
+  EXPECT_NEAR((ma.translation() - mb.translation()).norm(), 2e-3, 1e-9);
+  EXPECT_TRUE(ma.linear().isApprox(mb.linear(), 1e-12));
+  // The same trial's error whatever the step: the camera does not move.
+  for (int k = 0; k < 500; ++k) b.stepOnce();
+  for (int k = 0; k < 500; ++k) a.stepOnce();
+  EXPECT_NEAR((a.measureMarkerPose().translation() - b.measureMarkerPose().translation()).norm(),
+              2e-3, 1e-9);
+}
+
 // The breath phase as a bench senses it (issue 29): exact by default; with a 64 Hz flow sensor
 // each breath start is seen at the sensor's first sample of the breath (16 ms grid, the square
 // waveform's flow jumps at the start), until then the previous breath's start holds; a clock

@@ -353,13 +353,15 @@ def test_fault_design_pairs_every_fault_with_the_fault_free_trial_of_the_same_se
 
 @pytest.mark.parametrize('text, named', [
     ('trials: 1\nprotocol: peak_forces\n', 'peak_forces'),
-    ('trials: 1\nsimulator_params: {force_sensor_rate_hz: 200}\n', 'simulator_params'),
+    ('trials: 1\nsimulator_params: {no_such_rate: 1}\n', 'no_such_rate'),
+    ('trials: 1\nsimulator_params: {breath_sensor_rate_hz: -64}\n', 'breath_sensor_rate_hz'),
     ('trials: 1\nplanner_params: {stop_hold_s: 1}\n', 'planner_params'),
     ('trials: 1\nengine_delays: {stop_to_planner_s: 0.05}\n', 'stop_to_planner_s'),
     ('trials: 1\nengine_delays: {command_to_arm_s: 0.05, force_to_recognizer_s: 0.1}\n',
      'force_to_recognizer_s'),
 ])
-def test_core_engine_settings_are_refused_by_the_ros_engine(tmp_path, text, named):
+def test_core_engine_settings_and_bad_simulator_params_are_refused_by_the_ros_engine(tmp_path, text,
+                                                                                   named):
     scenario = tmp_path / 'peaks.yaml'
     scenario.write_text(text)
     out = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'),

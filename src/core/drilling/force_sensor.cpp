@@ -11,6 +11,8 @@ namespace pedicle_drilling::core {
 
 namespace {
 constexpr double kPi = 3.14159265358979323846;
+// The speed at which the spindle-synchronous amplitudes are given (the paper's chosen speed).
+constexpr double kVibrationRefRpm = 12000.0;
 }  // namespace
 
 namespace {
@@ -92,10 +94,14 @@ Wrench ForceSensor::vibration(double spindle_rpm, bool in_contact, double dt) {
   spindle_phase_ = std::fmod(spindle_phase_ + 2.0 * kPi * (spindle_rpm / 60.0) * dt, 2.0 * kPi);
   if (spindle_rpm > 0.0 && (in_contact || !params_.vibration_only_in_contact)) {
     const double ph = spindle_phase_ + vibration_phase0_;
-    v[0] = params_.spindle_vibration_lateral_n * std::cos(ph);
-    v[1] = params_.spindle_vibration_lateral_n * std::sin(ph);
-    v[2] = params_.spindle_vibration_axial_n * std::sin(ph) +
-           params_.flute_harmonic_axial_n * std::sin(2.0 * ph);
+    const double grow =
+        params_.spindle_vibration_speed_exponent == 0.0
+            ? 1.0
+            : std::pow(spindle_rpm / kVibrationRefRpm, params_.spindle_vibration_speed_exponent);
+    v[0] = grow * params_.spindle_vibration_lateral_n * std::cos(ph);
+    v[1] = grow * params_.spindle_vibration_lateral_n * std::sin(ph);
+    v[2] = grow * (params_.spindle_vibration_axial_n * std::sin(ph) +
+                   params_.flute_harmonic_axial_n * std::sin(2.0 * ph));
   }
   return v;
 }

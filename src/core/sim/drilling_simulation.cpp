@@ -38,6 +38,30 @@ double trackerPhaseFraction(std::uint64_t seed) {
   return uniformFromSeed(seed ^ 0x7472616b70686173ULL);
 }
 
+// A unit vector uniform on the sphere from two uniform numbers (Archimedes: z uniform).
+Eigen::Vector3d unitVector(double u1, double u2) {
+  const double z = 2.0 * u1 - 1.0;
+  const double r = std::sqrt(std::max(0.0, 1.0 - z * z));
+  return {r * std::cos(2.0 * kPi * u2), r * std::sin(2.0 * kPi * u2), z};
+}
+
+}  // namespace
+
+Eigen::Isometry3d registrationError(std::uint64_t seed, double translation_mm,
+                                    double rotation_deg) {
+  // Its own streams of the seed: it changes nothing else the seed draws.
+  const Eigen::Vector3d t = unitVector(uniformFromSeed(seed ^ 0x7265677472616e31ULL),
+                                       uniformFromSeed(seed ^ 0x7265677472616e32ULL));
+  const Eigen::Vector3d axis = unitVector(uniformFromSeed(seed ^ 0x726567726f743031ULL),
+                                          uniformFromSeed(seed ^ 0x726567726f743032ULL));
+  Eigen::Isometry3d e = Eigen::Isometry3d::Identity();
+  e.linear() = Eigen::AngleAxisd(rotation_deg * kPi / 180.0, axis).toRotationMatrix();
+  e.translation() = 1e-3 * translation_mm * t;
+  return e;
+}
+
+namespace {
+
 Eigen::Isometry3d toIsometry(const urdf::Pose& p) {
   Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
   t.translation() = Eigen::Vector3d(p.position.x, p.position.y, p.position.z);
@@ -147,6 +171,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number("bench_period_s", &P::bench_period_s, Range::closed(0.01, 1), "s")
         .number("spindle_accel_rpm_s", &P::spindle_accel_rpm_s, Range::aboveUpTo(0, 1e6), "rpm/s")
         .number("tracker_noise_rms_mm", &P::tracker_noise_rms_mm, Range::closed(0, 10), "mm")
+        .number("registration_error_mm", &P::registration_error_mm, Range::closed(0, 10), "mm")
+        .number("registration_error_deg", &P::registration_error_deg, Range::closed(0, 5), "deg")
         .number("breath_sensor_rate_hz", &P::breath_sensor_rate_hz, Range::closed(0, 1000), "Hz")
         .number("breath_trigger_flow_ml_s", &P::breath_trigger_flow_ml_s, Range::closed(0, 2000),
                 "ml/s")
@@ -178,6 +204,32 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number(
             "chisel_edge_share", [](const P& v) { return v.drill.chisel_edge_share; },
             [](P& v, double x) { v.drill.chisel_edge_share = x; }, Range::closed(0, 0.9))
+        .number(
+            "thrust_coefficient_n_per_m",
+            [](const P& v) { return v.drill.thrust_coefficient_n_per_m; },
+            [](P& v, double x) { v.drill.thrust_coefficient_n_per_m = x; },
+            Range::aboveUpTo(0, 1e5), "N/m")
+        .number(
+            "feed_exponent", [](const P& v) { return v.drill.feed_exponent; },
+            [](P& v, double x) { v.drill.feed_exponent = x; }, Range::closed(0, 1))
+        .number(
+            "speed_exponent", [](const P& v) { return v.drill.speed_exponent; },
+            [](P& v, double x) { v.drill.speed_exponent = x; }, Range::closed(0, 1))
+        .number(
+            "spindle_vibration_axial_n",
+            [](const P& v) { return v.sensor.spindle_vibration_axial_n; },
+            [](P& v, double x) { v.sensor.spindle_vibration_axial_n = x; }, Range::closed(0, 5),
+            "N")
+        .number(
+            "spindle_vibration_speed_exponent",
+            [](const P& v) { return v.sensor.spindle_vibration_speed_exponent; },
+            [](P& v, double x) { v.sensor.spindle_vibration_speed_exponent = x; },
+            Range::closed(0, 4))
+        .number(
+            "force_drift_n_per_sqrt_s",
+            [](const P& v) { return v.sensor.force_drift_n_per_sqrt_s; },
+            [](P& v, double x) { v.sensor.force_drift_n_per_sqrt_s = x; }, Range::closed(0, 0.1),
+            "N/sqrt(s)")
         .flag("moving_bone", &P::moving_bone)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
@@ -333,6 +385,9 @@ struct DrillingSimulation::Impl {
   Eigen::Isometry3d bone_in_platform = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d marker_in_platform = Eigen::Isometry3d::Identity();
   Eigen::Isometry3d camera_world = Eigen::Isometry3d::Identity();
+  // The camera's true pose: the registered one (camera_world) times the trial's registration
+  // error (registrationError).
+  Eigen::Isometry3d camera_true_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d sliders;
   Eigen::Vector3d slider_targets;
   // The sliders' drives (lead-screw servo axes) and, on the paper's bench, the trajectory the
@@ -664,6 +719,8 @@ struct DrillingSimulation::Impl {
     have_previous_targets = false;
     tracker_rng.seed(seed * 40503ULL + 3ULL);
     tracker_phase = trackerPhaseFraction(seed);
+    camera_true_world = camera_world * registrationError(seed, params.registration_error_mm,
+                                                         params.registration_error_deg);
     was_in_contact = false;
     steps_without_contact = 0;
     contact_losses = 0;
@@ -1063,7 +1120,8 @@ Eigen::Isometry3d DrillingSimulation::measureMarkerPose() {
   Impl& s = *impl_;
   const Eigen::Isometry3d marker_world =
       s.spms_base_world * s.platformInBase() * s.marker_in_platform;
-  Eigen::Isometry3d m = s.camera_world.inverse() * marker_world;
+  // The tracker measures in its true frame; the pipeline reads it in the registered one.
+  Eigen::Isometry3d m = s.camera_true_world.inverse() * marker_world;
   // A fresh generator per measurement (a pair's second deviate is not kept across samples), as
   // every trial recorded so far drew it; portable (common/portable_random.hpp).
   PolarNormal n(0.0, 1e-3 * s.params.tracker_noise_rms_mm / std::sqrt(3.0));

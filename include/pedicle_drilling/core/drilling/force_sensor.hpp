@@ -46,6 +46,9 @@ struct ForceSensorParams {
   bool quantize = true;                         ///< round outputs to the resolution
   /// Spindle-synchronous vibration amplitude on the axial force (sensor z) [N]; 0 disables.
   double spindle_vibration_axial_n = 0.05;
+  /// How the spindle-synchronous amplitudes grow with speed: times (rpm / 12000)^exponent. 0
+  /// (the default): the same at every speed; 2: an imbalance force (m e omega^2, ISO 1940).
+  double spindle_vibration_speed_exponent = 0.0;
   /// Spindle-synchronous vibration amplitude on each lateral force (x, y, 90 deg apart) [N].
   double spindle_vibration_lateral_n = 0.03;
   /// Amplitude of the flute-passing harmonic (2 x spindle frequency, 2-flute bit) [N].

@@ -126,6 +126,14 @@ struct TrialConditions {
 };
 
 /**
+ * @brief The registration error of a trial of `seed`: the tracker camera's true pose relative
+ *        to the registered one, a translation of `translation_mm` and a rotation of
+ *        `rotation_deg`, each in a direction uniform on the sphere drawn from the seed's own
+ *        streams (doc/simulator_physics.md section 5, "Registration error").
+ */
+Eigen::Isometry3d registrationError(std::uint64_t seed, double translation_mm, double rotation_deg);
+
+/**
  * @brief Draws the trial conditions of `seed` around the configured ventilator settings and
  *        sensor noise. Deterministic for a seed; with every SD 0 it returns the configured
  *        values and scale factors of 1 (only volunteer_id depends on the seed).
@@ -172,6 +180,12 @@ struct DrillingSimulationParams {
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
+  /// Registration error between the tracker and the robot (issue 29): the camera's true pose
+  /// is the registered one (the URDF's tracker_camera) moved by this much in a direction drawn
+  /// from each trial's seed [mm] ...
+  double registration_error_mm = 0.0;
+  /// ... and turned by this much about an axis drawn from the seed [deg].
+  double registration_error_deg = 0.0;
   /// The breath phase as a bench senses it (issue 29): each breath's start is detected on a
   /// flow sensor sampled at this rate (the nearest whole number of physics steps), at its first
   /// sample whose flow exceeds breath_trigger_flow_ml_s; the paper records with a gas-flow sensor
