@@ -8,7 +8,7 @@
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
 #      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
-#      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench, first stage
+#      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's
@@ -42,7 +42,7 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
   --jobs "${JOBS}" --out "${OUT}/campaign_peak_forces"
-# 2d. The realistic bench, first stage (scenario_realistic.yaml, issue 29): the paper's design
+# 2d. The realistic bench (scenario_realistic.yaml, issue 29): the paper's design
 #     on the same specimens with the imperfections the simulator can express at sourced values
 #     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
 #     --benches: McNemar per case and speed).
