@@ -10,9 +10,10 @@
 #      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
+#      and the sensitivity of the conclusions to every uncertain constant, on both benches
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
-#      (lockstep, README "Lockstep"), twice, each trial beside the core engine's
-#      (engine_agreement.md)
+#      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
+#      of the realistic bench (engine_agreement.md)
 # Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
@@ -50,6 +51,18 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
+# 2e. Sensitivity of the conclusions (issue 29): every uncertain constant of
+#     config/sensitivity.yaml at each end of its documented range on the paper's bench, and the
+#     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, one
+#     at a time on the same seeds, 12000 rpm, SENSITIVITY_TRIALS per case (default 20: a screen,
+#     not a measurement; doc/experiments.md, "Sensitivity of the conclusions").
+rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --sweep "${ROOT}/config/sensitivity.yaml" --rpm 12000 --trials "${SENSITIVITY_TRIALS:-20}" \
+  --jobs "${JOBS}" --out "${OUT}/sensitivity_paper" > /dev/null
+rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_realistic.yaml" \
+  --sweep "${ROOT}/config/sensitivity_realistic.yaml" --rpm 12000 \
+  --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" --out "${OUT}/sensitivity_realistic" \
+  > /dev/null
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
@@ -57,6 +70,10 @@ for run in ros ros_repeat; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
     --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_${run}"
 done
+# ... and the realistic bench's first 10 trials per case (its simulator_params and delays on the
+# Simulator nodelet), beside the core engine's.
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
+  --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_realistic_ros"
 {
   echo "# Engine agreement (same seeds)"
   echo
@@ -67,6 +84,11 @@ done
   echo
   python3 -m pd_campaign.agreement "${OUT}/campaign_ros" "${OUT}/campaign_ros_repeat" \
     --label-a ros --label-b "ros (second run)"
+  echo
+  echo "## The realistic bench (scenario_realistic.yaml), 12000 rpm"
+  echo
+  python3 -m pd_campaign.agreement "${OUT}/campaign_realistic_ros" "${OUT}/campaign_realistic" \
+    --label-a ros --label-b core
 } > "${OUT}/engine_agreement.md.tmp"
 mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
 echo "main job: done in $(( $(date +%s) - start )) s"
@@ -77,5 +99,6 @@ echo "  ${OUT}/campaign_virtual_patient/report.md"
 echo "  ${OUT}/campaign_hysteresis/report.md"
 echo "  ${OUT}/campaign_faults/report.md"
 echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.md"
+echo "  ${OUT}/sensitivity_paper/sensitivity.md and ${OUT}/sensitivity_realistic/sensitivity.md"
 echo "  ${OUT}/engine_agreement.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"
