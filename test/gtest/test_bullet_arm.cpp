@@ -500,5 +500,30 @@ TEST_F(WorkcellArm, TipForceDeflectsAndReleases) {
   EXPECT_LT(axial, 0.3e-3);
 }
 
+// The indexed setters (the simulation's per-step path) are the named ones without the names.
+TEST(BulletArm, IndexedTargetsEqualNamedTargets) {
+  const std::string xml = readFile(urdfPath("rsssii.urdf"));
+  BulletArm named(xml, "world", "drill_tip"), indexed(xml, "world", "drill_tip");
+  const std::vector<std::string>& names = named.jointNames();
+  ASSERT_GE(names.size(), 3u);
+  const std::vector<int> index = {2, 0};
+  Eigen::VectorXd q(2), qd(2);
+  q << 0.3, -0.2;
+  qd << 0.05, 0.01;
+  ASSERT_TRUE(named.setJointPositionTargets({{names[2], 0.3}, {names[0], -0.2}}).ok());
+  ASSERT_TRUE(named.setJointVelocityTargets({{names[2], 0.05}, {names[0], 0.01}}).ok());
+  ASSERT_TRUE(indexed.setJointPositionTargets(index, q).ok());
+  ASSERT_TRUE(indexed.setJointVelocityTargets(index, qd).ok());
+  EXPECT_TRUE(named.jointPositionTargets() == indexed.jointPositionTargets());
+  named.step(0.05);
+  indexed.step(0.05);
+  EXPECT_TRUE(named.jointPositions() == indexed.jointPositions());
+  const Eigen::VectorXd before = indexed.jointPositionTargets();
+  EXPECT_EQ(indexed.setJointPositionTargets({static_cast<int>(names.size())}, q.head(1)).status,
+            TargetStatus::kRejected);
+  EXPECT_EQ(indexed.setJointVelocityTargets({0, 1}, qd.head(1)).status, TargetStatus::kRejected);
+  EXPECT_TRUE(indexed.jointPositionTargets() == before);
+}
+
 }  // namespace
 }  // namespace pedicle_drilling::core

@@ -192,6 +192,24 @@ struct BulletArm::Impl {
     }
     return {};
   }
+  // overlayNamed's indexed twin: the joints at `index` take `values`.
+  TargetResult overlayIndexed(const std::vector<int>& index, const Eigen::VectorXd& values,
+                              Eigen::VectorXd* out, std::vector<bool>* mask) const {
+    if (values.size() != static_cast<Eigen::Index>(index.size())) {
+      return {TargetStatus::kRejected, "expected " + std::to_string(index.size()) +
+                                           " targets, got " + std::to_string(values.size())};
+    }
+    mask->assign(n(), false);
+    for (size_t j = 0; j < index.size(); ++j) {
+      if (index[j] < 0 || index[j] >= n()) {
+        return {TargetStatus::kRejected, "joint index " + std::to_string(index[j]) +
+                                             " is not in [0, " + std::to_string(n()) + ")"};
+      }
+      (*mask)[index[j]] = true;
+      (*out)[index[j]] = values[static_cast<Eigen::Index>(j)];
+    }
+    return {};
+  }
 };
 
 // ------------------------------------------------------------------------------------------
@@ -780,6 +798,36 @@ TargetResult BulletArm::setJointPositionTargets(const std::map<std::string, doub
     if (!mask[k]) continue;
     impl_->q_ref[k] = v[k];
     impl_->qd_ref[k] = 0.0;
+  }
+  return r;
+}
+
+TargetResult BulletArm::setJointPositionTargets(const std::vector<int>& index,
+                                                const Eigen::VectorXd& positions) {
+  std::vector<bool> mask;
+  Eigen::VectorXd v = impl_->q_ref;
+  const TargetResult indexed = impl_->overlayIndexed(index, positions, &v, &mask);
+  if (!indexed.ok()) return indexed;
+  TargetResult r = impl_->validatePositions(&v, &mask);
+  if (!r.ok()) return r;
+  for (int k = 0; k < impl_->n(); ++k) {
+    if (!mask[k]) continue;
+    impl_->q_ref[k] = v[k];
+    impl_->qd_ref[k] = 0.0;
+  }
+  return r;
+}
+
+TargetResult BulletArm::setJointVelocityTargets(const std::vector<int>& index,
+                                                const Eigen::VectorXd& velocities) {
+  std::vector<bool> mask;
+  Eigen::VectorXd v = impl_->qd_ref;
+  const TargetResult indexed = impl_->overlayIndexed(index, velocities, &v, &mask);
+  if (!indexed.ok()) return indexed;
+  TargetResult r = impl_->validateVelocities(&v, &mask);
+  if (!r.ok()) return r;
+  for (int k = 0; k < impl_->n(); ++k) {
+    if (mask[k]) impl_->qd_ref[k] = v[k];
   }
   return r;
 }

@@ -361,8 +361,10 @@ struct DrillingSimulation::Impl {
 
   std::vector<std::string> arm_joints;
   std::vector<std::string> commandable;
-  std::vector<int> commandable_index;  // index in arm joints
-  Eigen::VectorXd home;                // all arm joints
+  std::vector<int> commandable_index;    // index in arm joints
+  Eigen::VectorXd block_pos, block_vel;  // advanceArmBlock's targets (kept: no allocation)
+  std::vector<int> spindle_index;        // the spindle joint's index in arm joints (one entry)
+  Eigen::VectorXd home;                  // all arm joints
 
   // The arm controller's trajectory (commandable joints only), JointTrajectoryController rules.
   std::unique_ptr<JointTrajectoryExecutor> arm_trajectory;
@@ -649,18 +651,19 @@ struct DrillingSimulation::Impl {
       q1[feed_index] = feed_drive.position();
     }
     arm_trajectory->prune(time);
-    std::map<std::string, double> pos, vel;
+    block_pos.resize(static_cast<Eigen::Index>(commandable.size()));
+    block_vel.resize(static_cast<Eigen::Index>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) {
       const double limit = arm->jointInfo()[commandable_index[j]].velocity * block;
       // Not lagging: the setpoint is the reference now (q0). Lagging: it keeps its own value.
       const double from = std::abs(servo_ref[j] - q0[j]) <= limit ? q0[j] : servo_ref[j];
       const double to = from + std::clamp(q1[j] - from, -limit, limit);
-      pos[commandable[j]] = from;
-      vel[commandable[j]] = (to - from) / block;  // the servo reference ramps to `to`
+      block_pos[static_cast<Eigen::Index>(j)] = from;
+      block_vel[static_cast<Eigen::Index>(j)] = (to - from) / block;  // the reference ramps to `to`
       servo_ref[j] = to;
     }
-    arm->setJointPositionTargets(pos);
-    arm->setJointVelocityTargets(vel);
+    arm->setJointPositionTargets(commandable_index, block_pos);
+    arm->setJointVelocityTargets(commandable_index, block_vel);
     // Thrust on the tip, opposite to the feed (zero-order hold over the block).
     const Eigen::Matrix3d r = arm->tipPose().linear();
     arm->applyTipForce(-last_force.thrust_N * r.col(2));
@@ -787,9 +790,11 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
       s.commandable_index.push_back(k);
     }
   }
-  if (std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint") == s.arm_joints.end()) {
+  const auto spindle = std::find(s.arm_joints.begin(), s.arm_joints.end(), "spindle_joint");
+  if (spindle == s.arm_joints.end()) {
     throw std::runtime_error("DrillingSimulation: the arm chain has no spindle_joint");
   }
+  s.spindle_index = {static_cast<int>(spindle - s.arm_joints.begin())};
   s.home = Eigen::VectorXd::Zero(s.arm->numJoints());
   for (const auto& kv : params.home_pose) {
     auto it = std::find(s.arm_joints.begin(), s.arm_joints.end(), kv.first);
@@ -867,8 +872,8 @@ SimulationStep DrillingSimulation::stepOnce() {
     const double block = s.steps_per_arm_block * s.dt;
     const double max_change = s.params.spindle_accel_rpm_s * block;
     s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
-    s.arm->setJointVelocityTargets(
-        std::map<std::string, double>{{"spindle_joint", s.spindle_rpm * 2.0 * kPi / 60.0}});
+    s.arm->setJointVelocityTargets(s.spindle_index,
+                                   Eigen::VectorXd::Constant(1, s.spindle_rpm * 2.0 * kPi / 60.0));
     s.advanceArmBlock();
   }
   ++s.step_index;

@@ -138,6 +138,15 @@ class BulletArm {
   TargetResult setJointVelocityTargets(const Eigen::VectorXd& qdot);
   /// @brief Velocity targets for the named joints only (others keep their targets).
   TargetResult setJointVelocityTargets(const std::map<std::string, double>& qdot);
+  /// @brief Position targets for the joints at `index` (positions in jointNames()), the others
+  /// keeping theirs: setJointPositionTargets(named) without the names, for a per-step caller
+  /// that resolved them once. An index out of range rejects the command.
+  TargetResult setJointPositionTargets(const std::vector<int>& index,
+                                       const Eigen::VectorXd& positions);
+  /// @brief Velocity targets for the joints at `index`: setJointVelocityTargets(named) without
+  /// the names.
+  TargetResult setJointVelocityTargets(const std::vector<int>& index,
+                                       const Eigen::VectorXd& velocities);
   /// @brief Teleports the joints to q (zero velocity) and sets the position targets to q.
   TargetResult resetJointState(const Eigen::VectorXd& q);
 
