@@ -865,7 +865,8 @@ def parse_args(argv):
 def campaign_argv(args):
     """The options every sub-campaign gets (the scenario and the folder apart), resolved by the
     campaign's own parser, and the design values a finished sub-campaign's meta must have."""
-    argv = ['--case', 'all', '--engine', 'core', '--jobs', str(args.jobs)]
+    # No --case: the scenario's cases (all three unless it names fewer).
+    argv = ['--engine', 'core', '--jobs', str(args.jobs)]
     for option in ('rpm', 'trials', 'seed', 'seed_space'):
         value = getattr(args, option)
         if value is not None:
@@ -878,7 +879,7 @@ def campaign_argv(args):
     if scenario.get('faults') or scenario.get('protocol', 'recognition') != 'recognition':
         raise SweepError('--scenario %s: a fault campaign or the peak_forces protocol has no '
                          'success to compare' % args.scenario)
-    argv = ['--case', 'all', '--engine', 'core', '--jobs', str(args.jobs),
+    argv = ['--engine', 'core', '--jobs', str(args.jobs),
             '--rpm', ','.join('%r' % r for r in rpms),
             '--trials', ','.join(str(t) for t in trials) if isinstance(trials, list)
             else str(trials), '--seed', str(seed), '--seed-space', parsed.seed_space]

@@ -509,3 +509,18 @@ def test_the_tool_refuses_a_bad_sweep_before_running_anything(tmp_path):
     result = _run('--sweep', _sweep_file(tmp_path, TINY), '--rpm', '99', '--out', str(out))
     assert result.returncode == 2 and '--rpm' in result.stderr
     assert not out.exists()
+
+
+def test_the_scenarios_cases_are_the_sweeps(tmp_path):
+    """A scenario of one case (config/scenario_speed.yaml's kind) is swept on that case alone:
+    no sub-campaign drills the others."""
+    scenario = tmp_path / 'one_case.yaml'
+    scenario.write_text('cases: [compensated]\nrpms: [12000]\ntrials: 1\nseed: 5\n'
+                        'seed_space: evaluation\n')
+    sweep = _sweep_file(tmp_path, TINY[:1])
+    out = str(tmp_path / 'out')
+    result = _run('--scenario', str(scenario), '--sweep', sweep, '--out', out, '--jobs', '2')
+    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
+    for name in ('nominal', 'simulator_params.chisel_edge_share-low',
+                 'simulator_params.chisel_edge_share-high'):
+        assert {r['case'] for r in _trials(os.path.join(out, name))} == {'compensated'}, name
