@@ -63,6 +63,11 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
   --sweep "${ROOT}/config/sensitivity_realistic.yaml" --rpm 12000 \
   --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" --out "${OUT}/sensitivity_realistic" \
   > /dev/null
+# 2f. Fig. 15's question: the compensated case at 12000/16000/20000 rpm, 50 trials per speed,
+#     over every speed-dependent candidate (config/sensitivity_speed.yaml).
+rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
+  --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" \
+  --out "${OUT}/sensitivity_speed" > /dev/null
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
@@ -99,6 +104,7 @@ echo "  ${OUT}/campaign_virtual_patient/report.md"
 echo "  ${OUT}/campaign_hysteresis/report.md"
 echo "  ${OUT}/campaign_faults/report.md"
 echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.md"
-echo "  ${OUT}/sensitivity_paper/sensitivity.md and ${OUT}/sensitivity_realistic/sensitivity.md"
+echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/sensitivity.md,"
+echo "  ${OUT}/sensitivity_speed/sensitivity.md"
 echo "  ${OUT}/engine_agreement.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"
