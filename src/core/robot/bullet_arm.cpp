@@ -178,21 +178,22 @@ struct BulletArm::Impl {
   TargetResult validatePositions(Eigen::VectorXd* q, const std::vector<bool>* mask) const;
   TargetResult validateVelocities(Eigen::VectorXd* qd, const std::vector<bool>* mask) const;
   /** Overlays named targets on *values and marks them in *mask; rejects unknown names. */
-  TargetResult overlayNamed(const std::map<std::string, double>& named, Eigen::VectorXd* values,
-                            std::vector<bool>* mask) const {
-    mask->assign(n(), false);
+  // The joints a named command sets, as indices into jointNames() with their values.
+  TargetResult indicesOf(const std::map<std::string, double>& named, std::vector<int>* index,
+                         Eigen::VectorXd* values) const {
+    index->clear();
+    values->resize(static_cast<Eigen::Index>(named.size()));
     for (const auto& kv : named) {
       auto it = std::find(joint_names.begin(), joint_names.end(), kv.first);
       if (it == joint_names.end()) {
         return {TargetStatus::kRejected, "unknown joint '" + kv.first + "'"};
       }
-      const int k = static_cast<int>(it - joint_names.begin());
-      (*mask)[k] = true;
-      (*values)[k] = kv.second;
+      (*values)[static_cast<Eigen::Index>(index->size())] = kv.second;
+      index->push_back(static_cast<int>(it - joint_names.begin()));
     }
     return {};
   }
-  // overlayNamed's indexed twin: the joints at `index` take `values`.
+  // The joints at `index` take `values` in `out`; `mask` marks them.
   TargetResult overlayIndexed(const std::vector<int>& index, const Eigen::VectorXd& values,
                               Eigen::VectorXd* out, std::vector<bool>* mask) const {
     if (values.size() != static_cast<Eigen::Index>(index.size())) {
@@ -788,18 +789,10 @@ TargetResult BulletArm::setJointPositionTargets(const Eigen::VectorXd& q) {
 }
 
 TargetResult BulletArm::setJointPositionTargets(const std::map<std::string, double>& q) {
-  std::vector<bool> mask;
-  Eigen::VectorXd v = impl_->q_ref;
-  const TargetResult named = impl_->overlayNamed(q, &v, &mask);
-  if (!named.ok()) return named;
-  TargetResult r = impl_->validatePositions(&v, &mask);
-  if (!r.ok()) return r;
-  for (int k = 0; k < impl_->n(); ++k) {
-    if (!mask[k]) continue;
-    impl_->q_ref[k] = v[k];
-    impl_->qd_ref[k] = 0.0;
-  }
-  return r;
+  std::vector<int> index;
+  Eigen::VectorXd values;
+  const TargetResult named = impl_->indicesOf(q, &index, &values);
+  return named.ok() ? setJointPositionTargets(index, values) : named;
 }
 
 TargetResult BulletArm::setJointPositionTargets(const std::vector<int>& index,
@@ -845,16 +838,10 @@ TargetResult BulletArm::setJointVelocityTargets(const Eigen::VectorXd& qdot) {
 }
 
 TargetResult BulletArm::setJointVelocityTargets(const std::map<std::string, double>& qdot) {
-  std::vector<bool> mask;
-  Eigen::VectorXd v = impl_->qd_ref;
-  const TargetResult named = impl_->overlayNamed(qdot, &v, &mask);
-  if (!named.ok()) return named;
-  TargetResult r = impl_->validateVelocities(&v, &mask);
-  if (!r.ok()) return r;
-  for (int k = 0; k < impl_->n(); ++k) {
-    if (mask[k]) impl_->qd_ref[k] = v[k];
-  }
-  return r;
+  std::vector<int> index;
+  Eigen::VectorXd values;
+  const TargetResult named = impl_->indicesOf(qdot, &index, &values);
+  return named.ok() ? setJointVelocityTargets(index, values) : named;
 }
 
 TargetResult BulletArm::resetJointState(const Eigen::VectorXd& q) {
