@@ -4,8 +4,9 @@
  *        (`~start_trial`): every component started afresh, spindle on, arm to the drilling pose,
  *        marker registration, then every 125 ms the next trapezoidal segment of feed
  *        (+ predicted displacement in compensated mode) as a JointTrajectory on
- *        `arm_controller/command`; stops on `drill/stop` (hold, or retreat along the drill axis).
- *        Thin ROS adapter of core::TrialSequencer (the trial logic, shared with the closed-loop
+ *        each controller's `<name>/command` (by default arm_controller: the 6 arm joints;
+ *        feed_controller: feed_joint); stops on `drill/stop` (hold, or retreat along the drill
+ * axis). Thin ROS adapter of core::TrialSequencer (the trial logic, shared with the closed-loop
  *        engine): parameters, message conversion, timers and the component resets.
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
@@ -39,6 +40,7 @@
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/planner_conversions.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
+#include "pedicle_drilling/ros/simulator_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
@@ -61,6 +63,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       loader.load(CompensationPlannerNodeParams::table(), &params_);
       patient_ = loadPatient();
       sequencer_ = makeSequencer(params_, loader, nh);
+      controllers_ = sequencer_->controllers();
       loadCompensator(loader);
       // Under the simulator's lockstep, the sequencer's timers run on its steps (the engine's
       // rule, SequencerTimers), not on ROS timers.
@@ -71,7 +74,18 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
-    trajectory_pub_ = nh.advertise<trajectory_msgs::JointTrajectory>("arm_controller/command", 10);
+    for (const core::ControllerSpec& c : controllers_) {
+      trajectory_pubs_.push_back(
+          nh.advertise<trajectory_msgs::JointTrajectory>(c.name + "/command", 10));
+      // The closed loop on what the arm does (core::ControllerWatch): the controller's state.
+      const std::string name = c.name;
+      controller_state_subs_.push_back(nh.subscribe<JointTrajectoryControllerState>(
+          name + "/state", 10,
+          [this, name](const JointTrajectoryControllerState::ConstPtr& msg) {
+            onControllerState(name, msg);
+          },
+          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay()));
+    }
     spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10, true);
     predicted_pub_ =
         nh.advertise<geometry_msgs::PoseStamped>("compensation/predicted_marker_pose", 50);
@@ -166,6 +180,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     } catch (const std::exception& e) {
       NODELET_ERROR("CompensationPlanner: ignored invalid ventilator settings: %s", e.what());
     }
+  }
+
+  void onControllerState(const std::string& name,
+                         const JointTrajectoryControllerState::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
+    std::lock_guard<std::mutex> lock(mutex_);
+    sequencer_->onControllerState(now(), name, fromMsg(*msg, 0.0));
+    carryOut();
   }
 
   void onTidalVolume(const TidalVolume::ConstPtr& msg) {
@@ -284,7 +306,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       spindle_pub_.publish(msg);
     }
     for (const core::JointTrajectoryCommand& c : out.trajectories) {
-      trajectory_pub_.publish(toMsg(c));
+      // One stream per controller, each naming its own joints (as a lab's controllers take it).
+      for (const auto& [index, part] : core::splitByController(c, controllers_)) {
+        trajectory_pubs_[index].publish(toMsg(part));
+      }
     }
     for (const core::PredictedMarker& m : out.predicted) predicted_pub_.publish(toMsg(m));
     for (core::TrialPhase p : out.phases) publishStatus(p);
@@ -367,7 +392,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
-  ros::Publisher trajectory_pub_;
+  std::vector<core::ControllerSpec> controllers_;       ///< params_.controllers, checked
+  std::vector<ros::Publisher> trajectory_pubs_;         ///< one per controller
+  std::vector<ros::Subscriber> controller_state_subs_;  ///< <controller>/state, one each
   ros::Publisher spindle_pub_;
   ros::Publisher predicted_pub_;
   ros::Publisher status_pub_;

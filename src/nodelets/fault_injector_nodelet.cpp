@@ -5,7 +5,10 @@
  *        core engine's fault campaign does (core::FaultInjector, the same class). Put it between
  *        a real or simulated sensor and the pipeline to prove that the pipeline fails safe.
  *        Relays: ft_sensor/wrench_raw -> ft_sensor/wrench, tracker/marker_pose_raw ->
- *        tracker/marker_pose, arm_controller/command -> arm_controller/command_delivered.
+ *        tracker/marker_pose, and for each of ~controllers (arm_controller, feed_controller)
+ *        <name>/command -> <name>/command_delivered. The parts of one planner command (the
+ *        messages with one header stamp, one per controller) share one fault decision, as the
+ *        core engine applies a fault to the planner's whole command.
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
@@ -38,24 +41,31 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       FaultInjectorNodeParams params;
       ParamLoader(pnh).load(FaultInjectorNodeParams::table(), &params);
       injector_ = std::make_unique<core::FaultInjector>(params.faults);
+      controllers_ = params.controllers;
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
     wrench_pub_ = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 2000);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
-    command_pub_ =
-        nh.advertise<trajectory_msgs::JointTrajectory>("arm_controller/command_delivered", 10);
+    for (const std::string& c : controllers_) {
+      command_pubs_.push_back(
+          nh.advertise<trajectory_msgs::JointTrajectory>(c + "/command_delivered", 10));
+    }
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench_raw", 2000, &FaultInjectorNodelet::onWrench, this, hints);
     marker_sub_ =
         nh.subscribe("tracker/marker_pose_raw", 20, &FaultInjectorNodelet::onMarker, this, hints);
-    command_sub_ =
-        nh.subscribe("arm_controller/command", 10, &FaultInjectorNodelet::onCommand, this, hints);
+    for (std::size_t i = 0; i < controllers_.size(); ++i) {
+      command_subs_.push_back(nh.subscribe<trajectory_msgs::JointTrajectory>(
+          controllers_[i] + "/command", 10,
+          [this, i](const trajectory_msgs::JointTrajectory::ConstPtr& msg) { onCommand(i, msg); },
+          ros::VoidConstPtr(), hints));
+    }
     inject_srv_ = pnh.advertiseService("inject", &FaultInjectorNodelet::onInject, this);
     NODELET_INFO(
-        "FaultInjector: relaying ft_sensor/wrench_raw, tracker/marker_pose_raw and "
-        "arm_controller/command; faults through %s",
+        "FaultInjector: relaying ft_sensor/wrench_raw, tracker/marker_pose_raw and the "
+        "controllers' commands; faults through %s",
         inject_srv_.getService().c_str());
   }
 
@@ -97,25 +107,32 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     marker_pub_.publish(out);
   }
 
-  void onCommand(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
+  void onCommand(std::size_t controller, const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     double extra = 0.0;
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      extra = injector_->command(ros::Time::now().toSec());
+      // One decision per planner command: its parts carry one header stamp.
+      if (!have_decision_ || msg->header.stamp != decided_stamp_) {
+        decided_extra_ = injector_->command(ros::Time::now().toSec());
+        decided_stamp_ = msg->header.stamp;
+        have_decision_ = true;
+      }
+      extra = decided_extra_;
     }
     if (extra < 0.0) {
       NODELET_WARN("FaultInjector: command_lost: a trajectory command was dropped");
       return;
     }
     if (extra == 0.0) {
-      command_pub_.publish(msg);
+      command_pubs_[controller].publish(msg);
       return;
     }
     // Delivered late with its own stamp: the controller treats its points as a late message's.
     NODELET_WARN("FaultInjector: command_delayed: a trajectory command held %.3f s", extra);
     std::lock_guard<std::mutex> lock(mutex_);
     delayed_.push_back(getNodeHandle().createTimer(
-        ros::Duration(extra), [this, msg](const ros::TimerEvent&) { command_pub_.publish(msg); },
+        ros::Duration(extra),
+        [this, controller, msg](const ros::TimerEvent&) { command_pubs_[controller].publish(msg); },
         true));
   }
 
@@ -152,8 +169,14 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::FaultInjector> injector_;
-  ros::Publisher wrench_pub_, marker_pub_, command_pub_;
-  ros::Subscriber wrench_sub_, marker_sub_, command_sub_;
+  ros::Publisher wrench_pub_, marker_pub_;
+  ros::Subscriber wrench_sub_, marker_sub_;
+  std::vector<std::string> controllers_;       ///< ~controllers
+  std::vector<ros::Publisher> command_pubs_;   ///< <controller>/command_delivered
+  std::vector<ros::Subscriber> command_subs_;  ///< <controller>/command
+  bool have_decision_ = false;
+  ros::Time decided_stamp_;     ///< the planner command the last decision was for
+  double decided_extra_ = 0.0;  ///< and the decision (injector_->command())
   ros::ServiceServer inject_srv_;
   std::list<ros::Timer> delayed_;
 };

@@ -6,8 +6,9 @@
  *
  * Interfaces (see README "pedicle_drilling/Simulator"): publishes /clock, joint_states,
  * ft_sensor/wrench (at ~force_sensor_rate_hz, 1000/3 Hz), tf + tf_static, tracker/marker_pose (8
- * Hz), simulator/ground_truth; subscribes arm_controller/command (trajectory_msgs/JointTrajectory),
- * spindle/command (std_msgs/Float64, rpm); service simulator/reset (ResetSimulation).
+ * Hz), simulator/ground_truth; subscribes each controller's <name>/command
+ * (trajectory_msgs/JointTrajectory; arm_controller and feed_controller by default, ros_control's
+ * rules), spindle/command (std_msgs/Float64, rpm); service simulator/reset (ResetSimulation).
  */
 #include <geometry_msgs/PoseStamped.h>
 #include <nodelet/nodelet.h>
@@ -97,6 +98,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       tf_period_ = period("tf_rate_hz", params.tf_rate_hz);
       ground_truth_period_ = period("ground_truth_rate_hz", params.ground_truth_rate_hz);
       tracker_period_ = period("tracker_rate_hz", params.tracker_rate_hz);
+      controller_state_period_ =
+          period("controller_state_rate_hz", params.controller_state_rate_hz);
       // The simulated ventilator is the device that drives the patient: it publishes what the
       // Ventilator nodelet publishes on hardware-free setups (0 disables it).
       const double tv_rate = params.tidal_volume_rate_hz;
@@ -112,6 +115,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
       time_offset_ = ros::Time::now().toSec();
     }
     joint_state_pub_ = nh.advertise<sensor_msgs::JointState>("joint_states", 100);
+    for (const core::ControllerSpec& c : sim_->controllers()) {
+      controller_state_pubs_.push_back(
+          nh.advertise<JointTrajectoryControllerState>(c.name + "/state", 10));
+    }
     wrench_pub_ = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 2000);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
     ground_truth_pub_ = nh.advertise<GroundTruth>("simulator/ground_truth", 200);
@@ -130,8 +137,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
     // doing.
     ros::NodeHandle command_nh(nh);
     if (lockstep_) command_nh.setCallbackQueue(&lockstep_queue_);
-    trajectory_sub_ =
-        command_nh.subscribe("arm_controller/command", 10, &SimulatorNodelet::onTrajectory, this);
+    // One command stream per controller (simulator parameters arm_controller, feed_controller
+    // and their joints), each with ros_control's rules (controller_rules).
+    for (const core::ControllerSpec& c : sim_->controllers()) {
+      const std::string name = c.name;
+      trajectory_subs_.push_back(command_nh.subscribe<trajectory_msgs::JointTrajectory>(
+          name + "/command", 10,
+          [this, name](const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
+            onTrajectory(name, msg);
+          }));
+    }
     spindle_sub_ = command_nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
     resume_srv_ =
         command_nh.advertiseService("simulator/resume", &SimulatorNodelet::onResume, this);
@@ -213,6 +228,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         if (step.force_sampled) publishWrench(step);
         if (n % joint_state_period_ == 0) publishJointStates(t);
         if (n % tf_period_ == 0) publishTf(t);
+        if (n % controller_state_period_ == 0) publishControllerStates(t);
         if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);
         if (sim_->trackerDue(tracker_period_)) publishMarker(t);
         publishDelayedMarkers(t);
@@ -248,6 +264,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     double due = 0.0;
     std::optional<core::TrajectoryCommand> trajectory;
     double spindle_rpm = 0.0;
+    std::string controller;  ///< the trajectory's controller
   };
 
   /** @brief The end of the step at `t`: the commands due by then, in the order received (the
@@ -344,7 +361,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       return;
     }
     noteLateness(*c.trajectory);
-    reportTrajectory(sim_->commandTrajectory(*c.trajectory));
+    reportTrajectory(c.controller, sim_->commandTrajectory(c.controller, *c.trajectory));
   }
 
   /**
@@ -412,6 +429,12 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void publishJointStates(double t) { joint_state_pub_.publish(jointStateMsg(*sim_, stampOf(t))); }
 
+  void publishControllerStates(double t) {
+    for (std::size_t i = 0; i < controller_state_pubs_.size(); ++i) {
+      controller_state_pubs_[i].publish(toMsg(sim_->controllerState(i), stampOf(t)));
+    }
+  }
+
   void publishTf(double t) {
     tf_broadcaster_->sendTransform(toMsg(sim_->frameTransforms(false), stampOf(t)));
   }
@@ -419,6 +442,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   void publishGroundTruth(double t) {
     GroundTruth msg = toMsg(sim_->groundTruth(), stampOf(t));
     msg.late_commands = late_commands_;
+    msg.rejected_commands = rejected_commands_;
     msg.max_command_lateness_s = max_command_lateness_s_;
     msg.command_waits = command_waits_;
     msg.command_wait_wall_s = command_wait_wall_s_;
@@ -429,6 +453,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void clearTransportCounters() {
     late_commands_ = 0;
+    rejected_commands_ = 0;
     max_command_lateness_s_ = 0.0;
     command_waits_ = 0;
     command_wait_wall_s_ = 0.0;
@@ -529,19 +554,20 @@ class SimulatorNodelet : public nodelet::Nodelet {
     return true;
   }
 
-  void onTrajectory(const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
+  void onTrajectory(const std::string& controller,
+                    const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     std::unique_lock<std::mutex> lock(mutex_);
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
     if (lockstep_) {
-      pending_.push_back({commandDue(), command, 0.0});
+      pending_.push_back({commandDue(), command, 0.0, controller});
       return;
     }
     noteLateness(command);
-    const core::TargetResult r = sim_->commandTrajectory(command);
+    const core::TargetResult r = sim_->commandTrajectory(controller, command);
     wait_given_up_ = false;
     lock.unlock();
     command_cv_.notify_all();
-    reportTrajectory(r);
+    reportTrajectory(controller, r);
   }
 
   /** @brief Late: its start passed before it arrived (half a physics step of rounding allowed);
@@ -555,14 +581,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
   }
 
-  void reportTrajectory(const core::TargetResult& r) {
+  void reportTrajectory(const std::string& controller, const core::TargetResult& r) {
     if (r.status == core::TargetStatus::kRejected) {
-      NODELET_WARN_THROTTLE(1.0,
-                            "Simulator: arm_controller/command rejected, previous "
-                            "trajectory kept: %s",
-                            r.message.c_str());
+      ++rejected_commands_;
+      NODELET_WARN_THROTTLE(1.0, "Simulator: %s/command rejected, previous trajectory kept: %s",
+                            controller.c_str(), r.message.c_str());
     } else if (r.status == core::TargetStatus::kClamped) {
-      NODELET_WARN_THROTTLE(1.0, "Simulator: arm_controller/command clamped: %s",
+      NODELET_WARN_THROTTLE(1.0, "Simulator: %s/command: %s", controller.c_str(),
                             r.message.c_str());
     }
   }
@@ -570,7 +595,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   void onSpindle(const std_msgs::Float64::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (lockstep_) {
-      pending_.push_back({commandDue(), std::nullopt, msg->data});
+      pending_.push_back({commandDue(), std::nullopt, msg->data, ""});
       return;
     }
     reportSpindle(sim_->commandSpindle(msg->data));
@@ -705,6 +730,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   bool streaming_ = false;      ///< the planner streams trajectories (under mutex_)
   bool wait_given_up_ = false;  ///< a wait ran out; no other until a trajectory or phase comes
   std::uint32_t late_commands_ = 0;
+  std::uint32_t rejected_commands_ = 0;  ///< trajectories a controller refused this trial
   double max_command_lateness_s_ = 0.0;
   std::uint32_t command_waits_ = 0;
   double command_wait_wall_s_ = 0.0;
@@ -719,6 +745,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::uint64_t tf_period_ = 10;
   std::uint64_t ground_truth_period_ = 10;
   std::uint64_t tracker_period_ = 125;
+  std::uint64_t controller_state_period_ = 20;
+  std::vector<ros::Publisher> controller_state_pubs_;  ///< <controller>/state
   std::uint64_t tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
   long last_breath_index_ = -1;
   VentilatorSettings last_settings_msg_;
@@ -734,7 +762,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   ros::Publisher ground_truth_pub_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
-  ros::Subscriber trajectory_sub_;
+  std::vector<ros::Subscriber> trajectory_subs_;  ///< one per controller
   ros::Subscriber spindle_sub_;
   ros::Subscriber status_sub_;
   ros::ServiceServer reset_srv_;

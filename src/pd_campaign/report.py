@@ -22,8 +22,8 @@ TRIAL_COLUMNS = [
     'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale',
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
     'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
-    'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'force_delay_max_ms',
-    'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
+    'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
+    'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
     'drift_detected', 'bag_lost', 'error',
 ]
 
@@ -64,9 +64,9 @@ def normalise_row(row):
                 'sim_duration_s', 'wall_s', 'stop_depth_mm', 'stop_residual_mm', 'overshoot_mm',
                 'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'late_commands',
                 'max_command_lateness_ms', 'command_waits', 'command_wait_wall_s',
-                'command_wait_expired', 'lockstep_timeouts', 'force_delay_max_ms',
-                'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing',
-                'retare_offset_n'):
+                'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
+                'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms',
+                'tracker_samples_missing', 'retare_offset_n'):
         out[key] = _number(row.get(key))
     out['failure_kind'] = row.get('failure_kind') or None
     out['first_stop_kind'] = row.get('first_stop_kind') or None

@@ -132,13 +132,14 @@ def input_columns(inputs):
 
 
 TRANSPORT_COLUMNS = ('late_commands', 'max_command_lateness_ms', 'command_waits',
-                     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts')
+                     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts',
+                     'rejected_commands')
 
 
 def transport_columns(last_truth):
     """What the ROS transport did in the trial, as the Simulator nodelet counted it (the last
     ground truth): arm trajectories that arrived after their own start and the latest of them,
-    and how often and how long sim time waited for the next trajectory (~command_wait_s). The
+    the trajectories a controller refused (its rules, controller_rules), and how often and how long sim time waited for the next trajectory (~command_wait_s). The
     core engine has no transport: None."""
     if last_truth is None or not hasattr(last_truth, 'late_commands'):
         return dict.fromkeys(TRANSPORT_COLUMNS)
@@ -147,7 +148,8 @@ def transport_columns(last_truth):
             'command_waits': last_truth.command_waits,
             'command_wait_wall_s': last_truth.command_wait_wall_s,
             'command_wait_expired': last_truth.command_wait_expired,
-            'lockstep_timeouts': getattr(last_truth, 'lockstep_timeouts', None)}
+            'lockstep_timeouts': getattr(last_truth, 'lockstep_timeouts', None),
+            'rejected_commands': getattr(last_truth, 'rejected_commands', None)}
 
 
 def tracking_error(truth, t_start, t_end):
@@ -261,8 +263,8 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
 BAG_TOPICS = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tracker/marker_pose',
               '/tidal_volume', '/simulator/ground_truth', '/drilling_state', '/drill/stop',
               '/compensation/status', '/compensation/predicted_marker_pose',
-              '/arm_controller/command', '/spindle/command', '/ventilator/settings',
-              '/diagnostics']
+              '/arm_controller/command', '/feed_controller/command', '/spindle/command',
+              '/ventilator/settings', '/diagnostics']
 # Published in every trial, so a bag without them lost them (the others may stay silent).
 BAG_REQUIRED = ['/tf', '/tf_static', '/joint_states', '/ft_sensor/wrench', '/tracker/marker_pose',
                 '/simulator/ground_truth', '/drilling_state', '/compensation/status',

@@ -52,6 +52,7 @@ const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
         .number("joint_state_rate_hz", &P::joint_state_rate_hz, stream, "Hz")
         .number("tf_rate_hz", &P::tf_rate_hz, stream, "Hz")
         .number("ground_truth_rate_hz", &P::ground_truth_rate_hz, stream, "Hz")
+        .number("controller_state_rate_hz", &P::controller_state_rate_hz, stream, "Hz")
         .number("tracker_rate_hz", &P::tracker_rate_hz, stream, "Hz")
         .number("tidal_volume_rate_hz", &P::tidal_volume_rate_hz, Range::closed(0, 1000), "Hz")
         .text("bone_motion_model_path", &P::bone_motion_model_path, true)
@@ -227,7 +228,8 @@ void CompensationPlannerNodeParams::validate() const {
 const ParamTable<FaultInjectorNodeParams>& FaultInjectorNodeParams::table() {
   static const ParamTable<FaultInjectorNodeParams> t = [] {
     ParamTable<FaultInjectorNodeParams> d;
-    d.include(core::FaultParams::table(), &FaultInjectorNodeParams::faults);
+    d.include(core::FaultParams::table(), &FaultInjectorNodeParams::faults)
+        .names("controllers", &FaultInjectorNodeParams::controllers);
     return d;
   }();
   return t;

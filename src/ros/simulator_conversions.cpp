@@ -158,6 +158,33 @@ geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const r
   return w;
 }
 
+JointTrajectoryControllerState toMsg(const core::ControllerStateSample& state,
+                                     const ros::Time& stamp) {
+  JointTrajectoryControllerState msg;
+  msg.header.stamp = stamp;
+  msg.joint_names = state.joint_names;
+  msg.desired.positions = state.desired_positions;
+  msg.desired.velocities = state.desired_velocities;
+  msg.actual.positions = state.actual_positions;
+  msg.actual.velocities = state.actual_velocities;
+  msg.error.positions = state.error_positions;
+  msg.error.velocities = state.error_velocities;
+  return msg;
+}
+
+core::ControllerStateSample fromMsg(const JointTrajectoryControllerState& msg, double time_offset) {
+  core::ControllerStateSample state;
+  state.stamp = msg.header.stamp.toSec() - time_offset;
+  state.joint_names = msg.joint_names;
+  state.desired_positions = msg.desired.positions;
+  state.desired_velocities = msg.desired.velocities;
+  state.actual_positions = msg.actual.positions;
+  state.actual_velocities = msg.actual.velocities;
+  state.error_positions = msg.error.positions;
+  state.error_velocities = msg.error.velocities;
+  return state;
+}
+
 sensor_msgs::JointState jointStateMsg(const core::DrillingSimulation& sim, const ros::Time& stamp) {
   sensor_msgs::JointState js;
   js.header.stamp = stamp;

@@ -703,7 +703,8 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   EXPECT_LT((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 1e-5);
   EXPECT_DOUBLE_EQ(sim.spindleRpm(), 0.0);
 
-  // A late command (all points in the past) goes to its final point, flagged, not dropped.
+  // ros_control's rules (controller_rules strict, the default): a command whose points all lie
+  // in the past is dropped, the arm keeps its trajectory (test_trajectory_executor has the rules).
   TrajectoryCommand past;
   past.joint_names = {"feed_joint"};
   past.points.push_back({sim.time() - 0.1, {0.01}, {}});
@@ -711,23 +712,56 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   late_nan.points[0].positions[0] = std::numeric_limits<double>::quiet_NaN();
   EXPECT_EQ(sim.commandTrajectory(late_nan).status, TargetStatus::kRejected);
   const TargetResult late = sim.commandTrajectory(past);
-  EXPECT_EQ(late.status, TargetStatus::kClamped);
-  EXPECT_NE(late.message.find("past"), std::string::npos);
-  sim.step(1.2);  // the feed joint goes to the late command's final point (10 mm, <= 10 mm/s)
-  EXPECT_NEAR((sim.armJointPositions() - q0).cwiseAbs().maxCoeff(), 0.01, 1e-4);
-  q0 = sim.armJointPositions();
-
-  // Out of limit: clamped (feed travel 0..60 mm), spindle clamped to 21000 rpm.
+  EXPECT_EQ(late.status, TargetStatus::kRejected);
+  EXPECT_NE(late.message.find("feed_controller: dropping all 1 trajectory point(s)"),
+            std::string::npos)
+      << late.message;
+  // Out of limit (feed travel 0..60 mm): refused, naming the joint; nothing is clamped.
   TrajectoryCommand far;
   far.joint_names = {"feed_joint"};
   far.points.push_back({sim.time() + 1.0, {0.5}, {}});
   const TargetResult c = sim.commandTrajectory(far);
-  EXPECT_EQ(c.status, TargetStatus::kClamped);
-  EXPECT_NE(c.message.find("feed_joint"), std::string::npos);
-  EXPECT_EQ(sim.commandSpindle(1e6).status, TargetStatus::kClamped);
-  sim.step(5.5);  // 50 mm at the 10 mm/s limit
-  EXPECT_NEAR(sim.armJointPositions()[6], 0.06, 1e-4);
+  EXPECT_EQ(c.status, TargetStatus::kRejected);
+  EXPECT_NE(c.message.find("joint 'feed_joint' position 0.5 outside its limits"), std::string::npos)
+      << c.message;
+  // A command for the arm controller must name its 6 joints (no partial goals by default).
+  TrajectoryCommand partial;
+  partial.joint_names = {"rsssii_joint1"};
+  partial.points.push_back({sim.time() + 1.0, {0.1}, {}});
+  EXPECT_EQ(sim.commandTrajectory(partial).status, TargetStatus::kRejected);
+  EXPECT_EQ(sim.commandTrajectory("no_such_controller", far).status, TargetStatus::kRejected);
+  EXPECT_EQ(sim.commandSpindle(1e6).status, TargetStatus::kClamped);  // the spindle's drive
+  sim.step(1.2);
+  EXPECT_LT((sim.armJointPositions() - q0).head(7).cwiseAbs().maxCoeff(), 1e-5);
   EXPECT_NEAR(sim.spindleRpm(), 21000.0, 1e-6);
+  // The controllers' state: desired, actual and their difference, as ros_control publishes it.
+  ASSERT_EQ(sim.controllers().size(), 2u);
+  const ControllerStateSample state = sim.controllerState(1);
+  ASSERT_EQ(state.joint_names, std::vector<std::string>{"feed_joint"});
+  EXPECT_NEAR(state.actual_positions[0], q0[6], 1e-9);
+  EXPECT_NEAR(state.error_positions[0], state.desired_positions[0] - state.actual_positions[0],
+              1e-15);
+  EXPECT_THROW(sim.controllerState(2), std::out_of_range);
+
+  // The lenient rules (controller_rules lenient): a late command goes to its final point and an
+  // out-of-limit position is clamped, both flagged.
+  DrillingSimulationParams lenient_params;
+  lenient_params.controller_rules.strict = false;
+  DrillingSimulation lenient(workcell(), lenient_params, 1);
+  lenient.step(0.5);
+  const Eigen::VectorXd l0 = lenient.armJointPositions();
+  past.points[0].time_s = lenient.time() - 0.1;
+  const TargetResult went = lenient.commandTrajectory(past);
+  EXPECT_EQ(went.status, TargetStatus::kClamped);
+  EXPECT_NE(went.message.find("past"), std::string::npos);
+  lenient.step(1.2);  // the feed joint goes to the late command's final point (10 mm, <= 10 mm/s)
+  EXPECT_NEAR(lenient.armJointPositions()[6] - l0[6], 0.01, 1e-4);
+  far.points[0].time_s = lenient.time() + 1.0;
+  const TargetResult clamped = lenient.commandTrajectory(far);
+  EXPECT_EQ(clamped.status, TargetStatus::kClamped);
+  EXPECT_NE(clamped.message.find("feed_joint"), std::string::npos);
+  lenient.step(5.5);  // 50 mm at the 10 mm/s limit
+  EXPECT_NEAR(lenient.armJointPositions()[6], 0.06, 1e-4);
 }
 
 TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFollowed) {

@@ -16,10 +16,24 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
+/** @brief Strict rules that accept partial goals (most tests command joint "a" alone). */
+pd::ControllerRules partial() {
+  pd::ControllerRules r;
+  r.allow_partial_joints_goal = true;
+  return r;
+}
+
+/** @brief The lenient rules (strict = false). */
+pd::ControllerRules lenient() {
+  pd::ControllerRules r;
+  r.strict = false;
+  return r;
+}
+
 /** @brief Two joints "a" and "b", limits [-1, 1] and 2 /s, holding (0, 0). */
-pd::JointTrajectoryExecutor twoJoints() {
+pd::JointTrajectoryExecutor twoJoints(pd::ControllerRules rules = partial()) {
   return pd::JointTrajectoryExecutor({"a", "b"}, {{-1.0, 1.0, 2.0}, {-1.0, 1.0, 2.0}},
-                                     Eigen::Vector2d::Zero());
+                                     Eigen::Vector2d::Zero(), rules);
 }
 
 pd::TrajectoryCommand command(std::vector<std::string> names, double start,
@@ -42,8 +56,8 @@ double qdd(const pd::JointTrajectoryExecutor& ex, double t, int j = 0) {
 }
 
 /** @brief Joint a: linear from 0 at t = 0 to 1 at t = 10 (0.1 /s); b untouched. */
-pd::JointTrajectoryExecutor runningRamp() {
-  pd::JointTrajectoryExecutor ex = twoJoints();
+pd::JointTrajectoryExecutor runningRamp(pd::ControllerRules rules = partial()) {
+  pd::JointTrajectoryExecutor ex = twoJoints(rules);
   EXPECT_TRUE(ex.command(command({"a"}, kNaN, {{10.0, {1.0}}}), 0.0).ok());
   return ex;
 }
@@ -170,7 +184,6 @@ TEST(JointTrajectoryExecutor, RejectedCommandsLeaveTheRunningTrajectory) {
       command({"a"}, kNaN, {{2.0, {0.1}, {}, {0.3}}}),
       command({"a"}, std::numeric_limits<double>::infinity(), {{2.0, {0.1}}}),
       command({}, kNaN, {{2.0, {}}}),
-      command({"a"}, kNaN, {}),
   };
   for (const pd::TrajectoryCommand& c : bad) {
     const pd::TargetResult r = ex.command(c, 1.0);
@@ -180,15 +193,85 @@ TEST(JointTrajectoryExecutor, RejectedCommandsLeaveTheRunningTrajectory) {
   }
 }
 
-TEST(JointTrajectoryExecutor, OutOfLimitPositionsAreClampedAndTooFastSegmentsReported) {
-  pd::JointTrajectoryExecutor ex = twoJoints();
+TEST(JointTrajectoryExecutor, LenientClampsOutOfLimitPositionsAndRejectsEmptyCommands) {
+  pd::JointTrajectoryExecutor ex = twoJoints(lenient());
   pd::TargetResult r = ex.command(command({"b"}, kNaN, {{10.0, {3.0}}}), 0.0);
   EXPECT_EQ(r.status, pd::TargetStatus::kClamped);
   EXPECT_NE(r.message.find("joint 'b' target 3 clamped"), std::string::npos) << r.message;
   EXPECT_DOUBLE_EQ(q(ex, 10.0, 1), 1.0);
-  r = ex.command(command({"a"}, kNaN, {{0.1, {1.0}}}), 10.0);
-  EXPECT_EQ(r.status, pd::TargetStatus::kClamped);
-  EXPECT_NE(r.message.find("above its velocity limit 2"), std::string::npos) << r.message;
+  r = ex.command(command({"a"}, kNaN, {}), 10.0);
+  EXPECT_EQ(r.status, pd::TargetStatus::kRejected);
+  EXPECT_DOUBLE_EQ(q(ex, 10.0, 1), 1.0);
+}
+
+TEST(JointTrajectoryExecutor, TooFastSegmentsAreReported) {
+  for (const pd::ControllerRules& rules : {partial(), lenient()}) {
+    pd::JointTrajectoryExecutor ex = twoJoints(rules);
+    const pd::TargetResult r = ex.command(command({"a"}, kNaN, {{10.1, {1.0}}}), 10.0);
+    EXPECT_EQ(r.status, pd::TargetStatus::kClamped);
+    EXPECT_NE(r.message.find("above its velocity limit 2"), std::string::npos) << r.message;
+  }
+}
+
+// ros_control, joint_trajectory_controller_impl.h (updateTrajectoryCommand): without
+// allow_partial_joints_goal, "Joints on incoming goal don't match the controller joints".
+TEST(JointTrajectoryExecutor, StrictRefusesACommandThatDoesNotNameEveryJoint) {
+  pd::JointTrajectoryExecutor ex = twoJoints(pd::ControllerRules{});
+  pd::TargetResult r = ex.command(command({"a"}, kNaN, {{1.0, {0.5}}}), 0.0);
+  EXPECT_EQ(r.status, pd::TargetStatus::kRejected);
+  EXPECT_NE(r.message.find("don't match the controller joints [a, b]"), std::string::npos)
+      << r.message;
+  EXPECT_DOUBLE_EQ(q(ex, 1.0), 0.0);
+  // Every joint, in any order: accepted.
+  r = ex.command(command({"b", "a"}, kNaN, {{1.0, {0.25, 0.5}}}), 0.0);
+  EXPECT_TRUE(r.ok()) << r.message;
+  EXPECT_DOUBLE_EQ(q(ex, 1.0, 0), 0.5);
+  EXPECT_DOUBLE_EQ(q(ex, 1.0, 1), 0.25);
+  // With allow_partial_joints_goal the subset is taken, the other joint keeps its reference.
+  pd::JointTrajectoryExecutor partial_ex = twoJoints(partial());
+  EXPECT_TRUE(partial_ex.command(command({"a"}, kNaN, {{1.0, {0.5}}}), 0.0).ok());
+  EXPECT_DOUBLE_EQ(q(partial_ex, 1.0, 0), 0.5);
+  EXPECT_DOUBLE_EQ(q(partial_ex, 1.0, 1), 0.0);
+}
+
+// ros_control's controller does not clamp; the limits are the arm driver's, which refuses. A
+// strict controller here refuses the whole command and names the joint.
+TEST(JointTrajectoryExecutor, StrictRefusesOutOfLimitPositionsAndClampsNothing) {
+  pd::JointTrajectoryExecutor ex = runningRamp();
+  const pd::TargetResult r = ex.command(command({"b"}, kNaN, {{10.0, {3.0}}}), 1.0);
+  EXPECT_EQ(r.status, pd::TargetStatus::kRejected);
+  EXPECT_NE(r.message.find("joint 'b' position 3 outside its limits [-1, 1]"), std::string::npos)
+      << r.message;
+  EXPECT_DOUBLE_EQ(q(ex, 5.0), 0.5);  // the running trajectory goes on
+  EXPECT_DOUBLE_EQ(q(ex, 10.0, 1), 0.0);
+}
+
+// ros_control, init_joint_trajectory.h: "Dropping all N trajectory point(s), as they occur
+// before the current time"; updateTrajectoryCommand then keeps the current trajectory.
+TEST(JointTrajectoryExecutor, StrictRejectsATrajectoryThatHasAlreadyEnded) {
+  pd::JointTrajectoryExecutor ex = runningRamp();
+  const pd::TargetResult r = ex.command(command({"a"}, 1.0, {{1.5, {0.0}}, {2.0, {0.8}}}), 3.0);
+  EXPECT_EQ(r.status, pd::TargetStatus::kRejected);
+  EXPECT_NE(r.message.find("dropping all 2 trajectory point(s)"), std::string::npos) << r.message;
+  EXPECT_DOUBLE_EQ(q(ex, 3.5), 0.35);  // still the ramp
+  // A point in the future is enough: the late command is taken (from now to that point).
+  EXPECT_TRUE(ex.command(command({"a"}, 1.0, {{2.0, {0.8}}, {4.0, {0.5}}}), 3.0).ok());
+  EXPECT_NEAR(q(ex, 4.0), 0.5, 1e-12);
+}
+
+// ros_control, updateTrajectoryCommand: "Empty trajectory command, stopping." (hold position,
+// reached within stop_trajectory_duration).
+TEST(JointTrajectoryExecutor, StrictStopsOnAnEmptyCommandWithinTheStopDuration) {
+  pd::ControllerRules rules = partial();
+  rules.stop_trajectory_duration_s = 0.4;
+  pd::JointTrajectoryExecutor ex = runningRamp(rules);
+  EXPECT_TRUE(ex.command(command({}, kNaN, {}), 2.0).ok());
+  EXPECT_DOUBLE_EQ(q(ex, 2.0), 0.2);
+  EXPECT_NEAR(qd(ex, 2.0), 0.1, 1e-12);  // no jump in velocity
+  EXPECT_NEAR(q(ex, 2.4), 0.2 + 0.5 * 0.4 * 0.1, 1e-12);
+  EXPECT_NEAR(qd(ex, 2.4), 0.0, 1e-12);
+  EXPECT_DOUBLE_EQ(q(ex, 9.0), q(ex, 2.4));  // and holds there
+  for (double t = 2.0; t < 2.4; t += 0.01) EXPECT_LE(qd(ex, t + 0.01), qd(ex, t) + 1e-12);
 }
 
 TEST(JointTrajectoryExecutor, APointARoundingErrorFromTheTakeoverIsAtIt) {
@@ -205,8 +288,9 @@ TEST(JointTrajectoryExecutor, APointARoundingErrorFromTheTakeoverIsAtIt) {
     EXPECT_NEAR(q(ex, 2.5), 0.55, 1e-9) << rounding;
     EXPECT_NEAR(qd(ex, 2.5), 0.7, 1e-6) << rounding;
   }
-  // A command whose last point is a rounding error after now has arrived at its end.
-  pd::JointTrajectoryExecutor ex = runningRamp();
+  // A command whose last point is a rounding error after now has arrived at its end (the
+  // lenient rule; the strict one rejects it, StrictRejectsATrajectoryThatHasAlreadyEnded).
+  pd::JointTrajectoryExecutor ex = runningRamp(lenient());
   const pd::TargetResult r =
       ex.command(command({"a"}, 1.0, {{1.5, {0.0}}, {3.0 + 1e-10, {0.8}}}), 3.0);
   EXPECT_NE(r.message.find("every point lies in the past"), std::string::npos) << r.message;
@@ -214,8 +298,8 @@ TEST(JointTrajectoryExecutor, APointARoundingErrorFromTheTakeoverIsAtIt) {
   EXPECT_NEAR(q(ex, 4.6), 0.8, 1e-12);
 }
 
-TEST(JointTrajectoryExecutor, ACommandThatArrivesAfterItsEndGoesToItsFinalPoint) {
-  pd::JointTrajectoryExecutor ex = runningRamp();
+TEST(JointTrajectoryExecutor, LenientTakesACommandThatArrivesAfterItsEndToItsFinalPoint) {
+  pd::JointTrajectoryExecutor ex = runningRamp(lenient());
   const pd::TargetResult r = ex.command(command({"a"}, 1.0, {{1.5, {0.0}}, {2.0, {0.8}}}), 3.0);
   EXPECT_EQ(r.status, pd::TargetStatus::kClamped);
   EXPECT_NE(r.message.find("every point lies in the past"), std::string::npos) << r.message;
@@ -246,5 +330,9 @@ TEST(JointTrajectoryExecutor, BadConstructionIsRefused) {
   EXPECT_THROW(pd::JointTrajectoryExecutor({"a"}, {{-1.0, 1.0, 0.0}}, Eigen::VectorXd::Zero(1)),
                std::invalid_argument);
   EXPECT_THROW(pd::JointTrajectoryExecutor({"a"}, {{}}, Eigen::Vector2d::Zero()),
+               std::invalid_argument);
+  pd::ControllerRules no_stop;
+  no_stop.stop_trajectory_duration_s = 0.0;
+  EXPECT_THROW(pd::JointTrajectoryExecutor({"a"}, {{}}, Eigen::VectorXd::Zero(1), no_stop),
                std::invalid_argument);
 }

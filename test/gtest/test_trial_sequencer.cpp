@@ -33,7 +33,36 @@ pd::TrialSequencerParams params() {
   // on in the watchdog tests.
   p.recognizer_timeout_s = 0.0;
   p.monitor_timeout_s = 0.0;
+  p.controller_watch.enabled = false;  // on in the ControllerWatch tests
   return p;
+}
+
+/** @brief A controller's state with desired q and actual q - error (stamp t). */
+pd::ControllerStateSample controllerState(const pd::ControllerSpec& c, double t,
+                                          const std::vector<double>& desired, double error = 0.0) {
+  pd::ControllerStateSample s;
+  s.stamp = t;
+  s.joint_names = c.joints;
+  s.desired_positions = desired;
+  s.desired_velocities.assign(desired.size(), 0.0);
+  for (double d : desired) {
+    s.actual_positions.push_back(d - error);
+    s.error_positions.push_back(error);
+  }
+  s.actual_velocities.assign(desired.size(), 0.0);
+  s.error_velocities.assign(desired.size(), 0.0);
+  return s;
+}
+
+/** @brief The watched sequencer's controllers report the drilling pose (+ offset) at t. */
+void reportHome(pd::TrialSequencer* seq, const pd::ArmCompensation& arm, double t,
+                double offset = 0.0) {
+  const Eigen::VectorXd q = arm.homeJoints().array() + offset;
+  seq->onControllerState(t, "arm_controller",
+                         controllerState(seq->controllers()[0], t,
+                                         std::vector<double>(q.data(), q.data() + q.size())));
+  seq->onControllerState(t, "feed_controller",
+                         controllerState(seq->controllers()[1], t, {arm.feedHome()}));
 }
 
 pd::MotionModel apModel() {
@@ -673,4 +702,85 @@ TEST(SequencerTimers, TheSequencerDispatchesAFiredTimerToItsHandler) {
   EXPECT_EQ(*kind, pd::TimerRequest::Kind::kPoseReached);
   seq.onTimer(*kind, t);
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
+}
+
+// ------------------------------------------------------------------ the closed loop (issue 30)
+
+TEST(TrialSequencer, WatchedStartNeedsEachControllersState) {
+  pd::TrialSequencerParams p = params();
+  p.controller_watch.enabled = true;
+  pd::TrialSequencer seq(p, workcellArm());
+  const std::string refused = seq.start(request("stationary"), apModel(), 10.0);
+  EXPECT_NE(refused.find("arm_controller has not reported its state"), std::string::npos)
+      << refused;
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  reportHome(&seq, workcellArm(), 9.9);
+  EXPECT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+}
+
+TEST(TrialSequencer, AControllerThatKeepsItsOldTrajectoryIsAStopWithRetreat) {
+  // The controller refused the move to the drilling pose (foreign joints, a trajectory already
+  // ended): its desired stays where the arm was (0.3 rad away on every joint).
+  pd::TrialSequencerParams p = params();
+  p.controller_watch.enabled = true;
+  const pd::ArmCompensation arm = workcellArm();
+  pd::TrialSequencer seq(p, arm);
+  reportHome(&seq, arm, 9.98, 0.3);
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.takeOutput();
+  std::string stop;
+  for (double t = 10.02; t < 12.0 && stop.empty(); t += 0.02) {
+    reportHome(&seq, arm, t, 0.3);
+    const pd::SequencerOutput out = seq.takeOutput();
+    if (!out.stops.empty()) stop = out.stops.front();
+  }
+  EXPECT_NE(stop.find("arm_controller: the desired position of"), std::string::npos) << stop;
+  EXPECT_NE(stop.find("refused or arrived late"), std::string::npos) << stop;
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);  // before drilling: the trial fails
+}
+
+TEST(TrialSequencer, AJointThatDoesNotFollowIsAStopWithRetreatWhileDrilling) {
+  pd::TrialSequencerParams p = params();
+  p.controller_watch.enabled = true;
+  p.controller_watch.state_timeout_s = 60.0;  // the arm controller is not reported here
+  const pd::ArmCompensation arm = workcellArm();
+  pd::TrialSequencer seq(p, arm);
+  reportHome(&seq, arm, 9.98);
+  const double t = toDrilling(&seq);
+  // The feed controller's desired stays near the commanded feed; its error grows.
+  std::string stop;
+  for (int i = 0; i < 20 && stop.empty(); ++i) {
+    const double ti = t + 0.02 * i;
+    seq.onSegmentTimer(ti);
+    seq.takeOutput();
+    const double error = 0.0005 * i;  // 0.5 mm more every state
+    seq.onControllerState(ti, "feed_controller",
+                          controllerState(seq.controllers()[1], ti, {arm.feedHome()}, error));
+    const pd::SequencerOutput out = seq.takeOutput();
+    if (!out.stops.empty()) stop = out.stops.front();
+  }
+  EXPECT_NE(stop.find("feed_controller: feed_joint does not follow its trajectory"),
+            std::string::npos)
+      << stop;
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+}
+
+TEST(TrialSequencer, ASilentControllerIsAStopWithRetreatWhileDrilling) {
+  pd::TrialSequencerParams p = params();
+  p.controller_watch.enabled = true;
+  p.controller_watch.state_timeout_s = 0.3;
+  const pd::ArmCompensation arm = workcellArm();
+  pd::TrialSequencer seq(p, arm);
+  reportHome(&seq, arm, 9.98);
+  const double t = toDrilling(&seq);
+  std::vector<std::string> stops;
+  for (int i = 1; i <= 8 && stops.empty(); ++i) {
+    seq.onSegmentTimer(t + 0.125 * i);
+    stops = seq.takeOutput().stops;
+  }
+  ASSERT_FALSE(stops.empty());
+  EXPECT_NE(stops.front().find("silent: no arm_controller/state for more than 0.3 s"),
+            std::string::npos)
+      << stops.front();
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
 }

@@ -56,9 +56,11 @@ struct SimulatorNodeParams {
   double joint_state_rate_hz = 100.0;   ///< joint_states rate
   double tf_rate_hz = 100.0;            ///< tf rate
   double ground_truth_rate_hz = 100.0;  ///< simulator/ground_truth rate
-  double tracker_rate_hz = 8.0;         ///< tracker rate (NDI Polaris in the paper: 8 Hz)
-  double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume (0: off)
-  std::string bone_motion_model_path;   ///< identified model driving the bone ("" = built-in)
+  /// Each controller's <name>/state rate (ros_control's state_publish_rate default).
+  double controller_state_rate_hz = 50.0;
+  double tracker_rate_hz = 8.0;        ///< tracker rate (NDI Polaris in the paper: 8 Hz)
+  double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume (0: off)
+  std::string bone_motion_model_path;  ///< identified model driving the bone ("" = built-in)
   /** @brief Checks the declared ranges and the stream rates (divisors of 1000 Hz). */
   void validate() const;
   /** @brief The declaration of every parameter. */
@@ -152,6 +154,8 @@ struct CompensationPlannerNodeParams {
 /** @brief pedicle_drilling/FaultInjector. */
 struct FaultInjectorNodeParams {
   core::FaultParams faults;  ///< fault magnitudes (core)
+  /// The controllers whose `<name>/command` is relayed to `<name>/command_delivered`.
+  std::vector<std::string> controllers{"arm_controller", "feed_controller"};
   /** @brief Checks the declared ranges. */
   void validate() const;
   /** @brief The declaration of every parameter. */

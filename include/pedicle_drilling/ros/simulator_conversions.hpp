@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "pedicle_drilling/GroundTruth.h"
+#include "pedicle_drilling/JointTrajectoryControllerState.h"
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
@@ -45,6 +46,13 @@ std::unique_ptr<core::DrillingSimulation> makeSimulation(const SimulatorNodePara
  *        stamp (zero: now), points at stamp + time_from_start; `time_offset` maps ROS time to
  *        simulation time.
  */
+/** @brief A controller's state as ros_control publishes it on <name>/state. */
+JointTrajectoryControllerState toMsg(const core::ControllerStateSample& state,
+                                     const ros::Time& stamp);
+
+/** @brief A controller state message in the core's form (its stamp minus @p time_offset). */
+core::ControllerStateSample fromMsg(const JointTrajectoryControllerState& msg, double time_offset);
+
 core::TrajectoryCommand fromMsg(const trajectory_msgs::JointTrajectory& msg, double now,
                                 double time_offset);
 

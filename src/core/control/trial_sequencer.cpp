@@ -60,7 +60,9 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
         .number("cancellous_max_mm", &P::cancellous_max_mm, Range::closed(0, 100), "mm")
         .number("recognizer_delay_s", &P::recognizer_delay_s, Range::closed(0, 60), "s")
         .include(RetreatParams::table(), &P::retreat)
-        .text("feed_joint", &P::feed_joint);
+        .text("feed_joint", &P::feed_joint)
+        .include(ControllerLayoutParams::table(), &P::controllers)
+        .include(ControllerWatchParams::table(), &P::controller_watch, "controller_watch/");
     return d;
   }();
   return t;
@@ -89,6 +91,38 @@ TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmComp
   params_.compensation.drill_axis = arm_.drillAxis();
   params_.validate();
   arm_q_ = arm_.homeJoints();
+  std::vector<std::string> commandable = params_.arm_joints;
+  commandable.push_back(params_.feed_joint);
+  controllers_ = controllerLayout(params_.controllers, commandable);
+  watch_ = std::make_unique<ControllerWatch>(params_.controller_watch, controllers_,
+                                             std::vector<std::string>{params_.feed_joint});
+}
+
+TrajectoryCommand toExecutorCommand(const JointTrajectoryCommand& c) {
+  TrajectoryCommand command;
+  command.joint_names = c.joint_names;
+  command.start_time_s = c.start_time;  // the header stamp: takes over then
+  for (const JointTrajectoryCommand::Point& p : c.points) {
+    command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities, {}});
+  }
+  return command;
+}
+
+void TrialSequencer::send(JointTrajectoryCommand traj, double now) {
+  watch_->onCommand(now, toExecutorCommand(traj));
+  out_.trajectories.push_back(std::move(traj));
+}
+
+void TrialSequencer::onControllerState(double now, const std::string& name,
+                                       const ControllerStateSample& state) {
+  const std::string why = watch_->onState(now, name, state);
+  if (!why.empty()) controllerFault(now, why);
+}
+
+void TrialSequencer::controllerFault(double now, const std::string& why) {
+  log(SequencerLog::Level::kError, why + "; stopping and retracting");
+  out_.stops.push_back(why);
+  handleStop(now, true, why);
 }
 
 void TrialSequencer::setVentilator(const VentilatorSettings& settings) {
@@ -112,6 +146,7 @@ SequencerOutput TrialSequencer::takeOutput() {
 
 void TrialSequencer::setPhase(TrialPhase p) {
   phase_ = p;
+  if (p == TrialPhase::kDone || p == TrialPhase::kFailed) watch_->stop();
   out_.phases.push_back(p);
 }
 
@@ -177,6 +212,8 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   ResolvedRequest r;
   const std::string why = resolve(request, &r);
   if (!why.empty()) return why;
+  const std::string unwatched = watch_->start(now);
+  if (!unwatched.empty()) return unwatched;
   const CompensationMode mode = r.mode;
   const double feed_mm_s = r.feed_mm_s;
   const double rpm = r.rpm;
@@ -192,6 +229,7 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
     if (have_phase_) planner->compensator().setBreathStart(breath_start_);
     planner_ = std::move(planner);
   } catch (const std::exception& e) {
+    watch_->stop();
     return e.what();
   }
   mode_ = mode;
@@ -226,7 +264,7 @@ void TrialSequencer::sendMoveToPose(double now) {
   // One point: the controller moves from its own current state (JointTrajectoryController
   // semantics), which stays right when a component reset the robot before this trial.
   traj.points.push_back(goal);
-  out_.trajectories.push_back(std::move(traj));
+  send(std::move(traj), now);
 }
 
 void TrialSequencer::onPoseReached(double now) {
@@ -438,6 +476,8 @@ void TrialSequencer::onSegmentTimer(double now) {
     } else if (silent(last_monitor_t_, params_.monitor_timeout_s)) {
       why = "safety monitor silent: not heard for more than " +
             std::to_string(params_.monitor_timeout_s) + " s while drilling";
+    } else {
+      why = watch_->checkSilence(now);
     }
     if (!why.empty()) {
       log(SequencerLog::Level::kError, why + "; stopping and retracting");
@@ -500,7 +540,7 @@ void TrialSequencer::sendDueSegments(double now) {
     // While drilling every point carries its planned velocity (the trapezoid's, or the
     // reference's for the exact profile), so that the controller's cubic spline runs the plan;
     // a hold or a retreat adds to the feed, and its velocities come from the points.
-    emitTrajectory(seg.t0, times, feeds, lateral,
+    emitTrajectory(now, seg.t0, times, feeds, lateral,
                    phase_ == TrialPhase::kDrilling ? &feed_velocities : nullptr);
     if (phase_ == TrialPhase::kDrilling &&
         arm_.feedHome() + seg.feed_end_m > params_.feed_upper_m - 1e-3) {
@@ -511,7 +551,7 @@ void TrialSequencer::sendDueSegments(double now) {
   }
 }
 
-void TrialSequencer::emitTrajectory(double start, const std::vector<double>& times,
+void TrialSequencer::emitTrajectory(double now, double start, const std::vector<double>& times,
                                     const std::vector<double>& feeds,
                                     const std::vector<Eigen::Vector3d>& lateral,
                                     const std::vector<double>* feed_velocities) {
@@ -550,7 +590,7 @@ void TrialSequencer::emitTrajectory(double start, const std::vector<double>& tim
     prev_feed = feed;
     prev_q = q;
   }
-  out_.trajectories.push_back(std::move(traj));
+  send(std::move(traj), now);
 }
 
 void TrialSequencer::resendFromNow(double now) {
@@ -569,7 +609,7 @@ void TrialSequencer::resendFromNow(double now) {
     feeds.push_back(f);
     lateral.push_back(r - f * planner_->axis());
   }
-  emitTrajectory(now, times, feeds, lateral, nullptr);
+  emitTrajectory(now, now, times, feeds, lateral, nullptr);
   next_k_ = k + 1;
   sendDueSegments(now);
 }

@@ -59,9 +59,14 @@ void append(TargetResult* result, const std::string& message) {
 
 JointTrajectoryExecutor::JointTrajectoryExecutor(std::vector<std::string> joint_names,
                                                  std::vector<JointLimit> limits,
-                                                 const Eigen::VectorXd& hold_q)
-    : names_(std::move(joint_names)), limits_(std::move(limits)) {
+                                                 const Eigen::VectorXd& hold_q,
+                                                 ControllerRules rules)
+    : names_(std::move(joint_names)), limits_(std::move(limits)), rules_(rules) {
   if (names_.empty()) throw std::invalid_argument("JointTrajectoryExecutor: no joints");
+  if (!(std::isfinite(rules_.stop_trajectory_duration_s) &&
+        rules_.stop_trajectory_duration_s > 0.0)) {
+    throw std::invalid_argument("JointTrajectoryExecutor: stop_trajectory_duration_s must be > 0");
+  }
   if (limits_.size() != names_.size()) {
     throw std::invalid_argument("JointTrajectoryExecutor: one limit per joint needed");
   }
@@ -156,6 +161,13 @@ TargetResult JointTrajectoryExecutor::validate(const TrajectoryCommand& command,
                                                std::vector<int>* map) const {
   if (command.joint_names.empty()) return {TargetStatus::kRejected, "no joint names"};
   if (command.points.empty()) return {TargetStatus::kRejected, "no trajectory points"};
+  if (rules_.strict && !rules_.allow_partial_joints_goal &&
+      command.joint_names.size() != names_.size()) {
+    std::string expected;
+    for (const std::string& n : names_) expected += (expected.empty() ? "" : ", ") + n;
+    return {TargetStatus::kRejected,
+            "joints on incoming goal don't match the controller joints [" + expected + "]"};
+  }
   std::set<std::string> seen;
   for (const std::string& name : command.joint_names) {
     auto it = std::find(names_.begin(), names_.end(), name);
@@ -197,15 +209,58 @@ TargetResult JointTrajectoryExecutor::validate(const TrajectoryCommand& command,
         if (!std::isfinite(x)) return {TargetStatus::kRejected, where + ": NaN/inf value"};
       }
     }
+    if (rules_.strict) {
+      for (std::size_t j = 0; j < m; ++j) {
+        const std::size_t c = static_cast<std::size_t>((*map)[j]);
+        const JointLimit& lim = limits_[c];
+        if (pt.positions[j] < lim.lower || pt.positions[j] > lim.upper) {
+          std::ostringstream os;
+          os << where << ": joint '" << names_[c] << "' position " << pt.positions[j]
+             << " outside its limits [" << lim.lower << ", " << lim.upper << "]";
+          return {TargetStatus::kRejected, os.str()};
+        }
+      }
+    }
   }
   return {};
 }
 
+void JointTrajectoryExecutor::stop(double now) {
+  // Decelerate from the reference's state now to rest: a cubic from (q, v) to (q + v T / 2, 0)
+  // over T is a constant deceleration, the profile ros_control's hold trajectory approximates.
+  const TrajectoryState st = sample(now);
+  const double T = rules_.stop_trajectory_duration_s;
+  Knot from;
+  from.t = now;
+  from.q = st.position;
+  from.v = st.velocity;
+  from.a = st.acceleration;
+  Knot to;
+  to.t = now + T;
+  to.q = st.position + 0.5 * T * st.velocity;
+  to.v = Eigen::VectorXd::Zero(st.velocity.size());
+  to.a = Eigen::VectorXd::Zero(st.velocity.size());
+  to.degree = 3;
+  knots_ = {from, to};
+}
+
 TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, double now) {
+  if (rules_.strict && command.points.empty()) {
+    // ros_control: "Empty trajectory command, stopping." (names are not checked)
+    stop(now);
+    return {};
+  }
   std::vector<int> map;
   const TargetResult valid = validate(command, &map);
   if (!valid.ok()) return valid;
   const double last_t = command.points.back().time_s;
+  if (last_t <= now + kSameTime && rules_.strict) {
+    std::ostringstream os;
+    os << "dropping all " << command.points.size()
+       << " trajectory point(s), as they occur before the current time (last point " << now - last_t
+       << " s in the past): the running trajectory goes on";
+    return {TargetStatus::kRejected, os.str()};
+  }
   if (last_t <= now + kSameTime) {
     // A streamed command that arrived after its own end (a late message, e.g. when sim time
     // runs faster than the planner can follow): go to its final point over the duration of its

@@ -85,6 +85,7 @@ struct ClosedLoopEngine::Impl {
   EngineConfig config;
   std::unique_ptr<ArmCompensation> arm;
   std::uint64_t tracker_period = 125;
+  std::uint64_t controller_state_period = 20;
   std::uint64_t tidal_period = 16;
   std::uint64_t truth_period = 50;
   std::uint64_t check_period = 5;
@@ -240,12 +241,7 @@ struct ClosedLoopEngine::Impl {
       const double delay = command_transport.delay(now);
       const double extra = commandFault();
       if (extra < 0.0) continue;  // lost
-      TrajectoryCommand command;
-      command.joint_names = c.joint_names;
-      command.start_time_s = c.start_time;  // the header stamp: takes over then
-      for (const JointTrajectoryCommand::Point& p : c.points) {
-        command.points.push_back({c.start_time + p.time_from_start, p.positions, p.velocities, {}});
-      }
+      const TrajectoryCommand command = toExecutorCommand(c);
       send(delay + extra, [this, command]() { sim->commandTrajectory(command); });
     }
     for (const PredictedMarker& m : out.predicted) {
@@ -346,6 +342,14 @@ struct ClosedLoopEngine::Impl {
     carryOut();
   }
 
+  /** @brief Each controller's state to the planner (its closed loop), as <name>/state. */
+  void onControllerStates() {
+    for (std::size_t i = 0; i < sim->controllers().size(); ++i) {
+      sequencer->onControllerState(now, sim->controllers()[i].name, sim->controllerState(i));
+    }
+    carryOut();
+  }
+
   void onTidalVolume() {
     const BreathScheduler& ventilator = sim->ventilator();
     if (ventilator.breathIndex() != last_breath_index) {
@@ -409,6 +413,7 @@ struct ClosedLoopEngine::Impl {
     if (sim->trackerDue(tracker_period)) onMarker();
     deliverDelayedMarkers();
     if (n % tidal_period == 0) onTidalVolume();
+    if (n % controller_state_period == 0) onControllerStates();
     if (n % check_period == 0) {
       monitor->check(now);
       evaluateMonitor();
@@ -432,6 +437,8 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   config.safety.validate();
   config.faults.validate();
   s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
+  s.controller_state_period =
+      periodSteps(config.controller_state_rate_hz, "controller_state_rate_hz");
   s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
   s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
   s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");

@@ -157,6 +157,27 @@ ForceSensorParams DrillingSimulationParams::calibratedSensor() {
   return p;
 }
 
+namespace {
+
+/** @brief The controllers' rules (ros_control's by default). */
+const ParamTable<ControllerRules>& controllerRulesTable() {
+  static const ParamTable<ControllerRules> t = [] {
+    using R = ControllerRules;
+    ParamTable<R> d;
+    d.parsed(
+         "controller_rules", {"strict", "lenient"}, "",
+         [](const R& r) { return std::string(r.strict ? "strict" : "lenient"); },
+         [](R& r, const std::string& x) { r.strict = x == "strict"; })
+        .flag("allow_partial_joints_goal", &R::allow_partial_joints_goal)
+        .number("stop_trajectory_duration_s", &R::stop_trajectory_duration_s,
+                Range::aboveUpTo(0, 10), "s");
+    return d;
+  }();
+  return t;
+}
+
+}  // namespace
+
 const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
   static const ParamTable<DrillingSimulationParams> t = [] {
     using P = DrillingSimulationParams;
@@ -231,6 +252,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
             [](P& v, double x) { v.sensor.force_drift_n_per_sqrt_s = x; }, Range::closed(0, 0.1),
             "N/sqrt(s)")
         .flag("moving_bone", &P::moving_bone)
+        .include(ControllerLayoutParams::table(), &P::controllers)
+        .include(controllerRulesTable(), &P::controller_rules)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
         .include(TrialVariability::table(), &P::variability, "trial_distribution/");
@@ -366,10 +389,17 @@ struct DrillingSimulation::Impl {
   std::vector<int> spindle_index;        // the spindle joint's index in arm joints (one entry)
   Eigen::VectorXd home;                  // all arm joints
 
-  // The arm controller's trajectory (commandable joints only), JointTrajectoryController rules.
-  std::unique_ptr<JointTrajectoryExecutor> arm_trajectory;
-  // The feed joint's drive (index in the commandable joints, -1: none in the chain).
+  // The arm's controllers (params.controllers), each with its trajectory (JointTrajectory-
+  // Controller rules) and, per joint, the index in the commandable joints.
+  std::vector<ControllerSpec> controller_specs;
+  std::vector<std::unique_ptr<JointTrajectoryExecutor>> controller_trajectories;
+  std::vector<std::vector<int>> controller_columns;
+  Eigen::VectorXd reference_q;  // reference()'s output (kept: no allocation)
+  // The feed joint's drive (index in the commandable joints, -1: none in the chain), and the
+  // controller and the column in it that own the feed joint.
   int feed_index = -1;
+  std::size_t feed_controller = 0;
+  int feed_column = -1;
   StageAxis feed_drive;
   // The displacement model the bone plays from the next reset on (none: virtual patient).
   std::optional<BoneMotionModel> bone_motion_model;
@@ -636,21 +666,35 @@ struct DrillingSimulation::Impl {
     return t;
   }
 
+  /** @brief The controllers' reference positions at t, in the commandable joints' order. */
+  const Eigen::VectorXd& reference(double t) {
+    reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
+    for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
+      const TrajectoryState st = controller_trajectories[c]->sample(t);
+      const std::vector<int>& columns = controller_columns[c];
+      for (std::size_t j = 0; j < columns.size(); ++j) {
+        reference_q[columns[j]] = st.position[static_cast<Eigen::Index>(j)];
+      }
+    }
+    return reference_q;
+  }
+
   void advanceArmBlock() {
     const double block = steps_per_arm_block * dt;
-    Eigen::VectorXd q0 = arm_trajectory->sample(time).position;
-    Eigen::VectorXd q1 = arm_trajectory->sample(time + block).position;
+    Eigen::VectorXd q0 = reference(time);
+    Eigen::VectorXd q1 = reference(time + block);
     if (feed_index >= 0) {
       // The drill device's feed drive (a lead-screw axis like the SPMS sliders) follows the
       // trajectory with its own limits, stepped at the physics rate over the coming block.
       q0[feed_index] = feed_drive.position();
+      const JointTrajectoryExecutor& feed_trajectory = *controller_trajectories[feed_controller];
       for (int k = 0; k < steps_per_arm_block; ++k) {
-        const TrajectoryState ref = arm_trajectory->sample(time + k * dt);
-        feed_drive.step(dt, ref.position[feed_index], ref.velocity[feed_index]);
+        const TrajectoryState ref = feed_trajectory.sample(time + k * dt);
+        feed_drive.step(dt, ref.position[feed_column], ref.velocity[feed_column]);
       }
       q1[feed_index] = feed_drive.position();
     }
-    arm_trajectory->prune(time);
+    for (auto& trajectory : controller_trajectories) trajectory->prune(time);
     block_pos.resize(static_cast<Eigen::Index>(commandable.size()));
     block_vel.resize(static_cast<Eigen::Index>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) {
@@ -732,7 +776,13 @@ struct DrillingSimulation::Impl {
     if (!r.ok()) throw std::invalid_argument("DrillingSimulation: home pose: " + r.message);
     Eigen::VectorXd hold_q(static_cast<int>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) hold_q[j] = home[commandable_index[j]];
-    arm_trajectory->hold(hold_q);
+    for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
+      const std::vector<int>& columns = controller_columns[c];
+      Eigen::VectorXd q(static_cast<Eigen::Index>(columns.size()));
+      for (std::size_t j = 0; j < columns.size(); ++j)
+        q[static_cast<Eigen::Index>(j)] = hold_q[columns[j]];
+      controller_trajectories[c]->hold(q);
+    }
     if (feed_index >= 0) feed_drive.reset(hold_q[feed_index]);
     servo_ref = hold_q;
     spindle_cmd_rpm = 0.0;
@@ -814,10 +864,33 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
            info.velocity > 0.0 ? info.velocity : std::numeric_limits<double>::infinity()});
       hold_q[static_cast<int>(j)] = s.home[s.commandable_index[j]];
     }
-    s.arm_trajectory = std::make_unique<JointTrajectoryExecutor>(s.commandable, limits, hold_q);
+    s.controller_specs = controllerLayout(params.controllers, s.commandable);
+    for (const ControllerSpec& spec : s.controller_specs) {
+      std::vector<int> columns;
+      std::vector<JointLimit> own_limits;
+      Eigen::VectorXd own_hold(static_cast<Eigen::Index>(spec.joints.size()));
+      for (const std::string& joint : spec.joints) {
+        const auto at = std::find(s.commandable.begin(), s.commandable.end(), joint);
+        const int column = static_cast<int>(at - s.commandable.begin());
+        own_hold[static_cast<Eigen::Index>(columns.size())] = hold_q[column];
+        columns.push_back(column);
+        own_limits.push_back(limits[static_cast<std::size_t>(column)]);
+      }
+      s.controller_trajectories.push_back(std::make_unique<JointTrajectoryExecutor>(
+          spec.joints, own_limits, own_hold, params.controller_rules));
+      s.controller_columns.push_back(std::move(columns));
+    }
     const auto feed = std::find(s.commandable.begin(), s.commandable.end(), "feed_joint");
     if (feed != s.commandable.end()) {
       s.feed_index = static_cast<int>(feed - s.commandable.begin());
+      for (std::size_t c = 0; c < s.controller_columns.size(); ++c) {
+        const std::vector<int>& columns = s.controller_columns[c];
+        const auto at = std::find(columns.begin(), columns.end(), s.feed_index);
+        if (at != columns.end()) {
+          s.feed_controller = c;
+          s.feed_column = static_cast<int>(at - columns.begin());
+        }
+      }
       StageAxisParams drive;
       drive.max_speed_m_s = limits[static_cast<std::size_t>(s.feed_index)].velocity;
       drive.max_accel_m_s2 = params.feed_max_accel_m_s2;
@@ -934,10 +1007,71 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
               "spindle speed"};
     }
   }
-  return impl_->arm_trajectory->command(command, impl_->time);
+  const std::vector<ControllerSpec>& specs = impl_->controller_specs;
+  for (const std::string& name : command.joint_names) {
+    if (ownerOf(specs, name) < 0) {
+      return {TargetStatus::kRejected, "joint '" + name + "' is owned by no controller"};
+    }
+  }
+  TargetResult result;
+  for (auto& [index, part] : splitByController(command, specs)) {
+    const TargetResult r = impl_->controller_trajectories[index]->command(part, impl_->time);
+    if (result.status == TargetStatus::kAccepted && r.status != TargetStatus::kAccepted) {
+      result = r;
+      result.message = specs[index].name + ": " + r.message;
+    }
+  }
+  return result;
 }
 
-double DrillingSimulation::armTrajectoryEnd() const { return impl_->arm_trajectory->endTime(); }
+TargetResult DrillingSimulation::commandTrajectory(const std::string& controller,
+                                                   const TrajectoryCommand& command) {
+  const std::vector<ControllerSpec>& specs = impl_->controller_specs;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    if (specs[c].name == controller) {
+      return impl_->controller_trajectories[c]->command(command, impl_->time);
+    }
+  }
+  return {TargetStatus::kRejected, "no controller named '" + controller + "'"};
+}
+
+const std::vector<ControllerSpec>& DrillingSimulation::controllers() const {
+  return impl_->controller_specs;
+}
+
+ControllerStateSample DrillingSimulation::controllerState(std::size_t index) const {
+  const Impl& s = *impl_;
+  if (index >= s.controller_specs.size()) {
+    throw std::out_of_range("DrillingSimulation::controllerState: no controller " +
+                            std::to_string(index));
+  }
+  ControllerStateSample out;
+  out.stamp = s.time;
+  out.joint_names = s.controller_specs[index].joints;
+  const TrajectoryState desired = s.controller_trajectories[index]->sample(s.time);
+  const Eigen::VectorXd q = s.arm->jointPositions();
+  const Eigen::VectorXd qd = s.arm->jointVelocities();
+  const std::vector<int>& columns = s.controller_columns[index];
+  for (std::size_t j = 0; j < columns.size(); ++j) {
+    const int arm_index = s.commandable_index[static_cast<std::size_t>(columns[j])];
+    const auto k = static_cast<Eigen::Index>(j);
+    out.desired_positions.push_back(desired.position[k]);
+    out.desired_velocities.push_back(desired.velocity[k]);
+    out.actual_positions.push_back(q[arm_index]);
+    out.actual_velocities.push_back(qd[arm_index]);
+    out.error_positions.push_back(desired.position[k] - q[arm_index]);
+    out.error_velocities.push_back(desired.velocity[k] - qd[arm_index]);
+  }
+  return out;
+}
+
+double DrillingSimulation::armTrajectoryEnd() const {
+  double end = -std::numeric_limits<double>::infinity();
+  for (const auto& trajectory : impl_->controller_trajectories) {
+    end = std::max(end, trajectory->endTime());
+  }
+  return end;
+}
 
 TargetResult DrillingSimulation::commandSpindle(double rpm) {
   if (!std::isfinite(rpm)) return {TargetStatus::kRejected, "spindle speed is NaN/inf"};

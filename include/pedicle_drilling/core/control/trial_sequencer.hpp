@@ -18,6 +18,7 @@
 #include "pedicle_drilling/core/breathing/motion_model.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
+#include "pedicle_drilling/core/control/controller_watch.hpp"
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
 
 namespace pedicle_drilling::core {
@@ -99,7 +100,11 @@ struct TrialSequencerParams {
    *        1.5 s with the shipped recognizer and simulated sensor). [0, 60].
    */
   double recognizer_delay_s = 1.5;
-  RetreatParams retreat;                ///< retreat along the drill axis
+  RetreatParams retreat;  ///< retreat along the drill axis
+  /// The controllers the commands go to (arm_controller, feed_controller and their joints).
+  ControllerLayoutParams controllers;
+  /// The closed loop on them (controller_watch/..., ControllerWatch).
+  ControllerWatchParams controller_watch;
   std::vector<std::string> arm_joints;  ///< the arm's joints, in command order
   std::string feed_joint = "feed_joint";
   double feed_lower_m = 0.0;  ///< feed joint limits (URDF)
@@ -134,6 +139,9 @@ struct JointTrajectoryCommand {
   std::vector<std::string> joint_names;
   std::vector<Point> points;
 };
+
+/** @brief The command as the executor takes it: absolute point times (start + from start). */
+TrajectoryCommand toExecutorCommand(const JointTrajectoryCommand& command);
 
 /** @brief The predicted marker pose at a tracker sample's stamp (for the safety monitor). */
 struct PredictedMarker {
@@ -262,6 +270,18 @@ class TrialSequencer {
    */
   void onRecognizerState(double now, bool stop, const std::string& state_name, int key_point);
 
+  /**
+   * @brief A controller's state (`<name>/state`, received at @p now): the closed loop on what
+   *        the arm does (ControllerWatch). A command refused or late, a joint that does not
+   *        follow: a stop with retreat, announced in SequencerOutput::stops with the reason.
+   */
+  void onControllerState(double now, const std::string& name, const ControllerStateSample& state);
+
+  /** @brief The controllers the commands go to (the layout of params().controllers). */
+  const std::vector<ControllerSpec>& controllers() const { return controllers_; }
+  /** @brief The closed loop's watch (its worst ratios since the trial's start). */
+  const ControllerWatch& controllerWatch() const { return *watch_; }
+
   /** @brief The safety monitor is alive (a /diagnostics status of it, or in-process). */
   void onMonitorAlive(double now);
 
@@ -311,7 +331,7 @@ class TrialSequencer {
   double feedCommandAt(double t, double segmented_feed) const;
   void sendMoveToPose(double now);
   void sendDueSegments(double now);
-  void emitTrajectory(double start, const std::vector<double>& times,
+  void emitTrajectory(double now, double start, const std::vector<double>& times,
                       const std::vector<double>& feeds, const std::vector<Eigen::Vector3d>& lateral,
                       const std::vector<double>* feed_velocities);
   void resendFromNow(double now);
@@ -335,6 +355,12 @@ class TrialSequencer {
   RetreatPlanner retreat_planner_;
   CompensatorFactory make_compensator_;
   std::unique_ptr<CompensationPlanner> planner_;
+  std::vector<ControllerSpec> controllers_;
+  std::unique_ptr<ControllerWatch> watch_;
+  /** @brief Queues a trajectory and tells the watch (every trajectory goes through here). */
+  void send(JointTrajectoryCommand traj, double now);
+  /** @brief A fault of the closed loop: a stop with retreat, announced. */
+  void controllerFault(double now, const std::string& why);
   std::unique_ptr<RetreatMotion> retreat_;
   CompensationMode mode_ = CompensationMode::kStationary;
   TrialPhase phase_ = TrialPhase::kIdle;

@@ -4,7 +4,9 @@
  *        without ROS: what the simulated arm controller and the SPMS's slider controller run.
  *
  * The rules (ros_control joint_trajectory_controller, "Trajectory replacement" and the spline
- * types of its documentation), each tested in test_trajectory_executor.cpp:
+ * types of its documentation; the strict ones from joint_trajectory_controller_impl.h,
+ * updateTrajectoryCommand, and init_joint_trajectory.h), each tested in
+ * test_trajectory_executor.cpp:
  *  - A new trajectory takes over at its start time, the message's header stamp; a zero stamp
  *    (NaN here) or a start time not after now means now. Until then the running trajectory is
  *    followed.
@@ -14,19 +16,35 @@
  *  - Between two points the spline is linear when the end point gives positions only, cubic
  *    when it gives positions and velocities, quintic when it also gives accelerations.
  *  - After the last point the joints hold its position at rest.
- *  - Joints not named in a command keep their reference.
  *  - A command with NaN/inf values, unknown or duplicate joints, size mismatches or times that
  *    do not strictly increase is rejected whole; the running trajectory goes on.
- *  - Positions outside the joint limits are clamped, and a segment faster than a joint's
- *    velocity limit is reported (kClamped): the joint's servo follows at its limit.
+ *  - A segment faster than a joint's velocity limit is reported (kClamped): the joint's servo
+ *    follows at its limit.
+ *
+ * Strict rules (ControllerRules::strict, the default: what a lab's controller does):
+ *  - A command must name every joint of the controller ("Joints on incoming goal don't match
+ *    the controller joints"), unless allow_partial_joints_goal; then joints not named keep their
+ *    reference.
+ *  - A command whose last point is not after now is rejected ("Dropping all N trajectory
+ *    point(s), as they occur before the current time"): the running trajectory goes on.
+ *  - A command with no points stops: the reference decelerates to rest within
+ *    stop_trajectory_duration_s ("Empty trajectory command, stopping"). ros_control starts that
+ *    stop from the measured joint state; this executor has no measurement and starts it from the
+ *    reference.
+ *  - A position outside the joint limits rejects the command whole, naming the joint: nothing
+ *    is clamped silently (ros_control's controller does not clamp; the limits of a lab's arm are
+ *    enforced by its driver, which refuses or faults).
+ *
+ * Lenient rules (strict = false; this project's controller before it followed ros_control to
+ * the letter, kept to compare with published results): partial commands always accepted,
+ * positions outside the limits clamped and reported (kClamped), a command with no points
+ * rejected, and a streamed command that arrives after its own end goes to its final point over
+ * its last interval.
  *
  * Times within 1 us of each other are one time (a point "at" the takeover is dropped, a start
  * "at" now is now): a stamp that went through ROS's nanoseconds or another machine's clock is
  * never exactly the double it was made from, and a point 1e-10 s after the takeover would make a
  * segment of unbounded speed. The core engine (exact doubles) and the pipeline (stamps) agree.
- *
- * Beyond ros_control (which rejects a trajectory whose points all lie in the past): a streamed
- * command that arrives after its own end goes to its final point over its last interval.
  */
 #ifndef PEDICLE_DRILLING_CORE_TRAJECTORY_EXECUTOR_HPP
 #define PEDICLE_DRILLING_CORE_TRAJECTORY_EXECUTOR_HPP
@@ -78,6 +96,13 @@ struct JointLimit {
   double velocity = std::numeric_limits<double>::infinity();  ///< speed limit (> 0)
 };
 
+/** @brief Which of ros_control's rules a controller applies (file comment). */
+struct ControllerRules {
+  bool strict = true;                       ///< ros_control's rules; false: the lenient ones
+  bool allow_partial_joints_goal = false;   ///< strict only: accept commands naming a subset
+  double stop_trajectory_duration_s = 0.5;  ///< an empty command stops within this [s] (> 0)
+};
+
 /** @brief The reference of every joint at one time. */
 struct TrajectoryState {
   Eigen::VectorXd position;      ///< [rad or m]
@@ -97,7 +122,7 @@ class JointTrajectoryExecutor {
    *         that is NaN, inverted or not positive in speed.
    */
   JointTrajectoryExecutor(std::vector<std::string> joint_names, std::vector<JointLimit> limits,
-                          const Eigen::VectorXd& hold);
+                          const Eigen::VectorXd& hold, ControllerRules rules = {});
 
   /** @brief Drops any trajectory and holds `q` at rest (a reset). @throws on a size mismatch. */
   void hold(const Eigen::VectorXd& q);
@@ -115,6 +140,8 @@ class JointTrajectoryExecutor {
   const std::vector<std::string>& jointNames() const { return names_; }
   /** @brief Time of the last point (-inf while holding). */
   double endTime() const;
+  /** @brief The rules this executor applies. */
+  const ControllerRules& rules() const { return rules_; }
 
  private:
   /** @brief Knot: time, state, and the spline degree of the segment that ends here. */
@@ -126,9 +153,12 @@ class JointTrajectoryExecutor {
     int degree = 1;  ///< 1 linear, 3 cubic, 5 quintic
   };
   TargetResult validate(const TrajectoryCommand& command, std::vector<int>* map) const;
+  /** @brief Strict: an empty command decelerates the reference to rest (file comment). */
+  void stop(double now);
 
   std::vector<std::string> names_;
   std::vector<JointLimit> limits_;
+  ControllerRules rules_;
   std::vector<Knot> knots_;  ///< at least one: the held state when no trajectory runs
 };
 

@@ -90,9 +90,11 @@ struct EngineConfig {
   std::string urdf_xml;                 ///< the workcell (urdf/workcell.urdf)
   DrillingSimulationParams simulation;  ///< config/simulator.yaml
   double tracker_rate_hz = 8.0;         ///< optical tracker (Sec. III-A)
-  double tidal_volume_rate_hz = 64.0;   ///< the simulated ventilator's tidal_volume stream
-  double ground_truth_rate_hz = 20.0;   ///< recorded ground truth (plus every layer change)
-  RecognizerParams recognizer;          ///< config/recognizer.yaml (thrust = +z of the sensor)
+  /// The controllers' `state` to the planner (ros_control's state_publish_rate default, 50 Hz).
+  double controller_state_rate_hz = 50.0;
+  double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume stream
+  double ground_truth_rate_hz = 20.0;  ///< recorded ground truth (plus every layer change)
+  RecognizerParams recognizer;         ///< config/recognizer.yaml (thrust = +z of the sensor)
   /**
    * @brief The recognizer of each trial (issue 17): empty = the paper's (PaperRecognizer with
    *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.

@@ -42,6 +42,7 @@
 #include "pedicle_drilling/core/drilling/drilling_force.hpp"
 #include "pedicle_drilling/core/drilling/force_sensor.hpp"
 #include "pedicle_drilling/core/robot/bullet_arm.hpp"
+#include "pedicle_drilling/core/robot/controller_layout.hpp"
 #include "pedicle_drilling/core/robot/spms_kinematics.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
 
@@ -199,6 +200,10 @@ struct DrillingSimulationParams {
   /// Offset of the breath sensor's clock against the pipeline's [s] (two PCs), added to each
   /// sensed breath start; with breath_sensor_rate_hz 0 it is not used.
   double breath_clock_offset_s = 0.0;
+  /// The arm's controllers as a lab wires them (issue 30): names and joint sets.
+  ControllerLayoutParams controllers;
+  /// The rules the simulated controllers apply: ros_control's (strict) by default.
+  ControllerRules controller_rules;
   /** @brief SPMS geometry that matches urdf/workcell.urdf. */
   static SpmsGeometry urdfSpmsGeometry();
   /**
@@ -324,15 +329,27 @@ class DrillingSimulation {
   int step(double dt);
 
   /**
-   * @brief A new trajectory (JointTrajectoryController semantics): the running one is followed
-   *        until command.start_time_s (now if NaN or past), then the new one goes from that
-   *        reference position and velocity to its points after the start time; points at or
-   *        before it are dropped. Unknown or duplicate names, NaN/inf, size mismatches, non-
-   *        increasing times or no point in the future reject the whole command (kRejected, the
-   *        old trajectory continues). Out-of-limit positions are clamped (kClamped).
+   * @brief A new trajectory for the controller named @p controller, with its rules
+   *        (JointTrajectoryExecutor: ros_control's JointTrajectoryController semantics; strict
+   *        by default). An unknown controller is rejected.
+   */
+  TargetResult commandTrajectory(const std::string& controller, const TrajectoryCommand& command);
+  /**
+   * @brief A planner's command over any commandable joints, split by controller
+   *        (splitByController) and sent to each, as the planner nodelet publishes it. A joint no
+   *        controller owns (or spindle_joint) rejects the whole command before any part is sent.
+   * @return the first part's result that is not kAccepted, else kAccepted.
    */
   TargetResult commandTrajectory(const TrajectoryCommand& command);
-  /** @brief Time [s] of the last point of the arm's trajectory (-inf while it holds at rest). */
+  /** @brief The controllers (names and joints, the order of controllerState()'s index). */
+  const std::vector<ControllerSpec>& controllers() const;
+  /**
+   * @brief The state of controller @p index now, as ros_control's controller publishes it on
+   *        `state`: joint names, desired (the trajectory's reference), actual (the measured
+   *        joints) and error = desired - actual.
+   */
+  ControllerStateSample controllerState(std::size_t index) const;
+  /** @brief Time [s] of the last point of any controller's trajectory (-inf: all hold). */
   double armTrajectoryEnd() const;
   /** @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. */
   TargetResult commandSpindle(double rpm);
