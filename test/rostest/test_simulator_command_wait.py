@@ -22,7 +22,7 @@ STEP = 1e-3  # the simulator's physics step
 class CommandWaitTest(SimulatorEvents, unittest.TestCase):
     def setUp(self):
         self.watch_simulator()
-        self.command = rospy.Publisher('/arm_controller/command', JointTrajectory, queue_size=10)
+        self.command = rospy.Publisher('/feed_controller/command', JointTrajectory, queue_size=10)
         self.status = rospy.Publisher('/compensation/status', TrialStatus, queue_size=10,
                                       latch=True)
 

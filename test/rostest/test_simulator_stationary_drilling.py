@@ -42,8 +42,11 @@ class StationaryDrillingTest(unittest.TestCase):
                          tcp_nodelay=True)
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=10000)
         rospy.Subscriber('/joint_states', JointState, self.on_joints, queue_size=10)
+        # One stream per controller, as the simulator's default layout (and a lab) takes them.
         self.command = rospy.Publisher('/arm_controller/command', JointTrajectory, queue_size=10,
                                        latch=True)
+        self.feed_command = rospy.Publisher('/feed_controller/command', JointTrajectory,
+                                            queue_size=10, latch=True)
         self.spindle = rospy.Publisher('/spindle/command', Float64, queue_size=10, latch=True)
 
     def on_wrench(self, msg):
@@ -59,14 +62,19 @@ class StationaryDrillingTest(unittest.TestCase):
             self.joints = dict(zip(msg.name, msg.position))
 
     def send(self, names, points):
-        traj = JointTrajectory()
-        traj.joint_names = names
-        for t, q in points:
-            p = JointTrajectoryPoint()
-            p.positions = q
-            p.time_from_start = rospy.Duration(t)
-            traj.points.append(p)
-        self.command.publish(traj)
+        """Each controller gets the columns of its own joints (arm: 6, feed: feed_joint)."""
+        for publisher, own in ((self.command, JOINTS[:6]), (self.feed_command, ['feed_joint'])):
+            columns = [i for i, name in enumerate(names) if name in own]
+            if not columns:
+                continue
+            traj = JointTrajectory()
+            traj.joint_names = [names[i] for i in columns]
+            for t, q in points:
+                p = JointTrajectoryPoint()
+                p.positions = [q[i] for i in columns]
+                p.time_from_start = rospy.Duration(t)
+                traj.points.append(p)
+            publisher.publish(traj)
 
     def latest_truth(self):
         with self.lock:
