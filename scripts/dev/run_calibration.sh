@@ -12,7 +12,11 @@
 #      amplitude fault, 400 calibration seeds, and the paper design at 12000 rpm, 200 per case,
 #      each with a 1 s hold and without (paired seeds); then the retreat's acceleration
 #      (retreat_accel_m_s2, 0.05 against 1 m/s^2) on the same trials
-# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|all]   (default all)
+#   4. the planner's controller watch (issue 30; controller_watch/*_tolerance_*): how close the
+#      fault-free trials of both benches and the command faults come to each tolerance (the
+#      worst |desired - commanded| and |error| per trial as a fraction of it), 100 calibration
+#      seeds per case (scripts/dev/calibration_watch.py writes watch.md)
+# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|watch|all]   (default all)
 set -eu
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # shellcheck source=scripts/dev/workspace_env.sh
@@ -69,5 +73,19 @@ if [ "${WHAT}" = hold ] || [ "${WHAT}" = all ]; then
     campaign --scenario "${OUT}/${name}_slow_retreat.yaml" "${args[@]}" \
       --out "${OUT}/${name}_slow_retreat"
   done
+fi
+if [ "${WHAT}" = watch ] || [ "${WHAT}" = all ]; then
+  campaign --scenario "${ROOT}/config/scenario_paper.yaml" --rpm 12000 --trials 100 \
+    --out "${OUT}/watch_paper"
+  campaign --scenario "${ROOT}/config/scenario_realistic.yaml" --rpm 12000 --trials 100 \
+    --out "${OUT}/watch_realistic"
+  scenario="${OUT}/watch_command_faults.yaml"
+  sed -e '/^seed_space/d' -e '/^faults:/,/command_delayed\]/d' \
+    "${ROOT}/config/scenario_faults.yaml" > "${scenario}"
+  printf 'faults: [command_lost, command_delayed]\n' >> "${scenario}"
+  campaign --scenario "${scenario}" --trials 100 --out "${OUT}/watch_command_faults"
+  python3 "${ROOT}/scripts/dev/calibration_watch.py" "${OUT}/watch_paper" \
+    "${OUT}/watch_realistic" "${OUT}/watch_command_faults" > "${OUT}/watch.md"
+  cat "${OUT}/watch.md"
 fi
 echo "calibration: done; outputs in ${OUT}"

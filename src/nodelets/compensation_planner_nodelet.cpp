@@ -312,7 +312,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       }
     }
     for (const core::PredictedMarker& m : out.predicted) predicted_pub_.publish(toMsg(m));
-    for (core::TrialPhase p : out.phases) publishStatus(p);
+    // A stop the planner decided is announced before the phase it causes (a listener that
+    // waits for 'failed' or 'retreating' has the reason by then).
     for (const std::string& why : out.stops) {
       StopCommand stop;
       stop.header.stamp = lockstep_->now();
@@ -321,6 +322,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       stop.retreat = true;
       stop_pub_.publish(stop);
     }
+    for (core::TrialPhase p : out.phases) publishStatus(p);
     if (lockstep_->enabled()) {
       timers_.apply(out, now());
       return;

@@ -40,6 +40,7 @@
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
+#include "pedicle_drilling/StallJoint.h"
 #include "pedicle_drilling/StepAck.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/VentilatorSettings.h"
@@ -174,6 +175,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                               &SimulatorNodelet::onSetVentilatorSettings, this);
     set_amplitude_srv_ = nh.advertiseService("simulator/set_patient_amplitude",
                                              &SimulatorNodelet::onSetPatientAmplitude, this);
+    stall_joint_srv_ =
+        nh.advertiseService("simulator/stall_joint", &SimulatorNodelet::onStallJoint, this);
     publishStaticTransforms();
     NODELET_INFO(
         "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
@@ -554,6 +557,22 @@ class SimulatorNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  bool onStallJoint(StallJoint::Request& request, StallJoint::Response& response) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    try {
+      sim_->setJointStalled(request.joint, request.stalled);
+    } catch (const std::invalid_argument& e) {
+      response.success = false;
+      response.message = e.what();
+      return true;
+    }
+    NODELET_WARN("Simulator: %s's drive %s", request.joint.c_str(),
+                 request.stalled ? "stalled: it holds where it is" : "released");
+    response.success = true;
+    response.message = request.joint + (request.stalled ? " stalled" : " released");
+    return true;
+  }
+
   void onTrajectory(const std::string& controller,
                     const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
     std::unique_lock<std::mutex> lock(mutex_);
@@ -752,7 +771,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   VentilatorSettings last_settings_msg_;
   std::optional<double> pending_amplitude_;  // set_patient_amplitude, from the next breath
   long amplitude_breath_ = 0;
-  ros::ServiceServer set_ventilator_srv_, set_amplitude_srv_;
+  ros::ServiceServer set_ventilator_srv_, set_amplitude_srv_, stall_joint_srv_;
   ros::Publisher tidal_volume_pub_;
   ros::Publisher ventilator_settings_pub_;
   ros::Publisher clock_pub_;

@@ -80,6 +80,7 @@ FAULT_PARAMS = {
     'amplitude_factor': '--fault-amplitude-factor',
     'rate_change_bpm': '--fault-rate-change-bpm',
     'command_delay_s': '--fault-command-delay-s',
+    'command_fault_count': '--fault-command-count',
 }
 ENGINES = ('core', 'ros')
 PROTOCOLS = ('recognition', 'peak_forces')
@@ -570,7 +571,7 @@ def run_campaign(argv=None):
                 float(scenario.get('feed_rate_mm_s', 0.5)),
                 float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
                 COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
-                [(FAULT_PARAMS[k], float(v))
+                [(FAULT_PARAMS[k], int(v) if k == 'command_fault_count' else float(v))
                  for k, v in sorted((scenario.get('fault_params') or {}).items())],
                 recognizer, compensator, params['recognizer'], params['compensator'],
                 scenario.get('simulator'), scenario.get('protocol', 'recognition'),

@@ -127,6 +127,9 @@ def row_from_line(line, trace_dir):
     for key in CONDITION_COLUMNS:
         row[key] = record['conditions'][key]
     row['wall_s'] = None  # trial_engine reports no wall time per trial: nothing to compare
+    watch = record.get('controller_watch') or {}
+    row['watch_desired_ratio'] = watch.get('desired_ratio')
+    row['watch_following_ratio'] = watch.get('following_ratio')
     try:
         row = worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
         return fault_columns(row, record)

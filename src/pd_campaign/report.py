@@ -23,7 +23,7 @@ TRIAL_COLUMNS = [
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
     'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-    'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
+    'watch_desired_ratio', 'watch_following_ratio', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
     'drift_detected', 'bag_lost', 'error',
 ]
 
@@ -65,7 +65,7 @@ def normalise_row(row):
                 'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'late_commands',
                 'max_command_lateness_ms', 'command_waits', 'command_wait_wall_s',
                 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-                'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms',
+                'watch_desired_ratio', 'watch_following_ratio', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms',
                 'tracker_samples_missing', 'retare_offset_n'):
         out[key] = _number(row.get(key))
     out['failure_kind'] = row.get('failure_kind') or None

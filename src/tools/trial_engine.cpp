@@ -66,39 +66,42 @@ json recordToJson(const pd::EngineTrialRecord& r) {
   json status = json::array();
   for (const auto& s : r.status) status.push_back({s.first, s.second});
   const pd::SimulationGroundTruth& g = r.last_truth;
-  return {{"conditions",
-           {{"volunteer_id", r.conditions.volunteer_id},
-            {"amplitude_scale", r.conditions.patient_amplitude_scale},
-            {"ventilator_rate_bpm", r.conditions.ventilator_rate_bpm},
-            {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
-            {"force_noise_sd_n", r.conditions.force_noise_sd_n},
-            {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
-            {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
-          {"last_truth",
-           {{"breakthrough", g.breakthrough},
-            {"residual_inner_cortical_m", g.residual_inner_cortical_m},
-            {"max_depth_cut_m", g.max_depth_cut_m},
-            {"inner_cortical_start_m", g.inner_cortical_start_m}}},
-          {"states", states},
-          {"key_points", key_points},
-          {"truth_peaks_n", {r.truth_peak_outer_n, r.truth_peak_inner_n}},
-          {"retare",
-           {{"done", r.retare.done},
-            {"t", r.retare.t},
-            {"samples", r.retare.samples},
-            {"offset_n", r.retare.offset_n},
-            {"drift", r.retare.drift},
-            {"message", r.retare.message}}},
-          {"recognizer_stop_t",
-           std::isnan(r.recognizer_stop_t) ? json(nullptr) : json(r.recognizer_stop_t)},
-          {"truth", truth},
-          {"stops", stops},
-          {"status", status},
-          {"fault",
-           {{"name", pd::toString(r.fault.kind)},
-            {"injected", r.fault.injected},
-            {"t", r.fault.injected ? json(r.fault.t) : json(nullptr)},
-            {"trigger_depth_m", r.fault.trigger_depth_m}}}};
+  return {
+      {"conditions",
+       {{"volunteer_id", r.conditions.volunteer_id},
+        {"amplitude_scale", r.conditions.patient_amplitude_scale},
+        {"ventilator_rate_bpm", r.conditions.ventilator_rate_bpm},
+        {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
+        {"force_noise_sd_n", r.conditions.force_noise_sd_n},
+        {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
+        {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
+      {"last_truth",
+       {{"breakthrough", g.breakthrough},
+        {"residual_inner_cortical_m", g.residual_inner_cortical_m},
+        {"max_depth_cut_m", g.max_depth_cut_m},
+        {"inner_cortical_start_m", g.inner_cortical_start_m}}},
+      {"states", states},
+      {"key_points", key_points},
+      {"truth_peaks_n", {r.truth_peak_outer_n, r.truth_peak_inner_n}},
+      {"controller_watch",
+       {{"desired_ratio", r.watch_desired_ratio}, {"following_ratio", r.watch_following_ratio}}},
+      {"retare",
+       {{"done", r.retare.done},
+        {"t", r.retare.t},
+        {"samples", r.retare.samples},
+        {"offset_n", r.retare.offset_n},
+        {"drift", r.retare.drift},
+        {"message", r.retare.message}}},
+      {"recognizer_stop_t",
+       std::isnan(r.recognizer_stop_t) ? json(nullptr) : json(r.recognizer_stop_t)},
+      {"truth", truth},
+      {"stops", stops},
+      {"status", status},
+      {"fault",
+       {{"name", pd::toString(r.fault.kind)},
+        {"injected", r.fault.injected},
+        {"t", r.fault.injected ? json(r.fault.t) : json(nullptr)},
+        {"trigger_depth_m", r.fault.trigger_depth_m}}}};
 }
 
 /** @brief Settings of a recognizer or compensator class, name -> value as text. */
@@ -206,6 +209,8 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->check(tools::finiteNumber());
   app->add_option("--fault-command-delay-s", faults.command_delay_s, "command_delayed delay, s")
       ->check(tools::finiteNumber());
+  app->add_option("--fault-command-count", faults.command_fault_count,
+                  "consecutive commands a command fault hits (1: the next one)");
   app->add_option("--recognizer", o->recognizer_class,
                   "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
                   "own recognizer or compensator\")");

@@ -764,6 +764,38 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
   EXPECT_NEAR(lenient.armJointPositions()[6], 0.06, 1e-4);
 }
 
+TEST(DrillingSimulation, AStalledDriveHoldsAndItsControllersErrorGrows) {
+  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  sim.step(0.2);
+  EXPECT_THROW(sim.setJointStalled("spindle_joint", true), std::invalid_argument);
+  sim.setJointStalled("feed_joint", true);
+  const double feed0 = sim.armJointPositions()[6];
+  TrajectoryCommand feed;
+  feed.joint_names = {"feed_joint"};
+  feed.points.push_back({sim.time() + 1.0, {feed0 + 0.005}, {}});
+  ASSERT_TRUE(sim.commandTrajectory(feed).ok());
+  sim.step(1.2);
+  EXPECT_NEAR(sim.armJointPositions()[6], feed0, 1e-6);  // it holds
+  const ControllerStateSample stalled = sim.controllerState(1);
+  EXPECT_NEAR(stalled.error_positions[0], 0.005, 1e-6);  // desired - actual
+  sim.setJointStalled("feed_joint", false);              // released: it follows again
+  sim.step(1.5);
+  EXPECT_NEAR(sim.armJointPositions()[6], feed0 + 0.005, 1e-4);
+  // An arm joint: its setpoint freezes where it is.
+  sim.setJointStalled("rsssii_joint1", true);
+  const double q1 = sim.armJointPositions()[0];
+  TrajectoryCommand arm;
+  arm.joint_names = kJoints;
+  const Eigen::VectorXd now_q = sim.armJointPositions();
+  std::vector<double> target(now_q.data(), now_q.data() + 7);
+  target[0] += 0.05;
+  arm.points.push_back({sim.time() + 1.0, target, {}});
+  ASSERT_TRUE(sim.commandTrajectory(arm).ok());
+  sim.step(1.5);
+  EXPECT_NEAR(sim.armJointPositions()[0], q1, 1e-4);
+  EXPECT_NEAR(sim.controllerState(0).error_positions[0], 0.05, 1e-3);
+}
+
 TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFollowed) {
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
   TrajectoryCommand a;

@@ -170,3 +170,22 @@ TEST(FaultInjector, CommandFaultsHitTheNextCommandOnly) {
   EXPECT_TRUE(injector.force(4.1, &f));
   EXPECT_EQ(f, sample(4.1));
 }
+
+TEST(FaultInjector, ACommandFaultHitsCommandFaultCountCommandsInARow) {
+  pd::FaultParams p;
+  p.command_delay_s = 0.6;
+  p.command_fault_count = 3;
+  pd::FaultInjector injector(p);
+  injector.arm(pd::FaultKind::kCommandDelayed);
+  injector.inject(1.0);
+  EXPECT_DOUBLE_EQ(injector.command(1.125), 0.6);
+  EXPECT_DOUBLE_EQ(injector.injectionTime(), 1.125);  // the first command's
+  EXPECT_TRUE(injector.pending());
+  EXPECT_DOUBLE_EQ(injector.command(1.25), 0.6);
+  EXPECT_DOUBLE_EQ(injector.command(1.375), 0.6);
+  EXPECT_FALSE(injector.pending());
+  EXPECT_EQ(injector.command(1.5), 0.0);  // the path is fast again
+  EXPECT_DOUBLE_EQ(injector.injectionTime(), 1.125);
+  p.command_fault_count = 0;
+  EXPECT_THROW(pd::FaultInjector{p}, std::invalid_argument);
+}

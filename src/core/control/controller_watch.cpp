@@ -59,6 +59,7 @@ std::string ControllerWatch::start(double now) {
   watching_ = false;
   if (!params_.enabled) return "";
   for (Watched& w : watched_) {
+    if (!w.mismatch.empty()) return w.mismatch;
     if (w.last_desired.empty()) {
       return w.spec.name + " has not reported its state (" + w.spec.name +
              "/state): the planner cannot watch it (controller_watch/enabled false to drill "
@@ -113,10 +114,21 @@ std::string ControllerWatch::onState(double now, const std::string& name,
       std::all_of(desired.begin(), desired.end(), [](double x) { return std::isfinite(x); }) &&
       std::all_of(error.begin(), error.end(), [](double x) { return std::isfinite(x); });
   if (!complete) {
+    std::ostringstream os;
+    os << w.spec.name << "/state does not give every joint the planner commands on " << w.spec.name
+       << " (";
+    for (std::size_t j = 0; j < n; ++j) os << (j ? ", " : "") << w.spec.joints[j];
+    os << "; it names";
+    for (const std::string& joint : state.joint_names) os << " " << joint;
+    os << "), or has NaN/inf: the planner's controllers (arm_controller, feed_controller and their "
+          "joints) must be the robot's";
+    w.last_desired.clear();
+    w.mismatch = os.str();
     if (!watching_) return "";
     watching_ = false;
-    return w.spec.name + ": its state lacks a joint or has NaN/inf (" + name + "/state)";
+    return w.mismatch;
   }
+  w.mismatch.clear();
   w.last_desired = desired;
   w.last_state_t = now;
   if (!watching_) return "";

@@ -194,9 +194,9 @@ struct ClosedLoopEngine::Impl {
 
   /** @brief Extra delay of a trajectory command, or < 0 when the command is lost. */
   double commandFault() {
-    if (!fault_pending || !isCommandFault(record.fault.kind)) return 0.0;
+    if (!isCommandFault(record.fault.kind) || !injector.pending()) return 0.0;
     const double extra = injector.command(now);
-    injectFault();
+    if (fault_pending) injectFault();  // the first of its commands (command_fault_count)
     return extra;
   }
 
@@ -554,6 +554,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
     s.step(++n);
   }
   s.recordTruth();
+  s.record.watch_desired_ratio = s.sequencer->controllerWatch().worstDesiredRatio();
+  s.record.watch_following_ratio = s.sequencer->controllerWatch().worstFollowingRatio();
   return s.record;
 }
 

@@ -400,6 +400,8 @@ struct DrillingSimulation::Impl {
   int feed_index = -1;
   std::size_t feed_controller = 0;
   int feed_column = -1;
+  // Drive faults (setJointStalled): per commandable joint, its drive holds where it is.
+  std::vector<bool> stalled;
   StageAxis feed_drive;
   // The displacement model the bone plays from the next reset on (none: virtual patient).
   std::optional<BoneMotionModel> bone_motion_model;
@@ -666,6 +668,53 @@ struct DrillingSimulation::Impl {
     return t;
   }
 
+  /** @brief The arm's controllers (params.controllers) and the feed joint's drive. */
+  void makeControllers(const DrillingSimulationParams& params) {
+    std::vector<JointLimit> limits;
+    Eigen::VectorXd hold_q(static_cast<int>(commandable.size()));
+    for (size_t j = 0; j < commandable.size(); ++j) {
+      const ArmJointInfo& info = arm->jointInfo()[commandable_index[j]];
+      limits.push_back(
+          {info.lower, info.upper,
+           info.velocity > 0.0 ? info.velocity : std::numeric_limits<double>::infinity()});
+      hold_q[static_cast<int>(j)] = home[commandable_index[j]];
+    }
+    controller_specs = controllerLayout(params.controllers, commandable);
+    stalled.assign(commandable.size(), false);
+    for (const ControllerSpec& spec : controller_specs) {
+      std::vector<int> columns;
+      std::vector<JointLimit> own_limits;
+      Eigen::VectorXd own_hold(static_cast<Eigen::Index>(spec.joints.size()));
+      for (const std::string& joint : spec.joints) {
+        const auto at = std::find(commandable.begin(), commandable.end(), joint);
+        const int column = static_cast<int>(at - commandable.begin());
+        own_hold[static_cast<Eigen::Index>(columns.size())] = hold_q[column];
+        columns.push_back(column);
+        own_limits.push_back(limits[static_cast<std::size_t>(column)]);
+      }
+      controller_trajectories.push_back(std::make_unique<JointTrajectoryExecutor>(
+          spec.joints, own_limits, own_hold, params.controller_rules));
+      controller_columns.push_back(std::move(columns));
+    }
+    const auto feed = std::find(commandable.begin(), commandable.end(), "feed_joint");
+    if (feed != commandable.end()) {
+      feed_index = static_cast<int>(feed - commandable.begin());
+      for (std::size_t c = 0; c < controller_columns.size(); ++c) {
+        const std::vector<int>& columns = controller_columns[c];
+        const auto at = std::find(columns.begin(), columns.end(), feed_index);
+        if (at != columns.end()) {
+          feed_controller = c;
+          feed_column = static_cast<int>(at - columns.begin());
+        }
+      }
+      StageAxisParams drive;
+      drive.max_speed_m_s = limits[static_cast<std::size_t>(feed_index)].velocity;
+      drive.max_accel_m_s2 = params.feed_max_accel_m_s2;
+      drive.bandwidth_hz = params.feed_bandwidth_hz;
+      feed_drive = StageAxis(drive, hold_q[feed_index]);
+    }
+  }
+
   /** @brief The controllers' reference positions at t, in the commandable joints' order. */
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
@@ -688,7 +737,8 @@ struct DrillingSimulation::Impl {
       // trajectory with its own limits, stepped at the physics rate over the coming block.
       q0[feed_index] = feed_drive.position();
       const JointTrajectoryExecutor& feed_trajectory = *controller_trajectories[feed_controller];
-      for (int k = 0; k < steps_per_arm_block; ++k) {
+      for (int k = 0; k < steps_per_arm_block && !stalled[static_cast<std::size_t>(feed_index)];
+           ++k) {
         const TrajectoryState ref = feed_trajectory.sample(time + k * dt);
         feed_drive.step(dt, ref.position[feed_column], ref.velocity[feed_column]);
       }
@@ -698,6 +748,9 @@ struct DrillingSimulation::Impl {
     block_pos.resize(static_cast<Eigen::Index>(commandable.size()));
     block_vel.resize(static_cast<Eigen::Index>(commandable.size()));
     for (size_t j = 0; j < commandable.size(); ++j) {
+      if (stalled[j] && static_cast<int>(j) != feed_index) {  // the stalled joint's setpoint
+        q0[static_cast<Eigen::Index>(j)] = q1[static_cast<Eigen::Index>(j)] = servo_ref[j];
+      }
       const double limit = arm->jointInfo()[commandable_index[j]].velocity * block;
       // Not lagging: the setpoint is the reference now (q0). Lagging: it keeps its own value.
       const double from = std::abs(servo_ref[j] - q0[j]) <= limit ? q0[j] : servo_ref[j];
@@ -785,6 +838,7 @@ struct DrillingSimulation::Impl {
     }
     if (feed_index >= 0) feed_drive.reset(hold_q[feed_index]);
     servo_ref = hold_q;
+    stalled.assign(commandable.size(), false);
     spindle_cmd_rpm = 0.0;
     spindle_rpm = 0.0;
     arm->setJointVelocityTargets(std::map<std::string, double>{{"spindle_joint", 0.0}});
@@ -854,50 +908,7 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
     }
     s.home[it - s.arm_joints.begin()] = kv.second;
   }
-  {
-    std::vector<JointLimit> limits;
-    Eigen::VectorXd hold_q(static_cast<int>(s.commandable.size()));
-    for (size_t j = 0; j < s.commandable.size(); ++j) {
-      const ArmJointInfo& info = s.arm->jointInfo()[s.commandable_index[j]];
-      limits.push_back(
-          {info.lower, info.upper,
-           info.velocity > 0.0 ? info.velocity : std::numeric_limits<double>::infinity()});
-      hold_q[static_cast<int>(j)] = s.home[s.commandable_index[j]];
-    }
-    s.controller_specs = controllerLayout(params.controllers, s.commandable);
-    for (const ControllerSpec& spec : s.controller_specs) {
-      std::vector<int> columns;
-      std::vector<JointLimit> own_limits;
-      Eigen::VectorXd own_hold(static_cast<Eigen::Index>(spec.joints.size()));
-      for (const std::string& joint : spec.joints) {
-        const auto at = std::find(s.commandable.begin(), s.commandable.end(), joint);
-        const int column = static_cast<int>(at - s.commandable.begin());
-        own_hold[static_cast<Eigen::Index>(columns.size())] = hold_q[column];
-        columns.push_back(column);
-        own_limits.push_back(limits[static_cast<std::size_t>(column)]);
-      }
-      s.controller_trajectories.push_back(std::make_unique<JointTrajectoryExecutor>(
-          spec.joints, own_limits, own_hold, params.controller_rules));
-      s.controller_columns.push_back(std::move(columns));
-    }
-    const auto feed = std::find(s.commandable.begin(), s.commandable.end(), "feed_joint");
-    if (feed != s.commandable.end()) {
-      s.feed_index = static_cast<int>(feed - s.commandable.begin());
-      for (std::size_t c = 0; c < s.controller_columns.size(); ++c) {
-        const std::vector<int>& columns = s.controller_columns[c];
-        const auto at = std::find(columns.begin(), columns.end(), s.feed_index);
-        if (at != columns.end()) {
-          s.feed_controller = c;
-          s.feed_column = static_cast<int>(at - columns.begin());
-        }
-      }
-      StageAxisParams drive;
-      drive.max_speed_m_s = limits[static_cast<std::size_t>(s.feed_index)].velocity;
-      drive.max_accel_m_s2 = params.feed_max_accel_m_s2;
-      drive.bandwidth_hz = params.feed_bandwidth_hz;
-      s.feed_drive = StageAxis(drive, hold_q[s.feed_index]);
-    }
-  }
+  s.makeControllers(params);
   s.checkSpmsAgainstUrdf();
   s.sliders = Eigen::Vector3d::Constant(params.spms.home_slider_m);
   s.slider_targets = s.sliders;
@@ -1033,6 +1044,14 @@ TargetResult DrillingSimulation::commandTrajectory(const std::string& controller
     }
   }
   return {TargetStatus::kRejected, "no controller named '" + controller + "'"};
+}
+
+void DrillingSimulation::setJointStalled(const std::string& joint, bool stalled) {
+  const auto at = std::find(impl_->commandable.begin(), impl_->commandable.end(), joint);
+  if (at == impl_->commandable.end()) {
+    throw std::invalid_argument("setJointStalled: '" + joint + "' is not a commandable joint");
+  }
+  impl_->stalled[static_cast<std::size_t>(at - impl_->commandable.begin())] = stalled;
 }
 
 const std::vector<ControllerSpec>& DrillingSimulation::controllers() const {

@@ -62,7 +62,9 @@ const ParamTable<FaultParams>& FaultParams::table() {
     d.number("spike_n", &FaultParams::spike_n, Range::closed(0, 1e4), "N")
         .number("drift_n_per_s", &FaultParams::drift_n_per_s, Range::closed(-100, 100), "N/s")
         .number("tracker_jump_m", &FaultParams::tracker_jump_m, Range::closed(-0.1, 0.1), "m")
-        .number("command_delay_s", &FaultParams::command_delay_s, Range::closed(0, 10), "s");
+        .number("command_delay_s", &FaultParams::command_delay_s, Range::closed(0, 10), "s")
+        .integer("command_fault_count", &FaultParams::command_fault_count,
+                 Range::closed(1, 1000000));
     return d;
   }();
   return t;
@@ -116,6 +118,7 @@ void FaultInjector::inject(double t) {
   t_injected_ = t;
   if (isCommandFault(kind_)) {
     pending_ = true;
+    remaining_commands_ = params_.command_fault_count;
   } else {
     injected_ = true;
   }
@@ -168,10 +171,12 @@ bool FaultInjector::trackedPose(Eigen::Vector3d* position, Eigen::Quaterniond* o
 
 double FaultInjector::command(double t) {
   if (!pending_ || spent_) return 0.0;
-  pending_ = false;
-  t_injected_ = t;
+  if (!injected_) t_injected_ = t;  // the fault's time: its first command
   injected_ = true;
-  spent_ = true;
+  if (--remaining_commands_ <= 0) {
+    pending_ = false;
+    spent_ = true;
+  }
   return kind_ == FaultKind::kCommandLost ? -1.0 : params_.command_delay_s;
 }
 

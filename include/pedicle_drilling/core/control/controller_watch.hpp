@@ -59,8 +59,9 @@ class ControllerWatch {
   std::string onState(double now, const std::string& name, const ControllerStateSample& state);
   /**
    * @brief Watching starts (a trial): each expected trajectory holds the controller's last
-   *        reported desired position. @return "" or why it cannot start (a controller never
-   *        reported its state).
+   *        reported desired position. @return "" or why it cannot start: a controller never
+   *        reported its state, or its last state lacks a joint the planner commands on it (the
+   *        planner's controller layout is not the robot's).
    */
   std::string start(double now);
   /** @brief Watching ends (the trial is over or stopped: its commands are not checked). */
@@ -84,6 +85,7 @@ class ControllerWatch {
     std::vector<double> following_tolerance;
     std::unique_ptr<JointTrajectoryExecutor> expected;
     std::vector<double> last_desired;  ///< empty: no state yet
+    std::string mismatch;              ///< why the last state was unusable ("" : it was)
     double last_state_t = -1.0;
   };
   ControllerWatchParams params_;

@@ -232,6 +232,10 @@ struct EngineTrialRecord {
   double recognizer_stop_t = std::numeric_limits<double>::quiet_NaN();
   /** @brief The monitor's re-tare check when the retreat ended (done false: no retreat ended). */
   RetareCheck retare;
+  /** @brief The planner's controller watch over the trial: the largest |desired - commanded|
+   *         and |error| of any joint, each as a fraction of its tolerance (1: the threshold). */
+  double watch_desired_ratio = 0.0;
+  double watch_following_ratio = 0.0;  ///< see watch_desired_ratio
 };
 
 /**

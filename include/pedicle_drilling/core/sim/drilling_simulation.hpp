@@ -341,6 +341,13 @@ class DrillingSimulation {
    * @return the first part's result that is not kAccepted, else kAccepted.
    */
   TargetResult commandTrajectory(const TrajectoryCommand& command);
+  /**
+   * @brief A drive fault: the commandable @p joint stops following its controller and holds
+   *        where it is (a brake engaged, a stalled motor) until the next reset, or until called
+   *        with @p stalled false. Its controller's error (desired - actual) grows.
+   * @throws std::invalid_argument for a joint that is not commandable.
+   */
+  void setJointStalled(const std::string& joint, bool stalled);
   /** @brief The controllers (names and joints, the order of controllerState()'s index). */
   const std::vector<ControllerSpec>& controllers() const;
   /**

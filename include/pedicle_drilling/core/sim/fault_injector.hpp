@@ -64,6 +64,9 @@ struct FaultParams {
   double rate_change_bpm = 4.0;
   /** @brief Delay of the delayed trajectory command [s] (200 ms). */
   double command_delay_s = 0.2;
+  /** @brief How many consecutive trajectory commands a command fault hits (1: the next one
+   *         only; more: a command path that stays slow, or a link that stays down). */
+  int command_fault_count = 1;
   /** @brief Check every field. @throws std::invalid_argument naming it. */
   void validate() const;
 
@@ -109,7 +112,8 @@ class FaultInjector {
   void inject(double t);
   /** @brief True once inject() was called (a command fault: once its command came). */
   bool injected() const { return injected_; }
-  /** @brief True from inject() until a command fault's command came. */
+  /** @brief True from inject() until a command fault's last command came
+   *         (FaultParams::command_fault_count). */
   bool pending() const { return pending_; }
   /** @brief Time of the injection [s] (a command fault: of its command; valid if injected()). */
   double injectionTime() const { return t_injected_; }
@@ -128,8 +132,8 @@ class FaultInjector {
 
   /**
    * @brief The fate of one trajectory command sent at time t [s]: 0 delivered as usual, > 0 its
-   *        extra delay [s], < 0 lost. Only the first command after inject() of a command fault
-   *        is affected.
+   *        extra delay [s], < 0 lost. The first FaultParams::command_fault_count commands after
+   *        inject() of a command fault are affected (1 by default: the next one only).
    */
   double command(double t);
 
@@ -140,6 +144,7 @@ class FaultInjector {
   bool injected_ = false;
   bool spent_ = false;  // the spike's sample, the stuck sample taken, the one command done
   double t_injected_ = 0.0;
+  int remaining_commands_ = 0;  // a command fault's commands still to hit
   Eigen::Vector3d last_force_ = Eigen::Vector3d::Zero();
   bool have_pose_ = false;
   double last_stamp_ = 0.0;
