@@ -35,6 +35,7 @@ bench: build
 lint: deps
 	./scripts/dev/link_workspace.sh
 	catkin_lint -W1 $(WS)/src/pedicle_drilling
+	catkin_lint -W1 $(CURDIR)
 
 format: deps
 	git ls-files '*.cpp' '*.hpp' '*.h' | xargs clang-format-14 -i

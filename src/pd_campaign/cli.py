@@ -15,7 +15,9 @@ from . import engine_core, plots, report, tools
 from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
-PACKAGE_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+# The package's config/ and urdf/: its source folder (devel space) or its share folder (install
+# space), found through rospack.
+PACKAGE_ROOT = tools.package_dir()
 DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
 DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
 # Table II files a campaign copies from its identification; shards share them.
@@ -538,9 +540,8 @@ def run_campaign(argv=None):
         # simulator's patients are these volunteers, and the trials use these models.
         ident_dir = os.path.join(out_dir, 'identification')
         sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
-        result = subprocess.run(['/usr/bin/python3', os.path.join(PACKAGE_ROOT, 'scripts',
-                                                                   'table2.py'),
-                                 '--out', ident_dir, '--jobs', str(args.jobs)],
+        result = subprocess.run(tools.tool('table2.py') + ['--out', ident_dir,
+                                                           '--jobs', str(args.jobs)],
                                 capture_output=True, text=True)
         if result.returncode != 0:
             sys.stderr.write('campaign: Table II identification failed:\n%s\n'

@@ -42,7 +42,6 @@ ALPHA = 0.05  # every verdict: two-sided exact tests at 5 %, no correction for m
 BEST_RPM = 12000.0  # the paper's chosen speed (Sec. V-C)
 SPEED_CASE = 'compensated'  # the case whose success the paper compares across speeds (Fig. 15)
 DEFAULT_SWEEP = os.path.join(cli.PACKAGE_ROOT, 'config', 'sensitivity.yaml')
-CAMPAIGN = os.path.join(cli.PACKAGE_ROOT, 'scripts', 'campaign')
 DELAY_RANGE = (0.0, 1.0)  # engine_delays, s (the campaign's scenario check)
 
 
@@ -335,7 +334,7 @@ def run_campaign_process(argv, log_path):
     campaign (in the same process group) stops its own workers and keeps its finished trials;
     this waits for it, then raises KeyboardInterrupt."""
     with open(log_path, 'w') as log:  # not atomic: the sub-campaign's live log
-        process = subprocess.Popen(['/usr/bin/python3', CAMPAIGN] + argv, stdout=log,
+        process = subprocess.Popen(tools.tool('campaign') + argv, stdout=log,
                                    stderr=subprocess.STDOUT)
         try:
             return process.wait()

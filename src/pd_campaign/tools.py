@@ -1,8 +1,27 @@
-"""Where the package's built tools are, for the scripts that run them."""
+"""Where the package's built tools and files are, for the scripts that run them."""
 import argparse
 import os
 
+import rospkg
+
+PACKAGE = 'pedicle_drilling'
 _ROOT = os.path.join(os.path.dirname(os.path.realpath(__file__)), '..', '..')
+
+
+class PackageNotFound(RuntimeError):
+    """The environment does not have the package: no setup.bash of its workspace sourced."""
+
+
+def package_dir():
+    """The package's folder, the one with config/, urdf/, launch_scripts/ and rviz/, as rospack
+    finds it: the source folder in a devel space, share/pedicle_drilling in an install space."""
+    try:
+        return rospkg.RosPack().get_path(PACKAGE)
+    except rospkg.ResourceNotFound:
+        raise PackageNotFound(
+            'the package %s is not on ROS_PACKAGE_PATH (%s): source the setup.bash of the '
+            'workspace that has it (its devel or install space)'
+            % (PACKAGE, os.environ.get('ROS_PACKAGE_PATH') or 'not set')) from None
 
 
 def tool(name):

@@ -8,6 +8,10 @@
 //                [--default-model FILE] [--bone-motion model|virtual_patient]
 //                [--feed-rate 0.5] [--max-duration 60] [--urdf FILE] [--fault-* VALUE]
 //
+// --urdf and --default-model default to the package's urdf/workcell.urdf and
+// config/patient_default.yaml, found at run time through rospack (the devel or the install
+// space whose setup.bash was sourced).
+//
 // A trial may name a fault to inject ("fault": "force_silent", ...; README "Fault campaign");
 // its record then says when it took effect.
 //
@@ -26,6 +30,8 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#include <ros/package.h>
 
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/common/text_parse.hpp"
@@ -104,6 +110,20 @@ json recordToJson(const pd::EngineTrialRecord& r) {
         {"trigger_depth_m", r.fault.trigger_depth_m}}}};
 }
 
+/**
+ * @brief The path of a file of the package (`relative` to its folder, as rospack finds it: the
+ *        source folder in a devel space, share/pedicle_drilling in an install space), the
+ *        default of `option`. @throws UsageError when rospack does not find the package.
+ */
+std::string packageFile(const std::string& relative, const std::string& option) {
+  const std::string dir = ros::package::getPath("pedicle_drilling");
+  if (dir.empty()) {
+    throw UsageError(option + ": rospack does not find the package pedicle_drilling (for its " +
+                     relative + "): source the setup.bash of its workspace, or give " + option);
+  }
+  return dir + "/" + relative;
+}
+
 /** @brief Settings of a recognizer or compensator class, name -> value as text. */
 using PluginSettings = std::vector<std::pair<std::string, std::string>>;
 
@@ -121,9 +141,8 @@ namespace {
 /** @brief Everything the command line sets. */
 struct Options {
   std::string trials_path;
-  std::string urdf_path = std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/urdf/workcell.urdf";
-  std::string default_model =
-      std::string(PEDICLE_DRILLING_SOURCE_DIR) + "/config/patient_default.yaml";
+  std::string urdf_path;      // empty: packageFile("urdf/workcell.urdf")
+  std::string default_model;  // empty: packageFile("config/patient_default.yaml")
   std::string models_dir;
   std::string model_kind = "linear";
   std::string bone_motion = "virtual_patient";
@@ -153,8 +172,11 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->delimiter(',')
       ->check(tools::finiteNumber())
       ->default_str("");  // none
-  app->add_option("--urdf", o->urdf_path, "workcell URDF");
-  app->add_option("--default-model", o->default_model, "patient model of the stationary case");
+  app->add_option("--urdf", o->urdf_path,
+                  "workcell URDF (default: the package's urdf/workcell.urdf)");
+  app->add_option("--default-model", o->default_model,
+                  "patient model of the stationary case (default: the package's "
+                  "config/patient_default.yaml)");
   app->add_option("--models-dir", o->models_dir,
                   "identified volunteer models volunteer_<id>_<model>.yaml (moving cases)");
   app->add_option("--model", o->model_kind, "linear | hysteresis")
@@ -413,6 +435,10 @@ int main(int argc, char** argv) {
   pd::PatientModel stationary_model;
   try {
     trials = readTrials(o.trials_path);
+    if (o.urdf_path.empty()) o.urdf_path = packageFile("urdf/workcell.urdf", "--urdf");
+    if (o.default_model.empty()) {
+      o.default_model = packageFile("config/patient_default.yaml", "--default-model");
+    }
     config.urdf_xml = readText(o.urdf_path, "--urdf");
     config.drilling_pose = o.drilling_pose;
     stationary_model = pd::readModelYaml(o.default_model);
