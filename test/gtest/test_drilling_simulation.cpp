@@ -796,6 +796,38 @@ TEST(DrillingSimulation, AStalledDriveHoldsAndItsControllersErrorGrows) {
   EXPECT_NEAR(sim.controllerState(0).error_positions[0], 0.05, 1e-3);
 }
 
+TEST(DrillingSimulation, TheControllersReadStampsOnTheirOwnClock) {
+  // The controllers' clock 0.3 s ahead of the pipeline's: a segment stamped to end 0.25 s from
+  // now has ended on their clock, and the strict controller drops it.
+  DrillingSimulationParams ahead;
+  ahead.arm_clock_offset_s = 0.3;
+  DrillingSimulation sim(workcell(), ahead, 1);
+  sim.step(0.2);
+  TrajectoryCommand feed;
+  feed.joint_names = {"feed_joint"};
+  feed.start_time_s = sim.time();
+  feed.points.push_back({sim.time() + 0.25, {0.001}, {}});
+  const TargetResult r = sim.commandTrajectory(feed);
+  EXPECT_EQ(r.status, TargetStatus::kRejected);
+  EXPECT_NE(r.message.find("dropping all 1 trajectory point(s)"), std::string::npos) << r.message;
+  // 0.1 s behind: the same command takes over 0.1 s after its stamp and ends 0.1 s later.
+  DrillingSimulationParams behind;
+  behind.arm_clock_offset_s = -0.1;
+  DrillingSimulation late(workcell(), behind, 1);
+  late.step(0.2);
+  const double t0 = late.time();
+  feed.start_time_s = t0 + 0.1;
+  feed.points = {{t0 + 0.6, {0.002}, {}}};
+  ASSERT_TRUE(late.commandTrajectory(feed).ok());
+  late.step(0.15);  // t0 + 0.15: still before the takeover on the pipeline's clock + 0.1 s
+  EXPECT_NEAR(late.controllerState(1).desired_positions[0], 0.0, 1e-12);
+  late.step(0.55);  // t0 + 0.7: the command's end on the controllers' clock
+  EXPECT_NEAR(late.controllerState(1).desired_positions[0], 0.002, 1e-9);
+  DrillingSimulationParams bad;
+  bad.arm_clock_drift_ppm = 5000.0;
+  EXPECT_THROW(bad.validate(), std::invalid_argument);
+}
+
 TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFollowed) {
   DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
   TrajectoryCommand a;

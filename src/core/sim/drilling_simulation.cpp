@@ -199,6 +199,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
                 "ml/s")
         .number("breath_sensor_latency_s", &P::breath_sensor_latency_s, Range::closed(0, 0.5), "s")
         .number("breath_clock_offset_s", &P::breath_clock_offset_s, Range::closed(-0.1, 0.1), "s")
+        .number("arm_clock_offset_s", &P::arm_clock_offset_s, Range::closed(-10, 10), "s")
+        .number("arm_clock_drift_ppm", &P::arm_clock_drift_ppm, Range::closed(-1000, 1000), "ppm")
         .number(
             "force_noise_sd_n", [](const P& v) { return v.sensor.force_noise_sd_n; },
             [](P& v, double x) { v.sensor.force_noise_sd_n = x; }, Range::closed(0, 10), "N")
@@ -715,6 +717,25 @@ struct DrillingSimulation::Impl {
     }
   }
 
+  /**
+   * @brief A command to controller @p index, its stamps read on the controllers' clock
+   *        (arm_clock_offset_s, arm_clock_drift_ppm): in sim time, stamp s is
+   *        (s - offset) / (1 + drift).
+   */
+  TargetResult commandController(std::size_t index, const TrajectoryCommand& command) {
+    if (params.arm_clock_offset_s == 0.0 && params.arm_clock_drift_ppm == 0.0) {
+      return controller_trajectories[index]->command(command, time);
+    }
+    const double scale = 1.0 + params.arm_clock_drift_ppm * 1e-6;
+    const auto sim_time = [this, scale](double stamp) {
+      return (stamp - params.arm_clock_offset_s) / scale;
+    };
+    TrajectoryCommand local = command;
+    if (std::isfinite(local.start_time_s)) local.start_time_s = sim_time(local.start_time_s);
+    for (TrajectoryPoint& p : local.points) p.time_s = sim_time(p.time_s);
+    return controller_trajectories[index]->command(local, time);
+  }
+
   /** @brief The controllers' reference positions at t, in the commandable joints' order. */
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
@@ -1026,7 +1047,7 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
   }
   TargetResult result;
   for (auto& [index, part] : splitByController(command, specs)) {
-    const TargetResult r = impl_->controller_trajectories[index]->command(part, impl_->time);
+    const TargetResult r = impl_->commandController(index, part);
     if (result.status == TargetStatus::kAccepted && r.status != TargetStatus::kAccepted) {
       result = r;
       result.message = specs[index].name + ": " + r.message;
@@ -1039,9 +1060,7 @@ TargetResult DrillingSimulation::commandTrajectory(const std::string& controller
                                                    const TrajectoryCommand& command) {
   const std::vector<ControllerSpec>& specs = impl_->controller_specs;
   for (std::size_t c = 0; c < specs.size(); ++c) {
-    if (specs[c].name == controller) {
-      return impl_->controller_trajectories[c]->command(command, impl_->time);
-    }
+    if (specs[c].name == controller) return impl_->commandController(c, command);
   }
   return {TargetStatus::kRejected, "no controller named '" + controller + "'"};
 }

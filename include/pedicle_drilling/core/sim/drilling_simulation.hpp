@@ -200,6 +200,13 @@ struct DrillingSimulationParams {
   /// Offset of the breath sensor's clock against the pipeline's [s] (two PCs), added to each
   /// sensed breath start; with breath_sensor_rate_hz 0 it is not used.
   double breath_clock_offset_s = 0.0;
+  /// The arm controllers' clock against the pipeline's (issue 29: two PCs): the controllers
+  /// read a command's stamps on a clock c(t) = t + arm_clock_offset_s + arm_clock_drift_ppm
+  /// 1e-6 t (t: sim time since the trial's reset), so a stamp s takes effect at the true time
+  /// (s - offset) / (1 + drift). NTP on a LAN keeps the offset to tens of us (bench_sources
+  /// item 3); unsynchronised PCs drift apart by up to tens of ppm (crystal tolerance).
+  double arm_clock_offset_s = 0.0;
+  double arm_clock_drift_ppm = 0.0;  ///< see arm_clock_offset_s
   /// The arm's controllers as a lab wires them (issue 30): names and joint sets.
   ControllerLayoutParams controllers;
   /// The rules the simulated controllers apply: ros_control's (strict) by default.
