@@ -44,7 +44,8 @@ TEST(ControllerWatch, StartsFromEachControllersLastDesiredPosition) {
   EXPECT_EQ(watch.onState(0.0, "other", state({"x"}, 0.0, {5.0})), "");  // not ours: ignored
   ASSERT_EQ(watch.start(0.0), "");
   EXPECT_TRUE(watch.watching());
-  // Holding where they were: the same state is no fault.
+  // The first state at or after the start seeds the expectation; holding there is no fault.
+  EXPECT_EQ(watch.onState(0.05, "arm", state({"a", "b"}, 0.05, {0.1, 0.2})), "");
   EXPECT_EQ(watch.onState(0.1, "arm", state({"b", "a"}, 0.1, {0.2, 0.1})), "");
   EXPECT_NEAR(watch.worstDesiredRatio(), 0.0, 1e-12);
 }
@@ -68,6 +69,10 @@ TEST(ControllerWatch, ADesiredThatDepartsFromTheCommandedIsAFault) {
   watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
   ASSERT_EQ(watch.start(0.0), "");
   watch.onCommand(0.0, feedTo(1.0, 0.01));  // 10 mm in 1 s, linear
+  // A state from before the start (the robot may have been reset since) does not seed it ...
+  EXPECT_EQ(watch.onState(0.0, "feed", state({"f"}, -0.02, {0.05})), "");
+  // ... the first one taken after it does; the commands sent since are replayed on it.
+  EXPECT_EQ(watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0})), "");
   // The controller follows it: no fault.
   EXPECT_EQ(watch.onState(0.5, "feed", state({"f"}, 0.5, {0.005})), "");
   EXPECT_NEAR(watch.worstDesiredRatio(), 0.0, 1e-9);
@@ -87,6 +92,7 @@ TEST(ControllerWatch, AnErrorPastTheFollowingToleranceIsAFault) {
   watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
   watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
   ASSERT_EQ(watch.start(0.0), "");
+  EXPECT_EQ(watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0})), "");  // seeds
   EXPECT_EQ(watch.onState(0.1, "arm", state({"a", "b"}, 0.1, {0.0, 0.0}, 0.019)), "");
   EXPECT_NEAR(watch.worstFollowingRatio(), 0.95, 1e-9);
   const std::string why = watch.onState(0.2, "arm", state({"a", "b"}, 0.2, {0.0, 0.0}, -0.03));

@@ -11,14 +11,15 @@ reason (~expect, a substring), announced on drill/stop with retreat = true.
                     controller's set): the controller's state names its own joints, so the planner
                     refuses the trial before anything moves, naming the mismatch (a stricter
                     safe state than a stop: no command is sent).
-  trajectory_ended  once the drill is 1 mm into the bone, every command reaches the controllers
-                    0.6 s late (the FaultInjector's command_delayed for ~command_fault_count
+  trajectory_ended  when the drilling starts (the tool still free: the slow path must be the only
+                    thing that stops the trial), every command reaches the controllers 0.6 s late (the FaultInjector's command_delayed for ~command_fault_count
                     commands): each drilling segment arrives after its own last point and the
                     controller drops it (ros_control's rule); the arm stays behind the commanded
                     motion, the planner stops and retreats.
-  following_error   once the drill is 1 mm into the bone, the feed drive stalls
-                    (simulator/stall_joint): the feed controller's error grows past its tolerance,
-                    the planner stops and retreats.
+  following_error   when the drilling starts (the tool still free: the stall must be the only
+                    thing that stops the trial), the feed drive stalls (simulator/stall_joint): the
+                    feed controller's error grows with the commanded feed past its tolerance, the
+                    planner stops and retreats.
 """
 import sys
 import threading
@@ -30,8 +31,6 @@ import rostest
 from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import InjectFault, StallJoint, StartTrial
 
-INJECT_DEPTH_M = 1.0e-3  # the deepest cut when the fault is injected: in the outer cortex
-
 
 class ControllerWatchTest(unittest.TestCase):
     def test_case(self):
@@ -39,15 +38,13 @@ class ControllerWatchTest(unittest.TestCase):
         expect = rospy.get_param('~expect')
         lock = threading.Lock()
         truth, stops, status = [], [], []
-        deep_enough = threading.Event()
+        drilling = threading.Event()
         ended = threading.Event()
         stopped = threading.Event()
 
         def on_truth(msg):
             with lock:
                 truth.append(msg)
-            if msg.max_depth_cut_m >= INJECT_DEPTH_M:
-                deep_enough.set()
 
         def on_stop(msg):
             with lock:
@@ -57,6 +54,8 @@ class ControllerWatchTest(unittest.TestCase):
         def on_status(msg):
             with lock:
                 status.append(msg.phase_name)
+            if msg.phase_name == 'drilling':
+                drilling.set()
             if msg.phase_name in ('done', 'failed'):
                 ended.set()
 
@@ -84,13 +83,13 @@ class ControllerWatchTest(unittest.TestCase):
         self.assertTrue(res.success, res.message)
         if case == 'trajectory_ended':
             rospy.wait_for_service('/fault_injector/inject', 60.0)
-            self.assertTrue(deep_enough.wait(120.0), 'the drill never reached 1 mm')
+            self.assertTrue(drilling.wait(120.0), 'the drilling never started')
             answer = rospy.ServiceProxy('/fault_injector/inject', InjectFault)(
                 fault='command_delayed')
             self.assertTrue(answer.success, answer.message)
         elif case == 'following_error':
             rospy.wait_for_service('/simulator/stall_joint', 60.0)
-            self.assertTrue(deep_enough.wait(120.0), 'the drill never reached 1 mm')
+            self.assertTrue(drilling.wait(120.0), 'the drilling never started')
             answer = rospy.ServiceProxy('/simulator/stall_joint', StallJoint)(
                 joint='feed_joint', stalled=True)
             self.assertTrue(answer.success, answer.message)

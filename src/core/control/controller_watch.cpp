@@ -50,6 +50,7 @@ ControllerWatch::ControllerWatch(const ControllerWatchParams& params,
     w.expected = std::make_unique<JointTrajectoryExecutor>(
         spec.joints, std::vector<JointLimit>(n),
         Eigen::VectorXd::Zero(static_cast<Eigen::Index>(n)), expected_rules);
+    specs_.push_back(spec);
     w.spec = std::move(spec);
     watched_.push_back(std::move(w));
   }
@@ -65,9 +66,11 @@ std::string ControllerWatch::start(double now) {
              "/state): the planner cannot watch it (controller_watch/enabled false to drill "
              "without)";
     }
-    w.expected->hold(Eigen::Map<const Eigen::VectorXd>(
-        w.last_desired.data(), static_cast<Eigen::Index>(w.last_desired.size())));
+    // Seeded by the first state taken at or after the start (onState): the last one before it
+    // may be from before a reset of the robot (a stale reference).
+    w.seeded = false;
   }
+  sent_.clear();
   watching_ = true;
   start_t_ = now;
   worst_desired_ = 0.0;
@@ -77,12 +80,9 @@ std::string ControllerWatch::start(double now) {
 
 void ControllerWatch::onCommand(double now, const TrajectoryCommand& command) {
   if (!watching_) return;
-  for (auto& [index, part] : splitByController(command, [this] {
-         std::vector<ControllerSpec> specs;
-         for (const Watched& w : watched_) specs.push_back(w.spec);
-         return specs;
-       }())) {
-    watched_[index].expected->command(part, now);
+  sent_.push_back({now, command});  // replayed into a controller's expectation when seeded
+  for (auto& [index, part] : splitByController(command, specs_)) {
+    if (watched_[index].seeded) watched_[index].expected->command(part, now);
   }
 }
 
@@ -132,6 +132,25 @@ std::string ControllerWatch::onState(double now, const std::string& name,
   w.last_desired = desired;
   w.last_state_t = now;
   if (!watching_) return "";
+  if (!w.seeded) {
+    if (state.stamp < start_t_) return "";  // taken before the trial: maybe before a reset
+    // The expectation starts from this state's desired position and takes the commands sent
+    // since the start at their send times (the motion before this state is at most one state
+    // period and the transport: part of the tolerances).
+    w.expected->hold(Eigen::Map<const Eigen::VectorXd>(desired.data(),
+                                                       static_cast<Eigen::Index>(desired.size())));
+    w.seeded = true;
+    const std::size_t index = static_cast<std::size_t>(it - watched_.begin());
+    for (const auto& [t, command] : sent_) {
+      for (auto& [c, part] : splitByController(command, specs_)) {
+        if (c == index) w.expected->command(part, t);
+      }
+    }
+    if (std::all_of(watched_.begin(), watched_.end(), [](const Watched& x) { return x.seeded; })) {
+      sent_.clear();  // every expectation has its commands from here on
+    }
+    return "";
+  }
   const TrajectoryState expected = w.expected->sample(state.stamp);
   for (std::size_t j = 0; j < n; ++j) {
     const double d = std::abs(desired[j] - expected.position[static_cast<Eigen::Index>(j)]);

@@ -6,7 +6,8 @@
  *
  * The watch keeps, per controller, the trajectory a controller following ros_control's rules
  * would run from the commands the planner sent (a JointTrajectoryExecutor fed with them at their
- * send time, seeded with the controller's last reported desired position at the trial's start).
+ * send time, seeded with the desired position of the controller's first state taken at or after
+ * the trial's start: a state from before may predate a reset of the robot).
  * A state then answers two questions per joint:
  *  - desired: does the controller's reference match the expected one? A refused command (foreign
  *    joints, a trajectory already ended, a position out of limits) or one that arrived late
@@ -86,10 +87,15 @@ class ControllerWatch {
     std::unique_ptr<JointTrajectoryExecutor> expected;
     std::vector<double> last_desired;  ///< empty: no state yet
     std::string mismatch;              ///< why the last state was unusable ("" : it was)
+    bool seeded = false;               ///< the expectation has its start (a state after start())
     double last_state_t = -1.0;
   };
   ControllerWatchParams params_;
   std::vector<Watched> watched_;
+  std::vector<ControllerSpec> specs_;  ///< the watched controllers, in watched_'s order
+  /// The commands sent since start() (send time, command): replayed into a controller's
+  /// expectation when its first state after the start seeds it.
+  std::vector<std::pair<double, TrajectoryCommand>> sent_;
   bool watching_ = false;
   double start_t_ = 0.0;
   double worst_desired_ = 0.0;
