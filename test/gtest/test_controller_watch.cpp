@@ -26,6 +26,12 @@ pd::ControllerStateSample state(const std::vector<std::string>& names, double t,
   return s;
 }
 
+/** @brief Both controllers of kControllers report every joint at 0 (t = 0, before a start). */
+void reportAtZero(pd::ControllerWatch* watch) {
+  watch->onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
+  watch->onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
+}
+
 pd::TrajectoryCommand feedTo(double t_end, double feed) {
   pd::TrajectoryCommand c;
   c.joint_names = {"f"};
@@ -65,8 +71,7 @@ TEST(ControllerWatch, ADesiredThatDepartsFromTheCommandedIsAFault) {
   pd::ControllerWatchParams p;
   p.feed_desired_tolerance_m = 0.001;
   pd::ControllerWatch watch(p, kControllers, {"f"});
-  watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
-  watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
+  reportAtZero(&watch);
   ASSERT_EQ(watch.start(0.0), "");
   watch.onCommand(0.0, feedTo(1.0, 0.01));  // 10 mm in 1 s, linear
   // A state from before the start (the robot may have been reset since) does not seed it ...
@@ -89,8 +94,7 @@ TEST(ControllerWatch, AnErrorPastTheFollowingToleranceIsAFault) {
   pd::ControllerWatchParams p;
   p.arm_following_tolerance_rad = 0.02;
   pd::ControllerWatch watch(p, kControllers, {"f"});
-  watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
-  watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
+  reportAtZero(&watch);
   ASSERT_EQ(watch.start(0.0), "");
   EXPECT_EQ(watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0})), "");  // seeds
   EXPECT_EQ(watch.onState(0.1, "arm", state({"a", "b"}, 0.1, {0.0, 0.0}, 0.019)), "");
@@ -104,8 +108,7 @@ TEST(ControllerWatch, ANaNStateOrASilentControllerIsAFault) {
   pd::ControllerWatchParams p;
   p.state_timeout_s = 0.2;
   pd::ControllerWatch watch(p, kControllers, {"f"});
-  watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
-  watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
+  reportAtZero(&watch);
   ASSERT_EQ(watch.start(0.0), "");
   EXPECT_EQ(watch.checkSilence(0.15), "");
   watch.onState(0.15, "arm", state({"a", "b"}, 0.15, {0.0, 0.0}));
@@ -113,8 +116,7 @@ TEST(ControllerWatch, ANaNStateOrASilentControllerIsAFault) {
   EXPECT_NE(silent.find("feed silent: no feed/state for more than 0.2 s"), std::string::npos)
       << silent;
   pd::ControllerWatch nan_watch(p, kControllers, {"f"});
-  nan_watch.onState(0.0, "arm", state({"a", "b"}, 0.0, {0.0, 0.0}));
-  nan_watch.onState(0.0, "feed", state({"f"}, 0.0, {0.0}));
+  reportAtZero(&nan_watch);
   ASSERT_EQ(nan_watch.start(0.0), "");
   const std::string why =
       nan_watch.onState(0.1, "arm", state({"a", "b"}, 0.1, {0.0, std::nan("")}));

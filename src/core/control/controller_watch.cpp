@@ -80,7 +80,8 @@ std::string ControllerWatch::start(double now) {
 
 void ControllerWatch::onCommand(double now, const TrajectoryCommand& command) {
   if (!watching_) return;
-  sent_.push_back({now, command});  // replayed into a controller's expectation when seeded
+  // Kept only until every expectation is seeded (onState replays them then), not all trial.
+  if (!allSeeded()) sent_.push_back({now, command});
   for (auto& [index, part] : splitByController(command, specs_)) {
     if (watched_[index].seeded) watched_[index].expected->command(part, now);
   }
@@ -146,9 +147,7 @@ std::string ControllerWatch::onState(double now, const std::string& name,
         if (c == index) w.expected->command(part, t);
       }
     }
-    if (std::all_of(watched_.begin(), watched_.end(), [](const Watched& x) { return x.seeded; })) {
-      sent_.clear();  // every expectation has its commands from here on
-    }
+    if (allSeeded()) sent_.clear();  // every expectation has its commands from here on
     return "";
   }
   const TrajectoryState expected = w.expected->sample(state.stamp);
@@ -173,6 +172,10 @@ std::string ControllerWatch::onState(double now, const std::string& name,
   }
   w.expected->prune(state.stamp - 1.0);
   return "";
+}
+
+bool ControllerWatch::allSeeded() const {
+  return std::all_of(watched_.begin(), watched_.end(), [](const Watched& w) { return w.seeded; });
 }
 
 std::string ControllerWatch::checkSilence(double now) const {

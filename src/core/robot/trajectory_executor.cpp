@@ -225,21 +225,26 @@ TargetResult JointTrajectoryExecutor::validate(const TrajectoryCommand& command,
   return {};
 }
 
+JointTrajectoryExecutor::Knot JointTrajectoryExecutor::stateKnot(double t) const {
+  const TrajectoryState st = sample(t);
+  Knot k;
+  k.t = t;
+  k.q = st.position;
+  k.v = st.velocity;
+  k.a = st.acceleration;
+  return k;
+}
+
 void JointTrajectoryExecutor::stop(double now) {
   // Decelerate from the reference's state now to rest: a cubic from (q, v) to (q + v T / 2, 0)
   // over T is a constant deceleration, the profile ros_control's hold trajectory approximates.
-  const TrajectoryState st = sample(now);
+  const Knot from = stateKnot(now);
   const double T = rules_.stop_trajectory_duration_s;
-  Knot from;
-  from.t = now;
-  from.q = st.position;
-  from.v = st.velocity;
-  from.a = st.acceleration;
   Knot to;
   to.t = now + T;
-  to.q = st.position + 0.5 * T * st.velocity;
-  to.v = Eigen::VectorXd::Zero(st.velocity.size());
-  to.a = Eigen::VectorXd::Zero(st.velocity.size());
+  to.q = from.q + 0.5 * T * from.v;
+  to.v = Eigen::VectorXd::Zero(from.v.size());
+  to.a = Eigen::VectorXd::Zero(from.v.size());
   to.degree = 3;
   knots_ = {from, to};
 }
@@ -286,21 +291,12 @@ TargetResult JointTrajectoryExecutor::command(const TrajectoryCommand& command, 
       std::isfinite(command.start_time_s) && command.start_time_s > now + kSameTime
           ? std::min(command.start_time_s, last_t)
           : now;
-  const auto state_knot = [this](double t) {
-    const TrajectoryState st = sample(t);
-    Knot k;
-    k.t = t;
-    k.q = st.position;
-    k.v = st.velocity;
-    k.a = st.acceleration;
-    return k;
-  };
-  std::vector<Knot> knots{state_knot(now)};
+  std::vector<Knot> knots{stateKnot(now)};
   if (takeover > now) {
     for (const Knot& k : knots_) {
       if (k.t > now + kSameTime && k.t < takeover - kSameTime) knots.push_back(k);
     }
-    Knot at = state_knot(takeover);
+    Knot at = stateKnot(takeover);
     // The old segment that contains the takeover keeps its spline up to it (after the old end:
     // the held position, constant).
     at.degree = 1;

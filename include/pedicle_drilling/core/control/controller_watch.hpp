@@ -90,6 +90,8 @@ class ControllerWatch {
     bool seeded = false;               ///< the expectation has its start (a state after start())
     double last_state_t = -1.0;
   };
+  /** @brief Every controller's expectation has its start (no command needs keeping). */
+  bool allSeeded() const;
   ControllerWatchParams params_;
   std::vector<Watched> watched_;
   std::vector<ControllerSpec> specs_;  ///< the watched controllers, in watched_'s order

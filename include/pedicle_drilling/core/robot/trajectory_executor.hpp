@@ -153,6 +153,8 @@ class JointTrajectoryExecutor {
     int degree = 1;  ///< 1 linear, 3 cubic, 5 quintic
   };
   TargetResult validate(const TrajectoryCommand& command, std::vector<int>* map) const;
+  /** @brief The reference's state at t as a knot (takeovers and stops start from it). */
+  Knot stateKnot(double t) const;
   /** @brief Strict: an empty command decelerates the reference to rest (file comment). */
   void stop(double now);
 
