@@ -15,7 +15,8 @@ PACKAGES=(
   python3-std-srvs python3-tf2-msgs python3-visualization-msgs
   librostest-dev python3-rostest python3-roslaunch
   librviz-dev rviz
-  libkdl-parser-dev liborocos-kdl-dev liburdfdom-dev liburdf-dev
+  libkdl-parser-dev liborocos-kdl-dev liburdfdom-dev liburdf-dev libyaml-cpp-dev
+  libdiagnostic-updater-dev ros-robot-state-publisher
   libeigen3-dev libceres-dev libbullet-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
   python3-numpy python3-scipy python3-yaml python3-pywt python3-matplotlib python3-pytest
