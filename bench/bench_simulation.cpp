@@ -38,8 +38,9 @@ int main() {
   namespace core = pedicle_drilling::core;
   try {
     const std::string dir = PEDICLE_DRILLING_SOURCE_DIR;
-    core::DrillingSimulation sim(readFile(dir + "/urdf/workcell.urdf"),
-                                 core::DrillingSimulationParams(), 1);
+    core::DrillingSimulationParams params;
+    params.spindle_watchdog_s = 0.0;  // one spindle command, no keepalive
+    core::DrillingSimulation sim(readFile(dir + "/urdf/workcell.urdf"), params, 1);
     sim.reset(1, false);
     // Drilling pose of config/drilling_pose.yaml, reached 2 s after the start.
     core::TrajectoryCommand approach;

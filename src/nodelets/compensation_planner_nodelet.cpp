@@ -31,9 +31,12 @@
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StartTrial.h"
 #include "pedicle_drilling/StopCommand.h"
+#include "pedicle_drilling/TareRequest.h"
+#include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/VentilatorSettings.h"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
+#include "pedicle_drilling/core/common/units.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
@@ -86,7 +89,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
           },
           ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay()));
     }
-    spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10, true);
+    // rad/s (REP 103), not latched: a driver that reconnects must not get an old speed again;
+    // repeated every ~spindle_keepalive_s while it runs, for the driver's watchdog.
+    spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10);
     predicted_pub_ =
         nh.advertise<geometry_msgs::PoseStamped>("compensation/predicted_marker_pose", 50);
     status_pub_ = nh.advertise<TrialStatus>("compensation/status", 10, true);
@@ -98,6 +103,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     marker_sub_ =
         nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker, this, hints);
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
+    // The F/T tare before contact (~tare_samples > 0): the sensor driver's protocol.
+    tare_request_pub_ = nh.advertise<TareRequest>("ft_sensor/tare_request", 10);
+    tare_result_sub_ =
+        nh.subscribe("ft_sensor/tare_result", 10, &CompensationPlannerNodelet::onTareResult, this);
     state_sub_ = nh.subscribe("drilling_state", 100, &CompensationPlannerNodelet::onDrillingState,
                               this, hints);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
@@ -231,6 +240,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     carryOut();
   }
 
+  void onTareResult(const TareResult::ConstPtr& msg) {
+    lockstep_->deliver(msg->header.stamp, 4, [this, msg] {
+      std::lock_guard<std::mutex> lock(mutex_);
+      sequencer_->onTareResult(now(), fromMsg(*msg));
+      carryOut();
+    });
+  }
+
   /** @brief The safety monitor's /diagnostics status: it is alive. */
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
     for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
@@ -302,8 +319,15 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     logSequencerMessages(out.log, "CompensationPlanner");
     for (double rpm : out.spindle_rpm) {
       std_msgs::Float64 msg;
-      msg.data = rpm;
+      msg.data = core::radPerSecFromRpm(rpm);
       spindle_pub_.publish(msg);
+    }
+    for (const core::TareRequest& r : out.tare_requests) {
+      TareRequest msg;
+      msg.header.stamp = lockstep_->now();
+      msg.samples = static_cast<std::uint32_t>(r.samples);
+      msg.max_spread_n = r.max_spread_n;
+      tare_request_pub_.publish(msg);
     }
     for (const core::JointTrajectoryCommand& c : out.trajectories) {
       // One stream per controller, each naming its own joints (as a lab's controllers take it).
@@ -331,6 +355,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       pose_timer_.stop();
       registration_timer_.stop();
       segment_timer_.stop();
+      keepalive_timer_.stop();
     }
     for (const core::TimerRequest& t : out.start_timers) startTimer(t);
   }
@@ -351,6 +376,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         segment_timer_ =
             nh.createTimer(delay, &CompensationPlannerNodelet::onSegmentTimer, this, !t.periodic);
         break;
+      case Kind::kSpindleKeepalive:
+        keepalive_timer_ =
+            nh.createTimer(delay, &CompensationPlannerNodelet::onKeepaliveTimer, this, !t.periodic);
+        break;
     }
   }
 
@@ -363,6 +392,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   void onRegistrationTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
     sequencer_->onRegistrationTimeout(now());
+    carryOut();
+  }
+
+  void onKeepaliveTimer(const ros::TimerEvent&) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sequencer_->onSpindleKeepalive(now());
     carryOut();
   }
 
@@ -407,10 +442,13 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber state_sub_;
   ros::Subscriber diagnostics_sub_;
   ros::Publisher stop_pub_;
+  ros::Publisher tare_request_pub_;
+  ros::Subscriber tare_result_sub_;
   std::vector<ros::ServiceClient> trial_start_clients_;
   ros::Timer pose_timer_;
   ros::Timer registration_timer_;
   ros::Timer segment_timer_;
+  ros::Timer keepalive_timer_;
   ros::CallbackQueue start_queue_;
   std::unique_ptr<ros::AsyncSpinner> start_spinner_;
   ros::ServiceServer start_srv_;

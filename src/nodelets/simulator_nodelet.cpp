@@ -21,6 +21,7 @@
 #include <tf2_ros/static_transform_broadcaster.h>
 #include <tf2_ros/transform_broadcaster.h>
 #include <trajectory_msgs/JointTrajectory.h>
+#include <urdf_parser/urdf_parser.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include <algorithm>
@@ -33,6 +34,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -42,8 +44,11 @@
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/StallJoint.h"
 #include "pedicle_drilling/StepAck.h"
+#include "pedicle_drilling/TareRequest.h"
+#include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/VentilatorSettings.h"
+#include "pedicle_drilling/core/common/units.hpp"
 #include "pedicle_drilling/core/common/wait_deadline.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
@@ -85,6 +90,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
       command_transport_ = core::CommandTransport(params.command_delay_s, params.command_jitter_s,
                                                   static_cast<std::uint64_t>(params.seed));
       tracker_delay_s_ = params.tracker_delay_s;
+      tracker_tf_frame_ = params.tracker_tf_frame;
+      if (!params.publish_joint_frames) floating_frames_ = floatingChildren(urdf_xml_);
       // Re-read at every reset; checked here too, so that a bad value refuses the start.
       loadBoneMotionModel(params, loader);
       urdf_path = params.urdf_path;
@@ -121,6 +128,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
           nh.advertise<JointTrajectoryControllerState>(c.name + "/state", 10));
     }
     wrench_pub_ = nh.advertise<geometry_msgs::WrenchStamped>("ft_sensor/wrench", 2000);
+    tare_result_pub_ = nh.advertise<TareResult>("ft_sensor/tare_result", 10, true);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
     ground_truth_pub_ = nh.advertise<GroundTruth>("simulator/ground_truth", 200);
     if (tidal_volume_period_ > 0) {
@@ -149,6 +157,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
           }));
     }
     spindle_sub_ = command_nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
+    tare_sub_ =
+        command_nh.subscribe("ft_sensor/tare_request", 10, &SimulatorNodelet::onTareRequest, this);
     resume_srv_ =
         command_nh.advertiseService("simulator/resume", &SimulatorNodelet::onResume, this);
     // The planner's phase says when trajectories stream (drilling, stopped, retreating): then
@@ -192,7 +202,38 @@ class SimulatorNodelet : public nodelet::Nodelet {
   ros::Time stampOf(double sim_time) const { return ros::Time(sim_time + time_offset_); }
 
   void publishStaticTransforms() {
-    static_broadcaster_->sendTransform(toMsg(sim_->frameTransforms(true), stampOf(0.0)));
+    static_broadcaster_->sendTransform(toMsg(ownFrames(sim_->frameTransforms(true)), stampOf(0.0)));
+  }
+
+  /** @brief The child links of the URDF's floating joints (robot_state_publisher skips them). */
+  static std::set<std::string> floatingChildren(const std::string& urdf_xml) {
+    std::set<std::string> children;
+    const urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
+    if (!model) throw std::runtime_error("urdf_path: the workcell URDF does not parse");
+    for (const auto& joint : model->joints_) {
+      if (joint.second->type == urdf::Joint::FLOATING)
+        children.insert(joint.second->child_link_name);
+    }
+    return children;
+  }
+
+  /**
+   * @brief The workcell frames this simulator publishes: with ~tracker_tf_frame, not the ones
+   *        the tracker's driver and the lab's registration own (the marker, the camera); with
+   *        ~publish_joint_frames false, only the floating joints' children.
+   */
+  std::vector<core::FrameTransform> ownFrames(std::vector<core::FrameTransform> frames) const {
+    frames.erase(std::remove_if(frames.begin(), frames.end(),
+                                [this](const core::FrameTransform& f) {
+                                  const bool tracker =
+                                      !tracker_tf_frame_.empty() &&
+                                      (f.child == tracker_tf_frame_ || f.child == "tracker_camera");
+                                  const bool by_rsp = !floating_frames_.empty() &&
+                                                      floating_frames_.count(f.child) == 0;
+                                  return tracker || by_rsp;
+                                }),
+                 frames.end());
+    return frames;
   }
 
   void loop() {
@@ -229,6 +270,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         const std::uint64_t n =
             static_cast<std::uint64_t>(std::llround(t * sim_->params().physics_rate_hz));
         if (step.force_sampled) publishWrench(step);
+        if (step.force_sampled) publishTareResult(step.time_s);
         if (n % joint_state_period_ == 0) publishJointStates(t);
         if (n % tf_period_ == 0) publishTf(t);
         if (n % controller_state_period_ == 0) publishControllerStates(t);
@@ -267,7 +309,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     double due = 0.0;
     std::optional<core::TrajectoryCommand> trajectory;
     double spindle_rpm = 0.0;
-    std::string controller;  ///< the trajectory's controller
+    std::string controller;                 ///< the trajectory's controller
+    std::optional<core::TareRequest> tare;  ///< a tare request (neither of the above)
   };
 
   /** @brief The end of the step at `t`: the commands due by then, in the order received (the
@@ -359,6 +402,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   /** @brief Carries out a command received under the lockstep. */
   void apply(const PendingCommand& c) {
+    if (c.tare) {
+      sim_->requestTare(*c.tare);
+      return;
+    }
     if (!c.trajectory) {
       reportSpindle(sim_->commandSpindle(c.spindle_rpm));
       return;
@@ -412,6 +459,40 @@ class SimulatorNodelet : public nodelet::Nodelet {
     command_cv_.notify_all();
   }
 
+  /** @brief The sensor driver's tare result, after the sample that completed its window. */
+  void publishTareResult(double t) {
+    const std::optional<core::TareResult> r = sim_->takeTareResult();
+    if (!r) return;
+    tare_result_pub_.publish(toMsg(*r, stampOf(t)));
+    if (r->success) {
+      NODELET_INFO("Simulator: F/T %s", r->message.c_str());
+    } else {
+      NODELET_WARN("Simulator: F/T %s", r->message.c_str());
+    }
+  }
+
+  /**
+   * @brief ft_sensor/tare_request: the sensor driver's tare (the command path, no jitter draw:
+   *        core::CommandTransport::undrawnDelay). A bad request is refused with an error.
+   */
+  void onTareRequest(const TareRequest::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const core::TareRequest request{
+        static_cast<int>(std::min<std::uint32_t>(msg->samples, 1000000)), msg->max_spread_n};
+    try {
+      core::ForceTare().request(request);  // validated before it is queued
+    } catch (const std::exception& e) {
+      NODELET_ERROR("Simulator: ft_sensor/tare_request refused: %s", e.what());
+      return;
+    }
+    if (lockstep_) {
+      const double t = sim_->time();
+      pending_.push_back({t + command_transport_.undrawnDelay(t), std::nullopt, 0.0, "", request});
+      return;
+    }
+    sim_->requestTare(request);
+  }
+
   void publishWrench(const core::SimulationStep& step) {
     if (wrench_pub_.getNumSubscribers() == 0) return;
     wrench_pub_.publish(wrenchMsg(step, stampOf(step.time_s)));
@@ -439,7 +520,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   void publishTf(double t) {
-    tf_broadcaster_->sendTransform(toMsg(sim_->frameTransforms(false), stampOf(t)));
+    tf_broadcaster_->sendTransform(toMsg(ownFrames(sim_->frameTransforms(false)), stampOf(t)));
   }
 
   void publishGroundTruth(double t) {
@@ -451,6 +532,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
     msg.command_wait_wall_s = command_wait_wall_s_;
     msg.command_wait_expired = command_wait_expired_;
     msg.lockstep_timeouts = lockstep_timeouts_;
+    msg.spindle_watchdog_trips = static_cast<std::uint32_t>(sim_->spindleWatchdogTrips());
+    if (sim_->spindleWatchdogTrips() > spindle_watchdog_trips_) {
+      spindle_watchdog_trips_ = sim_->spindleWatchdogTrips();
+      NODELET_WARN(
+          "Simulator: the spindle driver heard no spindle/command for %.3f s: spindle stopped",
+          sim_->params().spindle_watchdog_s);
+    }
     ground_truth_pub_.publish(msg);
   }
 
@@ -474,14 +562,28 @@ class SimulatorNodelet : public nodelet::Nodelet {
       delayed_markers_.emplace_back(t + tracker_delay_s_, m);
       return;
     }
-    marker_pub_.publish(m);
+    sendMarker(m);
   }
 
   void publishDelayedMarkers(double t) {
     while (!delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9) {
-      marker_pub_.publish(delayed_markers_.front().second);
+      sendMarker(delayed_markers_.front().second);
       delayed_markers_.pop_front();
     }
+  }
+
+  /** @brief A tracker sample out: tracker/marker_pose, and tf with ~tracker_tf_frame. */
+  void sendMarker(const geometry_msgs::PoseStamped& m) {
+    marker_pub_.publish(m);
+    if (tracker_tf_frame_.empty()) return;
+    geometry_msgs::TransformStamped t;
+    t.header = m.header;
+    t.child_frame_id = tracker_tf_frame_;
+    t.transform.translation.x = m.pose.position.x;
+    t.transform.translation.y = m.pose.position.y;
+    t.transform.translation.z = m.pose.position.z;
+    t.transform.rotation = m.pose.orientation;
+    tf_broadcaster_->sendTransform(t);
   }
 
   /** @brief When a command received now takes effect (the engine's rule, CommandTransport). */
@@ -578,7 +680,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     std::unique_lock<std::mutex> lock(mutex_);
     const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
     if (lockstep_) {
-      pending_.push_back({commandDue(), command, 0.0, controller});
+      pending_.push_back({commandDue(), command, 0.0, controller, std::nullopt});
       return;
     }
     noteLateness(command);
@@ -611,13 +713,21 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
   }
 
+  /** @brief spindle/command: rad/s (REP 103); every message feeds the driver's watchdog. */
   void onSpindle(const std_msgs::Float64::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
+    const double rpm = core::rpmFromRadPerSec(msg->data);
     if (lockstep_) {
-      pending_.push_back({commandDue(), std::nullopt, msg->data, ""});
+      // A keepalive takes the command path without a jitter draw (the engine's rule).
+      const double t = sim_->time();
+      const double due = core::isSpindleRepeat(rpm, last_spindle_rpm_)
+                             ? t + command_transport_.undrawnDelay(t)
+                             : commandDue();
+      last_spindle_rpm_ = rpm;
+      pending_.push_back({due, std::nullopt, rpm, "", std::nullopt});
       return;
     }
-    reportSpindle(sim_->commandSpindle(msg->data));
+    reportSpindle(sim_->commandSpindle(rpm));
   }
 
   void reportSpindle(const core::TargetResult& r) {
@@ -698,6 +808,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     pending_.clear();  // the last trial's commands do not drive this one
     command_transport_ = core::CommandTransport(distribution.command_delay_s,
                                                 distribution.command_jitter_s, req.seed);
+    last_spindle_rpm_ = 0.0;
+    spindle_watchdog_trips_ = 0;
     tracker_delay_s_ = distribution.tracker_delay_s;
     delayed_markers_.clear();
     last_breath_index_ = -1;
@@ -759,6 +871,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
   double real_time_factor_ = 1.0;
   bool publish_clock_ = true;
   double time_offset_ = 0.0;
+  std::string tracker_tf_frame_;           ///< ~tracker_tf_frame ("" = tracker/marker_pose only)
+  std::set<std::string> floating_frames_;  ///< ~publish_joint_frames false: the only ones sent
+  double last_spindle_rpm_ = 0.0;   ///< the latest spindle/command [rpm] (core::isSpindleRepeat)
+  int spindle_watchdog_trips_ = 0;  ///< the driver watchdog's stops reported so far
   int clock_period_steps_ = 1;
   std::uint64_t joint_state_period_ = 10;
   std::uint64_t tf_period_ = 10;
@@ -783,6 +899,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
   std::vector<ros::Subscriber> trajectory_subs_;  ///< one per controller
   ros::Subscriber spindle_sub_;
+  ros::Subscriber tare_sub_;
+  ros::Publisher tare_result_pub_;
   ros::Subscriber status_sub_;
   ros::ServiceServer reset_srv_;
   ros::ServiceServer start_trial_srv_;

@@ -20,6 +20,7 @@
 
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StopCommand.h"
+#include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
@@ -59,6 +60,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
+    // A new tare: the samples before it were untared; the recognizer starts afresh.
+    tare_sub_ = nh.subscribe("ft_sensor/tare_result", 10, &StateRecognizerNodelet::onTare, this);
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
                      ros::TransportHints().tcpNoDelay());
@@ -114,6 +117,14 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     state_pub_.publish(msg);
   }
 
+  void onTare(const TareResult::ConstPtr& msg) {
+    if (!msg->success) return;
+    std::lock_guard<std::mutex> lock(mutex_);
+    recognizer_->reset();
+    publishState(msg->header.stamp, recognizer_->output());
+    NODELET_INFO("StateRecognizer: restarted on the tared force (%s)", msg->message.c_str());
+  }
+
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
     recognizer_->reset();
@@ -137,6 +148,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   ros::Publisher stop_pub_;
   ros::Subscriber wrench_sub_;
   ros::ServiceServer reset_srv_;
+  ros::Subscriber tare_sub_;
 };
 
 }  // namespace pedicle_drilling

@@ -56,6 +56,8 @@ const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
         .number("tracker_rate_hz", &P::tracker_rate_hz, stream, "Hz")
         .number("tidal_volume_rate_hz", &P::tidal_volume_rate_hz, Range::closed(0, 1000), "Hz")
         .text("bone_motion_model_path", &P::bone_motion_model_path, true)
+        .text("tracker_tf_frame", &P::tracker_tf_frame, true)
+        .flag("publish_joint_frames", &P::publish_joint_frames)
         .include(core::DrillingSimulationParams::table(), &P::sim);
     return d;
   }();

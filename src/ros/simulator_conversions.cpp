@@ -145,6 +145,35 @@ GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) 
   return m;
 }
 
+TareResult toMsg(const core::TareResult& result, const ros::Time& stamp) {
+  TareResult msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = "ft_sensor";
+  msg.success = result.success;
+  msg.samples = static_cast<std::uint32_t>(std::max(0, result.samples));
+  msg.bias.force.x = result.bias[0];
+  msg.bias.force.y = result.bias[1];
+  msg.bias.force.z = result.bias[2];
+  msg.bias.torque.x = result.bias[3];
+  msg.bias.torque.y = result.bias[4];
+  msg.bias.torque.z = result.bias[5];
+  msg.spread_n = result.spread_n;
+  msg.message = result.message;
+  return msg;
+}
+
+core::TareResult fromMsg(const TareResult& msg) {
+  core::TareResult r;
+  r.success = msg.success;
+  r.t = msg.header.stamp.toSec();
+  r.samples = static_cast<int>(msg.samples);
+  r.bias << msg.bias.force.x, msg.bias.force.y, msg.bias.force.z, msg.bias.torque.x,
+      msg.bias.torque.y, msg.bias.torque.z;
+  r.spread_n = msg.spread_n;
+  r.message = msg.message;
+  return r;
+}
+
 geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const ros::Time& stamp) {
   geometry_msgs::WrenchStamped w;
   w.header.stamp = stamp;

@@ -321,3 +321,47 @@ TEST(ClosedLoopEngine, ProtocolNames) {
   EXPECT_STREQ(pd::toString(pd::TrialProtocol::kRecognition), "recognition");
   EXPECT_THROW(pd::parseTrialProtocol("breakthrough"), std::invalid_argument);
 }
+
+// Issue 30: a sensor that is not tared at reset (the tool's 4.9 N on it) and the tare before
+// contact. Untared, the recognizer takes the weight for the bone (F_max > F_th at once) and the
+// trial does not stop inside the inner layer (on seed 5 the planner's outer_cortical_max_mm
+// bound stops it before the drill reached the bone); tared with the spindle running, the same
+// seed's trial does, and the recognizer restarted on the tared force.
+TEST(ClosedLoopEngine, TheTareBeforeContactTakesTheToolsWeightOffTheRecognizersInput) {
+  pd::EngineConfig untared = config();
+  untared.simulation.sensor_tared_at_reset = false;
+  untared.simulation.sensor_bias_offset_n = 4.9;
+  pd::EngineConfig tared = untared;
+  tared.sequencer.tare_samples = 100;
+  const pd::EngineTrialRecord with = pd::ClosedLoopEngine(tared).run(spec("stationary", 5));
+  std::cout << "[ trial ] tared: " << statuses(with) << "; " << with.tare.message << std::endl;
+  EXPECT_TRUE(with.tare.success) << with.tare.message;
+  EXPECT_EQ(with.tare.samples, 100);
+  EXPECT_NEAR(with.tare.bias[2], 4.9, 1.0);
+  EXPECT_EQ(statuses(with), "moving_to_pose registering drilling retreating done");
+  ASSERT_FALSE(with.stops.empty());
+  EXPECT_EQ(with.stops[0].source, "/state_recognizer");
+  EXPECT_FALSE(with.last_truth.breakthrough);
+  EXPECT_GT(with.last_truth.max_depth_cut_m, with.last_truth.inner_cortical_start_m);
+  // The recognizer's states after the tare start from idle, on forces about 0 before contact.
+  ASSERT_FALSE(with.states.empty());
+  for (const auto& s : with.states) {
+    if (s.t <= with.tare.t) continue;
+    EXPECT_EQ(s.state_name, "idle") << s.t;
+    EXPECT_LT(std::abs(s.averaged_force), 0.5) << s.t;
+    break;
+  }
+  const pd::EngineTrialRecord without = pd::ClosedLoopEngine(untared).run(spec("stationary", 5));
+  std::cout << "[ trial ] untared: " << statuses(without) << "; first stop "
+            << (without.stops.empty() ? std::string("none")
+                                      : without.stops[0].source + ": " + without.stops[0].reason)
+            << "; breakthrough " << without.last_truth.breakthrough << ", max depth "
+            << without.last_truth.max_depth_cut_m * 1e3 << " mm, inner layer from "
+            << without.last_truth.inner_cortical_start_m * 1e3 << " mm" << std::endl;
+  EXPECT_EQ(without.tare.samples, 0);  // none requested
+  const bool inside =
+      !without.last_truth.breakthrough &&
+      without.last_truth.max_depth_cut_m > without.last_truth.inner_cortical_start_m &&
+      !without.stops.empty() && without.stops[0].source == "/state_recognizer";
+  EXPECT_FALSE(inside) << "the untared trial should not have stopped inside the inner layer";
+}

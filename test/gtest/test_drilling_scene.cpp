@@ -118,6 +118,7 @@ TEST(DrillingScene, RejectsBrokenMessagesNamingTheField) {
 // distance to the canal wall; GroundTruth.msg now states that one definition).
 TEST(DrillingScene, LaysOutEveryGroundTruthOfASimulatedTrial) {
   pd::DrillingSimulationParams params;
+  params.spindle_watchdog_s = 0.0;  // one spindle command, no keepalive
   pd::DrillingSimulation sim(pedicle_drilling::test::workcellUrdf(), params, 4);
   sim.reset(4, false);
   sim.commandSpindle(12000.0);

@@ -26,6 +26,14 @@ namespace {
 
 std::string workcell() { return pedicle_drilling::test::workcellUrdf(); }
 
+/** @brief The defaults without the spindle driver's watchdog: these tests command the spindle
+ *         once, as no client of the driver would (TheSpindleDriversWatchdog... tests it). */
+DrillingSimulationParams unwatched() {
+  DrillingSimulationParams p;
+  p.spindle_watchdog_s = 0.0;
+  return p;
+}
+
 const std::vector<std::string> kJoints = {"rsssii_joint1", "rsssii_joint2", "rsssii_joint3",
                                           "rsssii_joint4", "rsssii_joint5", "rsssii_joint6",
                                           "feed_joint"};
@@ -94,7 +102,7 @@ TrialRecord drillStationary(DrillingSimulation* sim, double feed_m) {
 }
 
 TEST(DrillingSimulation, StartsAtHomeAndReachesTheDrillingPoseThroughTrajectories) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   sim.reset(1, false);
   // Home: tool above and behind the bone, well clear of it.
   EXPECT_LT(sim.groundTruth().tip_depth_m, -0.1);
@@ -111,7 +119,7 @@ TEST(DrillingSimulation, StartsAtHomeAndReachesTheDrillingPoseThroughTrajectorie
 TEST(DrillingSimulation, StationaryDrillingShowsTwoCorticalPeaksAndGroundTruthDepth) {
   for (std::uint64_t seed : {1u, 7u, 12u}) {
     SCOPED_TRACE(seed);
-    DrillingSimulation sim(workcell(), DrillingSimulationParams(), seed);
+    DrillingSimulation sim(workcell(), unwatched(), seed);
     sim.reset(seed, false);
     const double feed = 16e-3;
     const TrialRecord r = drillStationary(&sim, feed);
@@ -140,7 +148,7 @@ TEST(DrillingSimulation, StationaryDrillingShowsTwoCorticalPeaksAndGroundTruthDe
 }
 
 TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 5);
+  DrillingSimulation sim(workcell(), unwatched(), 5);
   sim.reset(5, false);
   sim.commandSpindle(12000.0);
   moveToDrillingPose(&sim, 1.0);
@@ -181,7 +189,7 @@ TEST(DrillingSimulation, GroundTruthStopsInsideTheInnerCortex) {
 TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
   std::set<int> phases;
   for (std::uint64_t seed : {1u, 2u, 3u, 4u, 5u, 6u}) {
-    DrillingSimulation sim(workcell(), DrillingSimulationParams(), seed);
+    DrillingSimulation sim(workcell(), unwatched(), seed);
     sim.reset(seed, false);
     std::vector<int> due;
     for (int k = 1; k <= 250; ++k) {
@@ -192,7 +200,7 @@ TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
     EXPECT_EQ(due[1] - due[0], 125);
     phases.insert(due[0]);
     // The same seed, the same phase.
-    DrillingSimulation again(workcell(), DrillingSimulationParams(), seed);
+    DrillingSimulation again(workcell(), unwatched(), seed);
     again.reset(seed, false);
     int first = 0;
     for (int k = 1; first == 0 && k <= 125; ++k) {
@@ -242,7 +250,7 @@ TEST(DrillingSimulation, TheTrackerMeasuresInTheTrueCameraFrame) {
 // waveform's flow jumps at the start), until then the previous breath's start holds; a clock
 // offset shifts every sensed start.
 TEST(DrillingSimulation, TheSensedBreathPhaseIsExactByDefault) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   for (int k = 0; k < 12000; ++k) {
     sim.stepOnce();
     ASSERT_EQ(sim.sensedTimeInBreath(),
@@ -254,7 +262,7 @@ namespace {
 // Steps 24.5 s (five breaths at 12/min) and returns sensed - exact time in breath per step.
 std::vector<double> sensedMinusExact(double rate_hz, double offset_s, std::vector<double>* exact,
                                      double latency_s = 0.0) {
-  DrillingSimulationParams p;
+  DrillingSimulationParams p = unwatched();
   p.breath_sensor_rate_hz = rate_hz;
   p.breath_clock_offset_s = offset_s;
   p.breath_sensor_latency_s = latency_s;
@@ -312,10 +320,10 @@ TEST(DrillingSimulation, TheBreathSensorsClockOffsetAndLatencyShiftTheSensedStar
 }
 
 TEST(DrillingSimulation, BreathSensorParametersAreValidated) {
-  DrillingSimulationParams p;
+  DrillingSimulationParams p = unwatched();
   p.breath_sensor_rate_hz = -1.0;
   EXPECT_THROW(p.validate(), std::invalid_argument);
-  p = DrillingSimulationParams();
+  p = unwatched();
   p.breath_clock_offset_s = 0.5;
   try {
     p.validate();
@@ -330,7 +338,7 @@ TEST(DrillingSimulation, BreathSensorParametersAreValidated) {
 // compliant arm makes the lips chatter, which counts as well: the count is of interruptions of
 // cutting, whatever their cause.)
 TEST(DrillingSimulation, CountsEachSeparationOfDrillAndBoneOnce) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 5);
+  DrillingSimulation sim(workcell(), unwatched(), 5);
   sim.reset(5, false);
   sim.commandSpindle(12000.0);
   moveToDrillingPose(&sim, 1.0);
@@ -376,7 +384,7 @@ struct PressResult {
 };
 
 PressResult pressStoppedDrill(double contact_stiffness) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   params.drill.contact_stiffness_n_per_m = contact_stiffness;
   DrillingSimulation sim(workcell(), params, 4);
   sim.reset(4, true);  // breathing bone, no compensation
@@ -406,7 +414,7 @@ PressResult pressStoppedDrill(double contact_stiffness) {
 }
 
 TEST(DrillingSimulation, BoneDrivenIntoAStoppedDrillTripsH2) {
-  const double k = DrillingSimulationParams().drill.contact_stiffness_n_per_m;
+  const double k = unwatched().drill.contact_stiffness_n_per_m;
   ASSERT_TRUE(std::isfinite(k));  // the simulator's default contact is elastic
   const PressResult elastic = pressStoppedDrill(k);
   std::cout << "[ press ] elastic: max thrust " << elastic.max_thrust << " N, overlap at trip "
@@ -429,7 +437,7 @@ TEST(DrillingSimulation, HigherSpindleSpeedLowersTheForce) {
   double peak[2] = {0, 0};
   const double rpm[2] = {12000.0, 20000.0};
   for (int k = 0; k < 2; ++k) {
-    DrillingSimulation sim(workcell(), DrillingSimulationParams(), 3);
+    DrillingSimulation sim(workcell(), unwatched(), 3);
     sim.reset(3, false);
     sim.commandSpindle(rpm[k]);
     moveToDrillingPose(&sim, 1.0);
@@ -452,7 +460,7 @@ TEST(DrillingSimulation, HigherSpindleSpeedLowersTheForce) {
 // trajectory, and the sliders' lead-screw drives follow it within their limits (2 m/s^2): on
 // the model away from the ventilator's flow steps, rounded at them, never beyond the limits.
 TEST(DrillingSimulation, OnThePapersBenchTheSpmsPlaysTheModelThroughItsDrives) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 3);
   sim.setBoneMotionModel(BoneMotionModel{0.01, 0.0});
   sim.reset(3, true);
@@ -489,7 +497,7 @@ TEST(DrillingSimulation, OnThePapersBenchTheSpmsPlaysTheModelThroughItsDrives) {
 // The drill device's feed is a lead-screw drive too: a reversal the trajectory asks for in
 // 1 ms takes the drive's acceleration limit (2 m/s^2: 5 mm/s -> -5 mm/s in 5 ms).
 TEST(DrillingSimulation, TheFeedDriveReversesWithinItsAccelerationLimit) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 1);
   sim.step(0.2);
   const double f0 = sim.armJointPositions()[6];
@@ -523,7 +531,7 @@ TEST(DrillingSimulation, TheFeedDriveReversesWithinItsAccelerationLimit) {
 }
 
 TEST(DrillingSimulation, MovingPlatformFollowsTheRateLimitedSliders) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 2);
   sim.reset(2, true);
   const SpmsKinematics spms(params.spms);
@@ -578,7 +586,7 @@ TEST(DrillingSimulation, MovingPlatformFollowsTheRateLimitedSliders) {
 
 TEST(DrillingSimulation, BonePlaysADisplacementModelOnThePaperBench) {
   // Volunteer 1 + 7 % 5 = 3 has a lag, drift and movements; a played model has none of them.
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 7);
+  DrillingSimulation sim(workcell(), unwatched(), 7);
   BoneMotionModel model;
   model.q1_ap_mm_per_ml = 0.009;
   model.q2_ap_mm_s_per_ml = -0.0006;
@@ -608,7 +616,7 @@ TEST(DrillingSimulation, BonePlaysADisplacementModelOnThePaperBench) {
 }
 
 TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 4);
+  DrillingSimulation sim(workcell(), unwatched(), 4);
   sim.reset(4, true);
   sim.step(1.3);
   std::map<std::string, std::pair<std::string, Eigen::Isometry3d>> parent;
@@ -653,7 +661,7 @@ TEST(DrillingSimulation, TfTreeCoversEveryLinkAndMatchesLinkPoses) {
 }
 
 TEST(DrillingSimulation, CommandsAboveTheVelocityLimitAreFollowedAtTheLimit) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   sim.step(0.2);
   // 20 mm of feed in 0.1 s is 0.2 m/s, above the feed joint's 0.01 m/s URDF limit: reported as
   // clamped, naming the joint and the limit, and executed at the limit (the joint lags).
@@ -678,7 +686,7 @@ TEST(DrillingSimulation, CommandsAboveTheVelocityLimitAreFollowedAtTheLimit) {
 }
 
 TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   sim.step(0.2);
   Eigen::VectorXd q0 = sim.armJointPositions();
   TrajectoryCommand nan;
@@ -765,7 +773,7 @@ TEST(DrillingSimulation, BadCommandsAreRejectedOrClampedNeverIntegrated) {
 }
 
 TEST(DrillingSimulation, AStalledDriveHoldsAndItsControllersErrorGrows) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   sim.step(0.2);
   EXPECT_THROW(sim.setJointStalled("spindle_joint", true), std::invalid_argument);
   sim.setJointStalled("feed_joint", true);
@@ -829,7 +837,7 @@ TEST(DrillingSimulation, TheControllersReadStampsOnTheirOwnClock) {
 }
 
 TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFollowed) {
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   TrajectoryCommand a;
   a.joint_names = {"feed_joint"};
   a.points.push_back({sim.time() + 8.0, {0.04}, {}});  // 5 mm/s
@@ -847,7 +855,7 @@ TEST(DrillingSimulation, NewTrajectoryReplacesTheRemainingOneAndCubicPointsAreFo
 TEST(DrillingSimulation, ANewTrajectoryTakesOverAtItsStartTimeAsJointTrajectoryController) {
   // ros_control's JointTrajectoryController: the running trajectory is followed until the new
   // one's start time (header stamp), and the new one starts from that trajectory's state then.
-  DrillingSimulation sim(workcell(), DrillingSimulationParams(), 1);
+  DrillingSimulation sim(workcell(), unwatched(), 1);
   const double t0 = sim.time();
   TrajectoryCommand a;
   a.joint_names = {"feed_joint"};
@@ -886,7 +894,7 @@ void expectEditedWorkcellRejected(const std::string& from, const std::string& to
   ASSERT_NE(at, std::string::npos) << from;
   urdf.replace(at, from.size(), to);
   try {
-    DrillingSimulation sim(urdf, DrillingSimulationParams());
+    DrillingSimulation sim(urdf, unwatched());
     FAIL() << "no exception for " << to;
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find(expected), std::string::npos) << e.what();
@@ -894,7 +902,7 @@ void expectEditedWorkcellRejected(const std::string& from, const std::string& to
 }
 
 TEST(DrillingSimulation, SpmsLegsOfTheUrdfMustMatchTheKinematicModel) {
-  EXPECT_NO_THROW(DrillingSimulation(workcell(), DrillingSimulationParams()));
+  EXPECT_NO_THROW(DrillingSimulation(workcell(), unwatched()));
   // Leg 1's lead screw moved outwards by 1 cm: the closed chain would not close.
   expectEditedWorkcellRejected(R"(<origin xyz="0.000000 0.120000 0.05" rpy="0 0 1.570796"/>)",
                                R"(<origin xyz="0.000000 0.130000 0.05" rpy="0 0 1.570796"/>)",
@@ -907,7 +915,7 @@ TEST(DrillingSimulation, SpmsLegsOfTheUrdfMustMatchTheKinematicModel) {
 
 TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
   try {
-    DrillingSimulation sim("<robot name='x'><link name='a'></robot", DrillingSimulationParams());
+    DrillingSimulation sim("<robot name='x'><link name='a'></robot", unwatched());
     FAIL() << "no exception";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("could not parse"), std::string::npos) << e.what();
@@ -915,7 +923,7 @@ TEST(DrillingSimulation, BrokenUrdfThrowsClearMessage) {
   // The arm alone (no SPMS) is not a workcell.
   const std::string arm_only = test::readFile(test::sourceDir() + "/urdf/rsssii.urdf");
   try {
-    DrillingSimulation sim(arm_only, DrillingSimulationParams());
+    DrillingSimulation sim(arm_only, unwatched());
     FAIL() << "no exception";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("spms"), std::string::npos) << e.what();
@@ -978,7 +986,7 @@ namespace pedicle_drilling::core {
 namespace {
 
 TEST(DrillingSimulationTrial, StartTrialZeroesRelativeApMotion) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 3);
   sim.step(2.0);  // the bone breathes, the arm holds: relative AP motion builds up
   const double before = sim.groundTruth().relative_ap_m;
@@ -1079,7 +1087,7 @@ TEST(TrialConditions, OutOfRangeSpreadsNameTheField) {
 }
 
 TEST(DrillingSimulationTrial, ResetAppliesTheDrawnPatientSensorArmAndBreathing) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 3);
   const double q1_volunteer = drawVirtualPatient(8).q1_ap_mm_per_ml;
   TrialVariability v;
@@ -1110,7 +1118,7 @@ TEST(DrillingSimulationTrial, ResetAppliesTheDrawnPatientSensorArmAndBreathing) 
 }
 
 TEST(DrillingSimulationTrial, StiffnessScaleIsAppliedToTheArmAtReset) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 2);
   const Eigen::VectorXd nominal = sim.armJointStiffness();
   TrialVariability v;
@@ -1128,7 +1136,7 @@ TEST(DrillingSimulationTrial, StiffnessScaleIsAppliedToTheArmAtReset) {
 }
 
 TEST(DrillingSimulationTrial, BadDistributionThrowsAndLeavesTheTrialAlone) {
-  DrillingSimulationParams params;
+  DrillingSimulationParams params = unwatched();
   DrillingSimulation sim(workcell(), params, 3);
   const double inner = sim.process().specimen().innerCorticalThickness();
   SpecimenDistribution bad;
@@ -1166,3 +1174,80 @@ TEST(StreamPeriodSteps, RoundsTheRatioAndRefusesRatesOutsideThePhysicsRate) {
     }
   }
 }
+
+namespace pedicle_drilling::core {
+namespace {
+
+TEST(DrillingSimulation, TheSpindleDriversWatchdogStopsASpindleThatHearsNoCommand) {
+  DrillingSimulationParams p;  // the defaults: the driver's watchdog on
+  ASSERT_DOUBLE_EQ(p.spindle_watchdog_s, 0.5);
+  DrillingSimulation sim(workcell(), p, 1);
+  sim.reset(1, false);
+  sim.commandSpindle(12000.0);
+  // Kept alive every 0.1 s (the planner's spindle_keepalive_s): it runs on.
+  for (int i = 0; i < 20; ++i) {
+    sim.step(0.1);
+    ASSERT_EQ(sim.commandSpindle(12000.0).status, TargetStatus::kAccepted);
+  }
+  EXPECT_NEAR(sim.spindleRpm(), 12000.0, 1e-9);
+  EXPECT_EQ(sim.spindleWatchdogTrips(), 0);
+  // Silent for longer than the watchdog: the driver stops it (run-down at its rate).
+  sim.step(0.49);
+  EXPECT_NEAR(sim.spindleRpm(), 12000.0, 1e-9);
+  sim.step(0.02);
+  EXPECT_EQ(sim.spindleWatchdogTrips(), 1);
+  sim.step(0.5);
+  EXPECT_EQ(sim.spindleRpm(), 0.0);
+  EXPECT_EQ(sim.spindleWatchdogTrips(), 1);  // once per stop; a stopped spindle is not watched
+  sim.reset(2, false);
+  EXPECT_EQ(sim.spindleWatchdogTrips(), 0);
+}
+
+TEST(DrillingSimulation, AnUntaredSensorReadsTheToolsWeightUntilTheDriversTare) {
+  DrillingSimulationParams p = unwatched();
+  p.sensor_tared_at_reset = false;
+  p.sensor_bias_offset_n = 4.9;
+  DrillingSimulation sim(workcell(), p, 3);
+  sim.reset(3, false);
+  sim.commandSpindle(12000.0);
+  moveToDrillingPose(&sim, 1.0);  // tool free, spindle running
+  const auto meanFz = [&sim](int samples) {
+    double sum = 0.0;
+    int n = 0;
+    while (n < samples) {
+      const SimulationStep s = sim.stepOnce();
+      if (!s.force_sampled) continue;
+      sum += s.measured_wrench[2];
+      ++n;
+    }
+    return sum / n;
+  };
+  EXPECT_NEAR(meanFz(100), 4.9, 1.0);  // the weight, plus a bias of SD 0.2 N
+  sim.requestTare({100, 0.5});
+  EXPECT_FALSE(sim.takeTareResult());
+  meanFz(100);
+  const std::optional<TareResult> r = sim.takeTareResult();
+  ASSERT_TRUE(r);
+  EXPECT_TRUE(r->success) << r->message;
+  EXPECT_NEAR(r->bias[2], 4.9, 1.0);
+  EXPECT_LT(r->spread_n, 0.5);
+  EXPECT_NEAR(meanFz(300), 0.0, 0.05);  // tared: what is left is noise and drift
+  EXPECT_THROW(sim.requestTare({0, 0.5}), std::invalid_argument);
+  // The benches' sensor, tared at reset, reads about zero without a request.
+  DrillingSimulation bench(workcell(), unwatched(), 3);
+  bench.reset(3, false);
+  bench.commandSpindle(12000.0);
+  moveToDrillingPose(&bench, 1.0);
+  double sum = 0.0;
+  int n = 0;
+  while (n < 300) {
+    const SimulationStep s = bench.stepOnce();
+    if (!s.force_sampled) continue;
+    sum += s.measured_wrench[2];
+    ++n;
+  }
+  EXPECT_NEAR(sum / n, 0.0, 0.05);
+}
+
+}  // namespace
+}  // namespace pedicle_drilling::core

@@ -114,10 +114,14 @@ TEST(TrialSequencer, StartMovesToThePoseWithOnePointAndAsksForThePoseTimer) {
   EXPECT_DOUBLE_EQ(move.points[0].positions.back(), 0.01);
   ASSERT_EQ(out.phases.size(), 1u);
   EXPECT_EQ(out.phases[0], pd::TrialPhase::kMovingToPose);
-  ASSERT_EQ(out.start_timers.size(), 1u);
+  ASSERT_EQ(out.start_timers.size(), 2u);
   EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kPoseReached);
   EXPECT_DOUBLE_EQ(out.start_timers[0].delay_s, 2.5);
   EXPECT_FALSE(out.start_timers[0].periodic);
+  // The spindle's keepalive for the driver's watchdog (spindle_keepalive_s).
+  EXPECT_EQ(out.start_timers[1].kind, pd::TimerRequest::Kind::kSpindleKeepalive);
+  EXPECT_DOUBLE_EQ(out.start_timers[1].delay_s, 0.1);
+  EXPECT_TRUE(out.start_timers[1].periodic);
   // A second start while running is refused.
   EXPECT_NE(seq.start(request("stationary"), apModel(), 11.0).find("a trial is running"),
             std::string::npos);
@@ -695,12 +699,26 @@ TEST(SequencerTimers, TheSequencerDispatchesAFiredTimerToItsHandler) {
   pd::SequencerTimers timers;
   timers.apply(seq.takeOutput(), 1.0);
   ASSERT_EQ(seq.phase(), pd::TrialPhase::kMovingToPose);
-  // The move's timer fires at its due time and the sequencer goes on to the registration.
+  // The move's timer fires at its due time and the sequencer goes on to the registration; the
+  // spindle's keepalive fires every 0.1 s meanwhile, each a spindle command again.
   double t = 1.0;
-  std::optional<pd::TimerRequest::Kind> kind;
-  while (!(kind = timers.popDue(t))) t += 0.001;
-  EXPECT_EQ(*kind, pd::TimerRequest::Kind::kPoseReached);
-  seq.onTimer(*kind, t);
+  int keepalives = 0;
+  for (;;) {
+    const std::optional<pd::TimerRequest::Kind> kind = timers.popDue(t);
+    if (!kind) {
+      t += 0.001;
+      continue;
+    }
+    seq.onTimer(*kind, t);
+    if (*kind == pd::TimerRequest::Kind::kPoseReached) break;
+    ASSERT_EQ(*kind, pd::TimerRequest::Kind::kSpindleKeepalive);
+    ++keepalives;
+    const pd::SequencerOutput out = seq.takeOutput();
+    ASSERT_EQ(out.spindle_rpm.size(), 1u);
+    EXPECT_EQ(out.spindle_rpm[0], 12000.0);
+  }
+  EXPECT_NEAR(t, 3.5, 1e-9);
+  EXPECT_EQ(keepalives, 24);  // 0.1 s apart, at 1.1 .. 3.4 s (the 25th is due with the pose)
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
 }
 
@@ -783,4 +801,126 @@ TEST(TrialSequencer, ASilentControllerIsAStopWithRetreatWhileDrilling) {
             std::string::npos)
       << stops.front();
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+}
+
+TEST(TrialSequencer, TheKeepaliveRepeatsTheRunningSpindleSpeedAndNothingOnceItStopped) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  const double t_drill = toDrilling(&seq);
+  seq.takeOutput();
+  seq.onTimer(pd::TimerRequest::Kind::kSpindleKeepalive, t_drill + 0.05);
+  pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.spindle_rpm.size(), 1u);
+  EXPECT_EQ(out.spindle_rpm[0], 12000.0);
+  seq.onStop(t_drill + 0.1, true, "test");  // the spindle off with the stop
+  out = seq.takeOutput();
+  ASSERT_FALSE(out.spindle_rpm.empty());
+  EXPECT_EQ(out.spindle_rpm.back(), 0.0);
+  seq.onSpindleKeepalive(t_drill + 0.2);
+  EXPECT_TRUE(seq.takeOutput().spindle_rpm.empty());  // a stopped spindle is not kept alive
+  // 0: one command per change, no keepalive timer.
+  pd::TrialSequencerParams p = params();
+  p.spindle_keepalive_s = 0.0;
+  pd::TrialSequencer once(p, workcellArm());
+  ASSERT_EQ(once.start(request("stationary"), apModel(), 0.0), "");
+  out = once.takeOutput();
+  ASSERT_EQ(out.start_timers.size(), 1u);
+  EXPECT_EQ(out.start_timers[0].kind, pd::TimerRequest::Kind::kPoseReached);
+}
+
+namespace {
+
+/** @brief Registers at t0 + 0.125 k (k = 1..4) with markers in the world frame. */
+void registerMarkers(pd::TrialSequencer* seq, double t0) {
+  for (int i = 1; i <= 4; ++i) {
+    const double t = t0 + 0.125 * i;
+    seq->onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                  kNoLookup);
+  }
+}
+
+pd::TareResult tareResult(bool success, double t) {
+  pd::TareResult r;
+  r.success = success;
+  r.t = t;
+  r.samples = 100;
+  r.bias[2] = 4.9;
+  r.message = success ? "tared" : "tare failed: the force spread 2 N exceeds 0.5 N";
+  return r;
+}
+
+pd::TrialSequencerParams taring() {
+  pd::TrialSequencerParams p = params();
+  p.tare_samples = 100;
+  p.tare_max_spread_n = 0.4;
+  return p;
+}
+
+}  // namespace
+
+TEST(TrialSequencer, TheTareIsAskedAtTheDrillingPoseAndTheDrillingWaitsForIt) {
+  pd::TrialSequencer seq(taring(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  EXPECT_TRUE(seq.takeOutput().tare_requests.empty());  // not while the arm moves
+  seq.onPoseReached(12.5);
+  pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.tare_requests.size(), 1u);
+  EXPECT_EQ(out.tare_requests[0].samples, 100);
+  EXPECT_DOUBLE_EQ(out.tare_requests[0].max_spread_n, 0.4);
+  registerMarkers(&seq, 12.5);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);  // registered, the tare still to come
+  seq.onMarker(13.2, 13.2, "world", Eigen::Vector3d(0.7, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+               kNoLookup);  // a later marker does not register again
+  seq.takeOutput();
+  seq.onTareResult(13.31, tareResult(true, 13.3));
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  out = seq.takeOutput();
+  // The segment grid starts at the later of the registration (13.0) and the tare (13.3).
+  ASSERT_FALSE(out.trajectories.empty());
+  EXPECT_DOUBLE_EQ(out.trajectories[0].start_time, 13.3);
+  // A late duplicate result changes nothing.
+  seq.onTareResult(13.4, tareResult(false, 13.4));
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+}
+
+TEST(TrialSequencer, ATareBeforeTheRegistrationEndsLetsItStartTheDrilling) {
+  pd::TrialSequencer seq(taring(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  seq.onTareResult(12.8, tareResult(true, 12.8));
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
+  seq.takeOutput();
+  registerMarkers(&seq, 12.5);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  EXPECT_DOUBLE_EQ(seq.takeOutput().trajectories.at(0).start_time, 13.0);
+}
+
+TEST(TrialSequencer, AFailedTareFailsTheTrialNamingWhy) {
+  pd::TrialSequencer seq(taring(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  registerMarkers(&seq, 12.5);
+  seq.takeOutput();
+  seq.onTareResult(13.1, tareResult(false, 13.1));
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+  const pd::SequencerOutput out = seq.takeOutput();
+  EXPECT_TRUE(out.trajectories.empty());
+  EXPECT_EQ(out.spindle_rpm.back(), 0.0);
+  bool named = false;
+  for (const pd::SequencerLog& l : out.log) named |= l.text.find("F/T tare") != std::string::npos;
+  EXPECT_TRUE(named);
+}
+
+TEST(TrialSequencer, NoTareResultFailsAtTheRegistrationTimeout) {
+  pd::TrialSequencer seq(taring(), workcellArm());
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  registerMarkers(&seq, 12.5);
+  seq.takeOutput();
+  seq.onRegistrationTimeout(15.5);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+  bool named = false;
+  for (const pd::SequencerLog& l : seq.takeOutput().log) {
+    named |= l.text.find("ft_sensor/tare_result") != std::string::npos;
+  }
+  EXPECT_TRUE(named);
 }

@@ -73,6 +73,24 @@ def test_urdf_is_wellformed_xml_with_links(path):
         assert out.returncode == 0, out.stdout + out.stderr
 
 
+def test_the_hardware_urdf_is_the_workcell_without_the_trackers_frames():
+    """urdf/workcell_hardware.urdf is what scripts/dev/make_hardware_urdf.py writes from
+    workcell.urdf today (the two cannot drift apart), and it has every link of the workcell but
+    the tracker's two, which a lab's tracker driver and registration publish."""
+    sys.path.insert(0, os.path.join(ROOT, 'scripts', 'dev'))
+    from make_hardware_urdf import hardware_urdf  # noqa: E402
+    with open(os.path.join(ROOT, 'urdf', 'workcell.urdf')) as handle:
+        workcell = handle.read()
+    with open(os.path.join(ROOT, 'urdf', 'workcell_hardware.urdf')) as handle:
+        shipped = handle.read()
+    assert shipped == hardware_urdf(workcell), 'run scripts/dev/make_hardware_urdf.py'
+
+    def links(text):
+        return {link.get('name') for link in ET.fromstring(text).findall('link')}
+    assert links(workcell) - links(shipped) == {'tracker_marker', 'tracker_camera'}
+    assert links(shipped) < links(workcell)
+
+
 def test_nodelet_plugins_declared_and_exported():
     tree = ET.parse(os.path.join(ROOT, 'nodelet_plugins.xml'))
     names = [c.get('name') for c in tree.getroot().iter('class')]

@@ -7,12 +7,14 @@ checks, from the ft_sensor/wrench stream (at the declared DAQ rate) averaged ove
 the outer and inner cortical peaks fall in the calibrated ranges (calibration.md: outer 2.5-4.0 N,
 inner 2.2-3.8 N) with a lower cancellous level between them, and that simulator/ground_truth
 reports the depth reached."""
+import math
 import os
 import sys
 import threading
 import unittest
 
 import rospkg
+
 import rospy
 import rostest
 from geometry_msgs.msg import WrenchStamped
@@ -101,7 +103,7 @@ class StationaryDrillingTest(unittest.TestCase):
         self.assertAlmostEqual(gap, 5e-3, delta=0.2e-3)  # 5 mm above the bone (drilling pose)
         self.assertEqual(truth.specimen_layer, 'air')
 
-        self.spindle.publish(Float64(12000.0))
+        self.spindle.publish(Float64(12000.0 * math.pi / 30.0))  # rad/s (REP 103)
         rospy.sleep(0.5)
         # Approach to 1 mm above the bone in 1 s, then 0.5 mm/s until 1 mm past the canal wall.
         approach = gap - 1e-3

@@ -61,6 +61,16 @@ struct SimulatorNodeParams {
   double tracker_rate_hz = 8.0;        ///< tracker rate (NDI Polaris in the paper: 8 Hz)
   double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume (0: off)
   std::string bone_motion_model_path;  ///< identified model driving the bone ("" = built-in)
+  /// The tracker as a lab's tracker driver publishes it (issue 30): "" (default) publishes its
+  /// samples on tracker/marker_pose only; a frame name also puts each sample on tf as
+  /// tracker_camera -> this frame (the sample's stamp, after tracker_delay_s), and the URDF's
+  /// frames of that name and tracker_camera leave the simulator's tf: the tracker's driver and
+  /// the lab's registration (hardware.launch's static transform) own them.
+  std::string tracker_tf_frame;
+  /// true (default): every workcell frame on tf. false: only the frames robot_state_publisher
+  /// cannot compute from joint_states (the children of floating joints: the SPMS platform), as
+  /// on a lab's bench, where robot_state_publisher publishes the rest (hardware.launch).
+  bool publish_joint_frames = true;
   /** @brief Checks the declared ranges and the stream rates (divisors of 1000 Hz). */
   void validate() const;
   /** @brief The declaration of every parameter. */

@@ -20,7 +20,9 @@
 #include "pedicle_drilling/GroundTruth.h"
 #include "pedicle_drilling/JointTrajectoryControllerState.h"
 #include "pedicle_drilling/ResetSimulation.h"
+#include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TidalVolume.h"
+#include "pedicle_drilling/core/drilling/force_tare.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
@@ -82,6 +84,11 @@ void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Res
 
 /** @brief Ground truth at `stamp` (frame "bone"). */
 GroundTruth toMsg(const core::SimulationGroundTruth& truth, const ros::Time& stamp);
+
+/** @brief A tare result as ft_sensor/tare_result (frame ft_sensor), stamped @p stamp. */
+TareResult toMsg(const core::TareResult& result, const ros::Time& stamp);
+/** @brief ft_sensor/tare_result as the core's (t: its stamp). */
+core::TareResult fromMsg(const TareResult& msg);
 
 /** @brief The measured 6-axis wrench of a step, frame "ft_sensor". */
 geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const ros::Time& stamp);

@@ -47,11 +47,14 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
     ParamTable<P> d;
     d.number("feed_rate_mm_s", &P::default_feed_rate_mm_s, Range::aboveUpTo(0, 10), "mm/s")
         .number("spindle_rpm", &P::default_spindle_rpm, Range::aboveUpTo(0, 60000), "rpm")
+        .number("spindle_keepalive_s", &P::spindle_keepalive_s, Range::closed(0, 10), "s")
         .number("max_duration_s", &P::default_max_duration_s, Range::aboveUpTo(0, 3600), "s")
         .include(CompensationParams::table(), &P::compensation)
         .number("move_duration_s", &P::move_duration_s, Range::aboveUpTo(0, 60), "s")
         .number("settle_s", &P::settle_s, Range::closed(0, 60), "s")
         .integer("registration_samples", &P::registration_samples, Range::closed(1, 100))
+        .integer("tare_samples", &P::tare_samples, Range::closed(0, 100000))
+        .number("tare_max_spread_n", &P::tare_max_spread_n, Range::aboveUpTo(0, 100), "N")
         .number("registration_timeout_s", &P::registration_timeout_s, Range::aboveUpTo(0, 60), "s")
         .number("stop_hold_s", &P::stop_hold_s, Range::closed(0, 60), "s")
         .number("recognizer_timeout_s", &P::recognizer_timeout_s, Range::closed(0, 60), "s")
@@ -79,7 +82,8 @@ void TrialSequencerParams::validate() const {
 
 bool SequencerOutput::empty() const {
   return trajectories.empty() && spindle_rpm.empty() && phases.empty() && predicted.empty() &&
-         start_timers.empty() && !stop_timers && log.empty() && stops.empty();
+         start_timers.empty() && !stop_timers && log.empty() && stops.empty() &&
+         tare_requests.empty();
 }
 
 TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
@@ -154,7 +158,14 @@ void TrialSequencer::log(SequencerLog::Level level, const std::string& text) {
   out_.log.push_back({level, text});
 }
 
-void TrialSequencer::spindle(double rpm) { out_.spindle_rpm.push_back(rpm); }
+void TrialSequencer::spindle(double rpm) {
+  spindle_commanded_rpm_ = rpm;
+  out_.spindle_rpm.push_back(rpm);
+}
+
+void TrialSequencer::onSpindleKeepalive(double) {
+  if (spindle_commanded_rpm_ > 0.0) out_.spindle_rpm.push_back(spindle_commanded_rpm_);
+}
 
 void TrialSequencer::fail(const std::string& why) {
   log(SequencerLog::Level::kError, "trial failed: " + why);
@@ -236,6 +247,7 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   spindle_rpm_ = rpm;
   max_duration_s_ = max_duration;
   registered_ = false;
+  tare_pending_ = false;
   reg_count_ = 0;
   retreat_.reset();
   arm_q_ = arm_.homeJoints();
@@ -244,6 +256,10 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   setPhase(TrialPhase::kMovingToPose);
   out_.start_timers.push_back(
       {TimerRequest::Kind::kPoseReached, params_.move_duration_s + params_.settle_s, false});
+  if (params_.spindle_keepalive_s > 0.0) {
+    out_.start_timers.push_back(
+        {TimerRequest::Kind::kSpindleKeepalive, params_.spindle_keepalive_s, true});
+  }
   std::ostringstream os;
   os << "trial started: " << toString(mode) << ", feed " << feed_mm_s << " mm/s, spindle " << rpm
      << " rpm";
@@ -274,10 +290,32 @@ void TrialSequencer::onPoseReached(double now) {
   setPhase(TrialPhase::kRegistering);
   out_.start_timers.push_back(
       {TimerRequest::Kind::kRegistrationTimeout, params_.registration_timeout_s, false});
+  if (params_.tare_samples > 0) {
+    // The arm is at the drilling pose, the spindle running, the tool free: the sensor's bias.
+    out_.tare_requests.push_back({params_.tare_samples, params_.tare_max_spread_n});
+    tare_pending_ = true;
+  }
+}
+
+void TrialSequencer::onTareResult(double now, const TareResult& result) {
+  if (phase_ != TrialPhase::kRegistering || !tare_pending_) return;
+  tare_pending_ = false;
+  if (!result.success) {
+    fail("F/T tare: " + result.message);
+    return;
+  }
+  log(SequencerLog::Level::kInfo, "F/T " + result.message);
+  // The segment grid starts when both are done: the later of the two instants.
+  if (registered_) startDrilling(now, std::max(t_registered_, result.t));
 }
 
 void TrialSequencer::onRegistrationTimeout(double) {
-  if (phase_ == TrialPhase::kRegistering) {
+  if (phase_ == TrialPhase::kRegistering && registered_ && tare_pending_) {
+    std::ostringstream os;
+    os << "no F/T tare result (ft_sensor/tare_result) within " << params_.registration_timeout_s
+       << " s of the drilling pose";
+    fail(os.str());
+  } else if (phase_ == TrialPhase::kRegistering) {
     std::ostringstream os;
     os << "no tracker/marker_pose message for registration within "
        << params_.registration_timeout_s << " s";
@@ -295,7 +333,7 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
                               const Eigen::Vector3d& p, const Eigen::Quaterniond& orientation,
                               const RotationLookup& lookup) {
   if (phase_ == TrialPhase::kRegistering) {
-    registerSample(now, stamp, frame, p, orientation, lookup);
+    if (!registered_) registerSample(now, stamp, frame, p, orientation, lookup);  // else: the tare
     return;
   }
   if (!registered_ || !planner_ ||
@@ -359,6 +397,11 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
   if (++reg_count_ < params_.registration_samples) return;
   marker_reg_ = marker_sum_ / reg_count_;
   registered_ = true;
+  t_registered_ = stamp;
+  if (tare_pending_) {
+    log(SequencerLog::Level::kInfo, "marker registered; waiting for the F/T tare");
+    return;
+  }
   startDrilling(now, stamp);
 }
 
@@ -671,6 +714,9 @@ void TrialSequencer::onTimer(TimerRequest::Kind kind, double now) {
       break;
     case TimerRequest::Kind::kSegment:
       onSegmentTimer(now);
+      break;
+    case TimerRequest::Kind::kSpindleKeepalive:
+      onSpindleKeepalive(now);
       break;
   }
 }

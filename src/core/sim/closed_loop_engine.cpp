@@ -66,6 +66,12 @@ double CommandTransport::delay(double now) {
   return last_due_ - now;
 }
 
+double CommandTransport::undrawnDelay(double now) {
+  if (jitter_s_ <= 0.0) return delay_s_;
+  last_due_ = std::max(now + delay_s_, last_due_);
+  return last_due_ - now;
+}
+
 double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s, double breath_s,
                       bool draw_phase) {
   return reset_time + pre_trial_s + (draw_phase ? startPhaseFraction(seed) * breath_s : 0.0);
@@ -113,6 +119,7 @@ struct ClosedLoopEngine::Impl {
   // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
   // the tracker samples in transit.
   CommandTransport command_transport;
+  double last_spindle_rpm = 0.0;  // the latest spindle speed sent (isSpindleRepeat)
   struct DelayedMarker {
     double due;
     double stamp;
@@ -235,7 +242,14 @@ struct ClosedLoopEngine::Impl {
       record.stops.push_back({now, "/compensation_planner", why, true});
     }
     for (double rpm : out.spindle_rpm) {
-      send(command_transport.delay(now), [this, rpm]() { sim->commandSpindle(rpm); });
+      const double delay = isSpindleRepeat(rpm, last_spindle_rpm)
+                               ? command_transport.undrawnDelay(now)
+                               : command_transport.delay(now);
+      last_spindle_rpm = rpm;
+      send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
+    }
+    for (const TareRequest& r : out.tare_requests) {
+      send(command_transport.undrawnDelay(now), [this, r]() { sim->requestTare(r); });
     }
     for (JointTrajectoryCommand& c : out.trajectories) {
       const double delay = command_transport.delay(now);
@@ -374,6 +388,13 @@ struct ClosedLoopEngine::Impl {
    */
   void startComponents() {
     sim->startTrial();
+    resetRecognizer();
+    monitor->reset();
+  }
+
+  /** @brief The recognizer starts afresh and announces its cleared state (StateRecognizer's
+   *         ~reset and its reset on a successful tare). */
+  void resetRecognizer() {
     recognizer->reset();
     const RecognizerOutput& r = recognizer->output();
     const std::string name = toString(r.state);
@@ -383,7 +404,29 @@ struct ClosedLoopEngine::Impl {
       sequencer->onRecognizerState(now, stop, name, kp);
       carryOut();
     });
-    monitor->reset();
+  }
+
+  /**
+   * @brief The sensor driver's tare result (ft_sensor/tare_result), after the sample that
+   *        completed it: the recognizer restarts on the tared force (on success), the planner
+   *        hears it.
+   */
+  void onTareResult() {
+    const std::optional<TareResult> r = sim->takeTareResult();
+    if (!r) return;
+    record.tare = *r;
+    if (r->success) {
+      if (config.delays.force_to_recognizer_s > 0.0) {  // after the samples in transit
+        send(config.delays.force_to_recognizer_s, [this]() { resetRecognizer(); });
+      } else {
+        resetRecognizer();
+      }
+    }
+    const TareResult result = *r;
+    send(config.delays.stop_to_planner_s, [this, result]() {
+      sequencer->onTareResult(now, result);
+      carryOut();
+    });
   }
 
   /** @brief One 1 ms physics step and everything the pipeline does in it. */
@@ -409,6 +452,7 @@ struct ClosedLoopEngine::Impl {
       monitor->onForce(now, force);
       evaluateMonitor();
     }
+    if (s.force_sampled) onTareResult();
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
     if (sim->trackerDue(tracker_period)) onMarker();
     deliverDelayedMarkers();

@@ -191,6 +191,7 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number("feed_bandwidth_hz", &P::feed_bandwidth_hz, Range::aboveUpTo(0, 500), "Hz")
         .number("bench_period_s", &P::bench_period_s, Range::closed(0.01, 1), "s")
         .number("spindle_accel_rpm_s", &P::spindle_accel_rpm_s, Range::aboveUpTo(0, 1e6), "rpm/s")
+        .number("spindle_watchdog_s", &P::spindle_watchdog_s, Range::closed(0, 10), "s")
         .number("tracker_noise_rms_mm", &P::tracker_noise_rms_mm, Range::closed(0, 10), "mm")
         .number("registration_error_mm", &P::registration_error_mm, Range::closed(0, 10), "mm")
         .number("registration_error_deg", &P::registration_error_deg, Range::closed(0, 5), "deg")
@@ -254,6 +255,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
             [](P& v, double x) { v.sensor.force_drift_n_per_sqrt_s = x; }, Range::closed(0, 0.1),
             "N/sqrt(s)")
         .flag("moving_bone", &P::moving_bone)
+        .flag("sensor_tared_at_reset", &P::sensor_tared_at_reset)
+        .number("sensor_bias_offset_n", &P::sensor_bias_offset_n, Range::closed(-50, 50), "N")
         .include(ControllerLayoutParams::table(), &P::controllers)
         .include(controllerRulesTable(), &P::controller_rules)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
@@ -414,6 +417,9 @@ struct DrillingSimulation::Impl {
   // Spindle.
   double spindle_cmd_rpm = 0.0;
   double spindle_rpm = 0.0;
+  double spindle_cmd_t = 0.0;      // sim time of the latest accepted speed command
+  ForceTare tare;                  // the sensor driver's tare (requestTare)
+  int spindle_watchdog_trips = 0;  // the driver's watchdog stopped the spindle
 
   // SPMS state.
   Eigen::Isometry3d spms_base_world = Eigen::Isometry3d::Identity();
@@ -833,7 +839,8 @@ struct DrillingSimulation::Impl {
       ventilator.requestSettings(breathing);
       lagged_ventilator.requestSettings(breathing);
     }
-    sensor->tare();  // standard practice before drilling
+    if (params.sensor_tared_at_reset) sensor->tare();  // the benches: tared before the trial
+    tare.reset();
     // The SPMS controller starts its stream from where the sliders are.
     spms_trajectory->hold(sliders);
     bench_stream_due = 0;
@@ -862,6 +869,8 @@ struct DrillingSimulation::Impl {
     stalled.assign(commandable.size(), false);
     spindle_cmd_rpm = 0.0;
     spindle_rpm = 0.0;
+    spindle_cmd_t = time;
+    spindle_watchdog_trips = 0;
     arm->setJointVelocityTargets(std::map<std::string, double>{{"spindle_joint", 0.0}});
     last_force = ForceSample{};
     tip_block_start = tip_block_end = physics_tip = arm->tipPose().translation();
@@ -975,6 +984,11 @@ SimulationStep DrillingSimulation::stepOnce() {
   if (phase == 0) {
     // Spindle run-up (rate limited) and the arm block.
     const double block = s.steps_per_arm_block * s.dt;
+    if (s.params.spindle_watchdog_s > 0.0 && s.spindle_cmd_rpm > 0.0 &&
+        s.time - s.spindle_cmd_t > s.params.spindle_watchdog_s) {
+      s.spindle_cmd_rpm = 0.0;  // the driver heard nothing for too long: it stops the spindle
+      ++s.spindle_watchdog_trips;
+    }
     const double max_change = s.params.spindle_accel_rpm_s * block;
     s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
     s.arm->setJointVelocityTargets(s.spindle_index,
@@ -1017,6 +1031,12 @@ SimulationStep DrillingSimulation::stepOnce() {
   truth[2] = s.last_force.thrust_N;
   out.force_sampled =
       s.sensor->sample(truth, s.spindle_rpm, s.last_force.contact, &out.measured_wrench);
+  if (out.force_sampled) {
+    // The tool's weight on an untared sensor; then the driver's tare (raw - 0 before any: the
+    // sample unchanged, bit for bit).
+    if (!s.params.sensor_tared_at_reset) out.measured_wrench[2] += s.params.sensor_bias_offset_n;
+    out.measured_wrench = s.tare.apply(s.time, out.measured_wrench);
+  }
   return out;
 }
 
@@ -1122,8 +1142,15 @@ TargetResult DrillingSimulation::commandSpindle(double rpm) {
     rpm = impl_->params.spindle_max_rpm;
   }
   impl_->spindle_cmd_rpm = rpm;
+  impl_->spindle_cmd_t = impl_->time;
   return r;
 }
+
+void DrillingSimulation::requestTare(const TareRequest& request) { impl_->tare.request(request); }
+
+std::optional<TareResult> DrillingSimulation::takeTareResult() { return impl_->tare.takeResult(); }
+
+int DrillingSimulation::spindleWatchdogTrips() const { return impl_->spindle_watchdog_trips; }
 
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
   impl_->ventilator.requestSettings(settings);

@@ -20,6 +20,7 @@
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/controller_watch.hpp"
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
+#include "pedicle_drilling/core/drilling/force_tare.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -46,13 +47,29 @@ struct TrialSequencerParams {
   /** @brief Segmentation and prediction; feed_rate_m_s is set per trial. drill_axis is set from
    *         the arm by the constructor. */
   CompensationParams compensation;
-  double default_feed_rate_mm_s = 0.5;    ///< StartTrial 0 means this, (0, 10]
-  double default_spindle_rpm = 12000.0;   ///< (0, 60000]
+  double default_feed_rate_mm_s = 0.5;   ///< StartTrial 0 means this, (0, 10]
+  double default_spindle_rpm = 12000.0;  ///< (0, 60000]
+  /// While the spindle runs, its speed command is repeated every this many seconds, so that the
+  /// driver's watchdog (a drive-side command timeout; the simulator's spindle_watchdog_s, 0.5 s)
+  /// keeps it running and stops it when the planner dies. [0 (one command per change), 10] s.
+  double spindle_keepalive_s = 0.1;
   double default_max_duration_s = 120.0;  ///< (0, 3600]
   double move_duration_s = 2.0;           ///< arm motion to the drilling pose, (0, 60]
   double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
   int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
-  double registration_timeout_s = 3.0;    ///< (0, 60]
+  /**
+   * @brief The F/T tare before contact (issue 30), in samples of the sensor [0, 100000]; 0 (the
+   *        benches, whose simulated sensor is tared at reset): none. Else, when the arm reached
+   *        the drilling pose (spindle running, tool free), a TareRequest goes to the sensor's
+   *        driver (`ft_sensor/tare_request`) and the drilling waits for its successful result as
+   *        well as for the registration, both within registration_timeout_s.
+   */
+  int tare_samples = 0;
+  /// The largest force spread over the tare window [N] (else the tare fails, and the trial):
+  /// far above a running spindle's noise on the sensor (about 0.05 N), far below a tool
+  /// touching something (newtons). (0, 100].
+  double tare_max_spread_n = 0.5;
+  double registration_timeout_s = 3.0;  ///< (0, 60]
   /// Hold [s] after a recognizer stop before the retreat, [0, 60]; 0 (default): retreat at once
   /// (chosen on calibration seeds, doc/campaign_results.md "Constants chosen on simulated
   /// outcomes").
@@ -153,7 +170,7 @@ struct PredictedMarker {
 
 /** @brief A timer the driver must run: call the matching on*() method when it fires. */
 struct TimerRequest {
-  enum class Kind { kPoseReached, kRegistrationTimeout, kSegment };
+  enum class Kind { kPoseReached, kRegistrationTimeout, kSegment, kSpindleKeepalive };
   Kind kind = Kind::kSegment;
   double delay_s = 0.0;   ///< first firing after this much time from the request
   bool periodic = false;  ///< then every delay_s
@@ -178,6 +195,8 @@ struct SequencerOutput {
   /** @brief Stops the sequencer itself decided (a silent component): the driver announces each
    *         as a StopCommand with retreat = true. */
   std::vector<std::string> stops;
+  /** @brief Tare requests for the F/T sensor's driver (TrialSequencerParams::tare_samples). */
+  std::vector<TareRequest> tare_requests;
 
   /** @brief True if nothing was produced. */
   bool empty() const;
@@ -282,6 +301,13 @@ class TrialSequencer {
   /** @brief The closed loop's watch (its worst ratios since the trial's start). */
   const ControllerWatch& controllerWatch() const { return *watch_; }
 
+  /**
+   * @brief The sensor driver's tare result (`ft_sensor/tare_result`). While the trial waits for
+   *        it, a success lets the drilling start (once registered), a failure fails the trial;
+   *        otherwise it is ignored.
+   */
+  void onTareResult(double now, const TareResult& result);
+
   /** @brief The safety monitor is alive (a /diagnostics status of it, or in-process). */
   void onMonitorAlive(double now);
 
@@ -291,6 +317,8 @@ class TrialSequencer {
   void onRegistrationTimeout(double now);
   /** @brief TimerRequest::kSegment fired. */
   void onSegmentTimer(double now);
+  /** @brief TimerRequest::kSpindleKeepalive fired: the running spindle's command again. */
+  void onSpindleKeepalive(double now);
 
   /** @brief Current phase. */
   TrialPhase phase() const { return phase_; }
@@ -389,11 +417,14 @@ class TrialSequencer {
   double drilling_since_ = 0.0;        // start of the drilling phase (the watchdogs' origin)
 
   double spindle_rpm_ = 0.0;
+  double spindle_commanded_rpm_ = 0.0;  // the latest speed sent (0: off)
   double max_duration_s_ = 0.0;
   double registration_open_ = 0.0;
   double registration_deadline_ = 0.0;
   int reg_count_ = 0;
   bool registered_ = false;
+  double t_registered_ = 0.0;  // the registration's last sample stamp
+  bool tare_pending_ = false;  // a tare was requested, no result yet
   std::string marker_frame_;
   Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
   Eigen::Vector3d y_marker_reg_ = Eigen::Vector3d::Zero();

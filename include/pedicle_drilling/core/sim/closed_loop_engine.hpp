@@ -76,6 +76,12 @@ class CommandTransport {
       : delay_s_(delay_s), jitter_s_(jitter_s), seed_(seed) {}
   /** @brief The delay of a command sent at `now` (the next draw when there is jitter). */
   double delay(double now);
+  /**
+   * @brief The delay of a message of the command path that draws no jitter, sent at `now`: a
+   *        spindle keepalive (isSpindleRepeat) or a tare request. The same path and order, so
+   *        that they leave every other command's jitter as it was.
+   */
+  double undrawnDelay(double now);
 
  private:
   double delay_s_ = 1e-3;
@@ -84,6 +90,15 @@ class CommandTransport {
   std::uint64_t count_ = 0;
   double last_due_ = 0.0;
 };
+
+/**
+ * @brief Whether a spindle speed command is a keepalive: running (> 0) and equal to the latest
+ *        one (@p latest_rpm). The planner repeats only a running speed (spindle_keepalive_s);
+ *        every change, a stop included, is a command of its own.
+ */
+inline bool isSpindleRepeat(double rpm, double latest_rpm) {
+  return rpm > 0.0 && rpm == latest_rpm;
+}
 
 /** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
 struct EngineConfig {
@@ -232,6 +247,8 @@ struct EngineTrialRecord {
   double recognizer_stop_t = std::numeric_limits<double>::quiet_NaN();
   /** @brief The monitor's re-tare check when the retreat ended (done false: no retreat ended). */
   RetareCheck retare;
+  /** @brief The F/T tare's result (samples 0: no tare was requested, tare_samples 0). */
+  TareResult tare;
   /** @brief The planner's controller watch over the trial: the largest |desired - commanded|
    *         and |error| of any joint, each as a fraction of its tolerance (1: the threshold). */
   double watch_desired_ratio = 0.0;

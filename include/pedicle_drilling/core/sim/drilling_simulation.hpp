@@ -41,6 +41,7 @@
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
 #include "pedicle_drilling/core/drilling/drilling_force.hpp"
 #include "pedicle_drilling/core/drilling/force_sensor.hpp"
+#include "pedicle_drilling/core/drilling/force_tare.hpp"
 #include "pedicle_drilling/core/robot/bullet_arm.hpp"
 #include "pedicle_drilling/core/robot/controller_layout.hpp"
 #include "pedicle_drilling/core/robot/spms_kinematics.hpp"
@@ -170,16 +171,31 @@ struct DrillingSimulationParams {
   double bench_period_s = 0.125;
   double spindle_max_rpm = 21000.0;      ///< URDF spindle_joint limit 2200 rad/s
   double spindle_accel_rpm_s = 40000.0;  ///< spindle run-up rate (0 -> 12000 rpm in 0.3 s)
-  double bone_half_x_m = 0.02;           ///< bone footprint half size along the bone frame x [m]
-  double bone_half_y_m = 0.015;          ///< bone footprint half size along the bone frame y [m]
-  bool moving_bone = true;               ///< initial trial: bone follows the patient (reset() sets)
-  VentilatorSettings ventilator;         ///< internal ventilator driving the patient
-  SpecimenDistribution specimen;         ///< specimen distribution for reset(seed)
-  TrialVariability variability;          ///< patient/ventilator/sensor/arm spread for reset(seed)
-  DrillParameters drill;                 ///< drill and force-law constants
+  /// The spindle driver's command watchdog [s], 0 = off: a running spindle that hears no
+  /// speed command for this long stops (commanded to 0, counted in spindleWatchdogTrips()). A
+  /// client keeps it alive by repeating its command (the planner's ~spindle_keepalive_s). 0.5 s:
+  /// ros_controllers' diff_drive_controller `cmd_vel_timeout` default, a drive-side command
+  /// timeout as ROS drivers set it.
+  double spindle_watchdog_s = 0.5;
+  double bone_half_x_m = 0.02;    ///< bone footprint half size along the bone frame x [m]
+  double bone_half_y_m = 0.015;   ///< bone footprint half size along the bone frame y [m]
+  bool moving_bone = true;        ///< initial trial: bone follows the patient (reset() sets)
+  VentilatorSettings ventilator;  ///< internal ventilator driving the patient
+  SpecimenDistribution specimen;  ///< specimen distribution for reset(seed)
+  TrialVariability variability;   ///< patient/ventilator/sensor/arm spread for reset(seed)
+  DrillParameters drill;          ///< drill and force-law constants
   /// Force/torque sensor model, at the DAQ rate calibrated against the paper's Fig. 16 and 18
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
+  /// The sensor tared at every reset, its bias gone before the trial (true: the benches as the
+  /// paper's results were simulated). false: the sensor keeps its bias (force_bias_sd_n per
+  /// axis, plus sensor_bias_offset_n) until a tare request (requestTare) takes it, as a real F/T
+  /// sensor does (issue 30: hardware.launch's trials tare with the spindle running).
+  bool sensor_tared_at_reset = true;
+  /// A constant offset of the untared thrust axis (z) [N]: the weight of the tool beyond the
+  /// sensor (spindle motor and bit; 4.9 N for 0.5 kg, an assumption, doc/simulator_physics.md).
+  /// Only with sensor_tared_at_reset false. [-50, 50].
+  double sensor_bias_offset_n = 0.0;
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
   /// Registration error between the tracker and the robot (issue 29): the camera's true pose
   /// is the registered one (the URDF's tracker_camera) moved by this much in a direction drawn
@@ -365,8 +381,22 @@ class DrillingSimulation {
   ControllerStateSample controllerState(std::size_t index) const;
   /** @brief Time [s] of the last point of any controller's trajectory (-inf: all hold). */
   double armTrajectoryEnd() const;
-  /** @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. */
+  /**
+   * @brief Spindle speed command [rpm]; NaN/inf/negative rejected, above the limit clamped. Any
+   *        accepted command, a repeated one too, feeds the driver's watchdog
+   *        (DrillingSimulationParams::spindle_watchdog_s).
+   */
   TargetResult commandSpindle(double rpm);
+  /** @brief How often the spindle driver's watchdog stopped the spindle since the last reset. */
+  int spindleWatchdogTrips() const;
+  /**
+   * @brief The sensor driver's tare (ForceTare): the next request.samples output samples are
+   *        averaged into the bias subtracted from then on. @throws std::invalid_argument for a
+   *        bad request.
+   */
+  void requestTare(const TareRequest& request);
+  /** @brief The result of the tare window that completed since the last call, if any. */
+  std::optional<TareResult> takeTareResult();
   /** @brief Queues new ventilator settings (take effect at the next breath); throws if bad. */
   void requestVentilatorSettings(const VentilatorSettings& settings);
 
