@@ -8,8 +8,14 @@ export PYTHONNOUSERSITE := 1
 
 WS := $(CURDIR)/catkin_ws
 JOBS ?= 2
+# ccache (installed by `make deps`) keeps every compilation: a rebuild, and the test that builds
+# the install space in a second workspace beside catkin_ws (test_install_space.py), compile only
+# what changed. Paths in the checkout are hashed relative to the build directory
+# (CCACHE_BASEDIR), the same from both workspaces.
+export CCACHE_BASEDIR := $(CURDIR)
 CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
-	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON -j$(JOBS)
+	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON \
+	-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -j$(JOBS)
 
 .PHONY: all deps build test run bench lint format format-check clean
 

@@ -3,7 +3,7 @@
 # Runs as root, or through sudo when not root.
 set -euo pipefail
 PACKAGES=(
-  build-essential cmake pkg-config
+  build-essential cmake pkg-config ccache
   catkin python3-catkin-pkg catkin-lint
   ros-core-dev ros-message-generation ros-message-runtime rosbash
   libroscpp-dev libnodeletlib-dev libnodeletlib-tools python3-nodelet

@@ -1,18 +1,20 @@
 """The install space works on its own ("The install space is unusable"): the package is built and
-installed with `catkin_make install` into a temporary prefix, from a temporary workspace whose
-src/pedicle_drilling links to this checkout; that workspace (its source links, build and devel
-spaces) is then moved away, so that nothing can fall back on a source, build or devel path, and
-the installed tools run with `source <prefix>/setup.bash` alone, in an environment without this
+installed with `catkin_make install` into a temporary prefix, from a workspace beside catkin_ws
+whose src/pedicle_drilling links to this checkout; that workspace (its source links, build and
+devel spaces) is then deleted, so that nothing can fall back on a source, build or devel path,
+and the installed tools run with `source <prefix>/setup.bash` alone, in an environment without this
 checkout's workspace: a one-trial campaign on the installed scenario (Table II identification,
 trial_engine and the report), recognize on a force trace, a launch file through the installed
 share folder.
 
-It is a second full Release build of the package (-j2), as long as `make build` from scratch.
-PEDICLE_DRILLING_INSTALL_TESTS=0 leaves it out."""
+It is a second Release build of the package (-j2), through ccache as `make build` compiles: the
+compilations `make build` made are reused, so it costs the install's own steps (a cold cache:
+as long as `make build` from scratch). PEDICLE_DRILLING_INSTALL_TESTS=0 leaves it out."""
 import csv
 import json
 import os
 import shlex
+import shutil
 import subprocess
 
 import pytest
@@ -44,40 +46,53 @@ def clean_env(tmp):
             'TMPDIR': os.environ.get('TMPDIR', '/tmp')}
 
 
-def make_workspace(tmp):
-    """tmp/ws/src/pedicle_drilling: one link per top-level entry of the checkout, as
+# The build's workspace: a sibling of catkin_ws in the checkout, so that its build directory is
+# as deep as catkin_ws's and ccache (CCACHE_BASEDIR at the checkout, as `make build` sets it)
+# hashes both builds' paths alike: the compilations `make build` made are reused. Hidden, so
+# that neither the workspace links below nor catkin take it for part of the package; deleted
+# once the install is built.
+WORKSPACE = os.path.join(ROOT, '.install_space_ws')
+
+
+def make_workspace():
+    """WORKSPACE/src/pedicle_drilling: one link per top-level entry of the checkout, as
     scripts/dev/link_workspace.sh makes catkin_ws/src/pedicle_drilling (a link to the root itself
     would put the checkout's own catkin_ws inside the package)."""
-    package = tmp / 'ws' / 'src' / 'pedicle_drilling'
-    package.mkdir(parents=True)
+    shutil.rmtree(WORKSPACE, ignore_errors=True)
+    package = os.path.join(WORKSPACE, 'src', 'pedicle_drilling')
+    os.makedirs(package)
     for name in sorted(os.listdir(ROOT)):
         if name.startswith('.') or name in NOT_PACKAGE:
             continue
-        os.symlink(os.path.join(ROOT, name), str(package / name))
-    return tmp / 'ws'
+        os.symlink(os.path.join(ROOT, name), os.path.join(package, name))
+    return WORKSPACE
 
 
 @pytest.fixture(scope='module')
 def install(tmp_path_factory):
     """(prefix, environment): the package installed into prefix by catkin_make, the workspace
-    it was built in moved away."""
+    it was built in deleted."""
     tmp = tmp_path_factory.mktemp('install_space')
     env = clean_env(tmp)
-    workspace = make_workspace(tmp)
+    workspace = make_workspace()
     prefix = tmp / 'install'
     log_path = tmp / 'catkin_make.log'
+    # Through ccache, as `make build` compiles (WORKSPACE).
+    build_env = dict(env, CCACHE_BASEDIR=ROOT)
+    launcher = ['-DCMAKE_C_COMPILER_LAUNCHER=ccache', '-DCMAKE_CXX_COMPILER_LAUNCHER=ccache'] \
+        if shutil.which('ccache', path=env['PATH']) else []
     with open(str(log_path), 'w') as log:
         build = subprocess.run(
-            ['catkin_make', '-C', str(workspace), '-DCMAKE_BUILD_TYPE=Release',
+            ['catkin_make', '-C', workspace, '-DCMAKE_BUILD_TYPE=Release',
              '-DPYTHON_EXECUTABLE=/usr/bin/python3', '-DCATKIN_ENABLE_TESTING=OFF',
-             '-DCMAKE_INSTALL_PREFIX=' + str(prefix), '-j2', 'install'],
-            env=env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+             '-DCMAKE_INSTALL_PREFIX=' + str(prefix)] + launcher + ['-j2', 'install'],
+            env=build_env, stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
             timeout=BUILD_TIMEOUT_S)
     with open(str(log_path)) as log:
         tail = log.read()[-4000:]
     assert build.returncode == 0, 'catkin_make install failed:\n' + tail
     # Nothing may depend on the workspace any more: its paths stop existing.
-    os.rename(str(workspace), str(tmp / 'ws_moved_away'))
+    shutil.rmtree(workspace)
     return prefix, env
 
 
