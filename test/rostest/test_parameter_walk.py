@@ -9,9 +9,11 @@ so a parameter documented there and not checked by the code, or renamed in one p
 here; the nodes' good parameters come from roslaunch's own loader reading the shipped launch
 files. A few parameters accept any value of their type by design; they are listed in
 NOT_RANGED with the reason."""
+import concurrent.futures
 import os
 import subprocess
 import sys
+import threading
 import unittest
 
 import rospkg
@@ -98,21 +100,29 @@ def bad_values(kind, name):
     raise AssertionError('README type %r of %s is unknown to the walk' % (kind, name))
 
 
+PARAM_LOCK = threading.Lock()  # rospy's master proxy is one xmlrpc client: one call at a time
+# The nodelet program, found once (rosrun would look it up for every case).
+NODELET = subprocess.run(['catkin_find', '--first-only', '--libexec', 'nodelet', 'nodelet'],
+                         capture_output=True, text=True).stdout.strip() or 'nodelet'
+WORKERS = 2  # cases run two at a time, each nodelet under a name (and parameters) of its own
+
+
 def run_standalone(node_type, node_name, good, name, value):
-    """Starts the nodelet standalone with the good parameters and one bad value; returns
-    (exit code or None if it kept running, output)."""
+    """Starts the nodelet standalone with the good parameters and one bad value, under
+    `node_name`; returns (exit code or None if it kept running, output)."""
     ns = '/' + node_name
-    if rospy.has_param(ns):
-        rospy.delete_param(ns)
-    for key, v in good.items():
-        rospy.set_param(ns + '/' + key, v)
-    if value is None:
-        if rospy.has_param(ns + '/' + name):
-            rospy.delete_param(ns + '/' + name)
-    else:
-        rospy.set_param(ns + '/' + name, value)
+    with PARAM_LOCK:
+        if rospy.has_param(ns):
+            rospy.delete_param(ns)
+        for key, v in good.items():
+            rospy.set_param(ns + '/' + key, v)
+        if value is None:
+            if rospy.has_param(ns + '/' + name):
+                rospy.delete_param(ns + '/' + name)
+        else:
+            rospy.set_param(ns + '/' + name, value)
     process = subprocess.Popen(
-        ['rosrun', 'nodelet', 'nodelet', 'standalone', node_type, '__name:=' + node_name],
+        [NODELET, 'standalone', node_type, '__name:=' + node_name],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         output, _ = process.communicate(timeout=30)
@@ -123,11 +133,24 @@ def run_standalone(node_type, node_name, good, name, value):
         return None, output
 
 
+def check_case(node_type, node_name, good, name, what, value):
+    """One case: '' when the nodelet refused to start naming the parameter, else the failure."""
+    code, output = run_standalone(node_type, node_name, good, name, value)
+    label = '%s ~%s %s (%r)' % (node_type, name, what, value)
+    if code is None:
+        return label + ': accepted, the nodelet kept running'
+    if code == 0:
+        return label + ': exited 0'
+    if name.split('/')[-1] not in output:
+        return label + ': the error does not name it:\n' + output[-600:]
+    return ''
+
+
 class ParameterWalkTest(unittest.TestCase):
     def test_every_documented_parameter_is_checked(self):
         tables = readme_parameters()
         self.assertEqual(sorted(tables), sorted(NODES), 'README parameter tables vs NODES')
-        failures, cases = [], 0
+        failures, cases = [], []
         for node_type, rows in sorted(tables.items()):
             launch, node_name, _ = NODES[node_type]
             good = launch_params(launch, node_name)
@@ -136,16 +159,12 @@ class ParameterWalkTest(unittest.TestCase):
                     self.assertIn(name, SKIPPED, 'a wildcard parameter without a reason')
                     continue
                 for what, value in bad_values(kind, name):
-                    cases += 1
-                    code, output = run_standalone(node_type, node_name, good, name, value)
-                    label = '%s ~%s %s (%r)' % (node_type, name, what, value)
-                    if code is None:
-                        failures.append(label + ': accepted, the nodelet kept running')
-                    elif code == 0:
-                        failures.append(label + ': exited 0')
-                    elif name.split('/')[-1] not in output:
-                        failures.append(label + ': the error does not name it:\n' +
-                                        output[-600:])
+                    cases.append((node_type, node_name, good, name, what, value))
+        with concurrent.futures.ThreadPoolExecutor(WORKERS) as pool:
+            futures = [pool.submit(check_case, c[0], '%s_case%d' % (c[1], i), *c[2:])
+                       for i, c in enumerate(cases)]
+            failures = [f.result() for f in futures if f.result()]
+        cases = len(cases)
         # Required parameters left out: the planner's drilling pose.
         launch, node_name, _ = NODES['pedicle_drilling/CompensationPlanner']
         good = launch_params(launch, node_name)
