@@ -17,7 +17,7 @@ PACKAGES=(
   librviz-dev rviz
   libkdl-parser-dev liborocos-kdl-dev liburdfdom-dev liburdf-dev libyaml-cpp-dev
   libdiagnostic-updater-dev ros-robot-state-publisher
-  libeigen3-dev libceres-dev libbullet-dev
+  libeigen3-dev libceres-dev libbullet-dev pybind11-dev python3-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
   python3-numpy python3-scipy python3-yaml python3-pywt python3-matplotlib python3-pytest
   xvfb xauth x11-utils imagemagick liburdfdom-tools libgl1-mesa-dri mesa-utils

@@ -1,5 +1,7 @@
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 
+#include "pedicle_drilling/python/python_recognizer.hpp"
+
 #include <pluginlib/class_loader.hpp>
 
 #include <algorithm>
@@ -17,6 +19,11 @@ struct PluginKind;
 
 template <>
 struct PluginKind<core::RecognizerInterface> {
+  /** @brief A class written in Python (`python:<module>.<Class>`, issue 32), else nullptr. */
+  static std::unique_ptr<core::RecognizerInterface> makeForeign(const std::string& name) {
+    if (!isPythonClassName(name)) return nullptr;
+    return std::make_unique<PythonRecognizer>(name.substr(std::string(kPythonClassPrefix).size()));
+  }
   static constexpr const char* kWhat = "recognizer";
   static constexpr const char* kBase = "pedicle_drilling::core::RecognizerInterface";
   static std::vector<std::string> builtin() { return core::builtinRecognizerNames(); }
@@ -28,6 +35,9 @@ struct PluginKind<core::RecognizerInterface> {
 
 template <>
 struct PluginKind<core::CompensatorInterface> {
+  static std::unique_ptr<core::CompensatorInterface> makeForeign(const std::string&) {
+    return nullptr;
+  }
   static constexpr const char* kWhat = "compensator";
   static constexpr const char* kBase = "pedicle_drilling::core::CompensatorInterface";
   static std::vector<std::string> builtin() { return core::builtinCompensatorNames(); }
@@ -78,6 +88,10 @@ std::unique_ptr<Base> PluginLoader<Base>::create(const std::string& name,
   const std::vector<std::string> builtin = PluginKind<Base>::builtin();
   if (std::find(builtin.begin(), builtin.end(), name) != builtin.end()) {
     return PluginKind<Base>::make(name, settings);
+  }
+  if (std::unique_ptr<Base> foreign = PluginKind<Base>::makeForeign(name)) {
+    foreign->configure(settings);
+    return foreign;
   }
   std::unique_ptr<Base> object;
   try {

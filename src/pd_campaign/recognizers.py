@@ -1,0 +1,114 @@
+"""Drilling-state recognizers written in Python (issue 32), run in the closed loop wherever a
+recognizer class is named: `python:pd_campaign.recognizers.ThresholdRecognizer` as the
+StateRecognizer nodelet's `~recognizer`, `trial_engine --recognizer` or the campaign's
+`--recognizer`. The C++ side (pedicle_drilling/python/python_recognizer.hpp) imports the class
+from the Python path, makes it with no arguments and calls:
+
+- ``configure(settings)``: a dict of parameter name -> value as text (`--recognizer-param
+  name=value`, the nodelet's ``~recognizer_params``); unknown names and bad values raise
+  ValueError whose message starts with the name;
+- ``reset()``: a new trial, the parameters kept;
+- ``push(t, raw_force)``: one raw thrust sample [s, N] (tared; at the sensor's rate), returning
+  a dict with any of ``state`` and ``layer_state`` (idle, outer_cortical, outer_punctured,
+  cancellous, inner_cortical, breakthrough), ``new_average`` (true when the averaged value is
+  new: the nodelet then publishes drilling_state), ``averaged_force``, ``feature``,
+  ``last_key_point`` and ``stop`` (the drill stops; latched by the C++ side until reset);
+- optionally ``stop_reason()``, ``describe()`` and ``parameter_names()``.
+
+Recognizer is the base class with that contract and the parameter handling; ThresholdRecognizer
+is a force-threshold baseline written with it."""
+
+
+class Recognizer:
+    """Base class: declare PARAMETERS = {name: (type, default, check)}; check(value) -> bool."""
+
+    PARAMETERS = {}
+
+    def __init__(self):
+        self.params = {name: default for name, (_, default, _) in self.PARAMETERS.items()}
+        self.reset()
+
+    def configure(self, settings):
+        """Sets the named parameters from text; ValueError names a bad or unknown one."""
+        values = dict(self.params)
+        for name, text in settings.items():
+            if name not in self.PARAMETERS:
+                raise ValueError('%s: unknown parameter of %s (known: %s)' % (
+                    name, type(self).__name__, ', '.join(sorted(self.PARAMETERS)) or 'none'))
+            kind, _, check = self.PARAMETERS[name]
+            try:
+                value = kind(text)
+            except ValueError:
+                raise ValueError('%s: not a %s: %r' % (name, kind.__name__, text)) from None
+            if not check(value):
+                raise ValueError('%s: %r is out of range' % (name, value))
+            values[name] = value
+        self.params = values
+        self.reset()
+
+    def reset(self):
+        """A new trial."""
+
+    def push(self, t, raw_force):
+        """One raw sample; the output dict (see the module's documentation)."""
+        raise NotImplementedError
+
+    def parameter_names(self):
+        return sorted(self.PARAMETERS)
+
+    def describe(self):
+        return '%s(%s)' % (type(self).__name__, ', '.join(
+            '%s=%s' % (name, self.params[name]) for name in sorted(self.params)))
+
+
+def _positive(value):
+    return value > 0
+
+
+class ThresholdRecognizer(Recognizer):
+    """A force-threshold baseline: block means of `pre_average` raw samples; the outer cortex
+    is a block mean above `cortical_n`, the cancellous bone a later one below `cancellous_n`,
+    and the inner cortex `confirm` consecutive block means above `cortical_n` again: the stop.
+    Its thresholds are absolute forces, so it depends on the specimen's force levels (the
+    paper's recognizer normalises by its outer layer's amplitude, D). The defaults lie between
+    the simulated specimens' cortical and cancellous block means (about 3 N and 1.3 N at
+    12000 rpm, 0.5 mm/s: doc/simulator_physics.md); tune them on training data."""
+
+    PARAMETERS = {
+        'pre_average': (int, 50, _positive),
+        'cortical_n': (float, 2.2, _positive),
+        'cancellous_n': (float, 1.7, _positive),
+        'confirm': (int, 2, _positive),
+    }
+
+    def reset(self):
+        self.block = []
+        self.state = 'idle'
+        self.above = 0
+        self.stopped_at = None
+
+    def push(self, t, raw_force):
+        self.block.append(raw_force)
+        if len(self.block) < self.params['pre_average']:
+            return {}
+        mean = sum(self.block) / len(self.block)
+        self.block = []
+        high = mean > self.params['cortical_n']
+        if self.state == 'idle' and high:
+            self.state = 'outer_cortical'
+        elif self.state == 'outer_cortical' and mean < self.params['cancellous_n']:
+            self.state = 'cancellous'
+        elif self.state == 'cancellous':
+            self.above = self.above + 1 if high else 0
+            if self.above >= self.params['confirm']:
+                self.state = 'inner_cortical'
+                self.stopped_at = t
+        key_point = {'idle': 0, 'outer_cortical': 1, 'cancellous': 3, 'inner_cortical': 4}
+        return {'new_average': True, 'averaged_force': mean, 'state': self.state,
+                'layer_state': self.state, 'last_key_point': key_point[self.state],
+                'stop': self.state == 'inner_cortical'}
+
+    def stop_reason(self):
+        return ('inner cortical layer reached (ThresholdRecognizer): %d block means above %.3g N '
+                'after the cancellous layer, at t=%.3f s' % (
+                    self.params['confirm'], self.params['cortical_n'], self.stopped_at or 0.0))

@@ -1,0 +1,181 @@
+#include "pedicle_drilling/python/python_recognizer.hpp"
+
+#include <pybind11/embed.h>
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <mutex>
+#include <set>
+#include <stdexcept>
+
+namespace py = pybind11;
+
+namespace pedicle_drilling {
+
+namespace {
+
+/**
+ * @brief The process's interpreter: started once, on first use, never finalised (a nodelet's
+ *        library may be unloaded while Python objects it made are still referenced). The
+ *        starting thread gives the GIL up, so that every call takes it (py::gil_scoped_acquire)
+ *        from whichever thread it runs on. A process that already runs Python is used as is.
+ */
+void ensureInterpreter() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    if (Py_IsInitialized()) return;
+    py::initialize_interpreter(false);  // no signal handlers: the host process keeps its own
+    PyEval_SaveThread();
+  });
+}
+
+/** @brief "<module>.<Class>" split at its last dot; throws naming the form expected. */
+std::pair<std::string, std::string> splitClassName(const std::string& name) {
+  const std::size_t dot = name.rfind('.');
+  if (dot == std::string::npos || dot == 0 || dot + 1 == name.size()) {
+    throw std::runtime_error("python recognizer '" + name +
+                             "': expected python:<module>.<Class>, e.g. "
+                             "python:pd_campaign.recognizers.ThresholdRecognizer");
+  }
+  return {name.substr(0, dot), name.substr(dot + 1)};
+}
+
+core::DrillingState stateFromName(const std::string& key, const std::string& name) {
+  using S = core::DrillingState;
+  for (S s : {S::kIdle, S::kOuterCortical, S::kOuterPunctured, S::kCancellous, S::kInnerCortical,
+              S::kBreakthrough, S::kStopped}) {
+    if (name == core::toString(s)) return s;
+  }
+  throw std::invalid_argument(key + ": unknown state '" + name +
+                              "' (idle, outer_cortical, outer_punctured, cancellous, "
+                              "inner_cortical, breakthrough, stopped)");
+}
+
+const std::set<std::string>& outputKeys() {
+  static const std::set<std::string> keys{
+      "state", "layer_state", "new_average", "averaged_force", "feature", "stop", "last_key_point"};
+  return keys;
+}
+
+}  // namespace
+
+bool isPythonClassName(const std::string& name) { return name.rfind(kPythonClassPrefix, 0) == 0; }
+
+/** @brief The Python object, touched only with the GIL held. */
+struct PythonRecognizer::Impl {
+  py::object object;
+};
+
+PythonRecognizer::PythonRecognizer(const std::string& class_name)
+    : impl_(std::make_unique<Impl>()), class_name_(class_name) {
+  ensureInterpreter();
+  const auto [module_name, type_name] = splitClassName(class_name);
+  py::gil_scoped_acquire gil;
+  try {
+    py::object type = py::module_::import(module_name.c_str()).attr(type_name.c_str());
+    impl_->object = type();
+    for (const char* method : {"configure", "reset", "push"}) {
+      if (!py::hasattr(impl_->object, method)) {
+        throw std::runtime_error(std::string("has no method ") + method + "()");
+      }
+    }
+  } catch (const std::exception& e) {
+    impl_->object = py::object();
+    throw std::runtime_error("python recognizer '" + class_name + "' cannot be made: " + e.what());
+  }
+}
+
+PythonRecognizer::~PythonRecognizer() {
+  py::gil_scoped_acquire gil;
+  impl_->object = py::object();  // released with the GIL held
+}
+
+void PythonRecognizer::configure(const core::RecognizerSettings& settings) {
+  py::gil_scoped_acquire gil;
+  py::dict values;
+  for (const auto& [name, value] : settings) values[py::str(name)] = py::str(value);
+  try {
+    impl_->object.attr("configure")(values);
+  } catch (const py::error_already_set& e) {
+    // A ValueError names the parameter first (the contract of every recognizer's configure).
+    throw std::invalid_argument(py::str(e.value()).cast<std::string>());
+  }
+  output_ = core::RecognizerOutput();
+  index_ = 0;
+}
+
+void PythonRecognizer::reset() {
+  py::gil_scoped_acquire gil;
+  impl_->object.attr("reset")();
+  output_ = core::RecognizerOutput();
+  index_ = 0;
+}
+
+const core::RecognizerOutput& PythonRecognizer::push(double t, double raw_force) {
+  if (!std::isfinite(t) || !std::isfinite(raw_force)) {
+    throw std::invalid_argument("push: t and raw_force must be finite");
+  }
+  const std::size_t index = index_++;
+  py::gil_scoped_acquire gil;
+  py::dict out;
+  try {
+    out = impl_->object.attr("push")(t, raw_force);
+  } catch (const py::error_already_set& e) {
+    throw std::runtime_error(class_name_ + ".push: " + e.what());
+  } catch (const py::cast_error&) {
+    throw std::runtime_error(class_name_ + ".push: must return a dict");
+  }
+  const bool was_stopped = output_.stop;
+  output_.new_average = false;
+  for (const auto& item : out) {
+    const std::string key = py::str(item.first);
+    if (outputKeys().count(key) == 0) {
+      throw std::invalid_argument(class_name_ + ".push: unknown key '" + key + "'");
+    }
+    const py::handle v = item.second;
+    if (key == "state" || key == "layer_state") {
+      const core::DrillingState s = stateFromName(key, py::str(v));
+      (key == "state" ? output_.state : output_.layer_state) = s;
+    } else if (key == "new_average") {
+      output_.new_average = v.cast<bool>();
+    } else if (key == "averaged_force") {
+      output_.averaged_force = v.cast<double>();
+    } else if (key == "feature") {
+      output_.feature = v.cast<double>();
+    } else if (key == "stop") {
+      output_.stop = output_.stop || v.cast<bool>();  // latched until reset
+    } else if (key == "last_key_point") {
+      output_.last_key_point = v.cast<int>();
+    }
+  }
+  if (output_.stop && !was_stopped) {
+    output_.stop_t = t;
+    output_.stop_index = index;
+    output_.stop_key_point = output_.last_key_point;
+  }
+  if (output_.stop) output_.state = core::DrillingState::kStopped;
+  return output_;
+}
+
+std::string PythonRecognizer::stopReason() const {
+  if (!output_.stop) return "";
+  py::gil_scoped_acquire gil;
+  if (py::hasattr(impl_->object, "stop_reason")) {
+    return py::str(impl_->object.attr("stop_reason")());
+  }
+  return class_name_ + " stop at t=" + std::to_string(output_.stop_t) + " s";
+}
+
+std::string PythonRecognizer::describe() const {
+  py::gil_scoped_acquire gil;
+  if (py::hasattr(impl_->object, "describe")) return py::str(impl_->object.attr("describe")());
+  return class_name_;
+}
+
+std::vector<std::string> PythonRecognizer::parameterNames() const {
+  py::gil_scoped_acquire gil;
+  if (!py::hasattr(impl_->object, "parameter_names")) return {};
+  return impl_->object.attr("parameter_names")().cast<std::vector<std::string>>();
+}
+
+}  // namespace pedicle_drilling
