@@ -13,9 +13,11 @@ command -v "${CXX}" > /dev/null || { echo "build_fuzzers: ${CXX} not found (make
 [ -e "${LIB_DIR}/libpedicle_drilling_core.so" ] || { echo "build_fuzzers: build the workspace first (make build)" >&2; exit 2; }
 FLAGS=(-std=c++17 -O1 -g -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
        -Wall -Wextra -Werror -I"${ROOT}/include" -isystem /usr/include/eigen3)
-build() {  # build NAME SOURCES...
+build() {  # build NAME SOURCES... [-- LIBRARIES...]: the system libraries the sources call
   local name="$1"; shift
-  local sources=("${ROOT}/test/fuzz/${name}.cpp" "$@")
+  local sources=("${ROOT}/test/fuzz/${name}.cpp") libraries=()
+  while [ "$#" -gt 0 ] && [ "$1" != "--" ]; do sources+=("$1"); shift; done
+  if [ "$#" -gt 0 ]; then shift; libraries=("$@"); fi
   local binary="${OUT}/${name}"
   if [ -x "${binary}" ]; then
     local newer=0 s
@@ -26,10 +28,10 @@ build() {  # build NAME SOURCES...
   fi
   echo "build_fuzzers: ${name}"
   "${CXX}" "${FLAGS[@]}" "${sources[@]}" -L"${LIB_DIR}" -lpedicle_drilling_core \
-    -Wl,-rpath,"${LIB_DIR}" -o "${binary}.tmp"
+    "${libraries[@]}" -Wl,-rpath,"${LIB_DIR}" -o "${binary}.tmp"
   mv "${binary}.tmp" "${binary}"
 }
 CORE="${ROOT}/src/core"
-build fuzz_model_yaml "${CORE}/breathing/motion_model_io.cpp" "${CORE}/breathing/motion_model.cpp" "${CORE}/common/atomic_file.cpp"
+build fuzz_model_yaml "${CORE}/breathing/motion_model_io.cpp" "${CORE}/breathing/motion_model.cpp" "${CORE}/common/atomic_file.cpp" -- -lyaml-cpp
 build fuzz_recording_csv "${CORE}/breathing/virtual_volunteer.cpp" "${CORE}/common/atomic_file.cpp"
 build fuzz_recognizer "${CORE}/drilling/state_recognizer.cpp"

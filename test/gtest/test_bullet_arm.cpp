@@ -16,6 +16,7 @@
 #include <vector>
 
 #include <urdf_parser/urdf_parser.h>
+#include <yaml-cpp/yaml.h>
 #include <Eigen/Dense>
 
 #include "pedicle_drilling/core/robot/bullet_arm.hpp"
@@ -65,32 +66,11 @@ Eigen::Isometry3d urdfFk(const urdf::ModelInterface& model, const std::string& l
   return t;
 }
 
-/// Reads `drilling_pose: {name: value, ...}` (flow map, possibly over several lines).
+/// The `drilling_pose` mapping of config/drilling_pose.yaml: joint name -> value.
 std::map<std::string, double> readDrillingPose(const std::string& path) {
-  std::string text = readFile(path);
-  std::string body;
-  std::istringstream lines(text);
-  std::string line;
-  while (std::getline(lines, line)) {
-    const auto hash = line.find('#');
-    if (hash != std::string::npos) line = line.substr(0, hash);
-    body += line + " ";
-  }
-  const auto key = body.find("drilling_pose:");
-  if (key == std::string::npos) throw std::runtime_error("no drilling_pose key");
-  const auto open = body.find('{', key);
-  const auto close = body.find('}', open);
-  std::string inner = body.substr(open + 1, close - open - 1);
   std::map<std::string, double> out;
-  std::istringstream items(inner);
-  std::string item;
-  while (std::getline(items, item, ',')) {
-    const auto colon = item.find(':');
-    if (colon == std::string::npos) continue;
-    std::string name = item.substr(0, colon);
-    name.erase(0, name.find_first_not_of(" \t"));
-    name.erase(name.find_last_not_of(" \t") + 1);
-    out[name] = std::stod(item.substr(colon + 1));
+  for (const auto& kv : YAML::LoadFile(path)["drilling_pose"]) {
+    out[kv.first.as<std::string>()] = kv.second.as<double>();
   }
   return out;
 }

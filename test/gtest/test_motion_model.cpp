@@ -1,6 +1,7 @@
 // Tests of the displacement models (Eq. 6-9), the stiffness groups, and the model YAML file.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -291,6 +292,13 @@ std::string replaceFirst(std::string s, const std::string& from, const std::stri
   return s;
 }
 
+/** The 1-based line of the first @p fragment in @p text. */
+int lineOf(const std::string& text, const std::string& fragment) {
+  const size_t p = text.find(fragment);
+  EXPECT_NE(p, std::string::npos) << fragment;
+  return 1 + static_cast<int>(std::count(text.begin(), text.begin() + p, '\n'));
+}
+
 TEST(ModelYaml, ReaderRejectsBadFiles) {
   const std::string good = modelToYaml(sampleModel());
   ASSERT_NO_THROW(modelFromYaml(good));
@@ -298,8 +306,12 @@ TEST(ModelYaml, ReaderRejectsBadFiles) {
   expectYamlError(replaceFirst(good, "model: hysteresis", "model: cubic"), "cubic");
   expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: abc"), "axes.ap.q1");
   expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: nan"), "axes.ap.q1");
-  expectYamlError(replaceFirst(good, "    level: 6", "\tlevel: 6"), "tab");
-  expectYamlError(replaceFirst(good, "    level: 6", "     level: 6"), "indentation");
+  expectYamlError(
+      replaceFirst(good, "    level: 6", "\tlevel: 6"),
+      "line " + std::to_string(lineOf(good, "    level: 6")) + " is indented with a tab character");
+  // Not YAML: yaml-cpp's message, with the file and the line.
+  expectYamlError(replaceFirst(good, "    level: 6", "     level: 6"),
+                  "m.yaml:" + std::to_string(lineOf(good, "    level: 6")) + ":");
   expectYamlError(replaceFirst(good, "kept_levels: [3, 4, 5]", "kept_levels: 3"), "kept_levels");
   expectYamlError(good + "patient_id: \"again\"\n", "duplicate");
   expectYamlError("", "patient_id");
@@ -311,6 +323,106 @@ TEST(ModelYaml, ReaderRejectsBadFiles) {
   expectYamlError(replaceFirst(good, "format_version: 1", "format_version: one"), "format_version");
   ASSERT_NO_THROW(modelFromYaml(replaceFirst(good, "format_version: 1\n", "")));  // older file
   expectYamlError(good.substr(0, good.find("  lr:")), "axes.lr");
+}
+
+TEST(ModelYaml, ReaderNamesTheFileTheLineAndTheKey) {
+  const std::string good = modelToYaml(sampleModel());
+  const std::string where = "m.yaml:" + std::to_string(lineOf(good, "q1: 0.1")) + ": ";
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: abc"),
+                  where + "key 'axes.ap.q1' is not a finite number: 'abc'");
+  // Missing keys: the document's, an axis's, a whole axis.
+  expectYamlError(replaceFirst(good, "patient_id:", "patient:"),
+                  "m.yaml: missing key 'patient_id'");
+  expectYamlError(replaceFirst(good, "    q0: -0.33333333333333331\n", ""),
+                  "m.yaml: missing key 'axes.ap.q0'");
+  expectYamlError(replaceFirst(good, "  si:", "  xx:"), "missing key 'axes.si'");
+  // Not a number: text, a quoted number (a string), a list.
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: \"0.1\""),
+                  "key 'axes.ap.q1' is not a finite number: \"0.1\" (quoted: a string)");
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: !!float 0.1"), "axes.ap.q1");
+  expectYamlError(replaceFirst(good, "q1: 0.10000000000000001", "q1: [0.1]"),
+                  "key 'axes.ap.q1' is not a finite number: a list");
+  expectYamlError(replaceFirst(good, "r2: 0.5", "r2: 0.5 0.6"), "axes.si.r2");
+  // Not finite, in YAML's spellings too.
+  for (const char* bad : {"nan", ".nan", ".NaN", ".inf", "-.inf", "1e999"}) {
+    SCOPED_TRACE(bad);
+    expectYamlError(replaceFirst(good, "q0: 1e-300", std::string("q0: ") + bad),
+                    "key 'axes.si.q0' is not a finite number");
+  }
+  // Not a decimal integer (yaml-cpp alone would read 0x6 as 6 and 010 as 8).
+  expectYamlError(replaceFirst(good, "level: 6", "level: 0x6"), "axes.ap.level");
+  expectYamlError(replaceFirst(good, "level: 6", "level: 6.0"), "axes.ap.level");
+  expectYamlError(replaceFirst(good, "level: 6", "level: \"6\""), "axes.ap.level");
+  expectYamlError(replaceFirst(good, "format_version: 1", "format_version: 1.0"), "format_version");
+}
+
+TEST(ModelYaml, ReaderRejectsBadLists) {
+  const std::string good = modelToYaml(sampleModel());
+  const std::string key = "key 'axes.ap.kept_levels'";
+  // More kept detail levels than the decomposition has, one listed twice, one out of range.
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "[1, 2, 3, 4, 5, 6, 7]"), key);
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "[3, 4, 4]"), key);
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "[0, 4]"), key);
+  expectYamlError(replaceFirst(good, "[2, 3]", "[2, 3, 6]"), "key 'axes.si.kept_levels'");
+  expectYamlError(replaceFirst(good, "    level: 0", "    level: -1"), "key 'axes.lr.level'");
+  // Not a list of integers.
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "[3, x]"), key);
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "[3, [4]]"), key);
+  expectYamlError(replaceFirst(good, "[3, 4, 5]", "{3: 4}"), key + " must be a list");
+  expectYamlError(replaceFirst(good, "kept_levels: [3, 4, 5]", "kept_levels:"), key);
+  // A block list is YAML too.
+  const PatientModel block =
+      modelFromYaml(replaceFirst(good, " [3, 4, 5]", "\n      - 3\n      - 5"));
+  EXPECT_EQ(block.axes[0].kept_levels, (std::vector<int>{3, 5}));
+}
+
+TEST(ModelYaml, ReaderRejectsBadStructure) {
+  const std::string good = modelToYaml(sampleModel());
+  expectYamlError(good + "---\npatient_id: \"second\"\n",
+                  "more than one YAML document, or text after the document");
+  // yaml-cpp's LoadAll loops forever on these (a ',' where a document starts: fuzzing).
+  expectYamlError(
+      ",\xff"
+      "e%",
+      "m.yaml:1:1: more than one YAML document, or text after");
+  expectYamlError(good + ",\n", "m.yaml:");
+  expectYamlError("[1] x\n", "m.yaml:1:5: more than one YAML document, or text after");
+  expectYamlError("just text\n", "must be a mapping");
+  expectYamlError(replaceFirst(good, "    r2: 0.5\n", "    r2: 0.5\n    r2: 0.5\n"),
+                  "duplicate key 'axes.si.r2'");
+  expectYamlError(replaceFirst(good, "  si:\n", "  si: 3\n  ignored:\n"),
+                  "key 'axes.si' must be a mapping");
+  expectYamlError(replaceFirst(good, "patient_id: ", "patient_id: [a]\nx: "),
+                  "key 'patient_id' must be a string");
+  expectYamlError(good + "meta:\n  a: \"1\"\n", "duplicate key 'meta'");
+  expectYamlError(replaceFirst(good, "  note:", "  \"a b\":"), "invalid meta key 'a b'");
+  expectYamlError(replaceFirst(good, "  note:", "  null:"), "a key must be a string");
+  expectYamlError(replaceFirst(good, "  note: ", "  note:\n    deeper: "), "meta.note");
+  expectYamlError(replaceFirst(good, "model: linear", "model: [linear]"), "unknown model kind");
+  // Truncated inside a value.
+  expectYamlError(good.substr(0, good.find("wavelet: \"coif4\"") + 12), "m.yaml:");
+}
+
+TEST(ModelYaml, WriterRefusesMetaKeysTheReaderWouldRefuse) {
+  PatientModel pm = sampleModel();
+  for (const std::string bad : {"", "a b", "x:y", "&anchor", "-dash", "null", "tab\t"}) {
+    SCOPED_TRACE(bad);
+    pm.meta = {{bad, "v"}};
+    EXPECT_THROW(modelToYaml(pm), ModelFileError);
+  }
+  pm.meta = {{"seed", "1"}, {"seed", "2"}};
+  EXPECT_THROW(modelToYaml(pm), ModelFileError);
+  pm.meta = {{"lag_s_ap", "0.08"}, {"x.y-z", "2"}, {"_1", ""}};
+  expectSameModel(pm, modelFromYaml(modelToYaml(pm)));
+}
+
+TEST(ModelYaml, AnyStringRoundTrips) {
+  PatientModel pm = sampleModel();
+  const char id[] = "q\"b\\s\nn\tt\rr\x01\x7f\0z \xc3\xa9 # : [x] ";  // \0: a NUL
+  pm.patient_id = std::string(id, sizeof id - 1);
+  pm.axes[1].wavelet = "  spaces  ";
+  pm.meta = {{"empty", ""}, {"yes", "true"}, {"number", "1e5"}, {"tilde", "~"}};
+  expectSameModel(pm, modelFromYaml(modelToYaml(pm)));
 }
 
 TEST(ModelYaml, AtomicWriteIntoMissingDirectoryLeavesNothing) {

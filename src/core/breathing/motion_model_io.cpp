@@ -1,14 +1,19 @@
 /**
  * @file motion_model_io.cpp
- * @brief Per-patient model YAML writer (atomic) and reader (see motion_model_io.hpp).
+ * @brief Per-patient model YAML writer (atomic) and reader (yaml-cpp; see motion_model_io.hpp).
  */
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 
-#include <cerrno>
+#include <yaml-cpp/eventhandler.h>
+#include <yaml-cpp/yaml.h>
+
+#include <charconv>
 #include <cmath>
-#include <cstdlib>
+#include <cstdio>
 #include <fstream>
 #include <map>
+#include <optional>
+#include <set>
 #include <sstream>
 
 #include "pedicle_drilling/core/common/atomic_file.hpp"
@@ -24,187 +29,316 @@ std::string formatDouble(double v) {
   return os.str();
 }
 
+/** A YAML double-quoted string: '"' and '\' escaped, control characters as YAML escapes. */
 std::string quote(const std::string& s) {
   std::string out = "\"";
   for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (c == '\n') {
+    const auto u = static_cast<unsigned char>(c);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += c;
+    } else if (c == '\n') {
       out += "\\n";
-      continue;
+    } else if (c == '\t') {
+      out += "\\t";
+    } else if (u < 0x20 || u == 0x7f) {
+      char escape[8];
+      std::snprintf(escape, sizeof escape, "\\x%02x", u);
+      out += escape;
+    } else {
+      out += c;
     }
-    out += c;
   }
   return out + "\"";
 }
 
-std::string trim(const std::string& s) {
-  const size_t b = s.find_first_not_of(" \t\r\n");
-  if (b == std::string::npos) return "";
-  const size_t e = s.find_last_not_of(" \t\r\n");
-  return s.substr(b, e - b + 1);
+bool isAsciiAlnum(char c) {
+  return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9');
 }
 
-struct Entry {
-  std::string value;
-  bool quoted = false;
-  int line = 0;
+/**
+ * A meta key as the writer writes it, plain: letters, digits, '_' and, after the first
+ * character, '-' and '.'; never a word YAML reads as null. Such a key reads back unchanged.
+ */
+bool isMetaKey(const std::string& k) {
+  if (k.empty() || !(isAsciiAlnum(k[0]) || k[0] == '_')) return false;
+  if (k == "null" || k == "Null" || k == "NULL") return false;
+  for (char c : k) {
+    if (!(isAsciiAlnum(c) || c == '_' || c == '-' || c == '.')) return false;
+  }
+  return true;
+}
+
+/** How a value that is not what its key needs is shown in a message. */
+std::string shown(const YAML::Node& n) {
+  if (n.IsScalar() && n.Tag() == "!") return "\"" + n.Scalar() + "\" (quoted: a string)";
+  if (n.IsScalar() && n.Tag() != "?") return "'" + n.Scalar() + "' (tagged " + n.Tag() + ")";
+  if (n.IsScalar()) return "'" + n.Scalar() + "'";
+  if (n.IsSequence()) return "a list";
+  if (n.IsMap()) return "a mapping";
+  return "empty";
+}
+
+/** The file's origin, for messages: "<source>:<line>: ...". */
+struct Source {
+  std::string name;
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw ModelFileError(name + ": " + what);
+  }
+
+  [[noreturn]] void fail(const YAML::Node& at, const std::string& what) const {
+    const YAML::Mark mark = at.Mark();
+    if (mark.is_null()) fail(what);
+    throw ModelFileError(name + ":" + std::to_string(mark.line + 1) + ": " + what);
+  }
 };
 
-/** Removes a trailing comment that starts with '#' outside double quotes. */
-std::string stripComment(const std::string& s) {
-  bool in_quotes = false;
-  for (size_t i = 0; i < s.size(); ++i) {
-    if (in_quotes && s[i] == '\\') {
-      ++i;
-      continue;
-    }
-    if (s[i] == '"') in_quotes = !in_quotes;
-    if (!in_quotes && s[i] == '#' && (i == 0 || s[i - 1] == ' ')) return s.substr(0, i);
-  }
-  return s;
-}
-
-std::string unquote(const std::string& v, const std::string& where, bool* quoted) {
-  *quoted = false;
-  if (v.empty() || v.front() != '"') return v;
-  if (v.size() < 2 || v.back() != '"') throw ModelFileError(where + ": unterminated string");
-  std::string out;
-  for (size_t i = 1; i + 1 < v.size(); ++i) {
-    if (v[i] == '\\') {
-      if (i + 2 >= v.size()) throw ModelFileError(where + ": bad escape in string");
-      ++i;
-      out += v[i] == 'n' ? '\n' : v[i];
-    } else if (v[i] == '"') {
-      throw ModelFileError(where + ": unescaped quote in string");
-    } else {
-      out += v[i];
-    }
-  }
-  *quoted = true;
-  return out;
-}
-
-/** Parses the block-mapping subset into path -> entry ("axes.ap.q1"), keeping file order. */
-std::vector<std::pair<std::string, Entry>> parseFlat(const std::string& text,
-                                                     const std::string& source) {
-  struct Level {
-    int indent;
-    std::string key;
-    int child_indent;
-  };
-  std::vector<Level> stack;
-  int root_child_indent = -1;
-  std::vector<std::pair<std::string, Entry>> out;
-  std::map<std::string, int> seen;
-  std::istringstream in(text);
-  std::string raw;
-  int line_no = 0;
-  while (std::getline(in, raw)) {
-    ++line_no;
-    const std::string where = source + ":" + std::to_string(line_no);
-    if (raw.find('\t') != std::string::npos) throw ModelFileError(where + ": tab character");
-    const std::string line = stripComment(raw);
-    if (trim(line).empty()) continue;
-    const int indent = static_cast<int>(line.find_first_not_of(' '));
-    const std::string content = trim(line);
-    const size_t colon = content.find(':');
-    if (colon == std::string::npos || colon == 0) {
-      throw ModelFileError(where + ": expected 'key: value'");
-    }
-    const std::string key = trim(content.substr(0, colon));
-    const std::string value = trim(content.substr(colon + 1));
-    if (key.find_first_of(" \"[]{}") != std::string::npos) {
-      throw ModelFileError(where + ": invalid key '" + key + "'");
-    }
-    while (!stack.empty() && stack.back().indent >= indent) stack.pop_back();
-    int& child_indent = stack.empty() ? root_child_indent : stack.back().child_indent;
-    if (child_indent < 0) child_indent = indent;
-    if (child_indent != indent) throw ModelFileError(where + ": inconsistent indentation");
-    std::string path;
-    for (const Level& l : stack) path += l.key + ".";
-    path += key;
-    if (seen.count(path)) throw ModelFileError(where + ": duplicate key '" + path + "'");
-    seen[path] = line_no;
-    if (value.empty()) {
-      stack.push_back({indent, key, -1});
-      continue;
-    }
-    Entry e;
-    e.value = unquote(value, where, &e.quoted);
-    e.line = line_no;
-    out.emplace_back(path, e);
-  }
-  return out;
-}
-
-class Fields {
+/**
+ * A mapping of the file, its keys checked when read (strings, each once). Keys it does not know
+ * are ignored (units, equivalent_stiffness: informative only). A value's error names its key's
+ * path and line.
+ */
+class Mapping {
  public:
-  Fields(std::vector<std::pair<std::string, Entry>> flat, std::string source)
-      : flat_(std::move(flat)), source_(std::move(source)) {
-    for (size_t i = 0; i < flat_.size(); ++i) index_[flat_[i].first] = i;
+  /**
+   * @param node a mapping, or null (an empty document, `key:` alone): no entries.
+   * @param path the mapping's key path ("axes.ap"), "" for the document.
+   */
+  Mapping(const YAML::Node& node, std::string path, const Source& source)
+      : path_(std::move(path)), source_(source) {
+    if (node.IsNull()) return;
+    if (!node.IsMap()) source_.fail(node, "the file must be a mapping of keys to values");
+    for (const auto& kv : node) {
+      if (!kv.first.IsScalar()) source_.fail(kv.first, "a key must be a string");
+      const std::string key = kv.first.Scalar();
+      if (!entries_.emplace(key, Entry{kv.first, kv.second}).second) {
+        source_.fail(kv.first, "duplicate key '" + pathOf(key) + "'");
+      }
+      order_.push_back(key);
+    }
   }
 
-  const Entry& get(const std::string& key) const {
-    auto it = index_.find(key);
-    if (it == index_.end()) throw ModelFileError(source_ + ": missing key '" + key + "'");
-    return flat_[it->second].second;
-  }
-  bool has(const std::string& key) const { return index_.count(key) > 0; }
+  bool has(const std::string& key) const { return entries_.count(key) > 0; }
 
-  double getDouble(const std::string& key) const {
-    const Entry& e = get(key);
-    char* end = nullptr;
-    const double v = std::strtod(e.value.c_str(), &end);
-    if (e.quoted || e.value.empty() || *end != '\0' || !std::isfinite(v)) {
-      throw ModelFileError(where(e) + ": key '" + key + "' is not a finite number: '" + e.value +
-                           "'");
+  /** The key path of @p key in this mapping ("axes.ap.q1"). */
+  std::string pathOf(const std::string& key) const {
+    return path_.empty() ? key : path_ + "." + key;
+  }
+
+  /** @throws ModelFileError "<source>:<line>: <message>", at @p key's line. */
+  [[noreturn]] void failAt(const std::string& key, const std::string& message) const {
+    source_.fail(entry(key).key, message);
+  }
+
+  /** @throws ModelFileError "<source>:<line>: key '<path>' <what>", at @p key's line. */
+  [[noreturn]] void fail(const std::string& key, const std::string& what) const {
+    failAt(key, "key '" + pathOf(key) + "' " + what);
+  }
+
+  /** @throws ModelFileError naming the key's path when it is missing. */
+  const YAML::Node& get(const std::string& key) const { return entry(key).value; }
+
+  Mapping mapping(const std::string& key) const {
+    const YAML::Node& n = get(key);
+    if (!n.IsMap() && !n.IsNull())
+      fail(key, "must be a mapping of keys to values, not " + shown(n));
+    return Mapping(n, pathOf(key), source_);
+  }
+
+  std::string text(const std::string& key) const {
+    const YAML::Node& n = get(key);
+    if (!n.IsScalar()) fail(key, "must be a string, not " + shown(n));
+    return n.Scalar();
+  }
+
+  double number(const std::string& key) const {
+    const YAML::Node& n = get(key);
+    double v = 0.0;
+    // Plain scalars only: a quoted "0.5" is a string (YAML's tag "?" marks a plain scalar).
+    if (!n.IsScalar() || n.Tag() != "?" || !YAML::convert<double>::decode(n, v) ||
+        !std::isfinite(v)) {
+      fail(key, "is not a finite number: " + shown(n));
     }
     return v;
   }
 
-  int getInt(const std::string& key) const {
-    const Entry& e = get(key);
-    return parseInt(e.value, e, key);
-  }
+  int integer(const std::string& key) const { return toInt(get(key), key); }
 
-  std::vector<int> getIntList(const std::string& key) const {
-    const Entry& e = get(key);
-    const std::string& v = e.value;
-    if (e.quoted || v.size() < 2 || v.front() != '[' || v.back() != ']') {
-      throw ModelFileError(where(e) + ": key '" + key + "' must be a list like [3, 4, 5]");
-    }
+  std::vector<int> integers(const std::string& key) const {
+    const YAML::Node& n = get(key);
+    if (!n.IsSequence()) fail(key, "must be a list like [3, 4, 5], not " + shown(n));
     std::vector<int> out;
-    const std::string inner = trim(v.substr(1, v.size() - 2));
-    if (inner.empty()) return out;
-    std::istringstream is(inner);
-    std::string item;
-    while (std::getline(is, item, ',')) out.push_back(parseInt(trim(item), e, key));
-    if (inner.back() == ',') throw ModelFileError(where(e) + ": trailing comma in '" + key + "'");
+    for (const YAML::Node& item : n) out.push_back(toInt(item, key));
     return out;
   }
 
-  const std::vector<std::pair<std::string, Entry>>& flat() const { return flat_; }
+  /** The keys in file order. */
+  const std::vector<std::string>& keys() const { return order_; }
 
  private:
-  std::string where(const Entry& e) const { return source_ + ":" + std::to_string(e.line); }
+  struct Entry {
+    YAML::Node key;
+    YAML::Node value;
+  };
 
-  int parseInt(const std::string& s, const Entry& e, const std::string& key) const {
-    char* end = nullptr;
-    errno = 0;
-    const long v = std::strtol(s.c_str(), &end, 10);
-    if (e.quoted || s.empty() || *end != '\0' || errno != 0 || v < -1000000 || v > 1000000) {
-      throw ModelFileError(where(e) + ": key '" + key + "' has a bad integer '" + s + "'");
+  const Entry& entry(const std::string& key) const {
+    const auto it = entries_.find(key);
+    if (it == entries_.end()) source_.fail("missing key '" + pathOf(key) + "'");
+    return it->second;
+  }
+
+  /**
+   * A decimal integer within +-1e6. yaml-cpp's own integer conversion is not used: it reads a
+   * leading 0 as octal ("010" = 8) and "0x" as hexadecimal, and the file is decimal.
+   */
+  int toInt(const YAML::Node& n, const std::string& key) const {
+    const std::string& s = n.Scalar();
+    long v = 0;
+    const char* first = s.data() + (!s.empty() && s[0] == '+' ? 1 : 0);
+    const char* last = s.data() + s.size();
+    const auto [end, error] = std::from_chars(first, last, v);
+    if (!n.IsScalar() || n.Tag() != "?" || first == last || error != std::errc() || end != last ||
+        v < -1000000 || v > 1000000) {
+      fail(key, "has a bad integer " + shown(n));
     }
     return static_cast<int>(v);
   }
 
-  std::vector<std::pair<std::string, Entry>> flat_;
-  std::map<std::string, size_t> index_;
-  std::string source_;
+  std::map<std::string, Entry> entries_;
+  std::vector<std::string> order_;
+  std::string path_;
+  const Source& source_;
 };
 
-}  // namespace
+/**
+ * A hint for a YAML error at 0-based line @p last: the first line up to it indented with a tab
+ * (yaml-cpp reports most of them as a map without end); "" if none.
+ */
+std::string tabHint(const std::string& text, int last) {
+  std::istringstream in(text);
+  std::string line;
+  for (int i = 0; i <= last && std::getline(in, line); ++i) {
+    const size_t content = line.find_first_not_of(" \t");
+    if (content != std::string::npos && line.find('\t') < content) {
+      return " (line " + std::to_string(i + 1) +
+             " is indented with a tab character; YAML "
+             "indents with spaces)";
+    }
+  }
+  return "";
+}
 
+/** Records where each document of a YAML stream starts; nothing else. */
+class DocumentStarts : public YAML::EventHandler {
+ public:
+  std::vector<YAML::Mark> marks;  ///< one per document, in order
+
+  void OnDocumentStart(const YAML::Mark& mark) override { marks.push_back(mark); }
+  void OnDocumentEnd() override {}
+  void OnNull(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnAlias(const YAML::Mark&, YAML::anchor_t) override {}
+  void OnScalar(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                const std::string&) override {}
+  void OnSequenceStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                       YAML::EmitterStyle::value) override {}
+  void OnSequenceEnd() override {}
+  void OnMapStart(const YAML::Mark&, const std::string&, YAML::anchor_t,
+                  YAML::EmitterStyle::value) override {}
+  void OnMapEnd() override {}
+};
+
+/**
+ * Where a second document starts, or text yaml-cpp cannot begin a document with (its mark
+ * repeats: the parser never consumes it), if any. Driven here for two documents at most:
+ * YAML::LoadAll of yaml-cpp 0.7 loops forever, allocating, on such text (a ',' at the top
+ * level: jbeder/yaml-cpp issue 1040), and YAML::Load ignores what follows the first document.
+ */
+std::optional<YAML::Mark> afterFirstDocument(const std::string& text) {
+  std::istringstream in(text);
+  YAML::Parser parser(in);
+  DocumentStarts starts;
+  while (starts.marks.size() < 2 && parser.HandleNextDocument(starts)) {
+  }
+  if (starts.marks.size() < 2) return std::nullopt;
+  return starts.marks[1];
+}
+
+/** The single YAML document of @p text (null for an empty text: no entries). */
+YAML::Node loadDocument(const std::string& text, const Source& source) {
+  const auto where = [&source](const YAML::Mark& m) {
+    return source.name + ":" + std::to_string(m.line + 1) + ":" + std::to_string(m.column + 1);
+  };
+  try {
+    if (const std::optional<YAML::Mark> after = afterFirstDocument(text)) {
+      throw ModelFileError(where(*after) +
+                           ": more than one YAML document, or text after the document");
+    }
+    return YAML::Load(text);
+  } catch (const YAML::Exception& e) {
+    if (e.mark.is_null()) source.fail("not YAML: " + e.msg);
+    throw ModelFileError(where(e.mark) + ": not YAML: " + e.msg + tabHint(text, e.mark.line));
+  }
+}
+
+/** Files written before the key existed are version 1; a newer one is refused, never guessed. */
+void checkFormatVersion(const Mapping& root) {
+  if (!root.has("format_version")) return;
+  const int version = root.integer("format_version");
+  if (version != kModelFormatVersion) {
+    root.failAt("format_version", "format_version " + std::to_string(version) +
+                                      " is not supported (this build reads format_version " +
+                                      std::to_string(kModelFormatVersion) + ")");
+  }
+}
+
+/** The DWT provenance: a level >= 0 and distinct kept detail levels within [1, level]. */
+void readDenoising(const Mapping& m, AxisModelRecord* r) {
+  r->wavelet = m.text("wavelet");
+  r->level = m.integer("level");
+  if (r->level < 0) m.fail("level", "is negative");
+  r->kept_levels = m.integers("kept_levels");
+  std::set<int> seen;
+  for (int k : r->kept_levels) {
+    if (k < 1 || k > r->level || !seen.insert(k).second) {
+      m.fail("kept_levels", "must list distinct detail levels in [1, " + std::to_string(r->level) +
+                                "] (level), not " + std::to_string(k) +
+                                (seen.count(k) ? " twice" : ""));
+    }
+  }
+}
+
+AxisModelRecord readAxis(const Mapping& m, Axis a) {
+  AxisModelRecord r;
+  const YAML::Node& kind = m.get("model");
+  if (!kind.IsScalar() || !parseModelKind(kind.Scalar(), &r.model.kind)) {
+    m.failAt("model", "unknown model kind " + shown(kind) + " for axis " + axisName(a) +
+                          " (expected linear or hysteresis)");
+  }
+  r.model.q1 = m.number("q1");
+  r.model.q0 = m.number("q0");
+  r.model.q2 = r.model.kind == ModelKind::kHysteresis ? m.number("q2") : 0.0;
+  r.r2 = m.number("r2");
+  r.rmse = m.has("rmse") ? m.number("rmse") : 0.0;
+  readDenoising(m, &r);
+  return r;
+}
+
+/** The optional free key/value strings, in file order. */
+std::vector<std::pair<std::string, std::string>> readMeta(const Mapping& root) {
+  std::vector<std::pair<std::string, std::string>> out;
+  if (!root.has("meta")) return out;
+  const Mapping meta = root.mapping("meta");
+  for (const std::string& key : meta.keys()) {
+    if (!isMetaKey(key)) {
+      meta.failAt(key, "invalid meta key '" + key + "' (letters, digits, '_', '-' and '.' only)");
+    }
+    out.emplace_back(key, meta.text(key));
+  }
+  return out;
+}
+
+}  // namespace
 MotionModel PatientModel::motionModel() const {
   MotionModel m;
   for (size_t i = 0; i < axes.size(); ++i) m.axes[i] = axes[i].model;
@@ -255,9 +389,10 @@ std::string modelToYaml(const PatientModel& model) {
   }
   if (!model.meta.empty()) {
     os << "meta:\n";
+    std::set<std::string> written;  // the reader refuses a repeated key
     for (const auto& kv : model.meta) {
-      if (kv.first.empty() || kv.first.find_first_of(" :#\"[]{}\n\t") != std::string::npos) {
-        throw ModelFileError("modelToYaml: invalid meta key '" + kv.first + "'");
+      if (!isMetaKey(kv.first) || !written.insert(kv.first).second) {
+        throw ModelFileError("modelToYaml: invalid or repeated meta key '" + kv.first + "'");
       }
       os << "  " << kv.first << ": " << quote(kv.second) << "\n";
     }
@@ -266,40 +401,14 @@ std::string modelToYaml(const PatientModel& model) {
 }
 
 PatientModel modelFromYaml(const std::string& text, const std::string& source) {
-  const Fields f(parseFlat(text, source), source);
-  // Files written before the key existed are version 1; a newer one is refused, never guessed.
-  if (f.has("format_version")) {
-    const int version = f.getInt("format_version");
-    if (version != kModelFormatVersion) {
-      throw ModelFileError(source + ": format_version " + std::to_string(version) +
-                           " is not supported (this build reads format_version " +
-                           std::to_string(kModelFormatVersion) + ")");
-    }
-  }
+  const Source origin{source};
+  const Mapping root(loadDocument(text, origin), "", origin);
+  checkFormatVersion(root);
   PatientModel m;
-  m.patient_id = f.get("patient_id").value;
-  for (Axis a : kAllAxes) {
-    const std::string p = "axes." + axisName(a) + ".";
-    AxisModelRecord& r = m.axes[static_cast<int>(a)];
-    const Entry& kind = f.get(p + "model");
-    if (!parseModelKind(kind.value, &r.model.kind)) {
-      throw ModelFileError(source + ":" + std::to_string(kind.line) + ": unknown model kind '" +
-                           kind.value + "' for axis " + axisName(a) +
-                           " (expected linear or hysteresis)");
-    }
-    r.model.q1 = f.getDouble(p + "q1");
-    r.model.q0 = f.getDouble(p + "q0");
-    r.model.q2 = 0.0;
-    if (r.model.kind == ModelKind::kHysteresis) r.model.q2 = f.getDouble(p + "q2");
-    r.r2 = f.getDouble(p + "r2");
-    r.rmse = f.has(p + "rmse") ? f.getDouble(p + "rmse") : 0.0;
-    r.wavelet = f.get(p + "wavelet").value;
-    r.level = f.getInt(p + "level");
-    r.kept_levels = f.getIntList(p + "kept_levels");
-  }
-  for (const auto& kv : f.flat()) {
-    if (kv.first.rfind("meta.", 0) == 0) m.meta.emplace_back(kv.first.substr(5), kv.second.value);
-  }
+  m.patient_id = root.text("patient_id");
+  const Mapping axes = root.mapping("axes");
+  for (Axis a : kAllAxes) m.axes[static_cast<int>(a)] = readAxis(axes.mapping(axisName(a)), a);
+  m.meta = readMeta(root);
   return m;
 }
 

@@ -1,9 +1,9 @@
 /**
  * @file motion_model_io.hpp
- * @brief Per-patient displacement-model file (YAML subset), written atomically.
+ * @brief Per-patient displacement-model file (YAML, read with yaml-cpp), written atomically.
  *
- * Format (block mappings with two-space indentation, `key: value` scalars, flow sequences of
- * integers, `#` comments; strings double-quoted with \" and \\ escapes):
+ * Format as written (block mappings with two-space indentation, `key: value` scalars, flow
+ * sequences of integers, `#` comments; strings double-quoted with YAML's escapes):
  *
  *   # pedicle_drilling vertebra displacement model
  *   patient_id: "volunteer_1"
@@ -24,10 +24,14 @@
  *   meta:                        # optional free key/value strings (e.g. generator truth)
  *     breaths_per_min: "20"
  *
- * Doubles are written with 17 significant digits, so a write/read round trip is exact. No
- * yaml-cpp on the target system, so a small reader for exactly this subset is provided; it
- * rejects tabs, bad indentation, unknown model kinds, missing required keys and non-numeric
- * values with a ModelFileError naming the key and line.
+ * Doubles are written with 17 significant digits, so a write/read round trip is exact. The
+ * reader takes any YAML of this shape (yaml-cpp: other indentations, block lists, quoting) and
+ * refuses, with a ModelFileError naming the file, the line and the key: text that is not YAML
+ * (a tab in the indentation, a bad indentation), more than one document, a repeated key, a
+ * missing required key, an unknown model kind, a number that is quoted or not finite (nan,
+ * .inf), an integer that is not decimal, a negative level, a kept detail level outside
+ * [1, level] or listed twice, and a meta key other than letters, digits, '_', '-' and '.'.
+ * Keys it does not know are ignored (`units`, `equivalent_stiffness`: informative).
  *
  * Atomic write (core::AtomicFile, atomic_file.hpp): the text goes to a temporary file beside
  * the destination and is renamed over it. On any failure the temporary file is removed and
@@ -79,8 +83,9 @@ class ModelFileError : public std::runtime_error {
 
 /**
  * @brief Serialises a model to the YAML text above.
- * @throws ModelFileError naming the axis and field when a coefficient, R² or RMSE is not finite
- *         (the reader would refuse it: no file that cannot be read back is ever written).
+ * @throws ModelFileError naming the axis and field when a coefficient, R² or RMSE is not finite,
+ *         or naming a meta key the reader would refuse (see the file doc) or a repeated one: no
+ *         file that cannot be read back is ever written.
  */
 std::string modelToYaml(const PatientModel& model);
 
