@@ -1,4 +1,5 @@
-// Tests of the urdfdom -> KDL chain, FK and IK, on a 6-DoF arm with a prismatic feed axis.
+// Tests of the urdfdom -> KDL chain (kdl_parser), FK and IK, on a 6-DoF arm with a prismatic feed
+// axis.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -172,6 +173,24 @@ TEST(KinematicsTest, Errors) {
   bad(2) = std::nan("");
   EXPECT_THROW(k.forward(bad), std::invalid_argument);
   EXPECT_THROW(k.inverse(Eigen::Isometry3d::Identity(), bad), std::invalid_argument);
+}
+
+TEST(KinematicsTest, JointOnAnotherBranchIsNotConverted) {
+  // kdl_parser converts the base -> tip path only: a floating joint on the camera's branch
+  // neither changes the arm's chain nor is converted (kdl_parser would make it fixed, warning).
+  std::string model = kArm;
+  const std::string mount = "name=\"camera_mount\" type=\"fixed\"";
+  model.replace(model.find(mount), mount.size(), "name=\"camera_mount\" type=\"floating\"");
+  const KinematicChain k = KinematicChain::fromUrdfString(model, "base_link", "drill_tip");
+  EXPECT_EQ(k.jointNames(), arm().jointNames());
+  const Eigen::VectorXd q = Eigen::VectorXd::LinSpaced(7, -0.6, 0.9);
+  EXPECT_EQ(k.forward(q).matrix(), arm().forward(q).matrix());  // bit for bit
+  try {
+    KinematicChain::fromUrdfString(model, "base_link", "camera");
+    ADD_FAILURE() << "a floating joint on the chain must be refused";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("camera_mount"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -1,4 +1,4 @@
-// urdfdom -> KDL chain conversion, FK and IK.
+// The KDL chain of a urdfdom model (kdl_parser), FK and IK.
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 
 #include <algorithm>
@@ -14,6 +14,8 @@
 #include <kdl/chainiksolvervel_pinv.hpp>
 #include <kdl/frames.hpp>
 #include <kdl/jntarray.hpp>
+#include <kdl/tree.hpp>
+#include <kdl_parser/kdl_parser.hpp>
 
 #include "pedicle_drilling/core/common/portable_random.hpp"
 
@@ -21,32 +23,88 @@ namespace pedicle_drilling::core {
 
 namespace {
 
-KDL::Vector toKdl(const urdf::Vector3& v) { return KDL::Vector(v.x, v.y, v.z); }
-
-KDL::Frame toKdl(const urdf::Pose& p) {
-  return KDL::Frame(
-      KDL::Rotation::Quaternion(p.rotation.x, p.rotation.y, p.rotation.z, p.rotation.w),
-      toKdl(p.position));
+/**
+ * The links from the child of @p base_link down to @p tip_link, base first.
+ * @throws std::invalid_argument for an unknown link or a base that is not an ancestor of the tip.
+ */
+std::vector<urdf::LinkConstSharedPtr> linkPath(const urdf::ModelInterface& model,
+                                               const std::string& base_link,
+                                               const std::string& tip_link) {
+  if (!model.getLink(base_link)) {
+    throw std::invalid_argument("base_link: unknown link '" + base_link + "'");
+  }
+  urdf::LinkConstSharedPtr link = model.getLink(tip_link);
+  if (!link) throw std::invalid_argument("tip_link: unknown link '" + tip_link + "'");
+  std::vector<urdf::LinkConstSharedPtr> path;  // tip ... first child of base
+  while (link->name != base_link) {
+    if (!link->parent_joint || !link->getParent()) {
+      throw std::invalid_argument("base_link: '" + base_link + "' is not an ancestor of '" +
+                                  tip_link + "'");
+    }
+    path.push_back(link);
+    link = link->getParent();
+  }
+  std::reverse(path.begin(), path.end());
+  return path;
 }
 
-// Same convention as ROS kdl_parser: the segment's tip frame is the joint origin (parent link
-// -> child link at q = 0), the joint axis is expressed in the parent frame.
-KDL::Joint toKdlJoint(const urdf::Joint& j, const KDL::Frame& f_parent_jnt) {
+/** kdl_parser converts other joint types to fixed ones (with a warning): refused here. */
+void checkJointType(const urdf::Joint& j) {
   switch (j.type) {
     case urdf::Joint::FIXED:
-      return KDL::Joint(j.name, KDL::Joint::Fixed);
     case urdf::Joint::REVOLUTE:
     case urdf::Joint::CONTINUOUS:
-      return KDL::Joint(j.name, f_parent_jnt.p, f_parent_jnt.M * toKdl(j.axis),
-                        KDL::Joint::RotAxis);
     case urdf::Joint::PRISMATIC:
-      return KDL::Joint(j.name, f_parent_jnt.p, f_parent_jnt.M * toKdl(j.axis),
-                        KDL::Joint::TransAxis);
+      return;
     default:
       throw std::invalid_argument("joint '" + j.name +
                                   "': unsupported type (only revolute, continuous, prismatic, "
                                   "fixed)");
   }
+}
+
+/**
+ * @p path (linkPath()) below a root named @p base_link, as a model of its own: copies of the
+ * links, each with its joint (shared) and its one child on the path. kdl_parser converts a
+ * whole model and warns through rosconsole, at every conversion, about each joint of the model
+ * it cannot convert (the workcell's floating SPMS platform, on another branch) and about an
+ * inertia of the root link; the path alone has neither.
+ */
+urdf::ModelInterface pathModel(const std::vector<urdf::LinkConstSharedPtr>& path,
+                               const std::string& base_link) {
+  urdf::ModelInterface m;
+  m.root_link_ = std::make_shared<urdf::Link>();
+  m.root_link_->name = base_link;
+  m.links_[base_link] = m.root_link_;
+  urdf::LinkSharedPtr parent = m.root_link_;
+  for (const urdf::LinkConstSharedPtr& l : path) {
+    auto link = std::make_shared<urdf::Link>(*l);
+    link->child_links.clear();
+    link->child_joints.clear();
+    link->setParent(parent);
+    parent->child_links.push_back(link);
+    parent->child_joints.push_back(link->parent_joint);
+    m.links_[link->name] = link;
+    m.joints_[link->parent_joint->name] = link->parent_joint;
+    parent = link;
+  }
+  return m;
+}
+
+/**
+ * The KDL chain of @p path, converted by kdl_parser (the ROS convention: a segment's tip frame
+ * is its joint's origin, the joint axis expressed in the parent link's frame).
+ */
+KDL::Chain kdlChain(const std::vector<urdf::LinkConstSharedPtr>& path, const std::string& base_link,
+                    const std::string& tip_link) {
+  KDL::Tree tree;
+  KDL::Chain chain;
+  if (!kdl_parser::treeFromUrdfModel(pathModel(path, base_link), tree) ||
+      !tree.getChain(base_link, tip_link, chain)) {
+    throw std::invalid_argument("urdf: kdl_parser cannot convert the chain '" + base_link +
+                                "' -> '" + tip_link + "'");
+  }
+  return chain;
 }
 
 Eigen::Isometry3d toEigen(const KDL::Frame& f) {
@@ -78,27 +136,11 @@ void checkVector(const Eigen::VectorXd& q, unsigned int n, const char* what) {
 KinematicChain::KinematicChain(const urdf::ModelInterface& model, const std::string& base_link,
                                const std::string& tip_link)
     : base_(base_link), tip_(tip_link) {
-  if (!model.getLink(base_link)) {
-    throw std::invalid_argument("base_link: unknown link '" + base_link + "'");
-  }
-  urdf::LinkConstSharedPtr link = model.getLink(tip_link);
-  if (!link) throw std::invalid_argument("tip_link: unknown link '" + tip_link + "'");
-  std::vector<urdf::LinkConstSharedPtr> path;  // tip ... first child of base
-  while (link->name != base_link) {
-    if (!link->parent_joint || !link->getParent()) {
-      throw std::invalid_argument("base_link: '" + base_link + "' is not an ancestor of '" +
-                                  tip_link + "'");
-    }
-    path.push_back(link);
-    link = link->getParent();
-  }
-  std::reverse(path.begin(), path.end());
+  const std::vector<urdf::LinkConstSharedPtr> path = linkPath(model, base_link, tip_link);
   std::vector<double> lo, hi;
   for (const auto& l : path) {
     const urdf::Joint& j = *l->parent_joint;
-    const KDL::Frame f = toKdl(j.parent_to_joint_origin_transform);
-    const KDL::Joint kj = toKdlJoint(j, f);
-    chain_.addSegment(KDL::Segment(l->name, kj, f));
+    checkJointType(j);
     if (j.type == urdf::Joint::FIXED) continue;
     joint_names_.push_back(j.name);
     revolute_.push_back(j.type != urdf::Joint::PRISMATIC);
@@ -113,6 +155,7 @@ KinematicChain::KinematicChain(const urdf::ModelInterface& model, const std::str
       hi.push_back(j.limits->upper);
     }
   }
+  chain_ = kdlChain(path, base_link, tip_link);
   lower_ = Eigen::Map<const Eigen::VectorXd>(lo.data(), static_cast<Eigen::Index>(lo.size()));
   upper_ = Eigen::Map<const Eigen::VectorXd>(hi.data(), static_cast<Eigen::Index>(hi.size()));
 }

@@ -1,4 +1,4 @@
-// Thin wrapper over KDL: serial chain from a urdfdom model (without ROS kdl_parser), forward
+// Thin wrapper over KDL: serial chain from a urdfdom model (converted by kdl_parser), forward
 // kinematics and position + orientation inverse kinematics with joint limits.
 #ifndef PEDICLE_DRILLING_CORE_KINEMATICS_HPP_
 #define PEDICLE_DRILLING_CORE_KINEMATICS_HPP_
