@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
@@ -67,7 +68,16 @@ class NoPush:
 )";
     const char* old = std::getenv("PYTHONPATH");
     setenv("PYTHONPATH", (std::string(dir) + (old ? std::string(":") + old : "")).c_str(), 1);
+    dir_ = dir;
   }
+  void TearDown() override {  // the module has been imported: its files may go
+    std::remove((dir_ + "/pd_test_recognizers.py").c_str());
+    std::system(("rm -rf '" + dir_ + "/__pycache__'").c_str());
+    std::remove(dir_.c_str());
+  }
+
+ private:
+  std::string dir_;
 };
 
 const ::testing::Environment* const kModule = ::testing::AddGlobalTestEnvironment(new PythonModule);
