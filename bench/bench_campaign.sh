@@ -23,3 +23,8 @@ core=$(seconds rosrun pedicle_drilling campaign --case stationary --rpm 12000 --
 ros=$(seconds rosrun pedicle_drilling campaign --case stationary --rpm 12000 --trials 10 \
   --jobs 1 --seed 102 --engine ros --out "${OUT}/ros")
 python3 -c "print('BENCH campaign_core_over_ros_speedup %.1f x (10 seeds, --jobs 1: core %.1f s, ros %.1f s)' % (${ros} / ${core}, ${core}, ${ros}))"
+# Fig. 16's protocol (the drill goes through the inner layer: longer trials), 100 trials per case.
+peak=$(seconds rosrun pedicle_drilling campaign --scenario "$(rospack find pedicle_drilling)/config/scenario_peak_forces.yaml" \
+  --trials 100 --jobs 2 --seed 103 --out "${OUT}/peak")
+peak_trials=$(python3 -c "import csv; print(sum(1 for _ in csv.DictReader(open('${OUT}/peak/trials.csv'))))")
+python3 -c "print('BENCH campaign_peak_forces_trials_per_min %.0f trials/min (core engine, --jobs 2, %d trials in %.1f s)' % (${peak_trials} * 60.0 / ${peak}, ${peak_trials}, ${peak}))"

@@ -1,4 +1,6 @@
-// Benchmark: cost of StateRecognizer::push per raw sample over 10^7 synthetic samples.
+// Benchmark: cost of StateRecognizer::push per raw sample over 10^7 synthetic samples, and of a
+// recognizer written in Python (issue 32: python:pd_campaign.recognizers.ThresholdRecognizer
+// through PythonRecognizer, the interpreter embedded) over 10^6 of the same samples.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -6,6 +8,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+#include "pedicle_drilling/python/python_recognizer.hpp"
 
 namespace {
 
@@ -51,5 +54,28 @@ int main() {
   const double ns = std::chrono::duration<double, std::nano>(end - start).count();
   std::printf("# %zu samples, %zu stops, checksum %.6g\n", kSamples, stops, checksum);
   std::printf("BENCH recognizer_per_sample %.3f ns\n", ns / static_cast<double>(kSamples));
+  // The same samples through a Python class (pd_campaign on the Python path: make bench runs in
+  // the sourced workspace).
+  constexpr std::size_t kPythonSamples = 1000000;
+  pedicle_drilling::PythonRecognizer python("pd_campaign.recognizers.ThresholdRecognizer");
+  python.configure({});
+  std::size_t python_stops = 0;
+  const auto python_start = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < kPythonSamples; ++i) {
+    const std::size_t j = i % kPeriod;
+    if (j == 0 && i != 0) {
+      python_stops += python.output().stop ? 1 : 0;
+      python.reset();
+    }
+    python.push(static_cast<double>(j) * 1e-3, profile[j]);
+  }
+  const double python_ns =
+      std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - python_start)
+          .count() /
+      static_cast<double>(kPythonSamples);
+  std::printf("# python: %zu samples, %zu stops\n", kPythonSamples, python_stops);
+  std::printf("BENCH python_recognizer_per_sample %.1f ns\n", python_ns);
+  std::printf("BENCH python_over_cpp_recognizer_cost %.0f x\n",
+              python_ns * static_cast<double>(kSamples) / ns);
   return 0;
 }
