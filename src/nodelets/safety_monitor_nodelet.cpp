@@ -3,10 +3,13 @@
  * @brief pedicle_drilling/SafetyMonitor: the monitor of Algorithm 1 (paper Sec. IV-B). Stops and
  *        retreats the drill (`drill/stop`, retreat = true) when the predicted and tracked marker
  *        positions differ by more than H1, the force exceeds H2, the force or tracker stream
- *        goes silent, or any input is NaN. Reports on /diagnostics; latched until `~reset`.
+ *        goes silent, or any input is NaN. Reports on /diagnostics (diagnostic_updater: its
+ *        status, and the rate and stamps of the F/T and tracker streams); latched until `~reset`.
  *        Thin wrapper of core::SafetySupervisor (pairing, arming and the one stop report).
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <diagnostic_updater/diagnostic_updater.h>
+#include <diagnostic_updater/publisher.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
@@ -45,6 +48,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
       check_rate_hz_ = params.check_rate_hz;
       diagnostic_period_s_ = params.diagnostic_period_s;
+      setupDiagnostics(nh, params);  // before the lockstep's steps can call it
       // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
       // at every step whose time is a multiple of 1 / check_rate_hz (the engine's), after the
       // predicted poses and statuses sent in the step before.
@@ -54,7 +58,6 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       failStartup(getName(), e.what());  // throws: the load fails
     }
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
-    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10, true);
     retare_pub_ = pnh.advertise<RetareCheck>("retare_check", 10, true);
     reset_srv_ = pnh.advertiseService("reset", &SafetyMonitorNodelet::onReset, this);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
@@ -78,7 +81,51 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
         "%.3f s, checks at %.0f Hz",
         p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s, p.tracker_timeout_s,
         params.check_rate_hz);
-    publishDiagnostics();
+    std::lock_guard<std::mutex> lock(mutex_);
+    updater_->force_update();
+  }
+
+  /**
+   * @brief /diagnostics through diagnostic_updater::Updater: the monitor's status, named
+   *        "<nodelet name>: monitor" (the planner's ~monitor_status_name and the rviz plugins
+   *        read it by name), and a rate and stamp check of the F/T and the tracker stream as
+   *        their drivers publish them. The Updater publishes when force_update() is called:
+   *        wherever this nodelet published before, and every diagnostic_period_s (its own
+   *        ~diagnostic_period is not used: update() is never called).
+   *
+   * The Updater's own publisher is neither latched nor told of new subscribers. roscpp keeps one
+   * publication of /diagnostics per process, latched or not, and with the queue, as its first
+   * advertiser says: advertised here first, latched, it keeps the process's /diagnostics latched
+   * as before (failStartup()'s report relies on it too), so a late subscriber gets the latest
+   * status at once; and a subscriber connecting also gets a fresh one (force_update()).
+   */
+  void setupDiagnostics(ros::NodeHandle& nh, const SafetyMonitorNodeParams& params) {
+    std::lock_guard<std::mutex> lock(mutex_);  // a subscriber may connect before the end
+    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>(
+        "/diagnostics", 10, [this](const ros::SingleSubscriberPublisher&) { onSubscriber(); },
+        ros::SubscriberStatusCallback(), ros::VoidConstPtr(), true);
+    // The Updater names a status "<node_name without its first character>: <task>" (made for
+    // ros::this_node::getName()'s leading "/"): the "/" given here keeps the nodelet's full name.
+    updater_ =
+        std::make_unique<diagnostic_updater::Updater>(nh, getPrivateNodeHandle(), "/" + getName());
+    updater_->setHardwareID(getName());
+    updater_->add("monitor", this, &SafetyMonitorNodelet::monitorStatus);
+    force_rate_hz_ = params.expected_force_rate_hz;
+    tracker_rate_hz_ = params.expected_tracker_rate_hz;
+    const auto stream = [&](const std::string& topic, double* rate_hz) {
+      return std::make_unique<diagnostic_updater::TopicDiagnostic>(
+          nh.resolveName(topic), *updater_,
+          diagnostic_updater::FrequencyStatusParam(rate_hz, rate_hz, params.rate_tolerance),
+          diagnostic_updater::TimeStampStatusParam());
+    };
+    force_stream_ = stream("ft_sensor/wrench", &force_rate_hz_);
+    tracker_stream_ = stream("tracker/marker_pose", &tracker_rate_hz_);
+  }
+
+  /** @brief A new /diagnostics subscriber: a fresh status (latching gave it the latest). */
+  void onSubscriber() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (updater_) updater_->force_update();
   }
 
   /** @brief The monitor's time: the lockstep's step, else ros::Time::now(). */
@@ -87,6 +134,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
+    force_stream_->tick(msg->header.stamp);
     force_stats_.observe(msg->header.stamp.toSec(), now());
     const auto& f = msg->wrench.force;
     supervisor_->onForce(now(), Eigen::Vector3d(f.x, f.y, f.z));
@@ -101,6 +149,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onTracked(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
+    tracker_stream_->tick(msg->header.stamp);
     tracker_stats_.observe(msg->header.stamp.toSec(), now());
     warnIfMismatch(supervisor_->onTracked(now(), toPosition(*msg)));
     evaluate();
@@ -148,7 +197,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (retreat_ended) checkRetare();
     // At the trial's end (after the re-tare check when it retreated): the verdict and the
     // trial's inputs as received, complete (the campaign records them).
-    if (trial_ended) publishDiagnostics();
+    if (trial_ended) updater_->force_update();
   }
 
   /** @brief The re-tare check when a retreat ended, on ~retare_check (latched). */
@@ -185,7 +234,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
     if (next_diagnostics_.isZero() || t >= next_diagnostics_) {
       next_diagnostics_ = t + ros::Duration(diagnostic_period_s_);
-      publishDiagnostics();
+      updater_->force_update();
     }
   }
 
@@ -206,59 +255,45 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     stop.reason = core::describe(*v);
     stop_pub_.publish(stop);
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
-    publishDiagnostics();
+    updater_->force_update();
   }
 
   void onDiagnosticTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    publishDiagnostics();
+    updater_->force_update();
   }
 
-  void publishDiagnostics() {
-    diagnostic_msgs::DiagnosticArray array;
-    array.header.stamp = lockstep_->now();
-    diagnostic_msgs::DiagnosticStatus status;
-    status.name = getName() + ": monitor";
-    status.hardware_id = getName();
+  /**
+   * @brief The monitor's status (the Updater's task "monitor"; run by force_update(), always
+   *        called with mutex_ held): OK while fine, ERROR with the reason from the stop on, WARN
+   *        after a re-tare check that found a drift (until ~reset); the verdict's reason and
+   *        each input stream as this monitor received it since ~reset: samples, samples missing
+   *        (gaps in the stamps), the largest delay from stamp to handling.
+   */
+  void monitorStatus(diagnostic_updater::DiagnosticStatusWrapper& status) {
     const core::SafetyVerdict& v = supervisor_->verdict();
     if (v.stop) {
-      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
-      status.message = "stop and retreat: " + core::describe(v);
+      status.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
+                     "stop and retreat: " + core::describe(v));
     } else if (last_retare_ && last_retare_->drift) {
       // Stays until ~reset (the next trial's start): the last trial's force is not trusted.
-      status.level = diagnostic_msgs::DiagnosticStatus::WARN;
-      status.message = "re-tare check: " + last_retare_->message;
+      status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                     "re-tare check: " + last_retare_->message);
     } else {
-      status.level = diagnostic_msgs::DiagnosticStatus::OK;
-      status.message = supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker";
+      status.summary(diagnostic_msgs::DiagnosticStatus::OK,
+                     supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker");
     }
-    diagnostic_msgs::KeyValue kv;
-    kv.key = "reason";
-    kv.value = core::toString(v.reason);
-    status.values.push_back(kv);
-    // Each input stream as this monitor received it since ~reset: samples, samples missing
-    // (gaps in the stamps), the largest delay from stamp to handling.
-    const auto add = [&status](const std::string& key, const std::string& value) {
-      diagnostic_msgs::KeyValue item;
-      item.key = key;
-      item.value = value;
-      status.values.push_back(item);
-    };
+    status.add("reason", core::toString(v.reason));
     for (const auto& [name, stats] :
          {std::pair<std::string, const core::StreamStats*>("force", &force_stats_),
           {"tracker", &tracker_stats_}}) {
-      add(name + "_samples", std::to_string(stats->count()));
-      add(name + "_samples_missing", std::to_string(stats->missing()));
-      add(name + "_delay_max_ms", std::to_string(1e3 * stats->maxDelay()));
+      status.add(name + "_samples", std::to_string(stats->count()));
+      status.add(name + "_samples_missing", std::to_string(stats->missing()));
+      status.add(name + "_delay_max_ms", std::to_string(1e3 * stats->maxDelay()));
     }
     if (last_retare_ && last_retare_->done) {
-      diagnostic_msgs::KeyValue offset;
-      offset.key = "retare_offset_n";
-      offset.value = std::to_string(last_retare_->offset_n);
-      status.values.push_back(offset);
+      status.add("retare_offset_n", std::to_string(last_retare_->offset_n));
     }
-    array.status.push_back(status);
-    diagnostics_pub_.publish(array);
   }
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
@@ -268,7 +303,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     last_retare_.reset();
     force_stats_.reset();
     tracker_stats_.reset();
-    publishDiagnostics();
+    updater_->force_update();
     response.success = true;
     response.message = "monitor reset (previous verdict: " + previous + ")";
     return true;
@@ -276,6 +311,12 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
+  // Declared before what calls them (the lockstep, the subscribers, the timers): destroyed after.
+  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  double force_rate_hz_ = 1000.0 / 3.0;  ///< the F/T stream's check reads it (a pointer)
+  double tracker_rate_hz_ = 8.0;         ///< the tracker stream's check reads it (a pointer)
+  std::unique_ptr<diagnostic_updater::TopicDiagnostic> force_stream_;
+  std::unique_ptr<diagnostic_updater::TopicDiagnostic> tracker_stream_;
   std::unique_ptr<LockstepParticipant> lockstep_;
   double check_rate_hz_ = 200.0;
   double diagnostic_period_s_ = 1.0;
@@ -286,7 +327,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   core::StreamStats tracker_stats_;         ///< the tracker stream since ~reset
   std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset
   ros::Publisher stop_pub_;
-  ros::Publisher diagnostics_pub_;
+  ros::Publisher diagnostics_pub_;  ///< latched /diagnostics, see setupDiagnostics()
   ros::Subscriber wrench_sub_;
   ros::Subscriber tracker_sub_;
   ros::Subscriber predicted_sub_;

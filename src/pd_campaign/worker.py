@@ -364,8 +364,12 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     if not _wait_until(fresh, 5.0):
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
     # The monitor's diagnostics at the trial's end (its input streams, complete).
+    # diagnostic_updater stamps them with the monitor's ROS time, the latest /clock: up to one
+    # clock period before the lockstep's step that handled DONE.
+    import rospy
+    clock_period_s = rospy.get_param('/simulator/clock_period_ms', 1) * 1e-3
     _wait_until(lambda: (recorder.inputs is not None and t_done is not None
-                         and recorder.inputs[0] >= t_done - 1e-3), 5.0)
+                         and recorder.inputs[0] >= t_done - clock_period_s - 1e-3), 5.0)
     # Each topic has its own connection: on a loaded machine the ground truth and the
     # recognizer's states may trail the status that said DONE. Wait until both have reached the
     # trial's end (events: the simulator and the recognizer go on publishing after it), so that

@@ -180,7 +180,12 @@ const ParamTable<SafetyMonitorNodeParams>& SafetyMonitorNodeParams::table() {
     ParamTable<P> d;
     d.include(pairing, &P::supervisor)
         .number("check_rate_hz", &P::check_rate_hz, Range::aboveUpTo(0, 10000), "Hz")
-        .number("diagnostic_period_s", &P::diagnostic_period_s, Range::aboveUpTo(0, 60), "s");
+        .number("diagnostic_period_s", &P::diagnostic_period_s, Range::aboveUpTo(0, 60), "s")
+        .number("expected_force_rate_hz", &P::expected_force_rate_hz, Range::aboveUpTo(0, 100000),
+                "Hz")
+        .number("expected_tracker_rate_hz", &P::expected_tracker_rate_hz,
+                Range::aboveUpTo(0, 10000), "Hz")
+        .number("rate_tolerance", &P::rate_tolerance, Range::fromBelow(0, 1));
     return d;
   }();
   return t;

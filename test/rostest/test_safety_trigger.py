@@ -29,6 +29,9 @@ REASONS = {
     'force_silent_at_trial_start': 'force_timeout',
 }
 MARKER = (0.60, 0.02, 0.30)
+MONITOR_STATUS = '/safety_monitor: monitor'
+STREAM_STATUSES = ('/safety_monitor: /ft_sensor/wrench topic status',
+                   '/safety_monitor: /tracker/marker_pose topic status')
 
 
 class SafetyTriggerTest(unittest.TestCase):
@@ -36,6 +39,7 @@ class SafetyTriggerTest(unittest.TestCase):
         self.lock = threading.Lock()
         self.stops = []
         self.diagnostics = []
+        self.streams = set()
         self.triggered = False
         self.force_n = 2.0
         self.force_on = True
@@ -60,7 +64,10 @@ class SafetyTriggerTest(unittest.TestCase):
 
     def on_diag(self, msg):
         with self.lock:
-            self.diagnostics.extend(s for s in msg.status if 'safety_monitor' in s.name)
+            # The monitor's status by its name, as the planner reads it; the other statuses of
+            # the monitor are its input streams' rate and stamp checks.
+            self.diagnostics.extend(s for s in msg.status if s.name == MONITOR_STATUS)
+            self.streams.update(s.name for s in msg.status if s.name in STREAM_STATUSES)
 
     def publish_force(self, event):
         if not self.force_on:
@@ -121,6 +128,7 @@ class SafetyTriggerTest(unittest.TestCase):
                              [s.reason for s in self.stops])
             self.assertTrue(any(d.level == DiagnosticStatus.OK for d in self.diagnostics),
                             'no OK diagnostic while fine')
+            self.assertEqual(self.streams, set(STREAM_STATUSES))
         # Trigger.
         t_trigger = rospy.Time.now()
         if trigger == 'force':

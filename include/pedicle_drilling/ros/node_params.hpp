@@ -134,6 +134,10 @@ struct SafetyMonitorNodeParams {
   core::SupervisorParams supervisor;  ///< H1, H2, timeouts and the pairing (core)
   double check_rate_hz = 200.0;       ///< watchdog timer rate
   double diagnostic_period_s = 1.0;   ///< /diagnostics period
+  /** @brief Rate the F/T driver publishes at (its /diagnostics rate check): the simulator's. */
+  double expected_force_rate_hz = 1000.0 / 3.0;
+  double expected_tracker_rate_hz = 8.0;  ///< rate the tracker publishes at (rate check)
+  double rate_tolerance = 0.1;            ///< a measured rate off by more than this fraction: WARN
   /** @brief Checks the declared ranges and that the checks are fast enough for the timeout. */
   void validate() const;
   /** @brief The declaration of every parameter. */
