@@ -1,6 +1,6 @@
 """What the simulator scenarios' tests watch, shared: /clock and simulator/ground_truth under one
-condition, and a wait on them bounded only to end a broken run (tests wait on events); and a
-lockstep participant for the lockstep's scenarios."""
+condition, and a wait on them bounded only to end a broken run (tests wait on events); a
+lockstep participant for the lockstep's scenarios; and the start of a trial on the pipeline."""
 import threading
 import time
 
@@ -8,6 +8,22 @@ import rospy
 from rosgraph_msgs.msg import Clock
 
 from pedicle_drilling.msg import GroundTruth, StepAck
+
+
+def start_trial(start, stop_on=None, attempts=100, **request):
+    """Starts a trial through the planner's ~start_trial (`start`: a rospy.ServiceProxy of
+    pedicle_drilling/StartTrial) with `request`, asking again every 0.2 s (ROS time) while it is
+    refused: the moving modes are refused until the planner knows the ventilator's settings and
+    breath phase (and the controller watch each controller's state). Returns the last answer:
+    a success, the refusal `stop_on(answer)` accepts (a test expecting it), or the last of
+    `attempts` refusals."""
+    answer = None
+    for _ in range(attempts):
+        answer = start(**request)
+        if answer.success or (stop_on is not None and stop_on(answer)):
+            break
+        rospy.sleep(0.2)
+    return answer
 
 
 class SimulatorEvents:

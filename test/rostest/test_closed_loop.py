@@ -17,6 +17,7 @@ import rostest
 
 from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import StartTrial
+from simulator_events import start_trial
 
 FEED_RATE = 0.5e-3
 
@@ -40,13 +41,8 @@ class ClosedLoopTest(unittest.TestCase):
         rospy.Subscriber('/compensation/status', TrialStatus, keep(status), queue_size=100)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
-        # The moving modes need the ventilator's settings and phase: retry until accepted.
-        res = None
-        for _ in range(100):
-            res = start(mode=mode, spindle_rpm=12000.0, feed_rate_mm_s=0.5, max_duration_s=60.0)
-            if res.success:
-                break
-            rospy.sleep(0.2)
+        res = start_trial(start, mode=mode, spindle_rpm=12000.0, feed_rate_mm_s=0.5,
+                          max_duration_s=60.0)
         self.assertTrue(res.success, res.message)
         t_drill = None
         t_end = None

@@ -16,6 +16,7 @@ from geometry_msgs.msg import PoseStamped
 
 from pedicle_drilling.msg import GroundTruth, TrialStatus
 from pedicle_drilling.srv import StartTrial
+from simulator_events import start_trial
 
 
 def position(msg):
@@ -41,13 +42,8 @@ class CompensatorClassTest(unittest.TestCase):
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, keep(truth), queue_size=1000)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
-        res = None
-        for _ in range(100):  # the moving modes need the ventilator's settings and phase
-            res = start(mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
-                        max_duration_s=60.0)
-            if res.success:
-                break
-            rospy.sleep(0.2)
+        res = start_trial(start, mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
+                          max_duration_s=60.0)
         self.assertTrue(res.success, res.message)
         while not rospy.is_shutdown():
             with lock:

@@ -30,6 +30,7 @@ import rostest
 
 from pedicle_drilling.msg import GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import InjectFault, StallJoint, StartTrial
+from simulator_events import start_trial
 
 
 class ControllerWatchTest(unittest.TestCase):
@@ -64,15 +65,9 @@ class ControllerWatchTest(unittest.TestCase):
         rospy.Subscriber('/compensation/status', TrialStatus, on_status, queue_size=100)
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
-        # The moving modes need the ventilator's settings and phase, the watch each controller's
-        # state: retry until accepted.
-        res = None
-        for _ in range(100):
-            res = start(mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
-                        max_duration_s=60.0)
-            if res.success or (case == 'foreign_joints' and expect in res.message):
-                break
-            rospy.sleep(0.2)
+        res = start_trial(start, lambda r: case == 'foreign_joints' and expect in r.message,
+                          mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
+                          max_duration_s=60.0)
         if case == 'foreign_joints':
             self.assertFalse(res.success, 'a trial started on mismatched controllers')
             self.assertIn(expect, res.message)

@@ -23,6 +23,7 @@ from pedicle_drilling.msg import (GroundTruth, RetareCheck, StopCommand, TrialSt
                                   VentilatorSettings)
 from pedicle_drilling.srv import (InjectFault, SetPatientAmplitude, SetVentilatorSettings,
                                   StartTrial)
+from simulator_events import start_trial
 
 # The breathing faults are the patient's: the simulator's services, with the core engine's sizes
 # (core::FaultParams: amplitude x 1.3, rate +-4 /min).
@@ -77,14 +78,8 @@ class FaultInjectionTest(unittest.TestCase):
         else:
             rospy.wait_for_service('/fault_injector/inject', 60.0)
             inject = rospy.ServiceProxy('/fault_injector/inject', InjectFault)
-        # The moving modes need the ventilator's settings and phase: retry until accepted.
-        res = None
-        for _ in range(100):
-            res = start(mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
-                        max_duration_s=60.0)
-            if res.success:
-                break
-            rospy.sleep(0.2)
+        res = start_trial(start, mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,
+                          max_duration_s=60.0)
         self.assertTrue(res.success, res.message)
         # Event: the drill is INJECT_DEPTH_M into the bone (no stop may have come before).
         self.assertTrue(deep_enough.wait(120.0), 'the drill never reached %.1f mm' %

@@ -17,6 +17,7 @@ import rostest
 
 from pedicle_drilling.msg import DrillingState, GroundTruth, StopCommand, TrialStatus
 from pedicle_drilling.srv import StartTrial
+from simulator_events import start_trial
 
 TRIALS = 3
 
@@ -58,13 +59,10 @@ class PipelineThreeTrialsTest(unittest.TestCase):
         for trial in range(1, TRIALS + 1):
             with self.cond:
                 first = len(self.events)
-            res = None
-            for _ in range(50):  # the first call may come before the ventilator's phase
-                res = start(mode='compensated', spindle_rpm=0.0, feed_rate_mm_s=0.0,
-                            max_duration_s=0.0)
-                if res.success or 'needs the ventilator' not in res.message:
-                    break
-                rospy.sleep(0.2)
+            # The first call may come before the ventilator's phase; any other refusal fails.
+            res = start_trial(start, lambda r: 'needs the ventilator' not in r.message, 50,
+                              mode='compensated', spindle_rpm=0.0, feed_rate_mm_s=0.0,
+                              max_duration_s=0.0)
             self.assertTrue(res.success, 'trial %d: %s' % (trial, res.message))
 
             def finished():
