@@ -54,6 +54,13 @@ class PlannerSegmentsTest(unittest.TestCase):
         rospy.Timer(rospy.Duration(0.125), self.publish_marker)
         rospy.wait_for_service('/compensation_planner/start_trial', 30.0)
         self.start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
+        # The latched status (idle) arrives once the subscription is connected: wait for it, so
+        # that no trial's status is sent while the connection is being made (a status published
+        # then came twice: once latched, once live).
+        deadline = rospy.Time.now() + rospy.Duration(30.0)  # bounds a broken run only
+        while self.status_count() == 0 and rospy.Time.now() < deadline:
+            rospy.sleep(0.02)
+        self.assertGreater(self.status_count(), 0, 'no latched compensation/status')
 
     def keep(self, store):
         def callback(msg):
