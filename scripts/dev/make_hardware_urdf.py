@@ -12,6 +12,8 @@ import re
 import sys
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'src'))
+from pd_campaign.atomic import atomic_write  # noqa: E402  (the checkout's, as run from it)
 SOURCE = os.path.join(ROOT, 'urdf', 'workcell.urdf')
 TARGET = os.path.join(ROOT, 'urdf', 'workcell_hardware.urdf')
 # The tracker's frames: each block from the comment before its joint to its link's end.
@@ -38,10 +40,8 @@ def hardware_urdf(text):
 def main():
     with open(SOURCE) as handle:
         text = hardware_urdf(handle.read())
-    temporary = TARGET + '.tmp'
-    with open(temporary, 'w') as handle:
+    with atomic_write(TARGET) as handle:
         handle.write(text)
-    os.replace(temporary, TARGET)
     print('wrote', os.path.relpath(TARGET, ROOT))
     return 0
 
