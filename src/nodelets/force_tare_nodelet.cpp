@@ -14,9 +14,8 @@
 #include <ros/ros.h>
 #include <pluginlib/class_list_macros.hpp>
 
-#include <algorithm>
-#include <cstdint>
 #include <mutex>
+#include <optional>
 
 #include "pedicle_drilling/TareRequest.h"
 #include "pedicle_drilling/TareResult.h"
@@ -42,8 +41,7 @@ class ForceTareNodelet : public nodelet::Nodelet {
   void onRequest(const TareRequest::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
-      tare_.request(
-          {static_cast<int>(std::min<std::uint32_t>(msg->samples, 1000000)), msg->max_spread_n});
+      tare_.request(fromMsg(*msg));
     } catch (const std::exception& e) {
       NODELET_ERROR("ForceTare: tare request refused: %s", e.what());
       core::TareResult refused;
@@ -54,18 +52,9 @@ class ForceTareNodelet : public nodelet::Nodelet {
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    core::ForceTare::Wrench raw;
-    raw << msg->wrench.force.x, msg->wrench.force.y, msg->wrench.force.z, msg->wrench.torque.x,
-        msg->wrench.torque.y, msg->wrench.torque.z;
-    const core::ForceTare::Wrench tared = tare_.apply(msg->header.stamp.toSec(), raw);
     geometry_msgs::WrenchStamped out;
     out.header = msg->header;
-    out.wrench.force.x = tared[0];
-    out.wrench.force.y = tared[1];
-    out.wrench.force.z = tared[2];
-    out.wrench.torque.x = tared[3];
-    out.wrench.torque.y = tared[4];
-    out.wrench.torque.z = tared[5];
+    out.wrench = toWrenchMsg(tare_.apply(msg->header.stamp.toSec(), fromWrenchMsg(msg->wrench)));
     wrench_pub_.publish(out);
     if (const std::optional<core::TareResult> r = tare_.takeResult()) {
       TareResult result = toMsg(*r, msg->header.stamp);

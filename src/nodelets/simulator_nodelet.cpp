@@ -477,10 +477,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
    */
   void onTareRequest(const TareRequest::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const core::TareRequest request{
-        static_cast<int>(std::min<std::uint32_t>(msg->samples, 1000000)), msg->max_spread_n};
+    const core::TareRequest request = fromMsg(*msg);
     try {
-      core::ForceTare().request(request);  // validated before it is queued
+      request.validate();  // before it is queued
     } catch (const std::exception& e) {
       NODELET_ERROR("Simulator: ft_sensor/tare_request refused: %s", e.what());
       return;
@@ -720,11 +719,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     if (lockstep_) {
       // A keepalive takes the command path without a jitter draw (the engine's rule).
       const double t = sim_->time();
-      const double due = core::isSpindleRepeat(rpm, last_spindle_rpm_)
-                             ? t + command_transport_.undrawnDelay(t)
-                             : commandDue();
-      last_spindle_rpm_ = rpm;
-      pending_.push_back({due, std::nullopt, rpm, "", std::nullopt});
+      pending_.push_back(
+          {t + command_transport_.spindleDelay(t, rpm), std::nullopt, rpm, "", std::nullopt});
       return;
     }
     reportSpindle(sim_->commandSpindle(rpm));
@@ -808,7 +804,6 @@ class SimulatorNodelet : public nodelet::Nodelet {
     pending_.clear();  // the last trial's commands do not drive this one
     command_transport_ = core::CommandTransport(distribution.command_delay_s,
                                                 distribution.command_jitter_s, req.seed);
-    last_spindle_rpm_ = 0.0;
     spindle_watchdog_trips_ = 0;
     tracker_delay_s_ = distribution.tracker_delay_s;
     delayed_markers_.clear();
@@ -873,8 +868,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   double time_offset_ = 0.0;
   std::string tracker_tf_frame_;           ///< ~tracker_tf_frame ("" = tracker/marker_pose only)
   std::set<std::string> floating_frames_;  ///< ~publish_joint_frames false: the only ones sent
-  double last_spindle_rpm_ = 0.0;   ///< the latest spindle/command [rpm] (core::isSpindleRepeat)
-  int spindle_watchdog_trips_ = 0;  ///< the driver watchdog's stops reported so far
+  int spindle_watchdog_trips_ = 0;         ///< the driver watchdog's stops reported so far
   int clock_period_steps_ = 1;
   std::uint64_t joint_state_period_ = 10;
   std::uint64_t tf_period_ = 10;

@@ -145,18 +145,34 @@ GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) 
   return m;
 }
 
+geometry_msgs::Wrench toWrenchMsg(const Eigen::Matrix<double, 6, 1>& wrench) {
+  geometry_msgs::Wrench msg;
+  msg.force.x = wrench[0];
+  msg.force.y = wrench[1];
+  msg.force.z = wrench[2];
+  msg.torque.x = wrench[3];
+  msg.torque.y = wrench[4];
+  msg.torque.z = wrench[5];
+  return msg;
+}
+
+Eigen::Matrix<double, 6, 1> fromWrenchMsg(const geometry_msgs::Wrench& msg) {
+  Eigen::Matrix<double, 6, 1> wrench;
+  wrench << msg.force.x, msg.force.y, msg.force.z, msg.torque.x, msg.torque.y, msg.torque.z;
+  return wrench;
+}
+
+core::TareRequest fromMsg(const TareRequest& msg) {
+  return {static_cast<int>(std::min<std::uint32_t>(msg.samples, 1000000)), msg.max_spread_n};
+}
+
 TareResult toMsg(const core::TareResult& result, const ros::Time& stamp) {
   TareResult msg;
   msg.header.stamp = stamp;
   msg.header.frame_id = "ft_sensor";
   msg.success = result.success;
   msg.samples = static_cast<std::uint32_t>(std::max(0, result.samples));
-  msg.bias.force.x = result.bias[0];
-  msg.bias.force.y = result.bias[1];
-  msg.bias.force.z = result.bias[2];
-  msg.bias.torque.x = result.bias[3];
-  msg.bias.torque.y = result.bias[4];
-  msg.bias.torque.z = result.bias[5];
+  msg.bias = toWrenchMsg(result.bias);
   msg.spread_n = result.spread_n;
   msg.message = result.message;
   return msg;
@@ -167,8 +183,7 @@ core::TareResult fromMsg(const TareResult& msg) {
   r.success = msg.success;
   r.t = msg.header.stamp.toSec();
   r.samples = static_cast<int>(msg.samples);
-  r.bias << msg.bias.force.x, msg.bias.force.y, msg.bias.force.z, msg.bias.torque.x,
-      msg.bias.torque.y, msg.bias.torque.z;
+  r.bias = fromWrenchMsg(msg.bias);
   r.spread_n = msg.spread_n;
   r.message = msg.message;
   return r;
@@ -178,12 +193,7 @@ geometry_msgs::WrenchStamped wrenchMsg(const core::SimulationStep& step, const r
   geometry_msgs::WrenchStamped w;
   w.header.stamp = stamp;
   w.header.frame_id = "ft_sensor";
-  w.wrench.force.x = step.measured_wrench[0];
-  w.wrench.force.y = step.measured_wrench[1];
-  w.wrench.force.z = step.measured_wrench[2];
-  w.wrench.torque.x = step.measured_wrench[3];
-  w.wrench.torque.y = step.measured_wrench[4];
-  w.wrench.torque.z = step.measured_wrench[5];
+  w.wrench = toWrenchMsg(step.measured_wrench);
   return w;
 }
 

@@ -20,6 +20,7 @@
 #include "pedicle_drilling/GroundTruth.h"
 #include "pedicle_drilling/JointTrajectoryControllerState.h"
 #include "pedicle_drilling/ResetSimulation.h"
+#include "pedicle_drilling/TareRequest.h"
 #include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
@@ -85,6 +86,13 @@ void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Res
 /** @brief Ground truth at `stamp` (frame "bone"). */
 GroundTruth toMsg(const core::SimulationGroundTruth& truth, const ros::Time& stamp);
 
+/** @brief A wrench [Fx, Fy, Fz, Tx, Ty, Tz] as geometry_msgs/Wrench. */
+geometry_msgs::Wrench toWrenchMsg(const Eigen::Matrix<double, 6, 1>& wrench);
+/** @brief geometry_msgs/Wrench as [Fx, Fy, Fz, Tx, Ty, Tz]. */
+Eigen::Matrix<double, 6, 1> fromWrenchMsg(const geometry_msgs::Wrench& msg);
+/** @brief ft_sensor/tare_request as the core's (samples above 10^6 kept out of range, not
+ *         wrapped: TareRequest::validate() refuses them). */
+core::TareRequest fromMsg(const TareRequest& msg);
 /** @brief A tare result as ft_sensor/tare_result (frame ft_sensor), stamped @p stamp. */
 TareResult toMsg(const core::TareResult& result, const ros::Time& stamp);
 /** @brief ft_sensor/tare_result as the core's (t: its stamp). */

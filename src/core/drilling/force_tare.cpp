@@ -6,14 +6,18 @@
 
 namespace pedicle_drilling::core {
 
-void ForceTare::request(const TareRequest& request) {
-  if (request.samples < 1 || request.samples > 100000) {
+void TareRequest::validate() const {
+  if (samples < 1 || samples > 100000) {
     throw std::invalid_argument("tare samples must be in [1, 100000], got " +
-                                std::to_string(request.samples));
+                                std::to_string(samples));
   }
-  if (!(std::isfinite(request.max_spread_n) && request.max_spread_n > 0.0)) {
+  if (!(std::isfinite(max_spread_n) && max_spread_n > 0.0)) {
     throw std::invalid_argument("tare max_spread_n must be positive and finite");
   }
+}
+
+void ForceTare::request(const TareRequest& request) {
+  request.validate();
   request_ = request;
   remaining_ = request.samples;
   count_ = 0;

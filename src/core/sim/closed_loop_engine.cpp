@@ -72,6 +72,12 @@ double CommandTransport::undrawnDelay(double now) {
   return last_due_ - now;
 }
 
+double CommandTransport::spindleDelay(double now, double rpm) {
+  const bool repeat = rpm > 0.0 && rpm == last_spindle_rpm_;
+  last_spindle_rpm_ = rpm;
+  return repeat ? undrawnDelay(now) : delay(now);
+}
+
 double trialStartTime(std::uint64_t seed, double reset_time, double pre_trial_s, double breath_s,
                       bool draw_phase) {
   return reset_time + pre_trial_s + (draw_phase ? startPhaseFraction(seed) * breath_s : 0.0);
@@ -119,7 +125,6 @@ struct ClosedLoopEngine::Impl {
   // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
   // the tracker samples in transit.
   CommandTransport command_transport;
-  double last_spindle_rpm = 0.0;  // the latest spindle speed sent (isSpindleRepeat)
   struct DelayedMarker {
     double due;
     double stamp;
@@ -242,11 +247,7 @@ struct ClosedLoopEngine::Impl {
       record.stops.push_back({now, "/compensation_planner", why, true});
     }
     for (double rpm : out.spindle_rpm) {
-      const double delay = isSpindleRepeat(rpm, last_spindle_rpm)
-                               ? command_transport.undrawnDelay(now)
-                               : command_transport.delay(now);
-      last_spindle_rpm = rpm;
-      send(delay, [this, rpm]() { sim->commandSpindle(rpm); });
+      send(command_transport.spindleDelay(now, rpm), [this, rpm]() { sim->commandSpindle(rpm); });
     }
     for (const TareRequest& r : out.tare_requests) {
       send(command_transport.undrawnDelay(now), [this, r]() { sim->requestTare(r); });

@@ -19,6 +19,11 @@ namespace pedicle_drilling::core {
 struct TareRequest {
   int samples = 100;          ///< samples averaged, [1, 100000]
   double max_spread_n = 0.5;  ///< largest SD of the force norm over the window [N], > 0
+  /**
+   * @brief @throws std::invalid_argument when samples is outside [1, 100000] or max_spread_n is
+   *        not positive and finite.
+   */
+  void validate() const;
 };
 
 /** @brief The outcome of a tare window. */
@@ -38,8 +43,7 @@ class ForceTare {
 
   /**
    * @brief Start a window from the next sample on (a window in progress is dropped).
-   * @throws std::invalid_argument when samples is outside [1, 100000] or max_spread_n is not
-   *         positive and finite.
+   * @throws std::invalid_argument for a request that TareRequest::validate() refuses.
    */
   void request(const TareRequest& request);
 

@@ -78,10 +78,16 @@ class CommandTransport {
   double delay(double now);
   /**
    * @brief The delay of a message of the command path that draws no jitter, sent at `now`: a
-   *        spindle keepalive (isSpindleRepeat) or a tare request. The same path and order, so
-   *        that they leave every other command's jitter as it was.
+   *        spindle keepalive or a tare request. The same path and order, so that they leave
+   *        every other command's jitter as it was.
    */
   double undrawnDelay(double now);
+  /**
+   * @brief The delay of a spindle speed command of @p rpm sent at `now`: a keepalive (running,
+   *        > 0, and equal to the latest speed sent: the planner repeats only a running speed,
+   *        spindle_keepalive_s) takes undrawnDelay(); every change, a stop included, delay().
+   */
+  double spindleDelay(double now, double rpm);
 
  private:
   double delay_s_ = 1e-3;
@@ -89,16 +95,8 @@ class CommandTransport {
   std::uint64_t seed_ = 0;
   std::uint64_t count_ = 0;
   double last_due_ = 0.0;
+  double last_spindle_rpm_ = 0.0;  ///< the latest spindle speed sent (spindleDelay)
 };
-
-/**
- * @brief Whether a spindle speed command is a keepalive: running (> 0) and equal to the latest
- *        one (@p latest_rpm). The planner repeats only a running speed (spindle_keepalive_s);
- *        every change, a stop included, is a command of its own.
- */
-inline bool isSpindleRepeat(double rpm, double latest_rpm) {
-  return rpm > 0.0 && rpm == latest_rpm;
-}
 
 /** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
 struct EngineConfig {
