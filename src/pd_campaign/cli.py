@@ -266,6 +266,9 @@ def parse_args(argv):
     parser.add_argument('--out', default='campaign_out')
     parser.add_argument('--shard', default=None, help='K/N: run the K-th of N slices')
     parser.add_argument('--bags', action='store_true', help='keep a rosbag per trial')
+    parser.add_argument('--samples', action='store_true',
+                        help='keep every force-sensor sample of each trial in OUT/samples/'
+                        '<trial_id>.npy (core engine; the dataset of doc/dataset.md)')
     parser.add_argument('--base-port', type=int, default=11400)
     parser.add_argument('--real-time-factor', type=float, default=5.0,
                         help='sim seconds per wall second in each worker (the nodelets must '
@@ -281,6 +284,8 @@ def parse_args(argv):
                              '(use --engine ros)' % scenario.get('identification'))
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+    elif args.samples:
+        raise UsageError('--samples is written by --engine core only')
     elif set(scenario.get('engine_delays') or {}) - set(ROS_DELAYS):
         raise UsageError('scenario key engine_delays: on --engine ros only %s (the Simulator\'s '
                          'transport under the lockstep); %s run by --engine core only' % (
@@ -561,6 +566,9 @@ def run_campaign(argv=None):
     progress = Progress(len(selected))
     workers = []
     pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
+    samples_dir = os.path.join(out_dir, 'samples') if args.samples else None
+    if samples_dir:
+        os.makedirs(samples_dir, exist_ok=True)
     for k, part in enumerate(slices):
         trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
         with atomic_write(trial_file) as handle:
@@ -577,7 +585,7 @@ def run_campaign(argv=None):
                 recognizer, compensator, params['recognizer'], params['compensator'],
                 scenario.get('simulator'), scenario.get('protocol', 'recognition'),
                 scenario.get('simulator_params'), scenario.get('planner_params'),
-                scenario.get('engine_delays'))))
+                scenario.get('engine_delays'), samples_dir)))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),

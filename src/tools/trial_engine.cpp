@@ -22,18 +22,22 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <fstream>
 #include <iostream>
 #include <map>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include <ros/package.h>
 
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
+#include "pedicle_drilling/core/common/atomic_file.hpp"
 #include "pedicle_drilling/core/common/text_parse.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
@@ -165,8 +169,76 @@ struct Options {
   std::vector<std::string> simulator_params;
   std::vector<std::string> planner_params;
   std::string protocol = "recognition";
+  std::string samples_dir;  // empty: no per-sample records
   bool list_faults = false;
 };
+
+/** @brief The dataset's per-sample fields (doc/dataset.md), in the order they are written. */
+struct SampleField {
+  const char* name;
+  const char* numpy_type;  // '<f8', '<i4' or '|u1'
+};
+constexpr SampleField kSampleFields[] = {
+    {"t", "<f8"},
+    {"raw_force_n", "<f8"},
+    {"true_force_n", "<f8"},
+    {"averaged_force_n", "<f8"},
+    {"tip_depth_m", "<f8"},
+    {"max_depth_cut_m", "<f8"},
+    {"layer", "<i4"},
+    {"contact", "|u1"},
+    {"bone_ap_m", "<f8"},
+    {"predicted_ap_m", "<f8"},
+    {"tracker_x_m", "<f8"},
+    {"tracker_y_m", "<f8"},
+    {"tracker_z_m", "<f8"},
+    {"breath_phase", "<f8"},
+    {"tidal_volume_ml", "<f8"},
+};
+
+template <typename T>
+void appendLittleEndian(std::string* out, T value) {
+  static_assert(std::is_trivially_copyable_v<T>);
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  if constexpr (sizeof(T) > 1) {
+    const std::uint16_t probe = 1;
+    if (*reinterpret_cast<const std::uint8_t*>(&probe) == 0) std::reverse(bytes, bytes + sizeof(T));
+  }
+  out->append(bytes, sizeof(T));
+}
+
+/**
+ * @brief The trial's samples as a NumPy .npy file (format 1.0) of one structured array whose
+ *        field names are kSampleFields': numpy.load reads it, the columns named.
+ */
+std::string samplesToNpy(const std::vector<pd::EngineSample>& samples) {
+  std::string header = "{'descr': [";
+  for (const SampleField& f : kSampleFields) {
+    header += std::string("('") + f.name + "', '" + f.numpy_type + "'), ";
+  }
+  header += "], 'fortran_order': False, 'shape': (" + std::to_string(samples.size()) + ",), }";
+  // Magic (6) + version (2) + header length (2) + header + '\n', a multiple of 64 bytes.
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header += '\n';
+  std::string out("\x93NUMPY\x01\x00", 8);
+  appendLittleEndian(&out, static_cast<std::uint16_t>(header.size()));
+  out += header;
+  for (const pd::EngineSample& x : samples) {
+    for (double v : {x.t, x.raw_force_n, x.true_force_n, x.averaged_force_n, x.tip_depth_m,
+                     x.max_depth_cut_m}) {
+      appendLittleEndian(&out, v);
+    }
+    appendLittleEndian(&out, static_cast<std::int32_t>(x.layer));
+    appendLittleEndian(&out, static_cast<std::uint8_t>(x.contact ? 1 : 0));
+    for (double v : {x.bone_ap_m, x.predicted_ap_m, x.tracker_m.x(), x.tracker_m.y(),
+                     x.tracker_m.z(), x.breath_phase, x.tidal_volume_ml}) {
+      appendLittleEndian(&out, v);
+    }
+  }
+  return out;
+}
 
 /** @brief Declares every option of the tool (its values go to *o and *config). */
 void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
@@ -263,6 +335,10 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "name=value for the trial sequence, named as the CompensationPlanner nodelet's "
                   "parameters (repeatable; e.g. stop_hold_s=0; `rosrun pedicle_drilling param_docs "
                   "--node pedicle_drilling/CompensationPlanner` lists them)");
+  app->add_option("--samples-dir", o->samples_dir,
+                  "write every force-sensor sample of a trial to DIR/<trial_id>.npy (the "
+                  "labelled dataset, doc/dataset.md)")
+      ->check(CLI::ExistingDirectory);
   app->add_flag("--list-faults", o->list_faults, "print the faults a trial may name, one per line");
   app->footer("Faults: " + [] {
     std::string names;
@@ -378,6 +454,7 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
       spec.max_duration_s = o.max_duration;
       spec.fault = pd::parseFaultKind(t.value("fault", std::string("none")));
       spec.protocol = pd::parseTrialProtocol(o.protocol);
+      spec.record_samples = !o.samples_dir.empty();
       const bool moving = spec.mode != "stationary";
       pd::PatientModel patient = stationary_model;
       if (moving) {
@@ -401,7 +478,15 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
         }
       }
       spec.model = patient.motionModel();
-      out["record"] = recordToJson(engine->run(spec));
+      const pd::EngineTrialRecord record = engine->run(spec);
+      if (spec.record_samples) {
+        const std::string id = t.at("trial_id").get<std::string>();
+        if (id.empty() || id.find('/') != std::string::npos || id[0] == '.') {
+          throw std::runtime_error("trial_id '" + id + "' cannot name a samples file");
+        }
+        pd::writeFileAtomically(o.samples_dir + "/" + id + ".npy", samplesToNpy(record.samples));
+      }
+      out["record"] = recordToJson(record);
       out["record"]["protocol"] = o.protocol;
     } catch (const std::exception& e) {
       out["error"] = e.what();

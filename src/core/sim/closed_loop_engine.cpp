@@ -114,6 +114,8 @@ struct ClosedLoopEngine::Impl {
   long last_breath_index = -1;
   double now = 0.0;
   bool stop_truth_recorded = false;  // the truth sample at the first stop command was taken
+  bool record_samples = false;       // the trial has started and its samples are recorded
+  Eigen::Vector3d last_tracker = Eigen::Vector3d::Constant(std::nan(""));  // as delivered
 
   // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
   bool fault_armed = false;                   // the drilling has started: the trigger is watched
@@ -345,6 +347,7 @@ struct ClosedLoopEngine::Impl {
 
   void deliverMarker(double stamp, const Eigen::Vector3d& marker,
                      const Eigen::Quaterniond& orientation) {
+    last_tracker = marker;
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
     const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
@@ -372,6 +375,29 @@ struct ClosedLoopEngine::Impl {
       sequencer->setVentilator(ventilator.model().settings());
     }
     sequencer->setBreathStart(now - sim->sensedTimeInBreath());
+  }
+
+  /** @brief One row of the dataset (EngineSample), at a force-sensor sample. */
+  void recordSample(double raw_force, double true_force) {
+    const SimulationGroundTruth g = sim->groundTruth();
+    EngineSample x;
+    x.t = now;
+    x.raw_force_n = raw_force;
+    x.true_force_n = true_force;
+    x.averaged_force_n = record.states.empty() ? 0.0 : record.states.back().averaged_force;
+    x.tip_depth_m = g.tip_depth_m;
+    x.max_depth_cut_m = g.max_depth_cut_m;
+    x.layer = static_cast<int>(g.layer);
+    x.contact = g.contact;
+    x.bone_ap_m = g.bone_displacement_m.z();
+    const CompensationPlanner* planner = sequencer->planner();
+    x.predicted_ap_m = planner ? planner->boneDisplacementSinceStart(now).z() : std::nan("");
+    x.tracker_m = last_tracker;
+    const BreathScheduler& v = sim->ventilator();
+    const double breath_s = 60.0 / v.model().settings().rate_bpm;
+    x.breath_phase = std::clamp((now - v.breathStart()) / breath_s, 0.0, 1.0);
+    x.tidal_volume_ml = g.tidal_volume_ml;
+    record.samples.push_back(x);
   }
 
   void recordTruth() {
@@ -452,6 +478,7 @@ struct ClosedLoopEngine::Impl {
       }
       monitor->onForce(now, force);
       evaluateMonitor();
+      if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
     if (s.force_sampled) onTareResult();
     if (n % truth_period == 0 || s.layer_changed) recordTruth();
@@ -538,6 +565,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.record = EngineTrialRecord();
   s.last_breath_index = -1;
   s.stop_truth_recorded = false;
+  s.record_samples = false;
+  s.last_tracker = Eigen::Vector3d::Constant(std::nan(""));
   s.fault_armed = false;
   s.last_phase = TrialPhase::kIdle;
   s.fault_pending = false;
@@ -575,6 +604,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
       trialStartTime(spec.seed, s.now, s.config.pre_trial_s, breath_s, s.config.draw_start_phase);
   while (s.now < t_start - 1e-9) s.step(++n);
   s.startComponents();
+  s.record_samples = spec.record_samples;
   TrialRequest request;
   request.mode = spec.mode;
   request.spindle_rpm = spec.spindle_rpm;

@@ -179,6 +179,9 @@ struct EngineTrialSpec {
    *        cancellous_max_mm) are off under it.
    */
   TrialProtocol protocol = TrialProtocol::kRecognition;
+  /** @brief Record every force-sensor sample from the trial's start (EngineTrialRecord::samples,
+   *         the labelled dataset of issue 32). */
+  bool record_samples = false;
 };
 
 /** @brief When and how a fault was injected. */
@@ -210,6 +213,26 @@ struct EngineTruthSample {
   std::uint32_t contact_loss_count = 0;  ///< separations since the trial started
 };
 
+/**
+ * @brief One force-sensor sample with what was true and what the pipeline knew at that moment
+ *        (EngineTrialSpec::record_samples): a row of the labelled dataset (doc/dataset.md).
+ */
+struct EngineSample {
+  double t = 0.0;                 ///< sim time [s]
+  double raw_force_n = 0.0;       ///< thrust the recognizer is given (tared, faults applied) [N]
+  double true_force_n = 0.0;      ///< the simulator's true thrust, no sensor [N]
+  double averaged_force_n = 0.0;  ///< the recognizer's latest averaged force (held) [N]
+  double tip_depth_m = 0.0;       ///< tip depth below the bone's top surface [m]
+  double max_depth_cut_m = 0.0;   ///< deepest point cut [m]
+  int layer = 0;                  ///< Material under the tip's deepest cut (the label)
+  bool contact = false;           ///< lips cutting
+  double bone_ap_m = 0.0;         ///< true vertebra AP displacement from its home [m]
+  double predicted_ap_m = 0.0;    ///< planner's predicted AP displacement since start (NaN: none)
+  Eigen::Vector3d tracker_m{0, 0, 0};  ///< last tracked marker position, camera frame (NaN: none)
+  double breath_phase = 0.0;           ///< fraction of the current breath elapsed, [0, 1)
+  double tidal_volume_ml = 0.0;        ///< patient tidal volume [ml]
+};
+
 /** @brief A stop command (StopCommand). */
 struct EngineStop {
   double t = 0.0;
@@ -225,6 +248,7 @@ struct EngineTrialRecord {
   double cancellous_thickness_m = 0.0;
   double inner_cortical_thickness_m = 0.0;
   std::vector<EngineStateSample> states;
+  std::vector<EngineSample> samples;  ///< every sensor sample (if EngineTrialSpec::record_samples)
   std::vector<std::pair<int, double>> key_points;  ///< (id, t) as last_key_point rises
   std::vector<EngineTruthSample> truth;
   SimulationGroundTruth last_truth;
