@@ -233,7 +233,8 @@ def parse_args(argv):
         prog='campaign', description='Reproduce the paper\'s drilling experiments on the '
         'simulator: Table III, Fig. 15-18, with Wilson 95 %% intervals.')
     parser.add_argument('--case', default=None,
-                        help='stationary | uncompensated | compensated | all (default: scenario)')
+                        help='stationary | uncompensated | compensated | all, or a comma-separated list '
+                        '(default: scenario)')
     parser.add_argument('--rpm', default=None, help='comma-separated spindle speeds')
     parser.add_argument('--trials', default=None,
                         help='trials per case and speed: N, or one count per --rpm (N1,N2,...)')
@@ -309,10 +310,11 @@ def parse_args(argv):
         cases = list(scenario.get('cases', CASES))
     elif args.case == 'all':
         cases = list(CASES)
-    elif args.case in CASES:
-        cases = [args.case]
+    elif all(c in CASES for c in args.case.split(',')):
+        cases = [c for c in CASES if c in args.case.split(',')]  # canonical order
     else:
-        raise UsageError('--case %r is not one of: %s, all' % (args.case, ', '.join(CASES)))
+        raise UsageError('--case %r is not one of: %s, all (or a comma-separated list)'
+                         % (args.case, ', '.join(CASES)))
     if args.rpm is None:
         rpms = [float(r) for r in scenario.get('rpms', [12000, 16000, 20000])]
     else:

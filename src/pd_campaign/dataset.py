@@ -12,7 +12,7 @@ evaluation seeds (the test split), and writes
   ``pandas.DataFrame({k: z[k] for k in SAMPLE_COLUMNS})`` or ``torch.from_numpy(z[k])`` take the
   columns as they are;
 - ``DIR/split.json``: each split's trial ids and seeds (the split is fixed by the seed space and
-  the trial's index, never by an outcome);
+  the trial's index, never by an outcome), and under ``meta`` the base seed and the scenario;
 - ``DIR/DATASHEET.md``: the fields, their units, how the data were made, the counts, the
   simulator's known limits;
 - ``DIR/runs/{calibration,evaluation}/``: the two campaigns, with their reports.
@@ -30,6 +30,7 @@ import subprocess
 import sys
 
 import numpy as np
+import yaml
 
 from pd_campaign import tools
 from pd_campaign.atomic import atomic_write
@@ -218,6 +219,9 @@ def main(argv=None):
                         help='400 calibration and 200 evaluation trials per case and speed')
     parser.add_argument('--rpm', default=None, help='comma-separated spindle speeds '
                         '(default: the scenario\'s)')
+    parser.add_argument('--seed', type=int, default=None,
+                        help='base seed (default: the scenario\'s); the test split\'s specimens '
+                        'are the evaluation-space trials of this base seed')
     parser.add_argument('--jobs', type=int, default=2)
     args = parser.parse_args(argv)
     if args.large:
@@ -228,15 +232,17 @@ def main(argv=None):
     try:
         with open(args.scenario) as handle:
             scenario_text = handle.read()
-    except OSError as e:
+        scenario = yaml.safe_load(scenario_text)
+    except (OSError, yaml.YAMLError) as e:
         parser.error('--scenario: %s' % e)
+    base_seed = args.seed if args.seed is not None else int(scenario.get('seed', 1))
     os.makedirs(args.out, exist_ok=True)
     run_dirs = []
     for space, trials in (('calibration', args.trials), ('evaluation', args.test_trials)):
         run_dir = os.path.join(args.out, 'runs', space)
         command = tools.tool('campaign') + [
             '--scenario', args.scenario, '--seed-space', space, '--trials', str(trials),
-            '--samples', '--jobs', str(args.jobs), '--out', run_dir]
+            '--samples', '--jobs', str(args.jobs), '--seed', str(base_seed), '--out', run_dir]
         if args.rpm:
             command += ['--rpm', args.rpm]
         sys.stderr.write('campaign_dataset: %s seeds, %d trials per case and speed\n'
@@ -247,8 +253,12 @@ def main(argv=None):
         run_dirs.append(run_dir)
     counts = assemble(run_dirs, args.out)
     with atomic_write(os.path.join(args.out, 'split.json')) as handle:
-        json.dump({split: [{'trial_id': i, 'seed': s} for i, s in counts[split]['ids']]
-                   for split in SPLITS}, handle, indent=1)
+        listing = {split: [{'trial_id': i, 'seed': s} for i, s in counts[split]['ids']]
+                   for split in SPLITS}
+        listing['meta'] = {'base_seed': base_seed, 'scenario': os.path.basename(args.scenario),
+                           'validation_modulus': VALIDATION_MODULUS,
+                           'protocol': scenario.get('protocol', 'recognition')}
+        json.dump(listing, handle, indent=1)
     command = 'campaign_dataset ' + ' '.join(argv if argv is not None else sys.argv[1:])
     with atomic_write(os.path.join(args.out, 'DATASHEET.md')) as handle:
         handle.write(datasheet(counts, command, scenario_text))

@@ -1,11 +1,13 @@
 // recognize: offline run of the drilling-state recognizer over a raw force recording.
 //
 //   recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]
+//   recognize --json --input a.csv --input b.csv ...   (one JSON line per trace)
 //
 // force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
 // key points and the stop. Command-line parsing: CLI11 with the tools' conventions
 // (tool_cli.hpp). Exit codes: 0 ok, 2 bad input or parameters.
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -150,7 +152,7 @@ std::vector<Sample> readCsv(const std::string& path) {
 
 /** @brief Everything the command line sets. */
 struct Options {
-  std::string input;
+  std::vector<std::string> inputs;
   std::string bag;
   std::string topic = "/ft_sensor/wrench";
   std::string axis = "z";
@@ -161,7 +163,10 @@ struct Options {
 
 /** @brief Declares every option of the tool (its values go to *o). */
 void addOptions(CLI::App* app, Options* o) {
-  CLI::Option* input = app->add_option("--input", o->input, "force trace, CSV t,force (s, N)");
+  CLI::Option* input = app->add_option(
+      "--input", o->inputs,
+      "force trace, CSV t,force (s, N); repeatable with --json: one line per trace, the "
+      "recognizer reset between traces (the same object, as trials of a campaign)");
   app->add_option("--bag", o->bag,
                   "a recording (a campaign bag): the raw force of --topic "
                   "(geometry_msgs/WrenchStamped), its --axis component, at the header stamps")
@@ -205,6 +210,49 @@ pedicle_drilling::core::RecognizerSettings settingsOf(const Options& o, std::str
   return settings;
 }
 
+/** @brief The result as one JSON line {key_points, stop} (and the input's path, if given). */
+std::string jsonLine(const RecognizerOutput& o, const std::string* input) {
+  std::ostringstream os;
+  os << "{";
+  if (input) os << "\"input\":" << nlohmann::json(*input).dump() << ",";
+  os << "\"key_points\":[";
+  for (int j = 0; j < o.num_key_points; ++j) {
+    const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
+    os << (j ? "," : "") << "{\"index\":" << kp.index << ",\"t\":" << num(kp.t) << "}";
+  }
+  os << "],\"stop\":";
+  if (o.stop) {
+    os << "{\"index\":" << o.stop_index << ",\"t\":" << num(o.stop_t)
+       << ",\"key_point\":" << o.stop_key_point << "}";
+  } else {
+    os << "null";
+  }
+  os << "}\n";
+  return os.str();
+}
+
+/** @brief The result as text lines. */
+void printText(const RecognizerOutput& o, std::size_t samples) {
+  std::cout << "samples " << samples << "\n";
+  // The layer the force shows at the end of the trace (the key points go on after the stop).
+  std::cout << "final_state " << pedicle_drilling::core::toString(o.layer_state) << "\n";
+  if (o.params_ready) {
+    std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min) << "\n";
+  }
+  for (int j = 0; j < o.num_key_points; ++j) {
+    const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
+    std::cout << "key_point " << kp.id << " index " << kp.index << " t " << num(kp.t)
+              << " recognized_index " << kp.recognized_index << " recognized_t "
+              << num(kp.recognized_t) << "\n";
+  }
+  if (o.stop) {
+    std::cout << "stop index " << o.stop_index << " t " << num(o.stop_t) << " key_point "
+              << o.stop_key_point << "\n";
+  } else {
+    std::cout << "stop none\n";
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -218,8 +266,11 @@ int main(int argc, char** argv) {
   Options options;
   addOptions(&app, &options);
   if (const auto exit = tools::parseCommandLine(&app, argc, argv)) return *exit;
-  if (options.input.empty() == options.bag.empty()) {
+  if (options.inputs.empty() == options.bag.empty()) {
     return tools::usageError(app, "give one of --input (CSV t,force) and --bag (a recording)");
+  }
+  if (options.inputs.size() > 1 && !options.json) {
+    return tools::usageError(app, "several --input traces need --json (one line each)");
   }
   std::string error;
   const pedicle_drilling::core::RecognizerSettings settings = settingsOf(options, &error);
@@ -232,54 +283,26 @@ int main(int argc, char** argv) {
     std::cerr << "recognize: --recognizer " << options.recognizer_class << ": " << e.what() << "\n";
     return tools::kUsageExit;
   }
-  const bool json = options.json;
-
-  std::vector<Sample> samples;
+  // Every trace is read before any is run: a bad one is exit 2 with nothing printed.
+  std::vector<std::vector<Sample>> traces;
   try {
-    samples = options.bag.empty() ? readCsv(options.input)
-                                  : readBag(options.bag, options.topic, options.axis);
+    if (options.bag.empty()) {
+      for (const std::string& input : options.inputs) traces.push_back(readCsv(input));
+    } else {
+      traces.push_back(readBag(options.bag, options.topic, options.axis));
+    }
   } catch (const InputError& e) {
     std::cerr << "recognize: bad input: " << e.what() << "\n";
     return tools::kUsageExit;
   }
-
-  for (const Sample& s : samples) rec->push(s.t, s.f);
-  const RecognizerOutput& o = rec->output();
-
-  if (json) {
-    std::ostringstream os;
-    os << "{\"key_points\":[";
-    for (int j = 0; j < o.num_key_points; ++j) {
-      const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
-      os << (j ? "," : "") << "{\"index\":" << kp.index << ",\"t\":" << num(kp.t) << "}";
-    }
-    os << "],\"stop\":";
-    if (o.stop) {
-      os << "{\"index\":" << o.stop_index << ",\"t\":" << num(o.stop_t)
-         << ",\"key_point\":" << o.stop_key_point << "}";
+  for (std::size_t k = 0; k < traces.size(); ++k) {
+    rec->reset();
+    for (const Sample& s : traces[k]) rec->push(s.t, s.f);
+    if (options.json) {
+      std::cout << jsonLine(rec->output(),
+                            options.inputs.size() > 1 ? &options.inputs[k] : nullptr);
     } else {
-      os << "null";
-    }
-    os << "}\n";
-    std::cout << os.str();
-  } else {
-    std::cout << "samples " << samples.size() << "\n";
-    // The layer the force shows at the end of the trace (the key points go on after the stop).
-    std::cout << "final_state " << pedicle_drilling::core::toString(o.layer_state) << "\n";
-    if (o.params_ready) {
-      std::cout << "algorithm2 k " << o.k << " D " << num(o.d) << " f_min " << num(o.f_min) << "\n";
-    }
-    for (int j = 0; j < o.num_key_points; ++j) {
-      const KeyPoint& kp = o.key_points[static_cast<std::size_t>(j)];
-      std::cout << "key_point " << kp.id << " index " << kp.index << " t " << num(kp.t)
-                << " recognized_index " << kp.recognized_index << " recognized_t "
-                << num(kp.recognized_t) << "\n";
-    }
-    if (o.stop) {
-      std::cout << "stop index " << o.stop_index << " t " << num(o.stop_t) << " key_point "
-                << o.stop_key_point << "\n";
-    } else {
-      std::cout << "stop none\n";
+      printText(rec->output(), traces[k].size());
     }
   }
   return 0;

@@ -99,12 +99,41 @@ TEST(ForceDifferenceRecognizer, StopsAtTheSecondBreakthroughNotTheFirst) {
   EXPECT_EQ(r->output().state, pd::DrillingState::kIdle);
 }
 
+TEST(ForceDifferenceRecognizer, StopAtEntryTwoStopsWhereTheInnerCortexBegins) {
+  const auto r = pd::makeBuiltinRecognizer("pedicle_drilling/ForceDifferenceRecognizer",
+                                           {{"stop_at_entry", "2"}, {"rise_confirm", "2"}});
+  const std::vector<double> f = profile();
+  pd::DrillingState layer_at_stop = pd::DrillingState::kIdle;
+  for (std::size_t i = 0; i < f.size(); ++i) {
+    const bool stopped = r->output().stop;
+    if (r->push(1e-3 * static_cast<double>(i), f[i]).stop && !stopped) {
+      layer_at_stop = r->output().layer_state;
+    }
+  }
+  const pd::RecognizerOutput& o = r->output();
+  ASSERT_TRUE(o.stop);
+  // The inner cortex's force rises from 12.0 s to 15.0 s: the stop in that rise, before the
+  // breakthrough (its fall starts at 15.0 s).
+  EXPECT_GT(o.stop_t, 12.0);
+  EXPECT_LT(o.stop_t, 15.0);
+  EXPECT_EQ(layer_at_stop, pd::DrillingState::kInnerCortical);
+  EXPECT_NE(r->stopReason().find("cortex entry 2"), std::string::npos) << r->stopReason();
+  // Two confirming blocks stop later than one, never earlier.
+  const auto one = pd::makeBuiltinRecognizer("pedicle_drilling/ForceDifferenceRecognizer",
+                                             {{"stop_at_entry", "2"}});
+  for (std::size_t i = 0; i < f.size(); ++i) one->push(1e-3 * static_cast<double>(i), f[i]);
+  ASSERT_TRUE(one->output().stop);
+  EXPECT_LT(one->output().stop_t, o.stop_t);
+}
+
 TEST(ForceDifferenceRecognizer, SettingsAreCheckedNamingThem) {
   for (const auto& [name, value] :
        std::vector<std::pair<std::string, std::string>>{{"drop_threshold_n", "-1"},
                                                         {"drop_confirm", "0"},
                                                         {"pre_average", "x"},
                                                         {"stop_at_breakthrough", "11"},
+                                                        {"stop_at_entry", "-1"},
+                                                        {"rise_confirm", "0"},
                                                         {"no_such_parameter", "1"}}) {
     try {
       pd::makeBuiltinRecognizer("pedicle_drilling/ForceDifferenceRecognizer", {{name, value}});

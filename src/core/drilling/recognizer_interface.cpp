@@ -79,6 +79,8 @@ void ForceDifferenceParams::validate() const {
   if (!(rearm_rise_n > 0.0 && rearm_rise_n <= 100.0)) {
     fail("rearm_rise_n", "must be in (0, 100] N per block");
   }
+  if (rise_confirm < 1 || rise_confirm > 10000) fail("rise_confirm", "must be in [1, 10000]");
+  if (stop_at_entry < 0 || stop_at_entry > 10) fail("stop_at_entry", "must be in [0, 10]");
 }
 
 void ForceDifferenceRecognizer::configure(const RecognizerSettings& settings) {
@@ -100,6 +102,10 @@ void ForceDifferenceRecognizer::configure(const RecognizerSettings& settings) {
       p.stop_at_breakthrough = parseSettingInt(name, value);
     } else if (name == "rearm_rise_n") {
       p.rearm_rise_n = parseSettingDouble(name, value);
+    } else if (name == "rise_confirm") {
+      p.rise_confirm = parseSettingInt(name, value);
+    } else if (name == "stop_at_entry") {
+      p.stop_at_entry = parseSettingInt(name, value);
     } else {
       throw std::invalid_argument(name + ": not a parameter of " +
                                   std::string(kForceDifferenceRecognizer));
@@ -122,8 +128,10 @@ void ForceDifferenceRecognizer::reset() {
   P_ = 1.0;
   in_bone_ = false;
   armed_ = true;
+  rising_ = 0;
   falling_ = 0;
   breakthroughs_ = 0;
+  entries_ = 0;
 }
 
 const RecognizerOutput& ForceDifferenceRecognizer::push(double t, double raw_force) {
@@ -163,8 +171,10 @@ void ForceDifferenceRecognizer::onBlock(double f) {
   if (!in_bone_) {
     if (f <= p_.contact_force_n) return;
     in_bone_ = true;
+    entries_ = 1;
     out_.layer_state = DrillingState::kOuterCortical;
     if (!out_.stop) out_.state = out_.layer_state;
+    if (p_.stop_at_entry == 1) latchStop();
   }
   if (armed_) {
     falling_ = x_ < -p_.drop_threshold_n ? falling_ + 1 : 0;
@@ -174,23 +184,40 @@ void ForceDifferenceRecognizer::onBlock(double f) {
       falling_ = 0;
       out_.layer_state =
           breakthroughs_ == 1 ? DrillingState::kCancellous : DrillingState::kBreakthrough;
-      if (breakthroughs_ >= p_.stop_at_breakthrough && !out_.stop) {
-        out_.stop = true;
-        out_.stop_t = cur_t_;
-        out_.stop_index = raw_count_ - 1;
-        out_.stop_key_point = 0;
-      }
+      if (breakthroughs_ >= p_.stop_at_breakthrough) latchStop();
     }
-  } else if (x_ > p_.rearm_rise_n) {
-    armed_ = true;  // the force rises again: the next cortex
-    if (breakthroughs_ >= 1) out_.layer_state = DrillingState::kInnerCortical;
+  } else {
+    rising_ = x_ > p_.rearm_rise_n ? rising_ + 1 : 0;
+    if (rising_ >= p_.rise_confirm) {
+      armed_ = true;  // the force rises again: the next cortex
+      rising_ = 0;
+      ++entries_;
+      if (breakthroughs_ >= 1) out_.layer_state = DrillingState::kInnerCortical;
+      if (entries_ == p_.stop_at_entry) latchStop();
+    }
   }
   out_.state = out_.stop ? DrillingState::kStopped : out_.layer_state;
+}
+
+void ForceDifferenceRecognizer::latchStop() {
+  if (out_.stop) return;
+  out_.stop = true;
+  out_.stop_t = cur_t_;
+  out_.stop_index = raw_count_ - 1;
+  out_.stop_key_point = 0;
 }
 
 std::string ForceDifferenceRecognizer::stopReason() const {
   if (!out_.stop) return "";
   char text[200];
+  if (p_.stop_at_entry > 0 && entries_ >= p_.stop_at_entry) {
+    std::snprintf(text, sizeof(text),
+                  "force-difference cortex entry %d detected (filtered FDSS above %.3f N per "
+                  "block for %d blocks after breakthrough %d) at t=%.3f s, raw sample %lu",
+                  entries_, p_.rearm_rise_n, p_.rise_confirm, breakthroughs_, out_.stop_t,
+                  static_cast<unsigned long>(out_.stop_index));
+    return text;
+  }
   std::snprintf(text, sizeof(text),
                 "force-difference breakthrough %d detected (filtered FDSS below -%.3f N per "
                 "block for %d blocks) at t=%.3f s, raw sample %lu",
@@ -204,13 +231,15 @@ std::string ForceDifferenceRecognizer::describe() const {
   os << "force-difference baseline (Ong and Bouazza-Marouf 1999): pre-average " << p_.pre_average
      << ", contact " << p_.contact_force_n << " N, q " << p_.process_noise << ", r "
      << p_.measurement_noise << ", drop " << p_.drop_threshold_n << " N/block x " << p_.drop_confirm
-     << ", stop at breakthrough " << p_.stop_at_breakthrough;
+     << ", stop at breakthrough " << p_.stop_at_breakthrough << ", re-arm " << p_.rearm_rise_n
+     << " N/block x " << p_.rise_confirm << ", stop at entry " << p_.stop_at_entry;
   return os.str();
 }
 
 std::vector<std::string> ForceDifferenceRecognizer::parameterNames() const {
   return {"pre_average",      "contact_force_n", "process_noise",        "measurement_noise",
-          "drop_threshold_n", "drop_confirm",    "stop_at_breakthrough", "rearm_rise_n"};
+          "drop_threshold_n", "drop_confirm",    "stop_at_breakthrough", "rearm_rise_n",
+          "rise_confirm",     "stop_at_entry"};
 }
 
 // ---------------------------------------------------------------------------- factory

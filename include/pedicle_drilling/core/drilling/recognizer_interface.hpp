@@ -86,6 +86,13 @@ struct ForceDifferenceParams {
   int drop_confirm = 3;             ///< consecutive falling blocks that make a breakthrough
   int stop_at_breakthrough = 2;     ///< stop at this breakthrough (2: the second cortex)
   double rearm_rise_n = 0.015;      ///< filtered FDSS above +this re-arms the detector [N/block]
+  int rise_confirm = 1;             ///< consecutive rising blocks that re-arm it (a cortex entry)
+  /**
+   * @brief Stop at this cortex entry (0: never; the contact is the first entry, each re-arm
+   *        after a breakthrough the next): 2 stops at the inner cortex's entry, the task's stop
+   *        layer, where the breakthrough detector alone can only stop at its exit.
+   */
+  int stop_at_entry = 0;
   /** @throws std::invalid_argument naming the field. */
   void validate() const;
 };
@@ -102,7 +109,8 @@ struct ForceDifferenceParams {
  *        again (the next cortex), and the stop comes at the `stop_at_breakthrough`-th one (the
  *        outer cortex's breakthrough into cancellous bone is the first). States: idle before
  *        contact, outer cortical until the first breakthrough, cancellous until the force rises
- *        again, inner cortical after.
+ *        again, inner cortical after. With `stop_at_entry` 2 it stops where the force rises
+ *        again after the first breakthrough (the inner cortex's entry, issue 32's adaptation).
  */
 class ForceDifferenceRecognizer : public RecognizerInterface {
  public:
@@ -117,6 +125,7 @@ class ForceDifferenceRecognizer : public RecognizerInterface {
 
  private:
   void onBlock(double f);
+  void latchStop();
 
   ForceDifferenceParams p_;
   RecognizerOutput out_;
@@ -130,8 +139,10 @@ class ForceDifferenceRecognizer : public RecognizerInterface {
   double P_ = 1.0;  // its variance
   bool in_bone_ = false;
   bool armed_ = true;
+  int rising_ = 0;  // consecutive blocks above rearm_rise_n while disarmed
   int falling_ = 0;
   int breakthroughs_ = 0;
+  int entries_ = 0;  // cortex entries: the contact, then each re-arm
 };
 
 /** @brief The built-in recognizers' names, as pluginlib declares them. */

@@ -1,0 +1,377 @@
+"""The recognizer leaderboard of issue 32 (doc/leaderboard.md).
+
+    rosrun pedicle_drilling campaign_leaderboard --dataset DATASET_DIR --out DIR [--trials N]
+
+1. **Tuning, offline, on the dataset** (pd_campaign.dataset): every entry of
+   config/leaderboard.yaml with a `tune` grid is run over the training split's raw force traces
+   by the `recognize` tool (the very recognizer object the closed loop runs, reset between
+   trials), for every grid point; a stop whose sample is labelled inner cortical is correct. The
+   best TOP_ON_TRAIN points on the training split are re-scored on the validation split and the
+   best there is chosen (select()). The learned entry is fitted on the training split
+   (pd_campaign.baselines.train_learned). Nothing looks at the test split.
+2. **Closed loop, on the test split's specimens**: each entry drills the same evaluation-seed
+   trials (the dataset's base seed, evaluation space: the test split's specimens and patients,
+   extended by further evaluation seeds when more trials are asked for) on both benches.
+3. **The board**: per bench and case, each entry's correct stops with the Wilson 95 % interval,
+   no-penetration, early stops, residual, overshoot and detection latency, and McNemar's exact
+   test paired with the reference entry (the paper's recognizer), in DIR/leaderboard.md, .json
+   and a figure.
+"""
+
+import argparse
+import itertools
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import yaml
+
+from . import compare, report, stats, tools
+from .atomic import atomic_savefig, atomic_write
+
+PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
+TOP_ON_TRAIN = 3
+INNER_LAYER = 3  # pd_campaign.dataset.LAYERS
+
+
+class LeaderboardError(ValueError):
+    """A bad configuration or dataset, named."""
+
+
+def load_config(path):
+    """The leaderboard's configuration, checked: entries with unique names and a recognizer."""
+    try:
+        with open(path) as handle:
+            config = yaml.safe_load(handle)
+    except (OSError, yaml.YAMLError) as e:
+        raise LeaderboardError('%s: %s' % (path, e))
+    if not isinstance(config, dict) or not isinstance(config.get('entries'), list):
+        raise LeaderboardError('%s: no list "entries"' % path)
+    names = set()
+    for k, entry in enumerate(config['entries']):
+        if not isinstance(entry, dict) or not entry.get('name') or not entry.get('recognizer'):
+            raise LeaderboardError('%s: entries[%d] needs a name and a recognizer' % (path, k))
+        if entry['name'] in names:
+            raise LeaderboardError('%s: entry %r named twice' % (path, entry['name']))
+        names.add(entry['name'])
+        for key in ('params', 'tune'):
+            if not isinstance(entry.get(key) or {}, dict):
+                raise LeaderboardError('%s: entry %r: %s is not a map' % (path, entry['name'], key))
+        if entry.get('train') not in (None, 'learned'):
+            raise LeaderboardError('%s: entry %r: train: %r is not "learned"' % (
+                path, entry['name'], entry.get('train')))
+    if config.get('reference') not in names:
+        raise LeaderboardError('%s: reference %r is not an entry' % (path, config.get('reference')))
+    if not isinstance(config.get('benches'), dict) or not config['benches']:
+        raise LeaderboardError('%s: no map "benches"' % path)
+    return config
+
+
+def export_traces(npz_path, out_dir):
+    """Writes one CSV (t,force) per trial of a split for `recognize`; returns [(path, labels)],
+    `labels` the trial's per-sample layer labels."""
+    z = np.load(npz_path)
+    os.makedirs(out_dir, exist_ok=True)
+    traces = []
+    trial = z['trial']
+    for k in range(len(z['trial_trial_id'])):
+        rows = trial == k
+        path = os.path.join(out_dir, '%04d.csv' % k)
+        data = np.column_stack([z['t'][rows], z['raw_force_n'][rows]])
+        with atomic_write(path) as handle:
+            handle.write('t,force\n')
+            np.savetxt(handle, data, fmt='%.17g', delimiter=',')
+        traces.append((path, z['layer'][rows]))
+    return traces
+
+
+def outcome_of(stop_index, labels):
+    """correct | early | late | none, from the stop's sample label."""
+    if stop_index is None:
+        return 'none'
+    if stop_index >= len(labels):
+        raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
+            stop_index, len(labels)))
+    label = int(labels[stop_index])
+    return 'correct' if label == INNER_LAYER else ('late' if label > INNER_LAYER else 'early')
+
+
+def offline_score(recognizer, settings, traces):
+    """Runs `recognize` once over all traces with the settings; {correct, early, late, none}."""
+    command = tools.tool('recognize') + ['--json', '--recognizer', recognizer]
+    for name, value in sorted(settings.items()):
+        command += ['--param', '%s=%s' % (name, value)]
+    for path, _ in traces:
+        command += ['--input', path]
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise LeaderboardError('recognize %s %s: %s' % (recognizer, settings,
+                                                        result.stderr.strip()[-500:]))
+    lines = [json.loads(line) for line in result.stdout.splitlines() if line.startswith('{')]
+    if len(lines) != len(traces):
+        raise LeaderboardError('recognize gave %d results for %d traces' % (
+            len(lines), len(traces)))
+    counts = {'correct': 0, 'early': 0, 'late': 0, 'none': 0}
+    for line, (_, labels) in zip(lines, traces):
+        stop = line.get('stop')
+        counts[outcome_of(stop['index'] if stop else None, labels)] += 1
+    return counts
+
+
+def _rank(counts):
+    """Higher is better: correct stops, then fewer late stops (breakthroughs), then fewer none."""
+    return (counts['correct'], -counts['late'], -counts['none'])
+
+
+def select(points, train_scores, validation_scores):
+    """The chosen grid point: among the TOP_ON_TRAIN best on the training split, the best on the
+    validation split (ties: the better on train, then the earlier in the grid). `points` in grid
+    order; `*_scores` aligned with it (validation_scores: None where not scored)."""
+    order = sorted(range(len(points)), key=lambda i: (_rank(train_scores[i]), -i), reverse=True)
+    top = order[:TOP_ON_TRAIN]
+    best = max(top, key=lambda i: (_rank(validation_scores[i]), _rank(train_scores[i]), -i))
+    return best, top
+
+
+def grid_points(grid):
+    names = sorted(grid)
+    return [dict(zip(names, values)) for values in itertools.product(
+        *[[str(v) for v in grid[n]] for n in names])]
+
+
+def tune_entry(entry, train, validation, log=sys.stderr):
+    """{params, train, validation, grid_size, top}: the entry's chosen settings and scores."""
+    fixed = {k: str(v) for k, v in (entry.get('params') or {}).items()}
+    points = grid_points(entry.get('tune') or {}) or [{}]
+    train_scores = []
+    for k, point in enumerate(points):
+        train_scores.append(offline_score(entry['recognizer'], dict(fixed, **point), train))
+        log.write('leaderboard: %s grid %d/%d on train: %s\n' % (
+            entry['name'], k + 1, len(points), train_scores[-1]))
+    order = sorted(range(len(points)), key=lambda i: (_rank(train_scores[i]), -i), reverse=True)
+    validation_scores = [None] * len(points)
+    for i in order[:TOP_ON_TRAIN]:
+        validation_scores[i] = offline_score(entry['recognizer'], dict(fixed, **points[i]),
+                                             validation)
+    best, top = select(points, train_scores, validation_scores)
+    return {'params': dict(fixed, **points[best]), 'train': train_scores[best],
+            'validation': validation_scores[best], 'grid_size': len(points),
+            'top': [{'params': points[i], 'train': train_scores[i],
+                     'validation': validation_scores[i]} for i in top]}
+
+
+def train_entry(entry, dataset_dir, out_dir, train, validation):
+    """The learned entry: fitted on train (its threshold chosen on validation), then scored."""
+    from . import baselines  # scikit-learn is needed for training only
+    model = os.path.join(out_dir, '%s_model.json' % entry['name'])
+    baselines.train_learned(os.path.join(dataset_dir, 'train.npz'),
+                            os.path.join(dataset_dir, 'validation.npz'), model)
+    params = dict({k: str(v) for k, v in (entry.get('params') or {}).items()}, model=model)
+    return {'params': params, 'train': offline_score(entry['recognizer'], params, train),
+            'validation': offline_score(entry['recognizer'], params, validation),
+            'grid_size': 0, 'top': []}
+
+
+def run_campaign(entry, params, scenario, meta, args, out_dir):
+    command = tools.tool('campaign') + [
+        '--scenario', scenario, '--seed', str(meta['base_seed']), '--seed-space', 'evaluation',
+        '--case', ','.join(args.cases), '--rpm', ','.join(str(r) for r in args.rpms),
+        '--trials', str(args.trials), '--jobs', str(args.jobs), '--out', out_dir,
+        '--recognizer', entry['recognizer']]
+    for name, value in sorted(params.items()):
+        command += ['--recognizer-param', '%s=%s' % (name, value)]
+    if subprocess.run(command).returncode != 0:
+        raise LeaderboardError('the campaign of %s on %s failed (%s)' % (
+            entry['name'], scenario, out_dir))
+    return report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
+
+
+def _median(rows, key):
+    return stats.median([r.get(key) for r in rows if not r.get('error')
+                         and r.get(key) is not None])
+
+
+def board_rows(rows_by_entry, reference):
+    """Per entry and (case, rpm): the field's metrics and the paired test with the reference."""
+    out = []
+    for name, rows in rows_by_entry.items():
+        groups = compare.compare(rows, rows_by_entry[reference])
+        for g in groups:
+            in_group = [r for r in rows if r['case'] == g['case'] and r['rpm'] == g['rpm']
+                        and not r.get('error')]
+            kinds = g['failure_kinds_a']
+            out.append({
+                'entry': name, 'case': g['case'], 'rpm': g['rpm'], 'n': g['pairs'],
+                'errors': g['errors_a'],
+                'correct': g['successes_a'], 'wilson95': g['wilson95_a'],
+                'no_penetration': g['no_penetration_a'],
+                'early': sum(v for k, v in kinds.items() if k.startswith('stopped_')),
+                'breakthrough': sum(v for k, v in kinds.items() if k.startswith('breakthrough')),
+                'median_residual_mm': _median(in_group, 'residual_mm'),
+                'median_overshoot_mm': _median(in_group, 'overshoot_mm'),
+                'median_latency_ms': _median(in_group, 'detection_latency_ms'),
+                'vs_reference': None if name == reference else {
+                    'only_entry': g['only_a'], 'only_reference': g['only_b'],
+                    'mcnemar_p': g['mcnemar_p'], 'difference': g['difference'],
+                    'difference_ci95': g['difference_ci95']},
+            })
+    return out
+
+
+def _fmt(value, pattern='%.2f'):
+    return '-' if value is None else pattern % value
+
+
+def markdown(boards, tuning, config, meta, args):
+    lines = ['# Recognizer leaderboard', '',
+             'Closed-loop trials on the test split\'s specimens (evaluation seeds of base seed %d, '
+             '%d per case and speed), the same trials for every entry; every choice was made on '
+             'the training and validation splits (offline, `recognize` over the dataset\'s raw '
+             'force). Correct stop: the paper\'s success (stopped by the recognizer inside the '
+             'inner cortex, 0 < residual <= 2 mm, no breakthrough). McNemar: exact, paired with '
+             '`%s` on the same trials.' % (meta['base_seed'], args.trials, config['reference']),
+             '']
+    for bench, rows in boards.items():
+        lines += ['## Bench: %s (`config/%s`)' % (bench, config['benches'][bench]), '',
+                  '| entry | case | rpm | correct stops (95 %% CI) | no penetration | early | '
+                  'breakthrough | residual mm | overshoot mm | latency ms | vs %s: only / only, '
+                  'McNemar p |' % config['reference'],
+                  '|---|---|---|---|---|---|---|---|---|---|---|']
+        for r in rows:
+            vs = r['vs_reference']
+            lines.append('| %s | %s | %d | %d/%d (%.0f-%.0f %%) | %d/%d | %d | %d | %s | %s | %s | '
+                         '%s |' % (
+                             r['entry'], r['case'], r['rpm'], r['correct'], r['n'],
+                             100 * r['wilson95'][0], 100 * r['wilson95'][1],
+                             r['no_penetration'], r['n'], r['early'], r['breakthrough'],
+                             _fmt(r['median_residual_mm']), _fmt(r['median_overshoot_mm']),
+                             _fmt(r['median_latency_ms'], '%.0f'),
+                             '-' if vs is None else '%d / %d, %.3g' % (
+                                 vs['only_entry'], vs['only_reference'], vs['mcnemar_p'])))
+        lines.append('')
+    lines += ['## Tuning (offline, training and validation splits)', '',
+              '| entry | source | chosen parameters | grid | train correct/early/late/none | '
+              'validation correct/early/late/none |', '|---|---|---|---|---|---|']
+    for entry in config['entries']:
+        t = tuning[entry['name']]
+
+        def four(c):
+            return '%d/%d/%d/%d' % (c['correct'], c['early'], c['late'], c['none'])
+        params = ', '.join('%s=%s' % (k, (os.path.basename(v) if k == 'model' else v))
+                           for k, v in sorted(t['params'].items())) or 'as published'
+        lines.append('| %s | %s | %s | %s | %s | %s |' % (
+            entry['name'], entry.get('source', ''), params,
+            t['grid_size'] or ('trained' if entry.get('train') else '-'), four(t['train']),
+            four(t['validation'])))
+    lines.append('')
+    return '\n'.join(lines)
+
+
+def figure(boards, config, path):
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+    names = [e['name'] for e in config['entries']]
+    fig, axes = plt.subplots(1, len(boards), figsize=(6.5 * len(boards), 4.2), squeeze=False)
+    for ax, (bench, rows) in zip(axes[0], boards.items()):
+        cases = [c for c in report.CASES if any(r['case'] == c for r in rows)]
+        width = 0.8 / max(1, len(names))
+        for k, name in enumerate(names):
+            mine = {r['case']: r for r in rows if r['entry'] == name}
+            x = np.arange(len(cases)) + (k - (len(names) - 1) / 2) * width
+            rate = [mine[c]['correct'] / mine[c]['n'] if c in mine and mine[c]['n'] else 0
+                    for c in cases]
+            low = [rate[i] - mine[c]['wilson95'][0] if c in mine else 0
+                   for i, c in enumerate(cases)]
+            high = [mine[c]['wilson95'][1] - rate[i] if c in mine else 0
+                    for i, c in enumerate(cases)]
+            ax.bar(x, [100 * v for v in rate], width, label=name,
+                   yerr=[[100 * v for v in low], [100 * v for v in high]], capsize=2)
+        ax.set_xticks(np.arange(len(cases)))
+        ax.set_xticklabels(cases)
+        ax.set_ylim(0, 105)
+        ax.set_ylabel('correct stops [%] (Wilson 95 %)')
+        ax.set_title('bench: %s' % bench)
+    axes[0][0].legend(fontsize=8, loc='lower left')
+    fig.tight_layout()
+    atomic_savefig(fig, path, dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(
+        prog='campaign_leaderboard',
+        description='Recognizers tuned on the dataset\'s training split, compared in closed loop '
+        'on its test split\'s specimens (doc/leaderboard.md).')
+    parser.add_argument('--dataset', required=True, help='a campaign_dataset output folder')
+    parser.add_argument('--out', required=True)
+    parser.add_argument('--config', default=DEFAULT_CONFIG)
+    parser.add_argument('--trials', type=int, default=None,
+                        help='closed-loop trials per case and speed (default: the test split\'s)')
+    parser.add_argument('--bench', action='append', default=None,
+                        help='a bench of the configuration (repeatable; default: all)')
+    parser.add_argument('--entry', action='append', default=None,
+                        help='an entry of the configuration (repeatable; default: all; the '
+                        'reference always runs)')
+    parser.add_argument('--jobs', type=int, default=2)
+    args = parser.parse_args(argv)
+    try:
+        config = load_config(args.config)
+        with open(os.path.join(args.dataset, 'split.json')) as handle:
+            meta = json.load(handle).get('meta')
+        if not isinstance(meta, dict) or 'base_seed' not in meta:
+            raise LeaderboardError('%s/split.json: no meta.base_seed (an older dataset?)'
+                                   % args.dataset)
+        test = np.load(os.path.join(args.dataset, 'test.npz'))
+        test_per_case = len(test['trial_trial_id']) // max(1, len(set(test['trial_case'])) * len(
+            set(test['trial_rpm'])))
+    except (OSError, ValueError) as e:
+        parser.error(str(e))
+    args.cases = config.get('cases') or list(report.CASES)
+    args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
+    args.trials = args.trials or test_per_case
+    benches = args.bench or list(config['benches'])
+    for bench in benches:
+        if bench not in config['benches']:
+            parser.error('--bench %r is not one of: %s' % (bench, ', '.join(config['benches'])))
+    if args.entry:
+        unknown = set(args.entry) - {e['name'] for e in config['entries']}
+        if unknown:
+            parser.error('--entry %s: not in %s' % (', '.join(sorted(unknown)), args.config))
+        config['entries'] = [e for e in config['entries']
+                             if e['name'] in args.entry or e['name'] == config['reference']]
+    os.makedirs(args.out, exist_ok=True)
+    traces = {split: export_traces(os.path.join(args.dataset, split + '.npz'),
+                                   os.path.join(args.out, 'traces', split))
+              for split in ('train', 'validation')}
+    tuning = {}
+    for entry in config['entries']:
+        sys.stderr.write('leaderboard: tuning %s\n' % entry['name'])
+        if entry.get('train') == 'learned':
+            tuning[entry['name']] = train_entry(entry, args.dataset, args.out, traces['train'],
+                                                traces['validation'])
+        else:
+            tuning[entry['name']] = tune_entry(entry, traces['train'], traces['validation'])
+    with atomic_write(os.path.join(args.out, 'tuning.json')) as handle:
+        json.dump(tuning, handle, indent=1)
+    boards = {}
+    for bench in benches:
+        scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])
+        rows_by_entry = {}
+        for entry in config['entries']:
+            sys.stderr.write('leaderboard: %s on the %s bench\n' % (entry['name'], bench))
+            rows_by_entry[entry['name']] = run_campaign(
+                entry, tuning[entry['name']]['params'], scenario, meta, args,
+                os.path.join(args.out, 'closed_loop', bench, entry['name']))
+        boards[bench] = board_rows(rows_by_entry, config['reference'])
+    with atomic_write(os.path.join(args.out, 'leaderboard.json')) as handle:
+        json.dump({'meta': meta, 'trials': args.trials, 'boards': boards, 'tuning': tuning},
+                  handle, indent=1)
+    with atomic_write(os.path.join(args.out, 'leaderboard.md')) as handle:
+        handle.write(markdown(boards, tuning, config, meta, args))
+    figure(boards, config, os.path.join(args.out, 'leaderboard.png'))
+    sys.stderr.write('leaderboard: %s\n' % os.path.join(args.out, 'leaderboard.md'))
+    return 0
