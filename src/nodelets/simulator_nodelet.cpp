@@ -473,7 +473,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   /**
    * @brief ft_sensor/tare_request: the sensor driver's tare (the command path, no jitter draw:
-   *        core::CommandTransport::undrawnDelay). A bad request is refused with an error.
+   *        core::CommandTransport::undrawnDelay). A bad request is refused: an error and a
+   *        failed ft_sensor/tare_result naming the reason.
    */
   void onTareRequest(const TareRequest::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -482,6 +483,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
       request.validate();  // before it is queued
     } catch (const std::exception& e) {
       NODELET_ERROR("Simulator: ft_sensor/tare_request refused: %s", e.what());
+      // The requester waits on the result: a refusal is a failed result, as the relay's.
+      core::TareResult refused;
+      refused.t = sim_->time();
+      refused.message = std::string("tare request refused: ") + e.what();
+      tare_result_pub_.publish(toMsg(refused, stampOf(refused.t)));
       return;
     }
     if (lockstep_) {

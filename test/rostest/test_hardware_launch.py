@@ -17,7 +17,7 @@ import rostest
 import tf2_ros
 from std_msgs.msg import Float64
 
-from pedicle_drilling.msg import GroundTruth, StopCommand, TareResult, TrialStatus
+from pedicle_drilling.msg import GroundTruth, StopCommand, TareRequest, TareResult, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
 
@@ -107,6 +107,21 @@ class HardwareLaunchTest(unittest.TestCase):
         for frame in ('drill_tip', 'tracker_marker', 'bone'):
             self.assertTrue(self.tf_buffer.can_transform('world', frame, rospy.Time(0),
                                                          rospy.Duration(5.0)), frame)
+        # A bad tare request to the sensor driver: refused on the result topic (the planner
+        # waits on it), not only in the log.
+        request = rospy.Publisher('/ft_sensor/tare_request', TareRequest, queue_size=1)
+        while request.get_num_connections() == 0 and not rospy.is_shutdown():
+            rospy.sleep(0.05)
+        request.publish(TareRequest(samples=0, max_spread_n=0.5))
+        while not rospy.is_shutdown():
+            with self.lock:
+                if len(self.tares) >= 2:
+                    refused = self.tares[-1]
+                    break
+            rospy.sleep(0.05)
+        self.assertFalse(refused.success)
+        self.assertIn('refused', refused.message)
+        self.assertIn('samples', refused.message)
 
 
 if __name__ == '__main__':
