@@ -11,6 +11,7 @@
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
+#      the labelled dataset and the recognizer leaderboard (issue 32)
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
@@ -68,6 +69,13 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
   --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" \
   --out "${OUT}/sensitivity_speed" > /dev/null
+# 2g. The open benchmark (issue 32): a small labelled dataset (doc/dataset.md; `--large` for the
+#     full one) and the leaderboard of literature baselines tuned on its training split, run in
+#     closed loop on its test split's specimens on both benches (doc/leaderboard.md; 20 trials
+#     per case here, LEADERBOARD_TRIALS).
+rosrun pedicle_drilling campaign_dataset --out "${OUT}/dataset" --jobs "${JOBS}"
+rosrun pedicle_drilling campaign_leaderboard --dataset "${OUT}/dataset" \
+  --trials "${LEADERBOARD_TRIALS:-20}" --jobs "${JOBS}" --out "${OUT}/leaderboard"
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
@@ -106,5 +114,6 @@ echo "  ${OUT}/campaign_faults/report.md"
 echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.md"
 echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/sensitivity.md,"
 echo "  ${OUT}/sensitivity_speed/sensitivity.md"
+echo "  ${OUT}/dataset/DATASHEET.md and ${OUT}/leaderboard/leaderboard.md"
 echo "  ${OUT}/engine_agreement.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

@@ -3,7 +3,8 @@ replays the saved crash inputs of test/fuzz/regressions, then fuzzes each target
 time from its seed corpus (test/fuzz/corpus) in a scratch copy. Any crash, sanitizer report or
 broken invariant fails the test and leaves the input in the test artifacts folder.
 
-FUZZ_SECONDS (default 20) sets the time per target."""
+FUZZ_SECONDS (default 10) sets the time per target: a smoke run in every `make test` (the saved
+regressions replayed first); longer runs are for a fuzzing session (README, "Tests")."""
 import os
 import shutil
 import subprocess
@@ -37,7 +38,7 @@ def test_fuzz_target_finds_nothing(fuzz_bin, target, tmp_path):
         assert replay.returncode == 0, replay.stderr[-4000:]
     corpus = tmp_path / 'corpus'
     shutil.copytree(os.path.join(ROOT, 'test', 'fuzz', 'corpus', target), corpus)
-    seconds = int(os.environ.get('FUZZ_SECONDS', '20'))
+    seconds = int(os.environ.get('FUZZ_SECONDS', '10'))
     run = subprocess.run([binary, '-max_total_time=%d' % seconds, '-seed=1',
                           '-artifact_prefix=' + prefix, '-print_final_stats=1', str(corpus)],
                          capture_output=True, text=True, timeout=seconds + 300, cwd=str(tmp_path))
