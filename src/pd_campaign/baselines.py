@@ -19,8 +19,9 @@ Command line::
         --out model.json [--seed 0] [--kind gradient_boosting|logistic]
     python3 -m pd_campaign.baselines evaluate --data validation.npz \\
         --recognizer pd_campaign.baselines.ChangePointRecognizer [--param name=value ...]
-    python3 -m pd_campaign.baselines tune --recognizer pd_campaign.recognizers.ThresholdRecognizer \\
-        --train train.npz --validation validation.npz --grid cortical_n=2.0,2.2 --grid confirm=1,2
+    python3 -m pd_campaign.baselines tune \\
+        --recognizer pd_campaign.recognizers.ThresholdRecognizer --train train.npz \\
+        --validation validation.npz --grid cortical_n=2.0,2.2 --grid confirm=1,2 [--keep 5]
 
 Never choose anything on the test split: tune on train, select on validation."""
 
@@ -45,6 +46,11 @@ CANAL = 4
 # The paper's success band: at most this much of the inner cortex left at the stop [mm].
 MAX_RESIDUAL_MM = 2.0
 KEY_POINTS = {'idle': 0, 'outer_cortical': 1, 'cancellous': 3, 'inner_cortical': 4}
+# The planner's plausibility bounds on the recognizer's layers, the defaults of
+# core::TrialSequencer (outer_cortical_max_mm, cancellous_max_mm, recognizer_delay_s): off in the
+# dataset's peak-force protocol, on in the closed loop (see plausibility_stop).
+PLAUSIBILITY_BOUNDS_MM = (('outer_cortical', 3.5), ('cancellous', 8.3))
+RECOGNIZER_DELAY_S = 1.5
 MODEL_FORMAT = 'pd_campaign.baselines.LearnedRecognizer/1'
 
 
@@ -54,16 +60,54 @@ def _as_list(values):
     return values.tolist() if hasattr(values, 'tolist') else list(values)
 
 
-def offline_stop(recognizer, t, raw_force):
-    """Resets `recognizer`, pushes the samples (t[i], raw_force[i]) in order and returns the index
-    of the first sample whose output has a true ``stop`` (None if none does). The values are
-    pushed as Python floats, as the C++ side passes them."""
+def replay(recognizer, t, raw_force):
+    """Resets `recognizer` and pushes the samples (t[i], raw_force[i]) in order, as Python
+    floats (as the C++ side passes them), until the first output with a true ``stop``. Returns
+    (index of that sample or None, [(index, state)] at every change of the reported state)."""
     recognizer.reset()
     push = recognizer.push
+    changes, state = [], 'idle'
     for i, (ti, fi) in enumerate(zip(_as_list(t), _as_list(raw_force))):
-        if push(ti, fi).get('stop'):
-            return i
-    return None
+        out = push(ti, fi)
+        if out:
+            if out.get('state', state) != state:
+                state = out['state']
+                changes.append((i, state))
+            if out.get('stop'):
+                return i, changes
+    return None, changes
+
+
+def offline_stop(recognizer, t, raw_force):
+    """Resets `recognizer`, pushes the samples (t[i], raw_force[i]) in order and returns the index
+    of the first sample whose output has a true ``stop`` (None if none does)."""
+    return replay(recognizer, t, raw_force)[0]
+
+
+def plausibility_stop(changes, t, depth_mm):
+    """The index of the sample at which the planner's plausibility bound would stop the drill
+    (core::TrialSequencer::checkLayer), or None: a layer the recognizer reports (outer_cortical
+    from its first report of any state after idle, cancellous from its first report) still
+    reported `RECOGNIZER_DELAY_S` after the cut went the layer's bound deeper than at that first
+    report. `changes`: replay's state changes; `t`, `depth_mm`: arrays of the sample times and
+    the deepest cut, up to the recognizer's stop. An approximation: the planner counts its
+    predicted advance, not the true deepest cut (the two differ on a moving bone), and checks
+    on its own reports and timer ticks."""
+    first = None
+    for name, bound_mm in PLAUSIBILITY_BOUNDS_MM:
+        starts = [k for k, (_, state) in enumerate(changes)
+                  if (state != 'idle' if name == 'outer_cortical' else state == name)]
+        if not starts:
+            continue
+        begin = changes[starts[0]][0]
+        end = next((i for i, state in changes[starts[0]:] if state != name), len(t))
+        deeper = np.flatnonzero(depth_mm[begin:end] - depth_mm[begin] >= bound_mm)
+        if len(deeper):
+            through = begin + int(deeper[0])
+            trip = through + int(np.searchsorted(t[through:end], t[through] + RECOGNIZER_DELAY_S))
+            if trip < end and (first is None or trip < first):
+                first = trip
+    return first
 
 
 def _columns(npz):
@@ -104,7 +148,9 @@ class OfflineTrials:
             if all(name in data for name in ('max_depth_cut_m', 'trial_inner_start_mm',
                                               'trial_inner_cortical_mm')):
                 end_mm = float(data['trial_inner_start_mm'][k] + data['trial_inner_cortical_mm'][k])
-                item['residual_mm'] = end_mm - 1e3 * np.asarray(data['max_depth_cut_m'][rows])
+                item['depth_mm'] = 1e3 * np.asarray(data['max_depth_cut_m'][rows], dtype=float)
+                item['residual_mm'] = end_mm - item['depth_mm']
+                item['t_array'] = np.asarray(data['t'][rows], dtype=float)
             self.trials.append(item)
 
     def __len__(self):
@@ -125,32 +171,40 @@ def evaluate_offline(make_recognizer, data, trials=None):
     (made once, reset before every trial as in the closed loop); `data`: a ``.npz`` path, a
     loaded npz, a dict of its arrays or an OfflineTrials; `trials`: the trial indices to use
     (default all). Returns (counts, per_trial): counts {'correct', 'early', 'late', 'none',
-    'trials', 'shallow'} where shallow counts the correct stops with more than 2 mm of the inner
-    cortex left (the paper's criterion calls them failures; 0 when the split has no depths);
-    per_trial: a dict per trial (trial, trial_id, case, rpm, stop_index within the trial, t_stop,
-    label, outcome, residual_mm)."""
+    'trials', 'shallow', 'implausible'} where, when the split has depths (else 0), shallow
+    counts the correct stops with more than 2 mm of the inner cortex left (the paper's criterion
+    calls them failures) and implausible the trials in which the planner's plausibility bound
+    would have stopped the drill before the recognizer did (plausibility_stop; off in the
+    dataset's protocol, on in the closed loop); per_trial: a dict per trial (trial, trial_id,
+    case, rpm, stop_index within the trial, t_stop, label, outcome, residual_mm,
+    implausible_index)."""
     data = OfflineTrials(data)
     wanted = None if trials is None else {int(k) for k in trials}
     recognizer = make_recognizer()
-    counts = {'correct': 0, 'early': 0, 'late': 0, 'none': 0, 'trials': 0, 'shallow': 0}
+    counts = {'correct': 0, 'early': 0, 'late': 0, 'none': 0, 'trials': 0, 'shallow': 0,
+              'implausible': 0}
     per_trial = []
     for item in data.trials:
         if wanted is not None and item['trial'] not in wanted:
             continue
-        stop = offline_stop(recognizer, item['t'], item['raw_force_n'])
+        stop, changes = replay(recognizer, item['t'], item['raw_force_n'])
         label = None if stop is None else int(item['layer'][stop])
         outcome = outcome_of(label)
-        residual = None
-        if stop is not None and 'residual_mm' in item:
-            residual = float(item['residual_mm'][stop])
+        residual = trip = None
+        if 'depth_mm' in item:
+            if stop is not None:
+                residual = float(item['residual_mm'][stop])
+            trip = plausibility_stop(changes, item['t_array'][:stop], item['depth_mm'][:stop])
         counts[outcome] += 1
         counts['trials'] += 1
         if outcome == 'correct' and residual is not None and residual > MAX_RESIDUAL_MM:
             counts['shallow'] += 1
+        counts['implausible'] += trip is not None
         per_trial.append({'trial': item['trial'], 'trial_id': item.get('trial_id', ''),
                           'case': item.get('case', ''), 'rpm': item.get('rpm', math.nan),
                           'stop_index': stop, 't_stop': None if stop is None else item['t'][stop],
-                          'label': label, 'outcome': outcome, 'residual_mm': residual})
+                          'label': label, 'outcome': outcome, 'residual_mm': residual,
+                          'implausible_index': trip})
     return counts, per_trial
 
 
@@ -218,14 +272,16 @@ def _at_least(low):
 
 class RunLengthPosterior:
     """Bayesian online change-point detection (R. P. Adams and D. J. C. MacKay, "Bayesian Online
-    Changepoint Detection", arXiv:0710.3742, 2007, Algorithm 1), for Gaussian observations with
-    an unknown segment mean (conjugate Normal prior N(mu0, prior_sd^2)) and a known variance
-    sigma^2, a constant hazard H = P(change before an observation). The run-length posterior is
-    kept for run lengths 1..max_run (the current segment holds the last r observations, the
-    newest included; the newest one opens a new segment under the prior predictive, the
-    formulation in which r = 1 means "changed just before this observation"); the mass of longer
-    runs is dropped and the rest renormalised (the pruning the paper suggests), so that each
-    update costs O(max_run) whatever the time."""
+    Changepoint Detection", arXiv:0710.3742, 2007: the run-length recursion of their Algorithm
+    1), for Gaussian observations with an unknown segment mean (conjugate Normal prior
+    N(mu0, prior_sd^2)) and a known variance sigma^2, and a constant hazard H = P(a change
+    before an observation). The run-length posterior is kept for run lengths 1..max_run (the
+    current segment holds the last r observations, the newest included): a run grows with
+    probability 1 - H times the observation's predictive density under the run's posterior, and
+    a new run starts with probability H times its density under the prior predictive (the
+    newest observation is the new segment's first, so r = 1 means "changed just before it").
+    The support is truncated at max_run: the mass of longer runs is dropped and the rest
+    renormalised, so that each update costs O(max_run) whatever the time."""
 
     def __init__(self, hazard, sigma, prior_sd, max_run):
         self.log_hazard = math.log(hazard)
@@ -288,29 +344,33 @@ class ChangePointRecognizer(Recognizer):
     is known; the hazard is constant (`hazard` per block, 1/mean segment length); the
     run-length posterior is truncated at `max_run` blocks.
 
-    The current segment is the one of the most probable run length; its level is the posterior
-    mean of its mean (exp of it, in N). Segment logic: idle until a block mean exceeds
-    `contact_n` (contact: the detector starts); outer cortical, its level the highest segment
-    level seen; a segment that begins after the peak's segment with a level below
-    `cancellous_ratio` x the outer level: cancellous bone; a segment that begins after the one
-    current on entering the cancellous bone (a detected change) with a level above
+    The current segment is the one of the most probable (MAP) run length; its level is the
+    posterior mean of its mean (exp of it, in N); a segment counts only once it holds `min_run`
+    blocks (a one-block dip of a breathing contact is no layer). Segment logic: idle until a
+    block mean exceeds `contact_n` (contact: the detector starts); outer cortical, its level the
+    highest segment level seen; a segment that begins after the peak's segment with a level
+    below `cancellous_ratio` x the outer level: cancellous bone; a segment that begins after the
+    one current on entering the cancellous bone (a detected change) with a level above
     `inner_ratio` x the outer level and above the lowest cancellous level: the inner cortex,
     once that holds for `confirm` consecutive blocks. Then the stop, latched until reset.
 
     The outer cortex is the reference because the inner cortex is cut with about the outer
     layer's force (the paper's recognizer normalises by the same amplitude, D); a rise above
-    the cancellous minimum alone also fires on the cancellous bone's own density changes."""
+    the cancellous minimum alone also fires on the cancellous bone's own density changes.
+    The defaults of hazard, min_run, cancellous_ratio, inner_ratio, sigma and confirm are the
+    ones `tune` chose on a dataset of `campaign_dataset --trials 40 --rpm 12000,16000,20000`
+    (best 5 of 324 combinations on train, chosen on validation)."""
 
     PARAMETERS = {
         'pre_average': (int, 50, _at_least(1)),
         'contact_n': (float, 0.3, _positive),
-        'hazard': (float, 0.05, _fraction),
+        'hazard': (float, 0.02, _fraction),
         'sigma': (float, 0.05, _positive),
         'prior_sd': (float, 1.0, _positive),
         'max_run': (int, 100, _at_least(2)),
-        'cancellous_ratio': (float, 0.6, _fraction),
+        'cancellous_ratio': (float, 0.5, _fraction),
         'inner_ratio': (float, 0.7, lambda v: math.isfinite(v) and 0 < v <= 2),
-        'min_run': (int, 3, _at_least(1)),
+        'min_run': (int, 2, _at_least(1)),
         'confirm': (int, 1, _at_least(1)),
     }
 
@@ -463,7 +523,7 @@ class LearnedModel:
             raise ValueError('model: cannot read %r: %s' % (path, e)) from None
         try:
             self._load(spec)
-        except (KeyError, TypeError, ValueError, IndexError) as e:
+        except (AttributeError, KeyError, TypeError, ValueError, IndexError) as e:
             raise ValueError('model: %r is not a %s model file: %s: %s' % (
                 path, MODEL_FORMAT, type(e).__name__, e)) from None
         self.path = path
@@ -471,8 +531,11 @@ class LearnedModel:
     def _load(self, spec):
         if spec.get('format') != MODEL_FORMAT:
             raise ValueError('format %r' % spec.get('format'))
-        if list(spec['features']) != list(FEATURES):
-            raise ValueError('features %s, expected %s' % (spec['features'], list(FEATURES)))
+        names = [str(name) for name in spec['features']]
+        if not names or len(set(names)) != len(names) or not set(names) <= set(FEATURES):
+            raise ValueError('features %s: distinct names among %s' % (names, list(FEATURES)))
+        self.columns = [FEATURES.index(name) for name in names]
+        self.everything = self.columns == list(range(len(FEATURES)))
         self.kind = spec['kind']
         self.pre_average = int(spec['pre_average'])
         self.window = int(spec['window'])
@@ -484,7 +547,7 @@ class LearnedModel:
                 _fraction(self.cancellous_ratio) and _fraction(self.threshold) and
                 self.confirm >= 1):
             raise ValueError('a setting out of range')
-        n = len(FEATURES)
+        n = len(self.columns)
         if self.kind == 'gradient_boosting':
             self.init = float(spec['init'])
             self.rate = float(spec['learning_rate'])
@@ -518,6 +581,8 @@ class LearnedModel:
 
     def probability(self, x):
         """P(inner cortical) of one feature vector (a list in FEATURES order)."""
+        if not self.everything:
+            x = [x[i] for i in self.columns]
         if self.kind == 'gradient_boosting':
             raw = self.init + self.rate * _tree_sum(self.trees, _float32(x))
         else:
@@ -681,7 +746,7 @@ def _write_model(path, spec):
 
 
 def train_learned(train_npz, validation_npz, out_json, seed=0, kind='gradient_boosting',
-                  thresholds=THRESHOLDS, confirms=CONFIRMS, **settings):
+                  features=FEATURES, thresholds=THRESHOLDS, confirms=CONFIRMS, **settings):
     """Fits the learned recognizer's classifier on the training split (block features of
     BlockFeatures, target: the block's label is inner cortical), checks that the exported model
     gives scikit-learn's probabilities, chooses `threshold` and `confirm` on the validation
@@ -689,24 +754,31 @@ def train_learned(train_npz, validation_npz, out_json, seed=0, kind='gradient_bo
     late stops, then the grid's order: lower thresholds, then fewer blocks), and writes the
     model, with the choice as its defaults, to `out_json` (atomically). `settings` may override
     LEARNED_DEFAULTS (pre_average, window, contact_n, cancellous_ratio). Deterministic for a
-    given seed. Returns the model's JSON dict."""
+    given seed. `features`: the BlockFeatures names the model uses (default all). Returns the
+    model's JSON dict."""
     unknown = set(settings) - set(LEARNED_DEFAULTS)
     if unknown:
         raise ValueError('%s: unknown setting of train_learned' % sorted(unknown)[0])
+    features = list(features)
+    if not features or len(set(features)) != len(features) or not set(features) <= set(FEATURES):
+        raise ValueError('features: %s are not distinct names among %s' % (features, FEATURES))
     config = dict(LEARNED_DEFAULTS, **settings)
     train, validation = OfflineTrials(train_npz), OfflineTrials(validation_npz)
     X, y, _ = block_table(train, config['pre_average'], config['window'], config['contact_n'])
+    X = X[:, [FEATURES.index(name) for name in features]]
     if len(set(y.tolist())) < 2:
         raise ValueError('train: the training split needs blocks in and out of the inner cortex')
     fitted, spec = _fit(kind, X, y, seed)
-    spec.update(config, format=MODEL_FORMAT, kind=kind, features=list(FEATURES), threshold=0.5,
+    spec.update(config, format=MODEL_FORMAT, kind=kind, features=features, threshold=0.5,
                 confirm=1)
     with tempfile.TemporaryDirectory(prefix='learned_') as folder:
         draft = os.path.join(folder, 'model.json')
         _write_model(draft, spec)
         exported = LearnedModel(draft)
         probe = X[::max(1, len(X) // 500)]
-        ours = np.array([exported.probability(row) for row in probe.tolist()])
+        full = np.zeros((len(probe), len(FEATURES)))
+        full[:, exported.columns] = probe
+        ours = np.array([exported.probability(row) for row in full.tolist()])
         theirs = fitted.predict_proba(probe)[:, 1]
         if not np.allclose(ours, theirs, rtol=0, atol=1e-9):
             raise RuntimeError('the exported model differs from scikit-learn\'s by %.3g' %
@@ -762,6 +834,8 @@ def main(argv=None):
     train.add_argument('--seed', type=int, default=0)
     train.add_argument('--kind', default='gradient_boosting',
                        choices=('gradient_boosting', 'logistic'))
+    train.add_argument('--features', default=','.join(FEATURES),
+                       help='comma-separated features of the model (default: all: %(default)s)')
     evaluate = commands.add_parser('evaluate', help='offline stops of a recognizer on a split')
     evaluate.add_argument('--data', required=True)
     evaluate.add_argument('--recognizer', required=True)
@@ -778,7 +852,7 @@ def main(argv=None):
     try:
         if args.command == 'train':
             spec = train_learned(args.train, args.validation, args.out, seed=args.seed,
-                                 kind=args.kind)
+                                 kind=args.kind, features=args.features.split(','))
             result = {'threshold': spec['threshold'], 'confirm': spec['confirm'],
                       'validation': spec['training']['validation_counts']}
         elif args.command == 'evaluate':
