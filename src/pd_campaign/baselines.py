@@ -215,9 +215,10 @@ def _configured(make_recognizer, settings):
 
 
 def _rank_key(counts):
-    """Sort key: more correct stops first, then fewer late ones (a breakthrough is worse than
-    an early stop)."""
-    return (-counts['correct'], counts['late'])
+    """Sort key: more correct stops inside the paper's success band first (a correct stop with
+    more than 2 mm of the inner cortex left, `shallow`, fails the task in closed loop), then
+    fewer late ones (a breakthrough is worse than an early stop)."""
+    return (-(counts['correct'] - counts.get('shallow', 0)), counts['late'])
 
 
 def tune(make_recognizer, grid, train, validation, keep=5, evaluate=None):

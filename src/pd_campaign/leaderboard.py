@@ -35,6 +35,7 @@ PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(_
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
 TOP_ON_TRAIN = 3
 INNER_LAYER = 3  # pd_campaign.dataset.LAYERS
+MAX_RESIDUAL_MM = 2.0  # the paper's success band (pd_campaign.outcome.MAX_RESIDUAL_M)
 
 
 class LeaderboardError(ValueError):
@@ -71,32 +72,45 @@ def load_config(path):
 
 
 def export_traces(npz_path, out_dir):
-    """Writes one CSV (t,force) per trial of a split for `recognize`; returns [(path, labels)],
-    `labels` the trial's per-sample layer labels."""
-    z = np.load(npz_path)
+    """Writes one CSV (t,force) per trial of a split for `recognize`; returns [(path, labels,
+    residual_mm)]: the trial's per-sample layer labels and the inner cortex left below the
+    deepest cut [mm] at each sample."""
+    with np.load(npz_path) as z:
+        columns = {name: z[name] for name in ('trial', 't', 'raw_force_n', 'layer',
+                                              'max_depth_cut_m', 'trial_trial_id',
+                                              'trial_inner_start_mm', 'trial_inner_cortical_mm')}
     os.makedirs(out_dir, exist_ok=True)
     traces = []
-    trial = z['trial']
-    for k in range(len(z['trial_trial_id'])):
+    trial = columns['trial']
+    for k in range(len(columns['trial_trial_id'])):
         rows = trial == k
         path = os.path.join(out_dir, '%04d.csv' % k)
-        data = np.column_stack([z['t'][rows], z['raw_force_n'][rows]])
+        data = np.column_stack([columns['t'][rows], columns['raw_force_n'][rows]])
         with atomic_write(path) as handle:
             handle.write('t,force\n')
             np.savetxt(handle, data, fmt='%.17g', delimiter=',')
-        traces.append((path, z['layer'][rows]))
+        end_mm = columns['trial_inner_start_mm'][k] + columns['trial_inner_cortical_mm'][k]
+        traces.append((path, columns['layer'][rows],
+                       end_mm - 1e3 * columns['max_depth_cut_m'][rows]))
     return traces
 
 
-def outcome_of(stop_index, labels):
-    """correct | early | late | none, from the stop's sample label."""
+def outcome_of(stop_index, labels, residual_mm=None):
+    """correct | shallow | early | late | none, from the stop's sample: its label, and the inner
+    cortex left below the deepest cut then (`residual_mm`, per sample; None: not judged).
+    Correct is the paper's success band: in the inner cortex with at most MAX_RESIDUAL_MM of it
+    left; shallow: in it with more left (a failure in closed loop, as an early stop)."""
     if stop_index is None:
         return 'none'
     if stop_index >= len(labels):
         raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
             stop_index, len(labels)))
     label = int(labels[stop_index])
-    return 'correct' if label == INNER_LAYER else ('late' if label > INNER_LAYER else 'early')
+    if label == INNER_LAYER:
+        if residual_mm is not None and residual_mm[stop_index] > MAX_RESIDUAL_MM:
+            return 'shallow'
+        return 'correct'
+    return 'late' if label > INNER_LAYER else 'early'
 
 
 def offline_score(recognizer, settings, traces):
@@ -104,8 +118,8 @@ def offline_score(recognizer, settings, traces):
     command = tools.tool('recognize') + ['--json', '--recognizer', recognizer]
     for name, value in sorted(settings.items()):
         command += ['--param', '%s=%s' % (name, value)]
-    for path, _ in traces:
-        command += ['--input', path]
+    for trace in traces:
+        command += ['--input', trace[0]]
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
         raise LeaderboardError('recognize %s %s: %s' % (recognizer, settings,
@@ -114,15 +128,16 @@ def offline_score(recognizer, settings, traces):
     if len(lines) != len(traces):
         raise LeaderboardError('recognize gave %d results for %d traces' % (
             len(lines), len(traces)))
-    counts = {'correct': 0, 'early': 0, 'late': 0, 'none': 0}
-    for line, (_, labels) in zip(lines, traces):
+    counts = {'correct': 0, 'shallow': 0, 'early': 0, 'late': 0, 'none': 0}
+    for line, (_, labels, residual_mm) in zip(lines, traces):
         stop = line.get('stop')
-        counts[outcome_of(stop['index'] if stop else None, labels)] += 1
+        counts[outcome_of(stop['index'] if stop else None, labels, residual_mm)] += 1
     return counts
 
 
 def _rank(counts):
-    """Higher is better: correct stops, then fewer late stops (breakthroughs), then fewer none."""
+    """Higher is better: correct stops (in the success band), then fewer late stops
+    (breakthroughs), then fewer missing stops."""
     return (counts['correct'], -counts['late'], -counts['none'])
 
 
@@ -253,13 +268,18 @@ def markdown(boards, tuning, config, meta, args):
                                  vs['only_entry'], vs['only_reference'], vs['mcnemar_p'])))
         lines.append('')
     lines += ['## Tuning (offline, training and validation splits)', '',
-              '| entry | source | chosen parameters | grid | train correct/early/late/none | '
-              'validation correct/early/late/none |', '|---|---|---|---|---|---|']
+              'Offline stops per trial: correct (inner cortex, at most 2 mm of it left) / shallow '
+              '(inner cortex, more left) / early / late (broken through) / none. The planner\'s '
+              'plausibility bounds, off in the dataset\'s protocol, are not replayed offline: the '
+              'closed loop has them.', '',
+              '| entry | source | chosen parameters | grid | train | validation |',
+              '|---|---|---|---|---|---|']
     for entry in config['entries']:
         t = tuning[entry['name']]
 
         def four(c):
-            return '%d/%d/%d/%d' % (c['correct'], c['early'], c['late'], c['none'])
+            return '%d/%d/%d/%d/%d' % (c['correct'], c['shallow'], c['early'], c['late'],
+                                       c['none'])
         params = ', '.join('%s=%s' % (k, (os.path.basename(v) if k == 'model' else v))
                            for k, v in sorted(t['params'].items())) or 'as published'
         lines.append('| %s | %s | %s | %s | %s | %s |' % (

@@ -16,7 +16,7 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 
 
 def _counts(correct, early=0, late=0, none=0):
-    return {'correct': correct, 'early': early, 'late': late, 'none': none}
+    return {'correct': correct, 'shallow': 0, 'early': early, 'late': late, 'none': none}
 
 
 def test_the_choice_is_the_best_on_validation_among_the_best_on_train():
@@ -37,6 +37,10 @@ def test_a_stop_is_judged_by_the_label_of_its_sample():
         'none', 'early', 'early', 'correct', 'correct', 'late']
     with pytest.raises(leaderboard.LeaderboardError):
         leaderboard.outcome_of(9, labels)
+    # In the inner cortex with more than 2 mm of it left: shallow, a failure of the task.
+    residual = np.array([9, 9, 8, 7, 6, 5, 2.5, 2.0, -0.1])
+    assert [leaderboard.outcome_of(i, labels, residual) for i in (6, 7, 8)] == [
+        'shallow', 'correct', 'late']
 
 
 def test_a_bad_configuration_is_refused_by_name(tmp_path):
