@@ -71,11 +71,11 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
   --out "${OUT}/sensitivity_speed" > /dev/null
 # 2g. The open benchmark (issue 32): a small labelled dataset (doc/dataset.md; `--large` for the
 #     full one) and the leaderboard of literature baselines tuned on its training split, run in
-#     closed loop on its test split's specimens on both benches (doc/leaderboard.md; 20 trials
+#     closed loop on its test split's specimens on both benches (doc/leaderboard.md; 10 trials
 #     per case here, LEADERBOARD_TRIALS).
 rosrun pedicle_drilling campaign_dataset --out "${OUT}/dataset" --jobs "${JOBS}"
 rosrun pedicle_drilling campaign_leaderboard --dataset "${OUT}/dataset" \
-  --trials "${LEADERBOARD_TRIALS:-20}" --jobs "${JOBS}" --out "${OUT}/leaderboard"
+  --trials "${LEADERBOARD_TRIALS:-10}" --jobs "${JOBS}" --out "${OUT}/leaderboard"
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
