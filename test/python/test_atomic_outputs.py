@@ -150,14 +150,18 @@ def output_violations(source):
     """(line, what) of each place `source` writes a file other than through pd_campaign.atomic:
     open() for writing, a figure or array saved to a path, shutil copying to a path, a rosbag
     opened for writing or a rename by hand. Writing to a path bound by `with atomic_path(...) as
-    NAME` is fine, and so is a line marked `# not atomic: <why>`."""
+    NAME` is fine, and so is an array or figure saved into the handle of `with atomic_write(...)
+    as NAME`, and a line marked `# not atomic: <why>`."""
     tree = ast.parse(source)
     lines = source.splitlines()
-    temporary = {item.optional_vars.id for node in ast.walk(tree) if isinstance(node, ast.With)
-                 for item in node.items
-                 if isinstance(item.context_expr, ast.Call)
-                 and getattr(item.context_expr.func, 'id', None) == 'atomic_path'
-                 and isinstance(item.optional_vars, ast.Name)}
+    def bound_by(function):
+        return {item.optional_vars.id for node in ast.walk(tree) if isinstance(node, ast.With)
+                for item in node.items
+                if isinstance(item.context_expr, ast.Call)
+                and getattr(item.context_expr.func, 'id', None) == function
+                and isinstance(item.optional_vars, ast.Name)}
+    temporary = bound_by('atomic_path')
+    handles = bound_by('atomic_write')  # an array or figure saved into its handle is atomic
 
     def to_temporary(node):
         return isinstance(node, ast.Name) and node.id in temporary
@@ -177,7 +181,10 @@ def output_violations(source):
         elif name in ('open', 'fdopen') and owner == 'os':
             found.append((call.lineno, 'os.%s' % name))
         elif name in SAVE_CALLS:
-            found.append((call.lineno, name))
+            target = call.args[0] if call.args else None
+            if not (to_temporary(target) or (isinstance(target, ast.Name)
+                                             and target.id in handles)):
+                found.append((call.lineno, name))
         elif owner == 'shutil' and name in SHUTIL_WRITERS:
             if not to_temporary(_argument(call, 1, 'dst')):
                 found.append((call.lineno, 'shutil.%s' % name))
@@ -227,6 +234,8 @@ def test_the_source_check_accepts_the_atomic_forms_and_reads():
     source = textwrap.dedent('''
         with open(path) as src, atomic_write(dst) as handle:
             handle.write(src.read())
+        with atomic_write(npz, 'wb') as out:
+            np.savez_compressed(out, a=a)
         with open(path, 'rb') as handle:
             pass
         atomic_savefig(fig, path, dpi=100)

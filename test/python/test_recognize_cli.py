@@ -70,8 +70,8 @@ def test_one_layer_never_stops(bin_dir, tmp_path):
     assert json.loads(out.stdout)['stop'] is None
 
 
-@pytest.mark.parametrize('case', ['missing', 'header', 'nan', 'time', 'param', 'input twice',
-                                  'param twice'])
+@pytest.mark.parametrize('case', ['missing', 'header', 'nan', 'time', 'param',
+                                  'inputs without json', 'param twice'])
 def test_bad_input_exits_2(bin_dir, tmp_path, case):
     rows, _ = profile([(2.0, 3.0)])
     path = tmp_path / 'force.csv'
@@ -89,7 +89,7 @@ def test_bad_input_exits_2(bin_dir, tmp_path, case):
     elif case == 'param':
         write_csv(path, rows)
         args += ['--param', 'c3=-1']
-    elif case == 'input twice':
+    elif case == 'inputs without json':  # several traces: one JSON line each, or nothing
         write_csv(path, rows)
         args += ['--input', str(path)]
     elif case == 'param twice':
@@ -100,6 +100,29 @@ def test_bad_input_exits_2(bin_dir, tmp_path, case):
     assert out.stderr.strip()
     if case.endswith('twice'):
         assert 'given more than once' in out.stderr, out.stderr
+    if case == 'inputs without json':
+        assert 'need --json' in out.stderr, out.stderr
+
+
+def test_several_traces_give_one_line_each_as_alone(bin_dir, tmp_path):
+    """--json with several --input: one line per trace, in order, each the line of that trace
+    run alone (the recognizer reset between traces) plus its path."""
+    paths = []
+    for k, profile_steps in enumerate([[(4.0, 3.0), (6.0, 0.7), (4.0, 3.0)], [(2.0, 3.0)],
+                                       [(4.0, 3.0), (6.0, 0.7), (4.0, 3.0)]]):
+        rows, _ = profile(profile_steps, seed=10 + k)
+        paths.append(tmp_path / ('force%d.csv' % k))
+        write_csv(paths[-1], rows)
+    args = ['--json']
+    for path in paths:
+        args += ['--input', str(path)]
+    out = run(bin_dir, *args)
+    assert out.returncode == 0, out.stderr
+    lines = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [line.pop('input') for line in lines] == [str(p) for p in paths]
+    for path, line in zip(paths, lines):
+        alone = run(bin_dir, '--json', '--input', str(path))
+        assert json.loads(alone.stdout) == line
 
 
 def test_text_output_agrees_with_json(bin_dir, tmp_path):
