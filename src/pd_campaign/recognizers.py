@@ -18,32 +18,19 @@ from the Python path, makes it with no arguments and calls:
 Recognizer is the base class with that contract and the parameter handling; ThresholdRecognizer
 is a force-threshold baseline written with it."""
 
+from pd_campaign.plugin_params import Configurable
 
-class Recognizer:
-    """Base class: declare PARAMETERS = {name: (type, default, check)}; check(value) -> bool."""
 
-    PARAMETERS = {}
+class Recognizer(Configurable):
+    """Base class: declare PARAMETERS = {name: (type, default, check)}; check(value) -> bool
+    (pd_campaign.plugin_params.Configurable: configure() raises ValueError naming a bad or
+    unknown parameter). A configured recognizer starts a new trial."""
 
     def __init__(self):
-        self.params = {name: default for name, (_, default, _) in self.PARAMETERS.items()}
+        super().__init__()
         self.reset()
 
-    def configure(self, settings):
-        """Sets the named parameters from text; ValueError names a bad or unknown one."""
-        values = dict(self.params)
-        for name, text in settings.items():
-            if name not in self.PARAMETERS:
-                raise ValueError('%s: unknown parameter of %s (known: %s)' % (
-                    name, type(self).__name__, ', '.join(sorted(self.PARAMETERS)) or 'none'))
-            kind, _, check = self.PARAMETERS[name]
-            try:
-                value = kind(text)
-            except ValueError:
-                raise ValueError('%s: not a %s: %r' % (name, kind.__name__, text)) from None
-            if not check(value):
-                raise ValueError('%s: %r is out of range' % (name, value))
-            values[name] = value
-        self.params = values
+    def configured(self):
         self.reset()
 
     def reset(self):
@@ -52,13 +39,6 @@ class Recognizer:
     def push(self, t, raw_force):
         """One raw sample; the output dict (see the module's documentation)."""
         raise NotImplementedError
-
-    def parameter_names(self):
-        return sorted(self.PARAMETERS)
-
-    def describe(self):
-        return '%s(%s)' % (type(self).__name__, ', '.join(
-            '%s=%s' % (name, self.params[name]) for name in sorted(self.params)))
 
 
 def _positive(value):

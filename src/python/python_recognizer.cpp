@@ -4,41 +4,16 @@
 #include <pybind11/stl.h>
 
 #include <cmath>
-#include <mutex>
 #include <set>
 #include <stdexcept>
+
+#include "embedded.hpp"
 
 namespace py = pybind11;
 
 namespace pedicle_drilling {
 
 namespace {
-
-/**
- * @brief The process's interpreter: started once, on first use, never finalised (a nodelet's
- *        library may be unloaded while Python objects it made are still referenced). The
- *        starting thread gives the GIL up, so that every call takes it (py::gil_scoped_acquire)
- *        from whichever thread it runs on. A process that already runs Python is used as is.
- */
-void ensureInterpreter() {
-  static std::once_flag once;
-  std::call_once(once, [] {
-    if (Py_IsInitialized()) return;
-    py::initialize_interpreter(false);  // no signal handlers: the host process keeps its own
-    PyEval_SaveThread();
-  });
-}
-
-/** @brief "<module>.<Class>" split at its last dot; throws naming the form expected. */
-std::pair<std::string, std::string> splitClassName(const std::string& name) {
-  const std::size_t dot = name.rfind('.');
-  if (dot == std::string::npos || dot == 0 || dot + 1 == name.size()) {
-    throw std::runtime_error("python recognizer '" + name +
-                             "': expected python:<module>.<Class>, e.g. "
-                             "python:pd_campaign.recognizers.ThresholdRecognizer");
-  }
-  return {name.substr(0, dot), name.substr(dot + 1)};
-}
 
 core::DrillingState stateFromName(const std::string& key, const std::string& name) {
   using S = core::DrillingState;
@@ -68,8 +43,9 @@ struct PythonRecognizer::Impl {
 
 PythonRecognizer::PythonRecognizer(const std::string& class_name)
     : impl_(std::make_unique<Impl>()), class_name_(class_name) {
-  ensureInterpreter();
-  const auto [module_name, type_name] = splitClassName(class_name);
+  python_detail::ensureInterpreter();
+  const auto [module_name, type_name] = python_detail::splitClassName(
+      class_name, "recognizer", "pd_campaign.recognizers.ThresholdRecognizer");
   py::gil_scoped_acquire gil;
   try {
     py::object type = py::module_::import(module_name.c_str()).attr(type_name.c_str());

@@ -1,5 +1,6 @@
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 
+#include "pedicle_drilling/python/python_compensator.hpp"
 #include "pedicle_drilling/python/python_recognizer.hpp"
 
 #include <pluginlib/class_loader.hpp>
@@ -35,8 +36,10 @@ struct PluginKind<core::RecognizerInterface> {
 
 template <>
 struct PluginKind<core::CompensatorInterface> {
-  static std::unique_ptr<core::CompensatorInterface> makeForeign(const std::string&) {
-    return nullptr;
+  /** @brief A class written in Python (`python:<module>.<Class>`, issue 32), else nullptr. */
+  static std::unique_ptr<core::CompensatorInterface> makeForeign(const std::string& name) {
+    if (!isPythonClassName(name)) return nullptr;
+    return std::make_unique<PythonCompensator>(name.substr(std::string(kPythonClassPrefix).size()));
   }
   static constexpr const char* kWhat = "compensator";
   static constexpr const char* kBase = "pedicle_drilling::core::CompensatorInterface";
