@@ -3,8 +3,12 @@
 #ifndef PEDICLE_DRILLING_PYTHON_EMBEDDED_HPP_
 #define PEDICLE_DRILLING_PYTHON_EMBEDDED_HPP_
 
+#include <pybind11/pybind11.h>
+
+#include <initializer_list>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace pedicle_drilling::python_detail {
 
@@ -24,6 +28,24 @@ void ensureInterpreter();
  */
 std::pair<std::string, std::string> splitClassName(const std::string& name, const char* what,
                                                    const char* example);
+
+/**
+ * @brief Imports `<module>.<Class>` (a name without the `python:` prefix) and makes it with no
+ *        arguments, checking that it has every method of `methods`. Starts the interpreter and
+ *        takes the GIL itself; the object is released by the caller with the GIL held.
+ * @throws std::runtime_error "python <what> '<name>' cannot be made: <Python's error>".
+ */
+pybind11::object makeObject(const std::string& class_name, const char* what, const char* example,
+                            std::initializer_list<const char*> methods);
+
+/**
+ * @brief Calls `object.configure(settings)` with a dict of name -> text (the GIL held by the
+ *        caller).
+ * @throws std::invalid_argument with Python's message (which names the parameter first, the
+ *         contract of every plugin's configure).
+ */
+void configureObject(const pybind11::object& object,
+                     const std::vector<std::pair<std::string, std::string>>& settings);
 
 }  // namespace pedicle_drilling::python_detail
 

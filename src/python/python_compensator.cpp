@@ -32,25 +32,13 @@ struct PythonCompensator::Impl {
 
 PythonCompensator::PythonCompensator(const std::string& class_name)
     : impl_(std::make_unique<Impl>()), class_name_(class_name) {
-  python_detail::ensureInterpreter();
-  const auto [module_name, type_name] = python_detail::splitClassName(
-      class_name, "compensator", "pd_campaign.compensators.PhaseTemplateCompensator");
+  py::object object = python_detail::makeObject(
+      class_name, "compensator", "pd_campaign.compensators.PhaseTemplateCompensator",
+      {"configure", "set_patient", "set_ventilator", "set_breath_start", "ready", "displacement"});
   py::gil_scoped_acquire gil;
-  try {
-    py::object type = py::module_::import(module_name.c_str()).attr(type_name.c_str());
-    impl_->object = type();
-    for (const char* method : {"configure", "set_patient", "set_ventilator", "set_breath_start",
-                               "ready", "displacement"}) {
-      if (!py::hasattr(impl_->object, method)) {
-        throw std::runtime_error(std::string("has no method ") + method + "()");
-      }
-    }
-    impl_->has_observe = py::hasattr(impl_->object, "observe_marker");
-    impl_->has_steps = py::hasattr(impl_->object, "velocity_steps");
-  } catch (const std::exception& e) {
-    impl_->object = py::object();
-    throw std::runtime_error("python compensator '" + class_name + "' cannot be made: " + e.what());
-  }
+  impl_->object = std::move(object);
+  impl_->has_observe = py::hasattr(impl_->object, "observe_marker");
+  impl_->has_steps = py::hasattr(impl_->object, "velocity_steps");
 }
 
 PythonCompensator::~PythonCompensator() {
@@ -60,14 +48,7 @@ PythonCompensator::~PythonCompensator() {
 
 void PythonCompensator::configure(const core::CompensatorSettings& settings) {
   py::gil_scoped_acquire gil;
-  py::dict values;
-  for (const auto& [name, value] : settings) values[py::str(name)] = py::str(value);
-  try {
-    impl_->object.attr("configure")(values);
-  } catch (const py::error_already_set& e) {
-    // A ValueError names the parameter first (the contract of every plugin's configure).
-    throw std::invalid_argument(py::str(e.value()).cast<std::string>());
-  }
+  python_detail::configureObject(impl_->object, settings);
 }
 
 void PythonCompensator::setPatient(const core::MotionModel& model,

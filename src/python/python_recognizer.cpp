@@ -43,22 +43,11 @@ struct PythonRecognizer::Impl {
 
 PythonRecognizer::PythonRecognizer(const std::string& class_name)
     : impl_(std::make_unique<Impl>()), class_name_(class_name) {
-  python_detail::ensureInterpreter();
-  const auto [module_name, type_name] = python_detail::splitClassName(
-      class_name, "recognizer", "pd_campaign.recognizers.ThresholdRecognizer");
+  py::object object = python_detail::makeObject(class_name, "recognizer",
+                                                "pd_campaign.recognizers.ThresholdRecognizer",
+                                                {"configure", "reset", "push"});
   py::gil_scoped_acquire gil;
-  try {
-    py::object type = py::module_::import(module_name.c_str()).attr(type_name.c_str());
-    impl_->object = type();
-    for (const char* method : {"configure", "reset", "push"}) {
-      if (!py::hasattr(impl_->object, method)) {
-        throw std::runtime_error(std::string("has no method ") + method + "()");
-      }
-    }
-  } catch (const std::exception& e) {
-    impl_->object = py::object();
-    throw std::runtime_error("python recognizer '" + class_name + "' cannot be made: " + e.what());
-  }
+  impl_->object = std::move(object);
 }
 
 PythonRecognizer::~PythonRecognizer() {
@@ -68,14 +57,7 @@ PythonRecognizer::~PythonRecognizer() {
 
 void PythonRecognizer::configure(const core::RecognizerSettings& settings) {
   py::gil_scoped_acquire gil;
-  py::dict values;
-  for (const auto& [name, value] : settings) values[py::str(name)] = py::str(value);
-  try {
-    impl_->object.attr("configure")(values);
-  } catch (const py::error_already_set& e) {
-    // A ValueError names the parameter first (the contract of every recognizer's configure).
-    throw std::invalid_argument(py::str(e.value()).cast<std::string>());
-  }
+  python_detail::configureObject(impl_->object, settings);
   output_ = core::RecognizerOutput();
   index_ = 0;
 }

@@ -1,5 +1,8 @@
-"""Shared fixtures of the python test tier: where the built tools live."""
+"""Shared fixtures of the python test tier: where the built tools live; a small labelled
+dataset, written once per run for the tests that read it (test_dataset, test_baselines,
+test_leaderboard)."""
 import os
+import subprocess
 
 import pytest
 
@@ -12,3 +15,16 @@ def bin_dir():
                           os.path.join(ROOT, 'catkin_ws', 'devel', 'lib', 'pedicle_drilling'))
     assert os.path.isdir(path), 'build the workspace first (make build): %s' % path
     return path
+
+
+@pytest.fixture(scope='session')
+def small_dataset(tmp_path_factory):
+    """`campaign_dataset` at 12000 rpm: 4 calibration trials per case (train 9, validation 3)
+    and 1 evaluation trial per case (test 3). Read it, never write into it."""
+    out = tmp_path_factory.mktemp('small_dataset')
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign_dataset', '--out', str(out), '--trials', '4',
+         '--test-trials', '1', '--rpm', '12000', '--jobs', '2'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return out

@@ -23,17 +23,6 @@ KEYS = {'state', 'layer_state', 'new_average', 'averaged_force', 'feature', 'las
         'stop'}
 
 
-@pytest.fixture(scope='module')
-def small_dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp('dataset')
-    result = subprocess.run(
-        ['rosrun', 'pedicle_drilling', 'campaign_dataset', '--out', str(out), '--trials', '4',
-         '--test-trials', '1', '--rpm', '12000', '--jobs', '2'],
-        capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stderr[-3000:]
-    return out
-
-
 # --- synthetic force profiles ---------------------------------------------------------------
 
 def synthetic_trial(scale, rng, outer_s=4.0, cancellous_s=7.0, inner_s=4.0):

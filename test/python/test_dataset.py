@@ -14,17 +14,6 @@ from pd_campaign.design import SEED_SPACE_BIT
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 
 
-@pytest.fixture(scope='module')
-def small_dataset(tmp_path_factory):
-    out = tmp_path_factory.mktemp('dataset')
-    result = subprocess.run(
-        ['rosrun', 'pedicle_drilling', 'campaign_dataset', '--out', str(out), '--trials', '4',
-         '--test-trials', '1', '--rpm', '12000', '--jobs', '2'],
-        capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stderr[-3000:]
-    return out
-
-
 def _rows(path):
     with open(path) as handle:
         return list(csv.DictReader(handle))

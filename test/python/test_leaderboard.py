@@ -58,13 +58,9 @@ def test_a_bad_configuration_is_refused_by_name(tmp_path):
     assert len(config['entries']) >= 5
 
 
-def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(tmp_path):
-    dataset = tmp_path / 'dataset'
-    result = subprocess.run(
-        ['rosrun', 'pedicle_drilling', 'campaign_dataset', '--out', str(dataset), '--trials',
-         '4', '--test-trials', '1', '--rpm', '12000', '--jobs', '2'],
-        capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stderr[-3000:]
+def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(small_dataset,
+                                                                           tmp_path):
+    dataset = small_dataset
     config = {
         'benches': {'paper': 'scenario_paper.yaml'}, 'cases': ['stationary', 'compensated'],
         'rpms': [12000], 'reference': 'paper',
