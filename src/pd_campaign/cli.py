@@ -233,8 +233,8 @@ def parse_args(argv):
         prog='campaign', description='Reproduce the paper\'s drilling experiments on the '
         'simulator: Table III, Fig. 15-18, with Wilson 95 %% intervals.')
     parser.add_argument('--case', default=None,
-                        help='stationary | uncompensated | compensated | all, or a comma-separated list '
-                        '(default: scenario)')
+                        help='stationary | uncompensated | compensated | all, or a '
+                        'comma-separated list (default: scenario)')
     parser.add_argument('--rpm', default=None, help='comma-separated spindle speeds')
     parser.add_argument('--trials', default=None,
                         help='trials per case and speed: N, or one count per --rpm (N1,N2,...)')

@@ -62,6 +62,8 @@ SAMPLE_FIELDS = [
 ]
 SAMPLE_COLUMNS = [name for name, _, _ in SAMPLE_FIELDS]
 LAYERS = ('air', 'outer_cortical', 'cancellous', 'inner_cortical', 'canal')
+INNER_CORTICAL = LAYERS.index('inner_cortical')  # the stop layer's label
+CANAL = LAYERS.index('canal')  # broken through
 
 # trials.csv column -> (numpy type, unit, meaning), stored as trial_<column>.
 TRIAL_FIELDS = [

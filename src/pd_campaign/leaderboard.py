@@ -28,14 +28,12 @@ import sys
 import numpy as np
 import yaml
 
-from . import compare, report, stats, tools
+from . import baselines, compare, report, stats, tools
 from .atomic import atomic_savefig, atomic_write
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
 TOP_ON_TRAIN = 3
-INNER_LAYER = 3  # pd_campaign.dataset.LAYERS
-MAX_RESIDUAL_MM = 2.0  # the paper's success band (pd_campaign.outcome.MAX_RESIDUAL_M)
 
 
 class LeaderboardError(ValueError):
@@ -98,19 +96,17 @@ def export_traces(npz_path, out_dir):
 def outcome_of(stop_index, labels, residual_mm=None):
     """correct | shallow | early | late | none, from the stop's sample: its label, and the inner
     cortex left below the deepest cut then (`residual_mm`, per sample; None: not judged).
-    Correct is the paper's success band: in the inner cortex with at most MAX_RESIDUAL_MM of it
-    left; shallow: in it with more left (a failure in closed loop, as an early stop)."""
-    if stop_index is None:
-        return 'none'
-    if stop_index >= len(labels):
+    Correct is the paper's success band: in the inner cortex with at most
+    baselines.MAX_RESIDUAL_MM of it left (baselines.outcome_of judges the label); shallow: in
+    it with more left (a failure in closed loop, as an early stop)."""
+    if stop_index is not None and stop_index >= len(labels):
         raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
             stop_index, len(labels)))
-    label = int(labels[stop_index])
-    if label == INNER_LAYER:
-        if residual_mm is not None and residual_mm[stop_index] > MAX_RESIDUAL_MM:
-            return 'shallow'
-        return 'correct'
-    return 'late' if label > INNER_LAYER else 'early'
+    outcome = baselines.outcome_of(None if stop_index is None else int(labels[stop_index]))
+    if (outcome == 'correct' and residual_mm is not None
+            and residual_mm[stop_index] > baselines.MAX_RESIDUAL_MM):
+        return 'shallow'
+    return outcome
 
 
 def offline_score(recognizer, settings, traces):
@@ -180,7 +176,6 @@ def tune_entry(entry, train, validation, log=sys.stderr):
 
 def train_entry(entry, dataset_dir, out_dir, train, validation):
     """The learned entry: fitted on train (its threshold chosen on validation), then scored."""
-    from . import baselines  # scikit-learn is needed for training only
     model = os.path.join(out_dir, '%s_model.json' % entry['name'])
     baselines.train_learned(os.path.join(dataset_dir, 'train.npz'),
                             os.path.join(dataset_dir, 'validation.npz'), model)

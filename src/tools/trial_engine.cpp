@@ -173,27 +173,29 @@ struct Options {
   bool list_faults = false;
 };
 
-/** @brief The dataset's per-sample fields (doc/dataset.md), in the order they are written. */
+/** @brief One per-sample field of the dataset (doc/dataset.md): its name, NumPy type and value. */
 struct SampleField {
   const char* name;
   const char* numpy_type;  // '<f8', '<i4' or '|u1'
+  double (*value)(const pd::EngineSample&);
 };
+/** @brief The fields in the order they are written (pd_campaign.dataset.SAMPLE_FIELDS). */
 constexpr SampleField kSampleFields[] = {
-    {"t", "<f8"},
-    {"raw_force_n", "<f8"},
-    {"true_force_n", "<f8"},
-    {"averaged_force_n", "<f8"},
-    {"tip_depth_m", "<f8"},
-    {"max_depth_cut_m", "<f8"},
-    {"layer", "<i4"},
-    {"contact", "|u1"},
-    {"bone_ap_m", "<f8"},
-    {"predicted_ap_m", "<f8"},
-    {"tracker_x_m", "<f8"},
-    {"tracker_y_m", "<f8"},
-    {"tracker_z_m", "<f8"},
-    {"breath_phase", "<f8"},
-    {"tidal_volume_ml", "<f8"},
+    {"t", "<f8", [](const pd::EngineSample& x) { return x.t; }},
+    {"raw_force_n", "<f8", [](const pd::EngineSample& x) { return x.raw_force_n; }},
+    {"true_force_n", "<f8", [](const pd::EngineSample& x) { return x.true_force_n; }},
+    {"averaged_force_n", "<f8", [](const pd::EngineSample& x) { return x.averaged_force_n; }},
+    {"tip_depth_m", "<f8", [](const pd::EngineSample& x) { return x.tip_depth_m; }},
+    {"max_depth_cut_m", "<f8", [](const pd::EngineSample& x) { return x.max_depth_cut_m; }},
+    {"layer", "<i4", [](const pd::EngineSample& x) { return static_cast<double>(x.layer); }},
+    {"contact", "|u1", [](const pd::EngineSample& x) { return x.contact ? 1.0 : 0.0; }},
+    {"bone_ap_m", "<f8", [](const pd::EngineSample& x) { return x.bone_ap_m; }},
+    {"predicted_ap_m", "<f8", [](const pd::EngineSample& x) { return x.predicted_ap_m; }},
+    {"tracker_x_m", "<f8", [](const pd::EngineSample& x) { return x.tracker_m.x(); }},
+    {"tracker_y_m", "<f8", [](const pd::EngineSample& x) { return x.tracker_m.y(); }},
+    {"tracker_z_m", "<f8", [](const pd::EngineSample& x) { return x.tracker_m.z(); }},
+    {"breath_phase", "<f8", [](const pd::EngineSample& x) { return x.breath_phase; }},
+    {"tidal_volume_ml", "<f8", [](const pd::EngineSample& x) { return x.tidal_volume_ml; }},
 };
 
 template <typename T>
@@ -210,7 +212,7 @@ void appendLittleEndian(std::string* out, T value) {
 
 /**
  * @brief The trial's samples as a NumPy .npy file (format 1.0) of one structured array whose
- *        field names are kSampleFields': numpy.load reads it, the columns named.
+ *        fields are kSampleFields: numpy.load reads it, the columns named.
  */
 std::string samplesToNpy(const std::vector<pd::EngineSample>& samples) {
   std::string header = "{'descr': [";
@@ -226,15 +228,18 @@ std::string samplesToNpy(const std::vector<pd::EngineSample>& samples) {
   appendLittleEndian(&out, static_cast<std::uint16_t>(header.size()));
   out += header;
   for (const pd::EngineSample& x : samples) {
-    for (double v : {x.t, x.raw_force_n, x.true_force_n, x.averaged_force_n, x.tip_depth_m,
-                     x.max_depth_cut_m}) {
-      appendLittleEndian(&out, v);
-    }
-    appendLittleEndian(&out, static_cast<std::int32_t>(x.layer));
-    appendLittleEndian(&out, static_cast<std::uint8_t>(x.contact ? 1 : 0));
-    for (double v : {x.bone_ap_m, x.predicted_ap_m, x.tracker_m.x(), x.tracker_m.y(),
-                     x.tracker_m.z(), x.breath_phase, x.tidal_volume_ml}) {
-      appendLittleEndian(&out, v);
+    for (const SampleField& f : kSampleFields) {
+      const double v = f.value(x);
+      switch (f.numpy_type[1]) {
+        case 'i':
+          appendLittleEndian(&out, static_cast<std::int32_t>(v));
+          break;
+        case 'u':
+          appendLittleEndian(&out, static_cast<std::uint8_t>(v));
+          break;
+        default:
+          appendLittleEndian(&out, v);
+      }
     }
   }
   return out;
