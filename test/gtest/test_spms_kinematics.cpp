@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <iostream>
 
 #include "pedicle_drilling/core/robot/spms_kinematics.hpp"
 
@@ -158,6 +159,57 @@ TEST(LeadScrew, AngleSliderRoundTrip) {
   for (double s : {0.05, 0.1, 0.1234, 0.25}) {
     EXPECT_NEAR(geared.sliderFromMotorAngle(geared.motorAngleFromSlider(s)), s, 1e-15);
   }
+}
+
+// The platform's forward kinematics with a kept Jacobian (issue 31: the simulation steps it every
+// millisecond): along a breathing heave with a tilt, each step from the last pose, the same pose
+// as Newton's method to 1e-12 in every coordinate; a NaN matrix is replaced by a computed one; a
+// wrong one (a tenth of the true Jacobian) still converges, as Newton does.
+TEST(SpmsKinematics, ForwardWithKeptJacobianEqualsNewton) {
+  SpmsGeometry g;
+  g.rail_inclination_deg = 15.0;
+  SpmsKinematics k(g);
+  Eigen::Matrix3d kept = Eigen::Matrix3d::Constant(std::nan(""));
+  PlatformPose guess_newton, guess_kept;
+  int chord_iterations = 0;
+  int newton_iterations = 0;
+  for (int step = 0; step <= 4000; ++step) {
+    const double t = 1e-3 * step;
+    PlatformPose p;
+    p.z_m = 5e-3 * std::sin(2.0 * 3.14159265358979323846 * t / 4.0);
+    p.roll_rad = 1.5 * kDeg * std::sin(t);
+    p.pitch_rad = -0.8 * kDeg * std::cos(0.7 * t);
+    const SpmsIkResult ik = k.inverse(p);
+    ASSERT_TRUE(ik.reachable) << ik.reason;
+    const SpmsFkResult newton = k.forward(ik.sliders, guess_newton);
+    const SpmsFkResult chord = k.forward(ik.sliders, guess_kept, &kept);
+    ASSERT_TRUE(newton.ok && chord.ok) << newton.reason << chord.reason;
+    ASSERT_TRUE(kept.allFinite());
+    EXPECT_NEAR(chord.pose.z_m, newton.pose.z_m, 1e-12);
+    EXPECT_NEAR(chord.pose.roll_rad, newton.pose.roll_rad, 1e-12);
+    EXPECT_NEAR(chord.pose.pitch_rad, newton.pose.pitch_rad, 1e-12);
+    EXPECT_NEAR(chord.pose.x_m, newton.pose.x_m, 1e-12);
+    EXPECT_NEAR(chord.pose.y_m, newton.pose.y_m, 1e-12);
+    EXPECT_NEAR(chord.pose.yaw_rad, newton.pose.yaw_rad, 1e-12);
+    guess_newton = {newton.pose.z_m, newton.pose.roll_rad, newton.pose.pitch_rad};
+    guess_kept = {chord.pose.z_m, chord.pose.roll_rad, chord.pose.pitch_rad};
+    chord_iterations += chord.iterations;
+    newton_iterations += newton.iterations;
+  }
+  std::cout << "[ forward ] iterations over 4001 steps: Newton " << newton_iterations
+            << " (7 residuals each), kept Jacobian " << chord_iterations << std::endl;
+  const Eigen::Matrix3d right = kept;
+  PlatformPose p;
+  p.z_m = 2e-3;
+  p.roll_rad = 2.0 * kDeg;
+  const SpmsIkResult ik = k.inverse(p);
+  ASSERT_TRUE(ik.reachable);
+  Eigen::Matrix3d wrong = 0.1 * right;
+  const SpmsFkResult from_wrong = k.forward(ik.sliders, PlatformPose{}, &wrong);
+  ASSERT_TRUE(from_wrong.ok) << from_wrong.reason;
+  EXPECT_NEAR(from_wrong.pose.z_m, 2e-3, 1e-9);
+  EXPECT_NEAR(from_wrong.pose.roll_rad, 2.0 * kDeg, 1e-9);
+  EXPECT_LT((wrong - right).norm(), 0.05 * right.norm());  // replaced by a computed one
 }
 
 }  // namespace

@@ -20,6 +20,7 @@
 #include <cmath>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <utility>
@@ -140,6 +141,20 @@ struct BulletArm::Impl {
   btAlignedObjectArray<btQuaternion> scratch_q;
   btAlignedObjectArray<btVector3> scratch_p;
   std::vector<btScalar> force_buf, accel_buf;
+  std::vector<Eigen::Isometry3d> body_pose;  // by body index, as of the last forwardKinematics()
+
+  // The joint-space inverse inertia and the joint positions it was computed at (size 0: none).
+  Eigen::MatrixXd a_inv;
+  Eigen::VectorXd q_at_a_inv;
+  std::vector<bool> rotor;  // joints whose motion leaves M unchanged (not watched)
+  std::uint64_t a_inv_updates = 0;
+  // The implicit servo's damping, I + h A B's factorisation and B (valid until A or K change).
+  Eigen::PartialPivLU<Eigen::MatrixXd> servo_lu;
+  Eigen::VectorXd servo_damping, servo_b;
+  bool servo_valid = false;
+  bool inverseInertiaStale(const Eigen::VectorXd& q) const;
+  void updateInverseInertia(const Eigen::VectorXd& q);
+  bool isRotor(int k) const;
 
   ~Impl() {
     if (world) {
@@ -504,6 +519,8 @@ void BulletArm::Impl::buildBullet(const std::vector<Eigen::Isometry3d>& joint_fr
   }
   force_buf.assign(6 + nl, btScalar(0));
   accel_buf.assign(6 + nl, btScalar(0));
+  rotor.assign(nl, false);
+  for (int k = 0; k < nl; ++k) rotor[k] = isRotor(k);
   forwardKinematics();
 }
 
@@ -515,12 +532,14 @@ void BulletArm::Impl::forwardKinematics() {
   scratch_q.resize(n() + 1);
   scratch_p.resize(n() + 1);
   mb->forwardKinematics(scratch_q, scratch_p);
+  // Every body's pose once per state change, not once per query (the servo, gravity and
+  // Jacobians ask for each several times per sub-step).
+  body_pose.resize(static_cast<std::size_t>(n() + 1));
+  body_pose[0] = toEigen(mb->getBaseWorldTransform());
+  for (int b = 1; b <= n(); ++b) body_pose[b] = toEigen(mb->getLink(b - 1).m_cachedWorldTransform);
 }
 
-Eigen::Isometry3d BulletArm::Impl::bodyPose(int body) const {
-  if (body == 0) return toEigen(mb->getBaseWorldTransform());
-  return toEigen(mb->getLink(body - 1).m_cachedWorldTransform);
-}
+Eigen::Isometry3d BulletArm::Impl::bodyPose(int body) const { return body_pose[body]; }
 
 Eigen::Isometry3d BulletArm::Impl::linkPose(const std::string& name) const {
   auto it = links.find(name);
@@ -613,9 +632,48 @@ void BulletArm::Impl::integrateReference(double h) {
   }
 }
 
+bool BulletArm::Impl::isRotor(int k) const {
+  // A continuous last joint whose body has its centre of mass on the axis and an inertia
+  // symmetric about it: turning it leaves the mass distribution, hence M, unchanged.
+  if (k != n() - 1 || joint_info[k].type != ArmJointType::kContinuous) return false;
+  const Eigen::Vector3d a = joint_data[k].axis_local.normalized();
+  if (joint_data[k].pivot_to_com.cross(a).norm() > 1e-12) return false;
+  const Eigen::Matrix3d inertia = bodies[k + 1].inertia.asDiagonal();
+  const double axial = a.dot(inertia * a);
+  const double transverse = 0.5 * (inertia.trace() - axial);
+  const Eigen::Matrix3d symmetric =
+      axial * a * a.transpose() + transverse * (Eigen::Matrix3d::Identity() - a * a.transpose());
+  return (inertia - symmetric).norm() <= 1e-12 * std::max(1e-30, inertia.norm());
+}
+
+bool BulletArm::Impl::inverseInertiaStale(const Eigen::VectorXd& q) const {
+  if (a_inv.size() == 0 || !(params.inverse_inertia_tolerance > 0.0)) return true;
+  for (int k = 0; k < n(); ++k) {
+    if (rotor[k]) continue;
+    if (!(std::abs(q[k] - q_at_a_inv[k]) <= params.inverse_inertia_tolerance)) return true;
+  }
+  return false;
+}
+
+void BulletArm::Impl::updateInverseInertia(const Eigen::VectorXd& q) {
+  // Column k: the joint accelerations a unit generalized force on joint k causes (uses the
+  // articulated inertias of the pre-pass, at the current state).
+  const int nj = n();
+  a_inv.resize(nj, nj);
+  for (int k = 0; k < nj; ++k) {
+    std::fill(force_buf.begin(), force_buf.end(), btScalar(0));
+    force_buf[6 + k] = btScalar(1);
+    mb->calcAccelerationDeltasMultiDof(force_buf.data(), accel_buf.data(), scratch_r, scratch_v);
+    for (int r = 0; r < nj; ++r) a_inv(r, k) = accel_buf[6 + r];
+  }
+  q_at_a_inv = q;
+  ++a_inv_updates;
+  servo_valid = false;
+}
+
 void BulletArm::Impl::subStep(double h) {
   const int nj = n();
-  forwardKinematics();
+  // The bodies' poses are those of the state: every change of it ends in forwardKinematics().
   integrateReference(h);
 
   Eigen::VectorXd q(nj), qd(nj);
@@ -623,39 +681,55 @@ void BulletArm::Impl::subStep(double h) {
     q[k] = mb->getJointPos(k);
     qd[k] = mb->getJointVel(k);
   }
+  const Eigen::VectorXd gravity = gravityForce();
   const Eigen::VectorXd tau_gc =
-      params.gravity_compensation ? Eigen::VectorXd(-gravityForce()) : Eigen::VectorXd::Zero(nj);
+      params.gravity_compensation ? Eigen::VectorXd(-gravity) : Eigen::VectorXd::Zero(nj);
 
-  // Pre-pass: free velocity after one step under gravity, tip load and gravity compensation,
-  // and the joint-space inverse mass matrix A = M^-1 at the current state.
-  applyExternalLoads(/*with_gravity=*/true);
-  for (int k = 0; k < nj; ++k) mb->addJointTorque(k, btScalar(tau_gc[k]));
-  scratch_r.resize(nj + 1);
-  scratch_v.resize(nj + 1);
-  scratch_m.resize(nj + 1);
-  mb->computeAccelerationsArticulatedBodyAlgorithmMultiDof(btScalar(h), scratch_r, scratch_v,
-                                                           scratch_m, false, false, false);
   Eigen::VectorXd v_free(nj);
-  for (int k = 0; k < nj; ++k) v_free[k] = mb->getJointVel(k);
-  Eigen::MatrixXd a_inv(nj, nj);
-  for (int k = 0; k < nj; ++k) {
-    std::fill(force_buf.begin(), force_buf.end(), btScalar(0));
-    force_buf[6 + k] = btScalar(1);
-    mb->calcAccelerationDeltasMultiDof(force_buf.data(), accel_buf.data(), scratch_r, scratch_v);
-    for (int r = 0; r < nj; ++r) a_inv(r, k) = accel_buf[6 + r];
+  if (inverseInertiaStale(q)) {
+    // Pre-pass: free velocity after one step under gravity, tip load and gravity compensation,
+    // and the joint-space inverse mass matrix A = M^-1 at the current state.
+    applyExternalLoads(/*with_gravity=*/true);
+    for (int k = 0; k < nj; ++k) mb->addJointTorque(k, btScalar(tau_gc[k]));
+    scratch_r.resize(nj + 1);
+    scratch_v.resize(nj + 1);
+    scratch_m.resize(nj + 1);
+    mb->computeAccelerationsArticulatedBodyAlgorithmMultiDof(btScalar(h), scratch_r, scratch_v,
+                                                             scratch_m, false, false, false);
+    for (int k = 0; k < nj; ++k) v_free[k] = mb->getJointVel(k);
+    updateInverseInertia(q);
+    for (int k = 0; k < nj; ++k) mb->setJointVel(k, btScalar(qd[k]));
+  } else {
+    // The arm has barely moved since A was computed: the free velocity from the same loads
+    // through the kept A, without the pre-pass's velocity-product (Coriolis, gyroscopic) terms.
+    Eigen::VectorXd load = gravity + tau_gc;
+    const LinkRef& tip = links.at(tip_link);
+    if (tip.body > 0 && tip_force.squaredNorm() > 0.0) {
+      const Eigen::MatrixXd jac = jacobianAt(tip.body, linkPose(tip_link).translation());
+      load += jac.topRows<3>().transpose() * tip_force;
+    }
+    v_free = qd + h * (a_inv * load);
   }
-  for (int k = 0; k < nj; ++k) mb->setJointVel(k, btScalar(qd[k]));
 
-  // Implicit spring-damper: tau = tau0 - B v+, v+ = v_free + h A tau.
-  Eigen::VectorXd damping(nj), b(nj), tau0(nj);
-  for (int k = 0; k < nj; ++k) {
-    const double m_eff = a_inv(k, k) > 0.0 ? 1.0 / a_inv(k, k) : 0.0;
-    damping[k] = 2.0 * params.damping_ratio * std::sqrt(stiffness[k] * m_eff);
-    b[k] = h * stiffness[k] + damping[k];
-    tau0[k] = -stiffness[k] * (q[k] - q_ref[k]) + damping[k] * qd_ref[k];
+  // Implicit spring-damper: tau = tau0 - B v+, v+ = v_free + h A tau. The factorisation of
+  // I + h A B changes only with A and the stiffness: kept between them.
+  if (!servo_valid) {
+    servo_damping.resize(nj);
+    servo_b.resize(nj);
+    for (int k = 0; k < nj; ++k) {
+      const double m_eff = a_inv(k, k) > 0.0 ? 1.0 / a_inv(k, k) : 0.0;
+      servo_damping[k] = 2.0 * params.damping_ratio * std::sqrt(stiffness[k] * m_eff);
+      servo_b[k] = h * stiffness[k] + servo_damping[k];
+    }
+    servo_lu.compute(Eigen::MatrixXd::Identity(nj, nj) + h * a_inv * servo_b.asDiagonal());
+    servo_valid = true;
   }
-  const Eigen::MatrixXd lhs = Eigen::MatrixXd::Identity(nj, nj) + h * a_inv * b.asDiagonal();
-  const Eigen::VectorXd v_plus = lhs.partialPivLu().solve(v_free + h * a_inv * tau0);
+  const Eigen::VectorXd& b = servo_b;
+  Eigen::VectorXd tau0(nj);
+  for (int k = 0; k < nj; ++k) {
+    tau0[k] = -stiffness[k] * (q[k] - q_ref[k]) + servo_damping[k] * qd_ref[k];
+  }
+  const Eigen::VectorXd v_plus = servo_lu.solve(v_free + h * a_inv * tau0);
   Eigen::VectorXd tau = tau_gc + tau0 - b.cwiseProduct(v_plus);
   if (params.enforce_effort_limits) {
     for (int k = 0; k < nj; ++k) {
@@ -683,7 +757,7 @@ void BulletArm::Impl::subStep(double h) {
 TargetResult BulletArm::Impl::validatePositions(Eigen::VectorXd* q,
                                                 const std::vector<bool>* mask) const {
   TargetResult res;
-  std::ostringstream msg;
+  std::optional<std::ostringstream> msg;  // built on the first clamp only (called every 1 ms)
   for (int k = 0; k < n(); ++k) {
     if (mask && !(*mask)[k]) continue;
     const double v = (*q)[k];
@@ -703,22 +777,23 @@ TargetResult BulletArm::Impl::validatePositions(Eigen::VectorXd* q,
         return res;
       }
       const double c = std::min(std::max(v, info.lower), info.upper);
-      msg << (res.status == TargetStatus::kClamped ? "; " : "") << "joint '" << info.name
-          << "' target " << v << " clamped to " << c;
+      if (!msg) msg.emplace();
+      *msg << (res.status == TargetStatus::kClamped ? "; " : "") << "joint '" << info.name
+           << "' target " << v << " clamped to " << c;
       (*q)[k] = c;
       res.status = TargetStatus::kClamped;
     } else {
       (*q)[k] = std::min(std::max(v, info.lower), info.upper);
     }
   }
-  res.message = msg.str();
+  if (msg) res.message = msg->str();
   return res;
 }
 
 TargetResult BulletArm::Impl::validateVelocities(Eigen::VectorXd* qd,
                                                  const std::vector<bool>* mask) const {
   TargetResult res;
-  std::ostringstream msg;
+  std::optional<std::ostringstream> msg;  // built on the first clamp only (called every 1 ms)
   for (int k = 0; k < n(); ++k) {
     if (mask && !(*mask)[k]) continue;
     const double v = (*qd)[k];
@@ -730,13 +805,14 @@ TargetResult BulletArm::Impl::validateVelocities(Eigen::VectorXd* qd,
     const double lim = joint_info[k].velocity;
     if (std::abs(v) > lim) {
       const double c = std::copysign(lim, v);
-      msg << (res.status == TargetStatus::kClamped ? "; " : "") << "joint '" << joint_names[k]
-          << "' velocity target " << v << " clamped to " << c;
+      if (!msg) msg.emplace();
+      *msg << (res.status == TargetStatus::kClamped ? "; " : "") << "joint '" << joint_names[k]
+           << "' velocity target " << v << " clamped to " << c;
       (*qd)[k] = c;
       res.status = TargetStatus::kClamped;
     }
   }
-  res.message = msg.str();
+  if (msg) res.message = msg->str();
   return res;
 }
 
@@ -752,6 +828,10 @@ BulletArm::BulletArm(const std::string& urdf_xml, const std::string& base_link,
   }
   if (!params.gravity.allFinite() || !(params.damping_ratio >= 0.0)) {
     throw std::runtime_error("BulletArm: gravity must be finite and damping_ratio >= 0");
+  }
+  if (!(params.inverse_inertia_tolerance >= 0.0) ||
+      !std::isfinite(params.inverse_inertia_tolerance)) {
+    throw std::runtime_error("BulletArm: inverse_inertia_tolerance must be finite and >= 0");
   }
   impl_->params = params;
   impl_->base_link = base_link;
@@ -854,6 +934,7 @@ TargetResult BulletArm::resetJointState(const Eigen::VectorXd& q) {
   if (!r.ok()) return r;
   for (int k = 0; k < impl_->n(); ++k) {
     impl_->mb->setJointPos(k, btScalar(v[k]));
+    impl_->a_inv.resize(0, 0);  // a jump: computed afresh at the next sub-step
     impl_->mb->setJointVel(k, btScalar(0.0));
   }
   impl_->q_ref = v;
@@ -877,6 +958,8 @@ int BulletArm::step(double dt) {
 }
 
 double BulletArm::simTime() const { return impl_->sim_time; }
+
+std::uint64_t BulletArm::inverseInertiaUpdates() const { return impl_->a_inv_updates; }
 
 Eigen::VectorXd BulletArm::jointPositions() const {
   Eigen::VectorXd q(impl_->n());
@@ -907,6 +990,7 @@ void BulletArm::setStiffnessScale(double scale) {
     impl_->stiffness[k] =
         info.type == ArmJointType::kContinuous ? info.stiffness : scale * info.stiffness;
   }
+  impl_->servo_valid = false;
 }
 
 Eigen::Isometry3d BulletArm::linkPose(const std::string& name) const {

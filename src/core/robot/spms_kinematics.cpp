@@ -159,7 +159,8 @@ bool SpmsKinematics::isReachable(const PlatformPose& pose, std::string* reason) 
 }
 
 SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
-                                     const PlatformPose& initial_guess) const {
+                                     const PlatformPose& initial_guess,
+                                     Eigen::Matrix3d* jacobian) const {
   SpmsFkResult res;
   const SpmsGeometry& g = geometry_;
   for (int i = 0; i < 3; ++i) {
@@ -186,16 +187,10 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     if (full) *full = fp;
     return r;
   };
-  Eigen::Vector3d q(initial_guess.z_m, initial_guess.roll_rad, initial_guess.pitch_rad);
-  if (q.isZero()) q[0] = (sliders.mean() - g.home_slider_m) * rail_dir_[0].z();
-  bool ok = true;
-  PlatformFullPose full;
-  Eigen::Vector3d r = residual(q, &full, &ok);
-  int it = 0;
-  for (; it < kMaxIterations && ok; ++it) {
-    if (r.cwiseAbs().maxCoeff() < 1e-13) break;
+  // Central differences of the residual at q (m, rad steps of 1e-7).
+  auto differences = [&](const Eigen::Vector3d& q, bool* ok) {
     Eigen::Matrix3d jac;
-    const double h[3] = {1e-7, 1e-7, 1e-7};  // m, rad (central differences)
+    const double h[3] = {1e-7, 1e-7, 1e-7};
     for (int j = 0; j < 3; ++j) {
       Eigen::Vector3d qp = q;
       Eigen::Vector3d qm = q;
@@ -204,18 +199,49 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
       bool ok1 = true;
       bool ok2 = true;
       jac.col(j) = (residual(qp, nullptr, &ok1) - residual(qm, nullptr, &ok2)) / (2.0 * h[j]);
-      ok = ok && ok1 && ok2;
+      *ok = *ok && ok1 && ok2;
     }
+    return jac;
+  };
+  Eigen::Vector3d q(initial_guess.z_m, initial_guess.roll_rad, initial_guess.pitch_rad);
+  if (q.isZero()) q[0] = (sliders.mean() - g.home_slider_m) * rail_dir_[0].z();
+  bool ok = true;
+  PlatformFullPose full;
+  Eigen::Vector3d r = residual(q, &full, &ok);
+  Eigen::Matrix3d own;
+  Eigen::Matrix3d& jac = jacobian ? *jacobian : own;
+  // Chord steps on the kept Jacobian while each cuts the residual tenfold; else (and without
+  // one) Newton's method, a new Jacobian at every iterate, which is then kept.
+  bool reuse = jacobian != nullptr && jacobian->allFinite();
+  int it = 0;
+  for (; it < kMaxIterations && ok; ++it) {
+    const double size = r.cwiseAbs().maxCoeff();
+    if (size < 1e-13) break;
+    if (!reuse) jac = differences(q, &ok);
     const Eigen::Vector3d delta = jac.fullPivLu().solve(-r);
     if (!delta.allFinite()) {
+      if (reuse) {
+        reuse = false;
+        continue;
+      }
       ok = false;
       break;
     }
     // Damp large steps (keep rotations within a few degrees per iteration).
     const double max_rot = std::max(1e-12, delta.tail<2>().cwiseAbs().maxCoeff());
     const double scale = std::min(1.0, 0.1 / max_rot);
-    q += scale * delta;
-    r = residual(q, &full, &ok);
+    const Eigen::Vector3d q_next = q + scale * delta;
+    PlatformFullPose full_next;
+    bool ok_next = true;
+    const Eigen::Vector3d r_next = residual(q_next, &full_next, &ok_next);
+    if (reuse && !(r_next.cwiseAbs().maxCoeff() < 0.1 * size)) {
+      reuse = false;  // the kept Jacobian is too far off: Newton from this iterate
+      continue;
+    }
+    q = q_next;
+    r = r_next;
+    full = full_next;
+    ok = ok_next;
   }
   res.iterations = it;
   res.pose = full;

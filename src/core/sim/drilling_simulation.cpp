@@ -183,6 +183,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
     using P = DrillingSimulationParams;
     ParamTable<P> d;
     d.number("arm_rate_hz", &P::arm_rate_hz, Range::closed(1, 1000), "Hz")
+        .number("arm_inverse_inertia_tolerance", &P::arm_inverse_inertia_tolerance,
+                Range::closed(0, 0.01), "rad or m")
         .number("slider_max_speed_m_s", &P::slider_max_speed_m_s, Range::aboveUpTo(0, 1), "m/s")
         .number("slider_max_accel_m_s2", &P::slider_max_accel_m_s2, Range::aboveUpTo(0, 100),
                 "m/s^2")
@@ -441,6 +443,9 @@ struct DrillingSimulation::Impl {
   Eigen::Vector3d previous_targets = Eigen::Vector3d::Zero();
   bool have_previous_targets = false;
   PlatformFullPose platform;
+  // The rod-length Jacobian the platform's forward kinematics keeps between steps (NaN: none;
+  // cleared at every trial's reset so that a trial does not depend on the one before it).
+  Eigen::Matrix3d platform_jacobian = Eigen::Matrix3d::Constant(std::nan(""));
   double desired_heave = 0.0;
   Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d bone_home_world = Eigen::Vector3d::Zero();
@@ -659,7 +664,7 @@ struct DrillingSimulation::Impl {
     guess.z_m = platform.z_m;
     guess.roll_rad = platform.roll_rad;
     guess.pitch_rad = platform.pitch_rad;
-    const SpmsFkResult fk = spms.forward(sliders, guess);
+    const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
     if (fk.ok) platform = fk.pose;
     bone_world = spms_base_world * platformInBase() * bone_in_platform;
   }
@@ -843,6 +848,7 @@ struct DrillingSimulation::Impl {
     tare.reset();
     // The SPMS controller starts its stream from where the sliders are.
     spms_trajectory->hold(sliders);
+    platform_jacobian.setConstant(std::nan(""));
     bench_stream_due = 0;
     have_previous_targets = false;
     tracker_rng.seed(seed * 40503ULL + 3ULL);
@@ -916,6 +922,7 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
   }
   BulletArmParams arm_params = params.arm;
   arm_params.substep = 1.0 / params.arm_rate_hz;
+  arm_params.inverse_inertia_tolerance = params.arm_inverse_inertia_tolerance;
   s.arm = std::make_unique<BulletArm>(urdf_xml, params.base_link, params.tip_link, arm_params);
   s.arm_joints = s.arm->jointNames();
   for (int k = 0; k < s.arm->numJoints(); ++k) {

@@ -41,6 +41,7 @@
 #ifndef PEDICLE_DRILLING_CORE_BULLET_ARM_HPP
 #define PEDICLE_DRILLING_CORE_BULLET_ARM_HPP
 
+#include <cstdint>
 #include <map>
 #include <memory>
 #include <string>
@@ -83,6 +84,13 @@ struct BulletArmParams {
   bool enforce_effort_limits = true;
   /// @brief Add Bullet joint-limit constraints (hard stops) at the URDF position limits.
   bool hard_joint_limits = true;
+  /// @brief The servo's implicit solve reuses the joint-space inverse inertia M^-1 until a joint
+  /// has moved more than this from where it was computed [rad for revolute, m for prismatic
+  /// joints]; 0 = computed every sub-step (one articulated-body pass per joint). A rotor (a
+  /// continuous last joint whose body is symmetric about its axis: the spindle) does not change
+  /// M and is not watched. M^-1 sets only the servo's damping and the implicit step's
+  /// stability, never a static deflection (K (q - q_ref) balances the loads whatever it is).
+  double inverse_inertia_tolerance = 0.0;
 };
 
 /// @brief Type of a simulated (moving) joint.
@@ -155,6 +163,10 @@ class BulletArm {
   int step(double dt);
   /// @brief Simulated time [s].
   double simTime() const;
+
+  /// @brief How many times the joint-space inverse inertia has been computed (one per sub-step
+  /// when inverse_inertia_tolerance is 0).
+  std::uint64_t inverseInertiaUpdates() const;
 
   /// @brief Joint positions [rad or m], base to tip.
   Eigen::VectorXd jointPositions() const;

@@ -119,9 +119,16 @@ class SpmsKinematics {
    * Newton iteration on the three rod-length constraints in (z, roll, pitch); for each iterate
    * the dependent x, y, yaw are solved from the three leg-plane constraints. Starts from
    * `initial_guess` (default: home). Converges to < 1e-12 m on the rod-length residual.
+   *
+   * `jacobian` (optional, in/out): a rod-length Jacobian from an earlier call near this pose;
+   * the iteration reuses it (a chord iteration, one residual per step instead of seven) and
+   * recomputes it by central differences only when the residual stops falling tenfold per step.
+   * Same convergence test; a caller stepping the platform every millisecond passes the same
+   * matrix each time. A non-finite matrix is recomputed.
    */
   SpmsFkResult forward(const Eigen::Vector3d& sliders,
-                       const PlatformPose& initial_guess = PlatformPose{}) const;
+                       const PlatformPose& initial_guess = PlatformPose{},
+                       Eigen::Matrix3d* jacobian = nullptr) const;
 
   /**
    * @brief Dependent coordinates: the x, y, yaw forced by the leg planes for (roll, pitch).

@@ -150,7 +150,9 @@ struct DrillingSimulationParams {
   std::string tip_link = "drill_tip";  ///< end of the arm chain (drill point)
   double physics_rate_hz = 1000.0;     ///< drilling physics and force-sensor rate
   double arm_rate_hz = 1000.0;         ///< Bullet arm rate; physics_rate / arm_rate integer
-  BulletArmParams arm;                 ///< servo model (substep is set from arm_rate_hz)
+  /// @brief The arm's BulletArmParams::inverse_inertia_tolerance [rad or m]; 0 = every step.
+  double arm_inverse_inertia_tolerance = 1.0e-4;
+  BulletArmParams arm;  ///< servo model (substep, inverse_inertia_tolerance set from the above)
   /// Home joint positions (joints not listed stay at 0); arm returns here on reset().
   std::map<std::string, double> home_pose = {{"rsssii_joint1", 0.0},      {"rsssii_joint2", 0.2},
                                              {"rsssii_joint3", 1.2},      {"rsssii_joint4", 0.0},
