@@ -934,9 +934,9 @@ TargetResult BulletArm::resetJointState(const Eigen::VectorXd& q) {
   if (!r.ok()) return r;
   for (int k = 0; k < impl_->n(); ++k) {
     impl_->mb->setJointPos(k, btScalar(v[k]));
-    impl_->a_inv.resize(0, 0);  // a jump: computed afresh at the next sub-step
     impl_->mb->setJointVel(k, btScalar(0.0));
   }
+  impl_->a_inv.resize(0, 0);  // a jump: computed afresh at the next sub-step
   impl_->q_ref = v;
   impl_->qd_ref.setZero();
   impl_->forwardKinematics();

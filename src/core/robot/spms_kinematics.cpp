@@ -234,7 +234,7 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     PlatformFullPose full_next;
     bool ok_next = true;
     const Eigen::Vector3d r_next = residual(q_next, &full_next, &ok_next);
-    if (reuse && !(r_next.cwiseAbs().maxCoeff() < 0.1 * size)) {
+    if (reuse && (!ok_next || !(r_next.cwiseAbs().maxCoeff() < 0.1 * size))) {
       reuse = false;  // the kept Jacobian is too far off: Newton from this iterate
       continue;
     }

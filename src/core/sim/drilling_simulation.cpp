@@ -444,7 +444,7 @@ struct DrillingSimulation::Impl {
   bool have_previous_targets = false;
   PlatformFullPose platform;
   // The rod-length Jacobian the platform's forward kinematics keeps between steps (NaN: none;
-  // cleared at every trial's reset so that a trial does not depend on the one before it).
+  // cleared at every trial's reset, so that the iteration's path does not carry over).
   Eigen::Matrix3d platform_jacobian = Eigen::Matrix3d::Constant(std::nan(""));
   double desired_heave = 0.0;
   Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();

@@ -207,9 +207,11 @@ class BulletArm {
   /// @brief The force currently applied at the tip.
   Eigen::Vector3d tipForce() const;
 
-  /// @brief Underlying Bullet world (owned by this object).
+  /// @brief Underlying Bullet world (owned by this object), for inspection: the link poses
+  /// and the servo's inverse inertia are kept between sub-steps, so a state or mass changed
+  /// through it is not seen until resetJointState().
   btMultiBodyDynamicsWorld* world();
-  /// @brief Underlying Bullet multibody (owned by this object).
+  /// @brief Underlying Bullet multibody (owned by this object); the same caveat as world().
   btMultiBody* multiBody();
 
  private:
