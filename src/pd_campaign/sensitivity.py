@@ -34,7 +34,10 @@ from .atomic import atomic_savefig, atomic_write
 from .design import CASES
 
 KINDS = ('simulator_params', 'engine_delays')
-ENTRY_KEYS = ('name', 'kind', 'low', 'high', 'nominal', 'unit', 'source')
+ENTRY_KEYS = ('name', 'kind', 'low', 'high', 'nominal', 'unit', 'source', 'with')
+# What an entry's `with` may set besides its constant at its swept ends (a setting a lab would
+# change with it, e.g. the controller watch's tolerance on a controller with a long latency).
+WITH_KINDS = ('simulator_params', 'engine_delays', 'planner_params')
 REQUIRED_KEYS = ('name', 'low', 'high', 'unit', 'source')
 SWEEP_VERSION = 1
 ENDS = ('low', 'high')
@@ -107,8 +110,14 @@ def _entry(path, index, raw):
         raise SweepError('%s: unit must be a text (\'\' for none)' % where)
     if not isinstance(raw['source'], str) or not raw['source'].strip():
         raise SweepError('%s: source must name the document row the range comes from' % where)
+    also = raw.get('with') or {}
+    if not isinstance(also, dict) or any(
+            k not in WITH_KINDS or not isinstance(v, dict) or not v for k, v in also.items()):
+        raise SweepError('%s: with must map %s to {name: value} (the settings a swept end '
+                         'takes besides the constant)' % (where, ' | '.join(WITH_KINDS)))
     return {'key': '%s.%s' % (kind, name), 'kind': kind, 'name': name, 'low': low, 'high': high,
-            'nominal': nominal, 'unit': raw['unit'], 'source': raw['source'].strip()}
+            'nominal': nominal, 'unit': raw['unit'], 'source': raw['source'].strip(),
+            'with': {k: dict(v) for k, v in sorted(also.items())}}
 
 
 def _kind_and_name(where, raw):
@@ -284,6 +293,8 @@ def conditions(entries, nominal, out_dir):
                 scenario = copy.deepcopy(nominal)
                 scenario[entry['kind']] = dict(scenario.get(entry['kind']) or {},
                                                **{entry['name']: value})
+                for kind, settings in (entry.get('with') or {}).items():
+                    scenario[kind] = dict(scenario.get(kind) or {}, **settings)
             found.append({'id': ident, 'entry': entry, 'end': end, 'value': value,
                           'dir': os.path.join(out_dir, ident) if scenario else found[0]['dir'],
                           'scenario': scenario})
@@ -299,7 +310,12 @@ def label(condition):
     """`nominal`, or `NAME = VALUE (end)`."""
     if condition['entry'] is None:
         return 'nominal'
-    return '%s = %s (%s)' % (condition['entry']['key'], _g(condition['value']), condition['end'])
+    text = '%s = %s (%s)' % (condition['entry']['key'], _g(condition['value']), condition['end'])
+    if condition['scenario'] is not None:
+        for kind, settings in sorted((condition['entry'].get('with') or {}).items()):
+            text += ''.join(', with %s.%s = %s' % (kind, name, value)
+                            for name, value in sorted(settings.items()))
+    return text
 
 
 def scenario_text(condition, base_path):
@@ -493,6 +509,11 @@ def _paired_verdict(rows, rpms, case_a, case_b, holds):
         if not a or not b:
             return _verdict(None, 'no %s or %s trials at %.0f rpm' % (case_a, case_b, rpm))
         pairs, both, only_a, only_b, _ = stats.paired_counts(a, b, key=lambda r: r['seed'])
+        if pairs == 0:
+            errors = [r.get('error') for r in a + b if r.get('error')]
+            return _verdict(None, '%.0f rpm: no %s and %s pair without an error%s' % (
+                rpm, case_a, case_b, (' (%d errored: %s)' % (len(errors), errors[0]))
+                if errors else ''))
         p = stats.mcnemar_exact(only_a, only_b)
         verdict = verdict and holds(only_a, only_b, p)
         details.append('%.0f rpm: %s %d/%d, %s %d/%d, McNemar p = %.2g' % (
@@ -667,12 +688,19 @@ def conclusions_markdown(found):
                 len(c['fails_at']), len(c['ends'])))
             lines += ['    - `%s` = %s (%s): %s' % (e['key'], _g(e['value']), e['end'],
                                                     e['detail']) for e in c['fails_at']]
-        elif unevaluated or c['nominal']['holds'] is None:
+        elif c['nominal']['holds'] is None or len(unevaluated) == len(c['ends']):
             lines.append('- Over the range: **not evaluated** (%s).' % (
                 (unevaluated[0] if unevaluated else c['nominal'])['detail']))
+            unevaluated = []
+        elif unevaluated:
+            lines.append('- Over the range: **holds at every one of the %d evaluated ends** '
+                         '(of %d):' % (len(c['ends']) - len(unevaluated), len(c['ends'])))
         else:
             lines.append('- Over the range: **holds at every one of the %d swept ends**.'
                          % len(c['ends']))
+        lines += ['    - not evaluated: `%s` = %s (%s): %s' % (e['key'], _g(e['value']),
+                                                               e['end'], e['detail'])
+                  for e in unevaluated]
         lines.append('')
     return '\n'.join(lines)
 

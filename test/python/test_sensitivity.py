@@ -333,6 +333,51 @@ def test_the_conclusions_list_the_ends_where_they_fail():
     assert sensitivity.overall({'holds': None}, [{'holds': False}]) is False
 
 
+def test_an_end_whose_every_trial_errored_is_not_evaluated_not_failed():
+    good = _bench({12000: ([1] * 10, [0] * 10, [1] * 10)})
+    errored = _bench({12000: ([0] * 10, [0] * 10, [0] * 10)})
+    for row in errored:
+        row['error'] = 'the planner failed the trial (statuses: moving_to_pose failed)'
+    verdict = sensitivity.compensated_beats_uncompensated(errored, [12000.0])
+    assert verdict['holds'] is None
+    assert 'no compensated and uncompensated pair without an error' in verdict['detail']
+    assert 'moving_to_pose failed' in verdict['detail']
+    entries = _entries({}, {'name': 'engine_delays.command_to_arm_s', 'low': 0.001,
+                            'high': 0.12})
+    sensitivity.resolve(entries, {}, DEFAULTS, _no_objection)
+    benches = sensitivity.conditions(entries, {}, '/nowhere')
+    results = {'nominal': good, 'simulator_params.chisel_edge_share-low': good,
+               'simulator_params.chisel_edge_share-high': good,
+               'engine_delays.command_to_arm_s-high': errored}
+    found = {c['id']: c for c in sensitivity.conclusions(results, benches, [12000.0])}
+    beats = found['compensated_beats_uncompensated']
+    assert beats['fails_at'] == [] and beats['holds_over_range'] is None
+    text = sensitivity.conclusions_markdown([beats])
+    assert 'holds at every one of the 2 evaluated ends** (of 3)' in text
+    assert 'not evaluated: `engine_delays.command_to_arm_s` = 0.12 (high)' in text
+
+
+def test_with_sets_a_labs_companion_setting_at_the_swept_ends_only():
+    entries = _entries({}, {'name': 'engine_delays.command_to_arm_s', 'low': 0.001,
+                            'high': 0.12, 'with': {'planner_params': {
+                                'controller_watch/arm_desired_tolerance_rad': 0.035}}})
+    sensitivity.resolve(entries, {}, DEFAULTS, _no_objection)
+    benches = {b['id']: b for b in sensitivity.conditions(entries, {}, '/nowhere')}
+    high = benches['engine_delays.command_to_arm_s-high']
+    assert high['scenario']['engine_delays'] == {'command_to_arm_s': 0.12}
+    assert high['scenario']['planner_params'] == {
+        'controller_watch/arm_desired_tolerance_rad': 0.035}
+    assert 'with planner_params.controller_watch/arm_desired_tolerance_rad = 0.035' in \
+        sensitivity.label(high)
+    # The low end is the nominal value: the nominal campaign, without the companion setting.
+    assert benches['engine_delays.command_to_arm_s-low']['scenario'] is None
+    assert 'planner_params' not in benches['nominal']['scenario']
+    for bad in ({'recognizer': {'x': 1}}, {'planner_params': {}}, ['planner_params']):
+        with pytest.raises(sensitivity.SweepError, match='with must map'):
+            _entries({}, {'name': 'engine_delays.command_to_arm_s', 'low': 0.001,
+                          'high': 0.12, 'with': bad})
+
+
 # --- the tool ----------------------------------------------------------------------------------
 
 TINY = [{'name': 'simulator_params.chisel_edge_share', 'low': 0.5, 'high': 0.7, 'unit': '',

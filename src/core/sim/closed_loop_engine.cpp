@@ -109,6 +109,7 @@ struct ClosedLoopEngine::Impl {
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
+  std::string planner_error;  ///< the sequencer's last error-level log line (why it failed)
   SequencerTimers timers;
   EngineTrialRecord record;
   long last_breath_index = -1;
@@ -245,6 +246,9 @@ struct ClosedLoopEngine::Impl {
   /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
   void carryOut() {
     SequencerOutput out = sequencer->takeOutput();
+    for (const SequencerLog& line : out.log) {
+      if (line.level == SequencerLog::Level::kError) planner_error = line.text;
+    }
     for (const std::string& why : out.stops) {
       record.stops.push_back({now, "/compensation_planner", why, true});
     }
@@ -561,6 +565,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;
+  s.planner_error.clear();
   s.timers.clear();
   s.record = EngineTrialRecord();
   s.last_breath_index = -1;
@@ -618,7 +623,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
     if (s.sequencer->phase() == TrialPhase::kFailed) {
       std::string statuses;
       for (const auto& st : s.record.status) statuses += (statuses.empty() ? "" : " ") + st.second;
-      throw std::runtime_error("the planner failed the trial (statuses: " + statuses + ")");
+      throw std::runtime_error("the planner failed the trial (statuses: " + statuses + ")" +
+                               (s.planner_error.empty() ? "" : ": " + s.planner_error));
     }
     if (s.now > deadline) {
       std::ostringstream os;
