@@ -307,18 +307,23 @@ def test_a_row_gives_both_ends_against_the_nominal_and_the_kinds_that_moved():
     assert row['high_moved'] == {'breakthrough_before_stop': [2, 8], 'stopped_shallow': [2, 0]}
 
 
-def test_the_conclusions_list_the_ends_where_they_fail():
-    good = _bench({12000: ([1] * 10, [0] * 10, [1] * 10)})
-    bad = _bench({12000: ([1] * 10, [0] * 10, [0] * 10)})
+def _conclusions(results):
+    """The conclusions, by id, of a sweep of chisel_edge_share and command_to_arm_s (whose low
+    end is the nominal bench) over `results`, {bench id: trial rows}, at 12000 rpm."""
     entries = _entries({}, {'name': 'engine_delays.command_to_arm_s', 'low': 0.001,
                             'high': 0.12})
     sensitivity.resolve(entries, {}, DEFAULTS, _no_objection)
     benches = sensitivity.conditions(entries, {}, '/nowhere')
-    results = {'nominal': good, 'simulator_params.chisel_edge_share-low': good,
-               'simulator_params.chisel_edge_share-high': bad,
-               'engine_delays.command_to_arm_s-low': good,
-               'engine_delays.command_to_arm_s-high': bad}
-    found = {c['id']: c for c in sensitivity.conclusions(results, benches, [12000.0])}
+    return {c['id']: c for c in sensitivity.conclusions(results, benches, [12000.0])}
+
+
+def test_the_conclusions_list_the_ends_where_they_fail():
+    good = _bench({12000: ([1] * 10, [0] * 10, [1] * 10)})
+    bad = _bench({12000: ([1] * 10, [0] * 10, [0] * 10)})
+    found = _conclusions({'nominal': good, 'simulator_params.chisel_edge_share-low': good,
+                          'simulator_params.chisel_edge_share-high': bad,
+                          'engine_delays.command_to_arm_s-low': good,
+                          'engine_delays.command_to_arm_s-high': bad})
     equal = found['compensated_equals_stationary']
     assert equal['nominal']['holds'] is True and equal['holds_over_range'] is False
     assert len(equal['ends']) == 3, 'the low end of command_to_arm_s is the nominal bench'
@@ -342,14 +347,9 @@ def test_an_end_whose_every_trial_errored_is_not_evaluated_not_failed():
     assert verdict['holds'] is None
     assert 'no compensated and uncompensated pair without an error' in verdict['detail']
     assert 'moving_to_pose failed' in verdict['detail']
-    entries = _entries({}, {'name': 'engine_delays.command_to_arm_s', 'low': 0.001,
-                            'high': 0.12})
-    sensitivity.resolve(entries, {}, DEFAULTS, _no_objection)
-    benches = sensitivity.conditions(entries, {}, '/nowhere')
-    results = {'nominal': good, 'simulator_params.chisel_edge_share-low': good,
-               'simulator_params.chisel_edge_share-high': good,
-               'engine_delays.command_to_arm_s-high': errored}
-    found = {c['id']: c for c in sensitivity.conclusions(results, benches, [12000.0])}
+    found = _conclusions({'nominal': good, 'simulator_params.chisel_edge_share-low': good,
+                          'simulator_params.chisel_edge_share-high': good,
+                          'engine_delays.command_to_arm_s-high': errored})
     beats = found['compensated_beats_uncompensated']
     assert beats['fails_at'] == [] and beats['holds_over_range'] is None
     text = sensitivity.conclusions_markdown([beats])

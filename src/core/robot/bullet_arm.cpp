@@ -187,6 +187,9 @@ struct BulletArm::Impl {
   Eigen::Vector3d jointPivotWorld(int j) const;
   Eigen::VectorXd gravityForce() const;  // generalized gravity force G (M qdd = G + ...)
   Eigen::MatrixXd jacobianAt(int body, const Eigen::Vector3d& point) const;
+  Eigen::MatrixXd tipJacobian() const {
+    return jacobianAt(links.at(tip_link).body, linkPose(tip_link).translation());
+  }
   void applyExternalLoads(bool with_gravity);
   void subStep(double h);
   void integrateReference(double h);
@@ -703,10 +706,8 @@ void BulletArm::Impl::subStep(double h) {
     // The arm has barely moved since A was computed: the free velocity from the same loads
     // through the kept A, without the pre-pass's velocity-product (Coriolis, gyroscopic) terms.
     Eigen::VectorXd load = gravity + tau_gc;
-    const LinkRef& tip = links.at(tip_link);
-    if (tip.body > 0 && tip_force.squaredNorm() > 0.0) {
-      const Eigen::MatrixXd jac = jacobianAt(tip.body, linkPose(tip_link).translation());
-      load += jac.topRows<3>().transpose() * tip_force;
+    if (links.at(tip_link).body > 0 && tip_force.squaredNorm() > 0.0) {
+      load += tipJacobian().topRows<3>().transpose() * tip_force;
     }
     v_free = qd + h * (a_inv * load);
   }
@@ -999,9 +1000,7 @@ Eigen::Isometry3d BulletArm::linkPose(const std::string& name) const {
 
 Eigen::Isometry3d BulletArm::tipPose() const { return impl_->linkPose(impl_->tip_link); }
 
-Eigen::MatrixXd BulletArm::tipJacobian() const {
-  return impl_->jacobianAt(impl_->links.at(impl_->tip_link).body, tipPose().translation());
-}
+Eigen::MatrixXd BulletArm::tipJacobian() const { return impl_->tipJacobian(); }
 
 Eigen::Vector3d BulletArm::predictedTipDeflection(const Eigen::Vector3d& force) const {
   const Eigen::MatrixXd jv = tipJacobian().topRows(3);
