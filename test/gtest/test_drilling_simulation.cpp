@@ -1084,6 +1084,28 @@ TEST(TrialConditions, OutOfRangeSpreadsNameTheField) {
   v = TrialVariability{};
   v.arm_stiffness_scale_sd = -0.1;
   EXPECT_NE(message(v).find("arm/stiffness_scale_sd"), std::string::npos) << message(v);
+  v = TrialVariability{};
+  v.arm_stiffness_scale = 0.05;
+  EXPECT_NE(message(v).find("arm/stiffness_scale ="), std::string::npos) << message(v);
+}
+
+TEST(TrialConditions, ArmStiffnessScaleMultipliesEveryTrialsDraw) {
+  const VentilatorSettings vent;
+  TrialVariability spread;
+  spread.arm_stiffness_scale_sd = 0.2;
+  TrialVariability soft = spread;
+  soft.arm_stiffness_scale = 0.2;  // 5 N/mm at the tool: the soft end of collaborative arms
+  for (std::uint64_t seed = 0; seed < 50; ++seed) {
+    const TrialConditions a = drawTrialConditions(seed, spread, vent, 0.03);
+    const TrialConditions b = drawTrialConditions(seed, soft, vent, 0.03);
+    EXPECT_DOUBLE_EQ(b.arm_stiffness_scale, 0.2 * a.arm_stiffness_scale) << seed;
+    // The mean scale moves no other draw.
+    EXPECT_EQ(b.patient_amplitude_scale, a.patient_amplitude_scale);
+    EXPECT_EQ(b.force_noise_sd_n, a.force_noise_sd_n);
+  }
+  TrialVariability fixed;
+  fixed.arm_stiffness_scale = 2.0;
+  EXPECT_EQ(drawTrialConditions(3, fixed, vent, 0.03).arm_stiffness_scale, 2.0);
 }
 
 TEST(DrillingSimulationTrial, ResetAppliesTheDrawnPatientSensorArmAndBreathing) {

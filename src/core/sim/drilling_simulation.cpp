@@ -143,7 +143,8 @@ const ParamTable<TrialVariability>& TrialVariability::table() {
         .number("ventilator/tidal_volume_sd_ml", &V::ventilator_tidal_volume_sd_ml,
                 Range::closed(0, 200), "ml")
         .number("sensor/noise_scale_sd", &V::sensor_noise_scale_sd, Range::closed(0, 0.5))
-        .number("arm/stiffness_scale_sd", &V::arm_stiffness_scale_sd, Range::closed(0, 0.3));
+        .number("arm/stiffness_scale_sd", &V::arm_stiffness_scale_sd, Range::closed(0, 0.3))
+        .number("arm/stiffness_scale", &V::arm_stiffness_scale, Range::closed(0.1, 4));
     return d;
   }();
   return t;
@@ -314,7 +315,8 @@ TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& 
   c.ventilator_tidal_volume_ml =
       std::max(10.0, ventilator.tv_max_ml + variability.ventilator_tidal_volume_sd_ml * z_volume);
   c.force_noise_sd_n = force_noise_sd_n * (1.0 + variability.sensor_noise_scale_sd * z_noise);
-  c.arm_stiffness_scale = 1.0 + variability.arm_stiffness_scale_sd * z_stiffness;
+  c.arm_stiffness_scale =
+      variability.arm_stiffness_scale * (1.0 + variability.arm_stiffness_scale_sd * z_stiffness);
   return c;
 }
 

@@ -51,7 +51,7 @@ struct DrillParameters {
   /// s: chisel-edge share of the thrust at f_ref, feed-independent (indentation), in [0, 1).
   /// 0.6: literature 50-70 %, calibrated with the DAQ rate against Fig. 16 (see doc).
   double chisel_edge_share = 0.6;
-  double speed_exponent = 0.1;         ///< beta: cutting-speed softening (assumption, see doc)
+  double speed_exponent = 0.0;         ///< beta: cutting-speed softening at a fixed chip (doc §2)
   double ref_feed_per_rev_m = 2.5e-6;  ///< 0.5 mm/s at 12000 rpm
   double ref_spindle_rpm = 12000.0;    ///< paper's chosen speed
   /// Thrust lag time constant in spindle revolutions; used by the rigid contact only (with an

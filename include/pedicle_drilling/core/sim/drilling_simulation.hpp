@@ -107,6 +107,9 @@ struct TrialVariability {
   double sensor_noise_scale_sd = 0.0;
   /// Relative SD of every arm joint's servo stiffness (pose, payload, gear wear), [0, 0.3].
   double arm_stiffness_scale_sd = 0.0;
+  /// Factor on every arm joint's servo stiffness for every trial (the arm's class: 1 = 25 N/mm at
+  /// the tool, doc/simulator_physics.md §5), [0.1, 4]; the per-trial spread multiplies it.
+  double arm_stiffness_scale = 1.0;
   /// Factor on the size of the volunteer's small movements, [0, 5]; 0: none. Not a spread: 1
   /// keeps the movements the virtual volunteers' recordings show (virtual_volunteer.hpp).
   double patient_movement_scale = 1.0;
