@@ -47,7 +47,7 @@ struct DrillParameters {
   /// Thrust per metre of bit diameter per unit solid fraction at f_ref and n_ref [N/m].
   /// Calibrated to the paper's stationary peak thrusts (Fig. 16 medians 3.16 / 2.88 N).
   double thrust_coefficient_n_per_m = 1373.0;
-  double feed_exponent = 0.5;  ///< alpha: sub-linear size effect (assumption, see doc)
+  double feed_exponent = 0.5;  ///< alpha: sub-linear size effect (bone-cutting data, doc §2)
   /// s: chisel-edge share of the thrust at f_ref, feed-independent (indentation), in [0, 1).
   /// 0.6: literature 50-70 %, calibrated with the DAQ rate against Fig. 16 (see doc).
   double chisel_edge_share = 0.6;
