@@ -70,8 +70,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       loadCompensator(loader);
       // Under the simulator's lockstep, the sequencer's timers run on its steps (the engine's
       // rule, SequencerTimers), not on ROS timers.
-      lockstep_ = std::make_unique<LockstepParticipant>(nh, getName(),
-                                                        [this](const ros::Time& t) { onStep(t); });
+      lockstep_ = std::make_unique<LockstepParticipant>(
+          nh, getName(), [this](const ros::Time& t) { onStep(t); }, false,
+          [this](const ros::Time&) { return nextStep(); });
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -316,6 +317,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   /** @brief Publishes what the sequencer produced and runs the timers it asked for. */
   void carryOut() {
     core::SequencerOutput out = sequencer_->takeOutput();
+    // What the monitor, the recognizer or this planner handle at the next step (a predicted
+    // pose, a stop, a phase; the commands to the simulator too, harmlessly).
+    if (!(out.spindle_rpm.empty() && out.tare_requests.empty() && out.trajectories.empty() &&
+          out.predicted.empty() && out.stops.empty() && out.phases.empty())) {
+      lockstep_->noteSent();
+    }
     logSequencerMessages(out.log, "CompensationPlanner");
     for (double rpm : out.spindle_rpm) {
       std_msgs::Float64 msg;
@@ -417,7 +424,19 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
   }
 
-  void publishStatus(core::TrialPhase p) { status_pub_.publish(toMsg(p, lockstep_->now())); }
+  /** @brief Under the lockstep: the step the next timer fires at (1 us early: the steps' grid
+   *         is 1 ms, the timers' rounding 1 ns). */
+  std::optional<ros::Time> nextStep() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::optional<double> due = timers_.nextDue();
+    if (!due) return std::nullopt;
+    return ros::Time(std::max(0.0, *due - 1e-6));
+  }
+
+  void publishStatus(core::TrialPhase p) {
+    status_pub_.publish(toMsg(p, lockstep_->now()));
+    lockstep_->noteSent();
+  }
 
   std::mutex mutex_;
   CompensationPlannerNodeParams params_;  ///< every parameter, loaded once

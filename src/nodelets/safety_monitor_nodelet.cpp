@@ -53,7 +53,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       // at every step whose time is a multiple of 1 / check_rate_hz (the engine's), after the
       // predicted poses and statuses sent in the step before.
       lockstep_ = std::make_unique<LockstepParticipant>(
-          nh, getName(), [this](const ros::Time& t) { onStep(t); }, true);
+          nh, getName(), [this](const ros::Time& t) { onStep(t); }, true,
+          [this](const ros::Time& t) { return nextStep(t); });
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -82,7 +83,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
         p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s, p.tracker_timeout_s,
         params.check_rate_hz);
     std::lock_guard<std::mutex> lock(mutex_);
-    updater_->force_update();
+    publishDiagnostics();
   }
 
   /**
@@ -125,7 +126,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   /** @brief A new /diagnostics subscriber: a fresh status (latching gave it the latest). */
   void onSubscriber() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (updater_) updater_->force_update();
+    if (updater_) publishDiagnostics();
   }
 
   /** @brief The monitor's time: the lockstep's step, else ros::Time::now(). */
@@ -197,7 +198,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (retreat_ended) checkRetare();
     // At the trial's end (after the re-tare check when it retreated): the verdict and the
     // trial's inputs as received, complete (the campaign records them).
-    if (trial_ended) updater_->force_update();
+    if (trial_ended) publishDiagnostics();
   }
 
   /** @brief The re-tare check when a retreat ended, on ~retare_check (latched). */
@@ -212,6 +213,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     result.drift = check.drift;
     result.message = check.message;
     retare_pub_.publish(result);
+    lockstep_->noteSent();
     last_retare_ = result;
     if (!check.done) {
       NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
@@ -234,8 +236,25 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
     if (next_diagnostics_.isZero() || t >= next_diagnostics_) {
       next_diagnostics_ = t + ros::Duration(diagnostic_period_s_);
-      updater_->force_update();
+      publishDiagnostics();
     }
+  }
+
+  /** @brief Under the lockstep: the next step on the check grid or of the diagnostics (1 us
+   *         early: the steps' grid is 1 ms, the grid test's rounding 1e-6 of a period). */
+  std::optional<ros::Time> nextStep(const ros::Time& t) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const double next_check =
+        (std::floor(t.toSec() * check_rate_hz_ + 1e-6) + 1.0) / check_rate_hz_;
+    ros::Time next(std::max(0.0, next_check - 1e-6));
+    if (!next_diagnostics_.isZero()) next = std::min(next, next_diagnostics_);
+    return next;
+  }
+
+  /** @brief /diagnostics now (the planner handles the monitor's status at the next step). */
+  void publishDiagnostics() {
+    updater_->force_update();
+    if (lockstep_) lockstep_->noteSent();
   }
 
   void onCheck(const ros::TimerEvent&) {
@@ -254,13 +273,14 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     stop.retreat = true;
     stop.reason = core::describe(*v);
     stop_pub_.publish(stop);
+    lockstep_->noteSent();
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
-    updater_->force_update();
+    publishDiagnostics();
   }
 
   void onDiagnosticTimer(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    updater_->force_update();
+    publishDiagnostics();
   }
 
   /**
@@ -303,7 +323,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     last_retare_.reset();
     force_stats_.reset();
     tracker_stats_.reset();
-    updater_->force_update();
+    publishDiagnostics();
     response.success = true;
     response.message = "monitor reset (previous verdict: " + previous + ")";
     return true;

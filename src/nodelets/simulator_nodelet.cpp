@@ -87,6 +87,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       urdf_xml_ = loader.readFile("urdf_path", params.urdf_path);  // a reset builds a new one
       lockstep_ = useSimLockstep();
       lockstep_timeout_s_ = params.lockstep_timeout_s;
+      lockstep_every_step_ = params.lockstep_every_step;
       command_transport_ = core::CommandTransport(params.command_delay_s, params.command_jitter_s,
                                                   static_cast<std::uint64_t>(params.seed));
       tracker_delay_s_ = params.tracker_delay_s;
@@ -247,12 +248,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
     while (running_ && ros::ok()) {
       double t = 0.0;
       ros::Time stamp;
+      bool sync = true;
       {
         std::unique_lock<std::mutex> lock(mutex_);
         // Machine load, a hold or a reset change wall time, not the trial: the pacing restarts
         // from here instead of catching up flat out.
         if (waitForCommand(&lock) || holdAtTrialStart(&lock) || restart_pacing_) {
           restart_pacing_ = false;
+          // After a hold, a reset or a wait, what the participants sent meanwhile (a trial's
+          // start) is handled at the first step.
+          sync_next_ = true;
           pace_wall0 = Clock::now();
           sim0 = sim_->time();
         }
@@ -269,15 +274,29 @@ class SimulatorNodelet : public nodelet::Nodelet {
         // The step's index since the reset: the streams' phases are the engine's.
         const std::uint64_t n =
             static_cast<std::uint64_t>(std::llround(t * sim_->params().physics_rate_hz));
-        if (step.force_sampled) publishWrench(step);
-        if (step.force_sampled) publishTareResult(step.time_s);
-        if (n % joint_state_period_ == 0) publishJointStates(t);
-        if (n % tf_period_ == 0) publishTf(t);
-        if (n % controller_state_period_ == 0) publishControllerStates(t);
-        if (n % ground_truth_period_ == 0 || step.layer_changed) publishGroundTruth(t);
-        if (sim_->trackerDue(tracker_period_)) publishMarker(t);
-        publishDelayedMarkers(t);
-        if (tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0) publishTidalVolume(t);
+        // Under the lockstep, a step that publishes one of the streams is a step every
+        // participant sees (any of them may listen to it); /clock is not one.
+        bool published = false;
+        const auto stream = [&published](bool due) { return published |= due, due; };
+        if (stream(step.force_sampled)) publishWrench(step);
+        // The planner handles a tare result at the next step: that one is stepped too.
+        const bool forced = sync_next_;
+        sync_next_ = step.force_sampled && publishTareResult(step.time_s);
+        if (stream(n % joint_state_period_ == 0)) publishJointStates(t);
+        if (stream(n % tf_period_ == 0)) publishTf(t);
+        if (stream(n % controller_state_period_ == 0)) publishControllerStates(t);
+        if (stream(n % ground_truth_period_ == 0 || step.layer_changed)) publishGroundTruth(t);
+        if (stream(sim_->trackerDue(tracker_period_))) publishMarker(t);
+        if (stream(!delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9)) {
+          publishDelayedMarkers(t);
+        }
+        if (stream(tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0)) {
+          publishTidalVolume(t);
+        }
+        // The step that reaches the trial's hold: the participants are at it while it holds
+        // (the planner starts the trial at its time).
+        const bool holds_next = hold_at_ && t >= *hold_at_ - 1e-9;
+        sync = published || holds_next || forced || lockstepStepWanted(stamp);
         applyDueCommands(t);
         if (publish_clock_ && n % clock_period_steps_ == 0) {
           rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
@@ -285,11 +304,14 @@ class SimulatorNodelet : public nodelet::Nodelet {
           clock_pub_.publish(c);
         }
       }
-      if (lockstep_) {
+      if (lockstep_ && sync) {
         rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
         c->clock = stamp;
         step_pub_.publish(c);  // after the step's messages: a participant's queue is FIFO
         waitForAnswers(stamp);
+        ++lockstep_steps_;
+      } else if (lockstep_) {
+        ++lockstep_skipped_;
       }
       if (real_time_factor_ > 0.0) {
         const Clock::time_point due =
@@ -335,7 +357,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     std::unique_lock<std::mutex> lock(ack_mutex_);
     const auto answered = [this, &step] {
       for (const auto& participant : participants_) {
-        if (participant.second < step) return false;
+        if (participant.second.answered < step) return false;
       }
       return true;
     };
@@ -358,7 +380,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     if (!running_ || !ros::ok() || answered()) return;
     for (auto it = participants_.begin(); it != participants_.end();) {
-      if (it->second < step) {
+      if (it->second.answered < step) {
         NODELET_WARN(
             "Simulator: lockstep participant '%s' did not answer the step at %.3f s "
             "within %.3f s of wall time (~lockstep_timeout_s): stepping on without it "
@@ -376,10 +398,31 @@ class SimulatorNodelet : public nodelet::Nodelet {
   void onAck(const StepAck::ConstPtr& msg) {
     {
       std::lock_guard<std::mutex> lock(ack_mutex_);
-      ros::Time& latest = participants_[msg->node];
-      latest = std::max(latest, msg->stamp);
+      Participant& p = participants_[msg->node];
+      if (msg->stamp >= p.answered) {
+        p.answered = msg->stamp;
+        p.next_step = msg->next_step;
+      }
     }
     ack_cv_.notify_all();
+  }
+
+  /**
+   * @brief Under the lockstep, whether the step at `stamp` waits for the participants for their
+   *        own sake: ~lockstep_every_step, no participant yet (one joins with its first answer),
+   *        one that needs every step (next_step zero), or one whose next step it is. The steps
+   *        that publish a stream, or come after the simulator's tare result, or reach the hold,
+   *        are stepped anyway. The previous step's answers are all in (it waited for them).
+   */
+  bool lockstepStepWanted(const ros::Time& stamp) {
+    if (!lockstep_) return false;
+    if (lockstep_every_step_) return true;
+    std::lock_guard<std::mutex> lock(ack_mutex_);
+    if (participants_.empty()) return true;
+    for (const auto& [name, p] : participants_) {
+      if (p.next_step.isZero() || p.next_step <= stamp) return true;
+    }
+    return false;
   }
 
   /**
@@ -460,15 +503,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   /** @brief The sensor driver's tare result, after the sample that completed its window. */
-  void publishTareResult(double t) {
+  bool publishTareResult(double t) {
     const std::optional<core::TareResult> r = sim_->takeTareResult();
-    if (!r) return;
+    if (!r) return false;
     tare_result_pub_.publish(toMsg(*r, stampOf(t)));
     if (r->success) {
       NODELET_INFO("Simulator: F/T %s", r->message.c_str());
     } else {
       NODELET_WARN("Simulator: F/T %s", r->message.c_str());
     }
+    return true;
   }
 
   /**
@@ -537,6 +581,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     msg.command_wait_wall_s = command_wait_wall_s_;
     msg.command_wait_expired = command_wait_expired_;
     msg.lockstep_timeouts = lockstep_timeouts_;
+    msg.lockstep_steps = static_cast<std::uint32_t>(lockstep_steps_);
+    msg.lockstep_steps_run = static_cast<std::uint32_t>(lockstep_steps_ + lockstep_skipped_);
     msg.spindle_watchdog_trips = static_cast<std::uint32_t>(sim_->spindleWatchdogTrips());
     if (sim_->spindleWatchdogTrips() > spindle_watchdog_trips_) {
       spindle_watchdog_trips_ = sim_->spindleWatchdogTrips();
@@ -555,6 +601,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
     command_wait_wall_s_ = 0.0;
     command_wait_expired_ = 0;
     lockstep_timeouts_ = 0;
+    lockstep_steps_ = 0;
+    lockstep_skipped_ = 0;
   }
 
   /** @brief A tracker sample: now, or ~tracker_delay_s later (its stamp kept). */
@@ -815,6 +863,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
     delayed_markers_.clear();
     last_breath_index_ = -1;
     last_settings_msg_ = VentilatorSettings();  // the new breathing is announced
+    if (lockstep_ && lockstep_steps_ + lockstep_skipped_ > 0) {
+      NODELET_INFO(
+          "Simulator: the last trial ran %lu steps under the lockstep, %lu of them "
+          "waiting for the participants",
+          static_cast<unsigned long>(lockstep_steps_ + lockstep_skipped_),
+          static_cast<unsigned long>(lockstep_steps_));
+    }
     clearTransportCounters();
     hold_at_.reset();
     held_ = false;  // the new simulation's hold (if any) is still ahead
@@ -849,9 +904,18 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::uint32_t lockstep_timeouts_ = 0;
   std::mutex ack_mutex_;
   std::condition_variable ack_cv_;
-  std::map<std::string, ros::Time> participants_;  ///< latest step each one answered
-  ros::CallbackQueue lockstep_queue_;  ///< commands, answers and resume under the lockstep
-  ros::CallbackQueue trial_queue_;     ///< reset, start_trial, resume
+  /** @brief A lockstep participant as its latest answer says. */
+  struct Participant {
+    ros::Time answered;   ///< the latest step it answered
+    ros::Time next_step;  ///< the next step it needs (zero: every step)
+  };
+  std::map<std::string, Participant> participants_;
+  bool lockstep_every_step_ = false;    ///< ~lockstep_every_step
+  bool sync_next_ = true;               ///< the next step waits for the participants
+  std::uint64_t lockstep_steps_ = 0;    ///< steps that waited for the participants
+  std::uint64_t lockstep_skipped_ = 0;  ///< steps run without waiting
+  ros::CallbackQueue lockstep_queue_;   ///< commands, answers and resume under the lockstep
+  ros::CallbackQueue trial_queue_;      ///< reset, start_trial, resume
   std::unique_ptr<ros::AsyncSpinner> trial_spinner_;
   std::unique_ptr<ros::AsyncSpinner> lockstep_spinner_;
   ros::Subscriber ack_sub_;

@@ -53,7 +53,11 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
         }
       }
       // Under the simulator's lockstep it answers each step after the step's force samples.
-      lockstep_ = std::make_unique<LockstepParticipant>(nh, getName(), nullptr);
+      // No timers: it needs a step only after it published (its states and stops are handled
+      // at the next step); the force samples' steps are stepped anyway.
+      lockstep_ = std::make_unique<LockstepParticipant>(
+          nh, getName(), nullptr, false,
+          [](const ros::Time&) { return std::optional<ros::Time>(); });
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -96,6 +100,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       stop.retreat = false;
       stop.reason = recognizer_->stopReason();
       stop_pub_.publish(stop);
+      lockstep_->noteSent();
       NODELET_WARN("StateRecognizer: STOP: %s", stop.reason.c_str());
     }
   }
@@ -115,6 +120,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     msg.stop_index = out.stop ? static_cast<int64_t>(out.stop_index) : -1;
     msg.stop_time = out.stop ? out.stop_t : 0.0;
     state_pub_.publish(msg);
+    lockstep_->noteSent();
   }
 
   void onTare(const TareResult::ConstPtr& msg) {

@@ -1,5 +1,6 @@
 """`rosrun pedicle_drilling campaign` and `rosrun pedicle_drilling campaign_merge`."""
 import json
+import math
 import os
 import shutil
 import signal
@@ -271,10 +272,16 @@ def parse_args(argv):
                         help='keep every force-sensor sample of each trial in OUT/samples/'
                         '<trial_id>.npy (core engine; the dataset of doc/dataset.md)')
     parser.add_argument('--base-port', type=int, default=11400)
-    parser.add_argument('--real-time-factor', type=float, default=5.0,
-                        help='sim seconds per wall second in each worker (the nodelets must '
-                        'keep up; see README)')
+    parser.add_argument('--real-time-factor', type=float, default=None,
+                        help='sim seconds per wall second in each --engine ros worker; 0: as '
+                        'fast as the lockstep lets it (the participants are waited for, so '
+                        'the trial does not depend on it). Default 0, or 5 with --bags (a '
+                        'recorder in another process must keep up)')
     args = parser.parse_args(argv)
+    if args.real_time_factor is None:
+        args.real_time_factor = 5.0 if args.bags else 0.0
+    if not (math.isfinite(args.real_time_factor) and 0.0 <= args.real_time_factor <= 1000.0):
+        raise UsageError('--real-time-factor must be in [0, 1000], got %g' % args.real_time_factor)
     if args.engine not in ENGINES:
         raise UsageError('--engine %r is not one of: %s' % (args.engine, ', '.join(ENGINES)))
     scenario = load_scenario(args.scenario)

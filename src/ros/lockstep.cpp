@@ -22,11 +22,12 @@ bool useSimLockstep() {
 }
 
 LockstepParticipant::LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
-                                         bool deferred_first)
+                                         bool deferred_first, NextStepFn next_step)
     : enabled_(useSimLockstep()),
       deferred_first_(deferred_first),
       node_(std::move(node)),
-      on_step_(std::move(on_step)) {
+      on_step_(std::move(on_step)),
+      next_step_(std::move(next_step)) {
   if (!enabled_) return;
   ack_pub_ = nh.advertise<StepAck>("simulator/step_ack", 10);
   step_sub_ = nh.subscribe("simulator/step", 10, &LockstepParticipant::onStep, this,
@@ -52,6 +53,12 @@ void LockstepParticipant::deliver(const ros::Time& stamp, int rank, std::functio
   }
   std::lock_guard<std::mutex> lock(mutex_);
   deferred_.push_back({stamp, rank, seq_++, std::move(handle)});
+}
+
+void LockstepParticipant::noteSent() {
+  if (!enabled_) return;
+  std::lock_guard<std::mutex> lock(mutex_);
+  sent_ = true;
 }
 
 void LockstepParticipant::onStep(const rosgraph_msgs::Clock::ConstPtr& msg) {
@@ -80,6 +87,17 @@ void LockstepParticipant::onStep(const rosgraph_msgs::Clock::ConstPtr& msg) {
   StepAck ack;
   ack.stamp = t;
   ack.node = node_;
+  // Zero: every step (no next-step function). Else the next step after what was sent in this
+  // step (1 ns later: the simulator's first step after t), or the timers' next, or never.
+  if (next_step_) {
+    bool sent = false;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      std::swap(sent, sent_);
+    }
+    const std::optional<ros::Time> timer = next_step_(t);
+    ack.next_step = sent ? t + ros::Duration(0, 1) : timer.value_or(ros::TIME_MAX);
+  }
   ack_pub_.publish(ack);
 }
 

@@ -46,6 +46,7 @@ const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
         .integer("clock_period_ms", &P::clock_period_ms, Range::closed(1, 100), "ms")
         .number("command_wait_s", &P::command_wait_s, Range::closed(0, 60), "s")
         .number("lockstep_timeout_s", &P::lockstep_timeout_s, Range::closed(0.01, 600), "s")
+        .flag("lockstep_every_step", &P::lockstep_every_step)
         .number("command_delay_s", &P::command_delay_s, Range::closed(0.001, 1), "s")
         .number("command_jitter_s", &P::command_jitter_s, Range::closed(0, 1), "s")
         .number("tracker_delay_s", &P::tracker_delay_s, Range::closed(0, 1), "s")

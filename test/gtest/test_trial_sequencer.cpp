@@ -693,6 +693,29 @@ TEST(SequencerTimers, FireInDueOrderPeriodicOnesAgainAndAStopClearsThem) {
   EXPECT_FALSE(timers.popDue(100.0).has_value());
 }
 
+// The lockstep's participants tell the simulator the next step they need (StepAck.next_step):
+// nextDue() is the earliest pending timer, moving on as timers fire and cleared by a stop.
+TEST(SequencerTimers, NextDueIsTheEarliestPendingTimer) {
+  pd::SequencerTimers timers;
+  EXPECT_FALSE(timers.nextDue().has_value());
+  pd::SequencerOutput out;
+  out.start_timers.push_back({pd::TimerRequest::Kind::kSegment, 0.125, true});
+  out.start_timers.push_back({pd::TimerRequest::Kind::kPoseReached, 0.05, false});
+  timers.apply(out, 10.0);
+  ASSERT_TRUE(timers.nextDue().has_value());
+  EXPECT_DOUBLE_EQ(*timers.nextDue(), 10.05);
+  // Nothing fires before it; at it, the one-shot fires and the periodic one is next.
+  EXPECT_FALSE(timers.popDue(*timers.nextDue() - 2e-9).has_value());
+  ASSERT_TRUE(timers.popDue(10.05).has_value());
+  EXPECT_DOUBLE_EQ(*timers.nextDue(), 10.125);
+  ASSERT_TRUE(timers.popDue(10.125).has_value());
+  EXPECT_DOUBLE_EQ(*timers.nextDue(), 10.25);  // advanced by its period
+  pd::SequencerOutput stop;
+  stop.stop_timers = true;
+  timers.apply(stop, 10.2);
+  EXPECT_FALSE(timers.nextDue().has_value());
+}
+
 TEST(SequencerTimers, TheSequencerDispatchesAFiredTimerToItsHandler) {
   pd::TrialSequencer seq(params(), workcellArm());
   ASSERT_EQ(seq.start(request("stationary"), apModel(), 1.0), "");

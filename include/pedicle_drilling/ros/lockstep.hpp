@@ -11,6 +11,12 @@
  * What a participant receives from another participant (a stop, a recognizer state, a predicted
  * pose) is handled at the first step after the one it was sent in (deliver()), in stamp order,
  * whichever thread delivered it first: the engine's 1 ms transport, the same in every run.
+ *
+ * Fewer synchronised steps (issue 31): each answer says the next step the participant must see
+ * for itself (StepAck.next_step: its next timer, or the very next step when it published
+ * something, noteSent()); the simulator steps everyone at those steps and at every step that
+ * publishes one of its streams, and runs the steps in between without waiting. A step a
+ * participant does not see is one at which it would have done nothing.
  */
 #pragma once
 
@@ -20,6 +26,7 @@
 #include <cstdint>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -36,6 +43,11 @@ class LockstepParticipant {
  public:
   /** @brief Called at each step with its sim time, before the deferred messages due then. */
   using StepFn = std::function<void(const ros::Time& t)>;
+  /**
+   * @brief After the step at `t`: the earliest later step the participant's own timers need
+   *        (nullopt: none pending). Called on the step's thread, after the step's callbacks.
+   */
+  using NextStepFn = std::function<std::optional<ros::Time>(const ros::Time& t)>;
 
   /**
    * @brief Subscribes `simulator/step` on @p nh's callback queue (the nodelet's: FIFO with its
@@ -44,9 +56,10 @@ class LockstepParticipant {
    * @param deferred_first handle the messages sent in earlier steps before @p on_step (the
    *        engine's order for the safety monitor: a predicted pose, then the step's check);
    *        false: after it (the planner's: the step's timers, then the stops delivered).
+   * @param next_step the next step its timers need; empty: the participant needs every step.
    */
   LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
-                      bool deferred_first = false);
+                      bool deferred_first = false, NextStepFn next_step = nullptr);
 
   /** @brief Whether the lockstep is on. */
   bool enabled() const { return enabled_; }
@@ -69,6 +82,12 @@ class LockstepParticipant {
    */
   void deliver(const ros::Time& stamp, int rank, std::function<void()> handle);
 
+  /**
+   * @brief The node published something another participant handles at the next step: this
+   *        step's answer asks for the very next step (call it at every such publication).
+   */
+  void noteSent();
+
  private:
   struct Deferred {
     ros::Time stamp;
@@ -82,6 +101,8 @@ class LockstepParticipant {
   bool deferred_first_ = false;
   std::string node_;
   StepFn on_step_;
+  NextStepFn next_step_;
+  bool sent_ = false;  ///< published since the last answer
   mutable std::mutex mutex_;
   ros::Time last_step_;
   ros::Time last_seen_;

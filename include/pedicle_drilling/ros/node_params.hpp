@@ -46,6 +46,10 @@ struct SimulatorNodeParams {
   /// the end of the last one it received (sim time waits for the planner); 0: never waits.
   double command_wait_s = 1.0;
   double lockstep_timeout_s = 5.0;  ///< wall time to wait for a lockstep participant
+  /// Under the lockstep: every step waits for every participant (true), instead of the steps
+  /// that publish a simulator stream or that a participant's answer asked for (false: the same
+  /// trial with fewer hand-offs; StepAck.next_step).
+  bool lockstep_every_step = false;
   /// Under the lockstep: sim time from a command's step to its effect on the arm or spindle
   /// (the engine's command_to_arm_s; re-read at every reset).
   double command_delay_s = 1e-3;

@@ -743,4 +743,12 @@ std::optional<TimerRequest::Kind> SequencerTimers::popDue(double now) {
   return kind;
 }
 
+std::optional<double> SequencerTimers::nextDue() const {
+  std::optional<double> next;
+  for (const Timer& t : timers_) {
+    if (!next || t.due < *next) next = t.due;
+  }
+  return next;
+}
+
 }  // namespace pedicle_drilling::core

@@ -216,6 +216,9 @@ class SequencerTimers {
    *        or removed when one-shot; nullopt when none is due.
    */
   std::optional<TimerRequest::Kind> popDue(double now);
+  /** @brief When the earliest pending timer is due (popDue() returns it from then, less its
+   *         1e-9 s of rounding); nullopt when none is pending. */
+  std::optional<double> nextDue() const;
   /** @brief Forget every timer. */
   void clear() { timers_.clear(); }
   /** @brief No timer is pending. */
