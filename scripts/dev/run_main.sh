@@ -79,9 +79,14 @@ rosrun pedicle_drilling campaign_leaderboard --dataset "${OUT}/dataset" \
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
+#    The second run waits for the participants at every step (--lockstep-every-step): the
+#    same trials as the first, which waits only where a participant needs it (issue 31).
 for run in ros ros_repeat; do
+  every=()
+  [ "${run}" = ros_repeat ] && every=(--lockstep-every-step)
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
-    --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_${run}"
+    --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" "${every[@]}" \
+    --out "${OUT}/campaign_${run}"
 done
 # ... and the realistic bench's first 10 trials per case (its simulator_params and delays on the
 # Simulator nodelet), beside the core engine's.
@@ -96,7 +101,7 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
     --label-a ros --label-b core
   echo
   python3 -m pd_campaign.agreement "${OUT}/campaign_ros" "${OUT}/campaign_ros_repeat" \
-    --label-a ros --label-b "ros (second run)"
+    --label-a ros --label-b "ros (second run, every step waited for)"
   echo
   echo "## The realistic bench (scenario_realistic.yaml), 12000 rpm"
   echo

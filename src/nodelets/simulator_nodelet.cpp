@@ -860,6 +860,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                                 distribution.command_jitter_s, req.seed);
     spindle_watchdog_trips_ = 0;
     tracker_delay_s_ = distribution.tracker_delay_s;
+    lockstep_every_step_ = distribution.lockstep_every_step;
     delayed_markers_.clear();
     last_breath_index_ = -1;
     last_settings_msg_ = VentilatorSettings();  // the new breathing is announced

@@ -277,6 +277,10 @@ def parse_args(argv):
                         'fast as the lockstep lets it (the participants are waited for, so '
                         'the trial does not depend on it). Default 0, or 5 with --bags (a '
                         'recorder in another process must keep up)')
+    parser.add_argument('--lockstep-every-step', action='store_true',
+                        help='--engine ros: the simulator waits for the participants at every '
+                        'step (~lockstep_every_step), not only where one of them needs it; the '
+                        'same trials, slower (make run compares the two)')
     args = parser.parse_args(argv)
     if args.real_time_factor is None:
         args.real_time_factor = 5.0 if args.bags else 0.0
@@ -292,6 +296,9 @@ def parse_args(argv):
                              '(use --engine ros)' % scenario.get('identification'))
         if args.bags:
             raise UsageError('--bags records the ROS pipeline: use it with --engine ros')
+        if args.lockstep_every_step:
+            raise UsageError('--lockstep-every-step is the ROS pipeline\'s: use it with '
+                             '--engine ros')
     elif args.samples:
         raise UsageError('--samples is written by --engine core only')
     elif set(scenario.get('engine_delays') or {}) - set(ROS_DELAYS):
@@ -617,6 +624,8 @@ def run_campaign(argv=None):
             command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
         for name, value in sorted((scenario.get('simulator_params') or {}).items()):
             command += ['--simulator-param', '%s=%s' % (name, json.dumps(value))]
+        if args.lockstep_every_step:
+            command += ['--simulator-param', 'lockstep_every_step=true']
         if args.bags:
             command.append('--bags')
         # The worker imports pd_campaign as this process did: catkin's devel space has it.

@@ -520,3 +520,19 @@ def test_the_retare_check_is_recorded_apart_from_the_stops():
     assert retare_columns(None) == {'retare_offset_n': None, 'drift_detected': False}
     assert retare_columns({'offset_n': 0.01, 'drift': False}) == {
         'retare_offset_n': 0.01, 'drift_detected': False}
+
+
+def test_the_ros_pipelines_pace_and_lockstep_options():
+    """--engine ros runs as fast as the lockstep lets it unless a bag is recorded (issue 31);
+    --lockstep-every-step is the ROS pipeline's, refused with the core engine; a bad real-time
+    factor is refused naming the option."""
+    from pd_campaign import cli
+    assert cli.parse_args(['--engine', 'ros'])[0].real_time_factor == 0.0
+    assert cli.parse_args(['--engine', 'ros', '--bags'])[0].real_time_factor == 5.0
+    assert cli.parse_args(['--engine', 'ros', '--real-time-factor', '2'])[0].real_time_factor == 2
+    assert cli.parse_args(['--engine', 'ros', '--lockstep-every-step'])[0].lockstep_every_step
+    with pytest.raises(cli.UsageError, match='--lockstep-every-step'):
+        cli.parse_args(['--lockstep-every-step'])
+    for bad in ['-1', 'nan', '1001']:
+        with pytest.raises(cli.UsageError, match='--real-time-factor'):
+            cli.parse_args(['--engine', 'ros', '--real-time-factor', bad])
