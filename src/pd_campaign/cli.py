@@ -12,7 +12,7 @@ import time
 
 import yaml
 
-from . import engine_core, plots, report, tools
+from . import engine_core, plots, profile, report, tools
 from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
@@ -277,6 +277,9 @@ def parse_args(argv):
                         'fast as the lockstep lets it (the participants are waited for, so '
                         'the trial does not depend on it). Default 0, or 5 with --bags (a '
                         'recorder in another process must keep up)')
+    parser.add_argument('--profile', action='store_true',
+                        help='--engine core: where the trials\' wall time goes, by component '
+                        '(OUT/profile.md and profile.json; issue 31)')
     parser.add_argument('--lockstep-every-step', action='store_true',
                         help='--engine ros: the simulator waits for the participants at every '
                         'step (~lockstep_every_step), not only where one of them needs it; the '
@@ -301,6 +304,8 @@ def parse_args(argv):
                              '--engine ros')
     elif args.samples:
         raise UsageError('--samples is written by --engine core only')
+    elif args.profile:
+        raise UsageError('--profile times the core engine: use it with --engine core')
     elif set(scenario.get('engine_delays') or {}) - set(ROS_DELAYS):
         raise UsageError('scenario key engine_delays: on --engine ros only %s (the Simulator\'s '
                          'transport under the lockstep); %s run by --engine core only' % (
@@ -583,6 +588,9 @@ def run_campaign(argv=None):
     workers = []
     pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
     samples_dir = os.path.join(out_dir, 'samples') if args.samples else None
+    profiles = [os.path.join(out_dir, 'profile-worker-%d.json' % k) if args.profile else None
+                for k in range(len(slices))]
+    started = time.monotonic()
     if samples_dir:
         os.makedirs(samples_dir, exist_ok=True)
     for k, part in enumerate(slices):
@@ -601,7 +609,7 @@ def run_campaign(argv=None):
                 recognizer, compensator, params['recognizer'], params['compensator'],
                 scenario.get('simulator'), scenario.get('protocol', 'recognition'),
                 scenario.get('simulator_params'), scenario.get('planner_params'),
-                scenario.get('engine_delays'), samples_dir)))
+                scenario.get('engine_delays'), samples_dir, profiles[k])))
             continue
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
@@ -676,6 +684,10 @@ def run_campaign(argv=None):
         finished = list(rows)
         appender.close()
     write_outputs(finished, meta, out_dir)
+    if args.profile and all(os.path.exists(p) for p in profiles):
+        profile.write(profiles, out_dir, time.monotonic() - started, len(workers))
+        for path in profiles:
+            os.remove(path)
     sys.stderr.write('campaign: %d/%d trials finished; report %s\n'
                      % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))
     if interrupted:

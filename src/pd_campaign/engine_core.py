@@ -42,12 +42,13 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
                          recognizer_params=None, compensator_params=None,
                          simulator_overrides=None, protocol='recognition',
                          simulator_settings=None, planner_settings=None, delays=None,
-                         samples_dir=None):
+                         samples_dir=None, profile_path=None):
     """`fault_options`: (option, value) pairs of the fault sizes, e.g. ('--fault-spike-n', 15);
     `simulator_overrides`: the scenario's `simulator:` section, {group: {key: value}}, passed as
     the Simulator's parameters trial_distribution/<group>/<key> (the same declaration checks
     them in both engines); `samples_dir`: every trial's force-sensor samples to
-    <samples_dir>/<trial_id>.npy (the dataset, pd_campaign.dataset)."""
+    <samples_dir>/<trial_id>.npy (the dataset, pd_campaign.dataset); `profile_path`: where the
+    trials' wall time went, by component (pd_campaign.profile)."""
     command = tool('trial_engine') + ['--trials', trial_file,
                '--drilling-pose', ','.join(repr(q) for q in drilling_pose),
                '--model', model, '--bone-motion', bone_motion,
@@ -75,6 +76,8 @@ def trial_engine_command(trial_file, drilling_pose, models_dir, model, bone_moti
         command += ['--protocol', protocol]
     if samples_dir:
         command += ['--samples-dir', samples_dir]
+    if profile_path:
+        command += ['--profile', profile_path]
     return command
 
 

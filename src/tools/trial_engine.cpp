@@ -169,7 +169,8 @@ struct Options {
   std::vector<std::string> simulator_params;
   std::vector<std::string> planner_params;
   std::string protocol = "recognition";
-  std::string samples_dir;  // empty: no per-sample records
+  std::string samples_dir;   // empty: no per-sample records
+  std::string profile_path;  // empty: no profile
   bool list_faults = false;
 };
 
@@ -340,6 +341,9 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "name=value for the trial sequence, named as the CompensationPlanner nodelet's "
                   "parameters (repeatable; e.g. stop_hold_s=0; `rosrun pedicle_drilling param_docs "
                   "--node pedicle_drilling/CompensationPlanner` lists them)");
+  app->add_option("--profile", o->profile_path,
+                  "write where the trials' wall time went, by component, to FILE (JSON: trials, "
+                  "sim_s, wall_s per component; issue 31's profile, make bench)");
   app->add_option("--samples-dir", o->samples_dir,
                   "write every force-sensor sample of a trial to DIR/<trial_id>.npy (the "
                   "labelled dataset, doc/dataset.md)")
@@ -587,6 +591,8 @@ int main(int argc, char** argv) {
       return compensator_loader.create(o.compensator_class, compensator_settings);
     };
   }
+  pd::ComponentProfile profile;
+  if (!o.profile_path.empty()) config.profile = &profile;
   std::unique_ptr<pd::ClosedLoopEngine> engine;
   try {
     engine = std::make_unique<pd::ClosedLoopEngine>(config);
@@ -595,5 +601,20 @@ int main(int argc, char** argv) {
     return 2;
   }
   runTrials(trials, o, config, stationary_model, engine.get());
+  if (!o.profile_path.empty()) {
+    json wall = json::object();
+    for (int c = 0; c < static_cast<int>(pd::Component::kCount); ++c) {
+      const auto component = static_cast<pd::Component>(c);
+      wall[pd::ComponentProfile::name(component)] = profile.seconds(component);
+    }
+    const json out = {
+        {"trials", profile.trials()}, {"sim_s", profile.simSeconds()}, {"wall_s", wall}};
+    try {
+      pd::writeFileAtomically(o.profile_path, out.dump(1) + "\n");
+    } catch (const std::exception& e) {
+      std::cerr << "trial_engine: --profile: " << e.what() << "\n";
+      return 1;
+    }
+  }
   return 0;
 }

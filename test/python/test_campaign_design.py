@@ -536,3 +536,10 @@ def test_the_ros_pipelines_pace_and_lockstep_options():
     for bad in ['-1', 'nan', '1001']:
         with pytest.raises(cli.UsageError, match='--real-time-factor'):
             cli.parse_args(['--engine', 'ros', '--real-time-factor', bad])
+
+
+def test_the_profile_is_the_core_engines():
+    from pd_campaign import cli
+    assert cli.parse_args(['--profile'])[0].profile
+    with pytest.raises(cli.UsageError, match='--profile'):
+        cli.parse_args(['--engine', 'ros', '--profile'])

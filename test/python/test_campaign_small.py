@@ -322,3 +322,35 @@ def test_fault_campaign_stops_every_sensor_fault_and_breaks_through_nowhere(tmp_
     assert {g['fault'] for g in summary['faults']} == set(FAULTS)
     assert sum(g['trials'] for g in summary['groups']) == 3  # Table III: fault-free only
     assert '## Faults' in (out / 'report.md').read_text()
+
+
+def test_a_profiled_campaign_says_where_its_time_goes_and_changes_no_trial(tmp_path):
+    """campaign --profile (issue 31): the core engine's workers time each component; the
+    merged profile covers every trial, its components fit inside the engine's steps, Bullet's
+    world step inside the arm's, and the trials are the unprofiled run's, bit for bit."""
+    outs = {}
+    for name, extra in [('plain', []), ('profiled', ['--profile'])]:
+        outs[name] = tmp_path / name
+        result = subprocess.run(
+            ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'all', '--rpm', '12000',
+             '--trials', '1', '--jobs', '2', '--seed', '5', '--out', str(outs[name])] + extra,
+            capture_output=True, text=True, timeout=600)
+        assert result.returncode == 0, result.stderr[-3000:]
+    with open(outs['profiled'] / 'profile.json') as handle:
+        profile = json.load(handle)
+    assert profile['trials'] == 3 and profile['sim_s'] > 3 * 10.0
+    wall = profile['wall_s']
+    steps = wall['engine_step']
+    assert steps > 0.0
+    assert 0.0 < wall['bullet_world'] < wall['arm_step']
+    parts = sum(v for k, v in wall.items() if k not in ('engine_step', 'bullet_world'))
+    assert 0.5 * steps < parts <= steps * 1.0001
+    table = (outs['profiled'] / 'profile.md').read_text()
+    assert 'bullet_world' in table and 'pipeline_rest' in table
+    assert not list(outs['profiled'].glob('profile-worker-*.json')), 'merged and removed'
+    assert not (outs['plain'] / 'profile.json').exists()
+
+    def trials(out):
+        with open(out / 'trials.csv') as handle:
+            return [{k: v for k, v in row.items() if k != 'wall_s'} for row in csv.DictReader(handle)]
+    assert trials(outs['plain']) == trials(outs['profiled'])

@@ -92,6 +92,7 @@ btTransform toBt(const Eigen::Isometry3d& t) {
 }  // namespace
 
 struct BulletArm::Impl {
+  ComponentProfile* profile = nullptr;  ///< setProfile(): Bullet's world steps timed into it
   /// One rigid body of the multibody (index 0 = fixed base).
   struct Body {
     std::string head_link;
@@ -746,7 +747,10 @@ void BulletArm::Impl::subStep(double h) {
   // Real step: the world adds gravity itself.
   applyExternalLoads(/*with_gravity=*/false);
   for (int k = 0; k < nj; ++k) mb->addJointTorque(k, btScalar(tau[k]));
-  world->stepSimulation(btScalar(h), 0, btScalar(h));
+  {
+    const ScopedComponentTimer timer(profile, Component::kBulletWorld);
+    world->stepSimulation(btScalar(h), 0, btScalar(h));
+  }
   forwardKinematics();
   sim_time += h;
 }
@@ -943,6 +947,8 @@ TargetResult BulletArm::resetJointState(const Eigen::VectorXd& q) {
   impl_->forwardKinematics();
   return r;
 }
+
+void BulletArm::setProfile(ComponentProfile* profile) { impl_->profile = profile; }
 
 int BulletArm::step(double dt) {
   if (!std::isfinite(dt) || dt <= 0.0) return 0;

@@ -298,7 +298,9 @@ struct ClosedLoopEngine::Impl {
 
   void onRecognizerSample(double t, double thrust) {
     const bool was_stopped = recognizer->output().stop;
+    ComponentLaps laps(config.profile);
     const RecognizerOutput& out = recognizer->push(t, thrust);
+    laps.mark(Component::kRecognizer);
     // Under kPeakForces the recognizer observes: its stop is recorded, never delivered.
     const bool deliver = protocol == TrialProtocol::kRecognition;
     if (out.new_average) {
@@ -462,6 +464,7 @@ struct ClosedLoopEngine::Impl {
 
   /** @brief One 1 ms physics step and everything the pipeline does in it. */
   void step(std::uint64_t n) {
+    const ScopedComponentTimer timer(config.profile, Component::kEngineStep);
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
     updateTruthPeaks(s.force.thrust_N);
@@ -480,8 +483,10 @@ struct ClosedLoopEngine::Impl {
       } else if (std::isfinite(thrust)) {
         onRecognizerSample(t, thrust);
       }
+      ComponentLaps laps(config.profile);
       monitor->onForce(now, force);
       evaluateMonitor();
+      laps.mark(Component::kMonitor);
       if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
     if (s.force_sampled) onTareResult();
@@ -491,8 +496,10 @@ struct ClosedLoopEngine::Impl {
     if (n % tidal_period == 0) onTidalVolume();
     if (n % controller_state_period == 0) onControllerStates();
     if (n % check_period == 0) {
+      ComponentLaps laps(config.profile);
       monitor->check(now);
       evaluateMonitor();
+      laps.mark(Component::kMonitor);
     }
     fireTimers();
     deliverDue();
@@ -548,6 +555,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   const bool moving = spec.mode != "stationary";
   // Everything new for every trial: its record depends on its seed and nothing else.
   s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, s.config.simulation, spec.seed);
+  s.sim->setProfile(s.config.profile);
   s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
   s.sim->reset(spec.seed, moving);
   TrialSequencerParams sequencer_params = s.config.sequencer;
@@ -588,6 +596,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.sensor_decimation = static_cast<int>(
       std::lround(s.config.simulation.physics_rate_hz / s.config.simulation.sensor.output_rate_hz));
   s.now = s.sim->time();
+  const double sim_start = s.now;
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();
   s.record.outer_cortical_thickness_m = specimen.outerCorticalThickness();
@@ -637,6 +646,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.recordTruth();
   s.record.watch_desired_ratio = s.sequencer->controllerWatch().worstDesiredRatio();
   s.record.watch_following_ratio = s.sequencer->controllerWatch().worstFollowingRatio();
+  if (s.config.profile) s.config.profile->addTrial(s.now - sim_start);
   return s.record;
 }
 

@@ -337,6 +337,7 @@ SpmsGeometry DrillingSimulationParams::urdfSpmsGeometry() {
 // ------------------------------------------------------------------------------------------
 
 struct DrillingSimulation::Impl {
+  ComponentProfile* profile = nullptr;  ///< setProfile()
   DrillingSimulationParams params;
   urdf::ModelInterfaceSharedPtr model;
   std::unique_ptr<BulletArm> arm;
@@ -448,6 +449,13 @@ struct DrillingSimulation::Impl {
   // The rod-length Jacobian the platform's forward kinematics keeps between steps (NaN: none;
   // cleared at every trial's reset, so that the iteration's path does not carry over).
   Eigen::Matrix3d platform_jacobian = Eigen::Matrix3d::Constant(std::nan(""));
+  // The sliders of the last forward kinematics, kept when it ended within its 1e-13 m test: the
+  // same sliders from that pose pass the test at once and give the same pose, bit for bit, so
+  // the solve is skipped (issue 31: a stationary bench's sliders come to rest). Likewise the
+  // inverse of the last heave. Cleared at every reset.
+  std::optional<Eigen::Vector3d> converged_sliders;
+  std::optional<double> ik_heave;
+  SpmsIkResult ik_of_heave;
   double desired_heave = 0.0;
   Eigen::Isometry3d bone_world = Eigen::Isometry3d::Identity();
   Eigen::Vector3d bone_home_world = Eigen::Vector3d::Zero();
@@ -650,7 +658,11 @@ struct DrillingSimulation::Impl {
                           ? 1e-3 * amplitude_factor *
                                 patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
                           : 0.0;
-      const SpmsIkResult ik = spms.inverseHeave(desired_heave);
+      if (!(ik_heave && *ik_heave == desired_heave)) {
+        ik_of_heave = spms.inverseHeave(desired_heave);
+        ik_heave = desired_heave;
+      }
+      const SpmsIkResult& ik = ik_of_heave;
       if (ik.reachable) slider_targets = ik.sliders;  // else keep the last reachable targets
       // The drive streams the patient's motion as position set-points, each with the velocity to
       // the next as feed-forward: over this step, from the last set-point to this one.
@@ -662,12 +674,16 @@ struct DrillingSimulation::Impl {
     for (int i = 0; i < 3; ++i) {
       sliders[i] = slider_axes[static_cast<std::size_t>(i)].step(dt, set_point[i], ref_velocity[i]);
     }
-    PlatformPose guess;
-    guess.z_m = platform.z_m;
-    guess.roll_rad = platform.roll_rad;
-    guess.pitch_rad = platform.pitch_rad;
-    const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
-    if (fk.ok) platform = fk.pose;
+    if (!(converged_sliders && *converged_sliders == sliders)) {
+      PlatformPose guess;
+      guess.z_m = platform.z_m;
+      guess.roll_rad = platform.roll_rad;
+      guess.pitch_rad = platform.pitch_rad;
+      const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
+      if (fk.ok) platform = fk.pose;
+      converged_sliders.reset();
+      if (fk.ok && fk.residual_m < 1e-13) converged_sliders = sliders;
+    }
     bone_world = spms_base_world * platformInBase() * bone_in_platform;
   }
 
@@ -763,6 +779,7 @@ struct DrillingSimulation::Impl {
   }
 
   void advanceArmBlock() {
+    ComponentLaps laps(profile);
     const double block = steps_per_arm_block * dt;
     Eigen::VectorXd q0 = reference(time);
     Eigen::VectorXd q1 = reference(time + block);
@@ -799,7 +816,9 @@ struct DrillingSimulation::Impl {
     const Eigen::Matrix3d r = arm->tipPose().linear();
     arm->applyTipForce(-last_force.thrust_N * r.col(2));
     tip_block_start = arm->tipPose().translation();
+    laps.mark(Component::kArmControllers);
     arm->step(block);
+    laps.mark(Component::kArmStep);
     const Eigen::Isometry3d tip = arm->tipPose();
     tip_block_end = tip.translation();
     drill_axis = tip.linear().col(2);
@@ -851,6 +870,8 @@ struct DrillingSimulation::Impl {
     // The SPMS controller starts its stream from where the sliders are.
     spms_trajectory->hold(sliders);
     platform_jacobian.setConstant(std::nan(""));
+    converged_sliders.reset();
+    ik_heave.reset();
     bench_stream_due = 0;
     have_previous_targets = false;
     tracker_rng.seed(seed * 40503ULL + 3ULL);
@@ -1004,6 +1025,7 @@ SimulationStep DrillingSimulation::stepOnce() {
                                    Eigen::VectorXd::Constant(1, s.spindle_rpm * 2.0 * kPi / 60.0));
     s.advanceArmBlock();
   }
+  ComponentLaps laps(s.profile);
   ++s.step_index;
   s.time = static_cast<double>(s.step_index) * s.dt;
   const double frac = static_cast<double>(phase + 1) / s.steps_per_arm_block;
@@ -1011,7 +1033,9 @@ SimulationStep DrillingSimulation::stepOnce() {
 
   s.vent_now = s.ventilator.sample(s.time);
   s.senseBreath();
+  laps.mark(Component::kPatient);
   s.updatePlatform();
+  laps.mark(Component::kPlatform);
 
   // Tip depth below the bone's top surface along the surface normal (the bone frame's z; the
   // layers are parallel to the surface), so platform roll and pitch tilt the layers with the
@@ -1030,6 +1054,7 @@ SimulationStep DrillingSimulation::stepOnce() {
   } else if (s.was_in_contact && ++s.steps_without_contact == kSeparationSteps) {
     ++s.contact_losses;  // one separation per gap, counted once it lasted 10 ms
   }
+  laps.mark(Component::kDrilling);
 
   SimulationStep out;
   out.time_s = s.time;
@@ -1046,7 +1071,13 @@ SimulationStep DrillingSimulation::stepOnce() {
     if (!s.params.sensor_tared_at_reset) out.measured_wrench[2] += s.params.sensor_bias_offset_n;
     out.measured_wrench = s.tare.apply(s.time, out.measured_wrench);
   }
+  laps.mark(Component::kSensor);
   return out;
+}
+
+void DrillingSimulation::setProfile(ComponentProfile* profile) {
+  impl_->profile = profile;
+  impl_->arm->setProfile(profile);
 }
 
 int DrillingSimulation::step(double dt) {

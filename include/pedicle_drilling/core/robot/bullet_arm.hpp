@@ -50,6 +50,8 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include "pedicle_drilling/core/common/component_profile.hpp"
+
 #include "pedicle_drilling/core/robot/target_result.hpp"
 
 class btMultiBody;
@@ -161,6 +163,9 @@ class BulletArm {
   /// @brief Advances the simulation by dt using fixed sub-steps of params.substep; a remainder
   /// shorter than one sub-step is carried over to the next call. Returns the sub-steps run.
   int step(double dt);
+  /// @brief Times Bullet's world steps into @p profile (Component::kBulletWorld; nullptr: off;
+  /// not owned, must outlive the arm or be reset to nullptr).
+  void setProfile(ComponentProfile* profile);
   /// @brief Simulated time [s].
   double simTime() const;
 

@@ -126,6 +126,12 @@ struct EngineConfig {
   std::string arm_base_link = "world";
   std::string arm_tip_link = "device_base";
   EngineDelays delays;
+  /**
+   * @brief Where the trials' wall time goes (issue 31; trial_engine --profile): each trial adds
+   *        its time by component and its simulated time. nullptr (default): nothing is timed.
+   *        Not owned; must outlive the engine's runs.
+   */
+  ComponentProfile* profile = nullptr;
   /** @brief Sim time between the reset and the earliest trial start: the ventilator's
    *         settings and breath phase reach the planner. The start then waits a fraction of one
    *         breath drawn from the seed, so that trials start at every phase of the breathing. */

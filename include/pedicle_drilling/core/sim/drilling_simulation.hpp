@@ -353,6 +353,11 @@ class DrillingSimulation {
 
   /** @brief Advances one physics step (1 / physics_rate_hz). */
   SimulationStep stepOnce();
+  /**
+   * @brief Times the steps' components into @p profile (issue 31; nullptr: off, no clock read).
+   *        Not owned: it must outlive the simulation or be reset to nullptr.
+   */
+  void setProfile(ComponentProfile* profile);
   /** @brief Advances by at least `dt` seconds (whole physics steps); returns steps run. */
   int step(double dt);
 
