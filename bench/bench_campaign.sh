@@ -2,7 +2,8 @@
 # Campaign throughput (make bench): the core engine on the paper's three cases at 12000 rpm,
 # 200 trials each (600 trials, --jobs 2), and the same 10 seeds through both engines (stationary case,
 # 12000 rpm). Prints BENCH lines; each campaign's time includes its Table II identification
-# (about 3 s), so the figures are conservative.
+# (about 3 s), so the figures are conservative. Then Fig. 16's protocol, and a profiled campaign:
+# the share of each component of the engine's steps (campaign --profile).
 set -eu
 export PATH="/usr/bin:/bin:/usr/sbin:/sbin:${PATH}"
 OUT="$(mktemp -d)"
@@ -28,3 +29,19 @@ peak=$(seconds rosrun pedicle_drilling campaign --scenario "$(rospack find pedic
   --trials 100 --jobs 2 --seed 103 --out "${OUT}/peak")
 peak_trials=$(python3 -c "import csv; print(sum(1 for _ in csv.DictReader(open('${OUT}/peak/trials.csv'))))")
 python3 -c "print('BENCH campaign_peak_forces_trials_per_min %.0f trials/min (core engine, --jobs 2, %d trials in %.1f s)' % (${peak_trials} * 60.0 / ${peak}, ${peak_trials}, ${peak}))"
+# Where the engine's time goes (issue 31): the paper's three cases at 12000 rpm, 20 trials each,
+# profiled by component (campaign --profile; the trials are the unprofiled ones, bit for bit).
+rosrun pedicle_drilling campaign --rpm 12000 --trials 20 --jobs 2 --seed 104 --profile \
+  --out "${OUT}/profile" > /dev/null 2>&1
+python3 - "${OUT}/profile/profile.json" <<'PY'
+import json
+import sys
+from pd_campaign import profile
+data = json.load(open(sys.argv[1]))
+for name, _, seconds, share, per_sim in profile.rows(data):
+    if name == 'engine_step':
+        print('BENCH engine_step_cost_per_sim_s %.3f ms (%d trials, %.0f s simulated)'
+              % (per_sim, data['trials'], data['sim_s']))
+    else:
+        print('BENCH component_share_%s %.1f %%' % (name, 100 * share))
+PY
