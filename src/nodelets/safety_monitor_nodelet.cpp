@@ -52,9 +52,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
       // at every step whose time is a multiple of 1 / check_rate_hz (the engine's), after the
       // predicted poses and statuses sent in the step before.
-      lockstep_ = std::make_unique<LockstepParticipant>(
+      auto participant = std::make_unique<LockstepParticipant>(
           nh, getName(), [this](const ros::Time& t) { onStep(t); }, true,
           [this](const ros::Time& t) { return nextStep(t); });
+      std::lock_guard<std::mutex> lock(mutex_);  // a /diagnostics subscriber may read it
+      lockstep_ = std::move(participant);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -304,6 +306,9 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                      supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker");
     }
     status.add("reason", core::toString(v.reason));
+    // The planner's trial as this monitor last heard it: the status published when it heard
+    // the trial end is the first "false" after a "true" (a campaign's record of its inputs).
+    status.add("trial_running", supervisor_->trialRunning() ? "true" : "false");
     for (const auto& [name, stats] :
          {std::pair<std::string, const core::StreamStats*>("force", &force_stats_),
           {"tracker", &tracker_stats_}}) {

@@ -296,7 +296,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
         // The step that reaches the trial's hold: the participants are at it while it holds
         // (the planner starts the trial at its time).
         const bool holds_next = hold_at_ && t >= *hold_at_ - 1e-9;
-        sync = published || holds_next || forced || lockstepStepWanted(stamp);
+        // A delayed tracker sample keeps its old stamp: a participant handles it at the time of
+        // the last step it saw, which must be the step before it (as when every step waited).
+        const double dt = 1.0 / sim_->params().physics_rate_hz;
+        const bool marker_next =
+            !delayed_markers_.empty() && delayed_markers_.front().first <= t + dt + 1e-9;
+        sync = published || holds_next || marker_next || forced || lockstepStepWanted(stamp);
+        if (lockstep_) ++(sync ? lockstep_steps_ : lockstep_skipped_);
         applyDueCommands(t);
         if (publish_clock_ && n % clock_period_steps_ == 0) {
           rosgraph_msgs::ClockPtr c = boost::make_shared<rosgraph_msgs::Clock>();
@@ -309,9 +315,6 @@ class SimulatorNodelet : public nodelet::Nodelet {
         c->clock = stamp;
         step_pub_.publish(c);  // after the step's messages: a participant's queue is FIFO
         waitForAnswers(stamp);
-        ++lockstep_steps_;
-      } else if (lockstep_) {
-        ++lockstep_skipped_;
       }
       if (real_time_factor_ > 0.0) {
         const Clock::time_point due =

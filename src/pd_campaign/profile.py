@@ -47,7 +47,8 @@ def rows(profile):
     listed = sum(wall.get(name, 0.0) for name, _ in COMPONENTS if name != 'bullet_world')
     out.append(row('pipeline_rest', 'the rest of each step: planner, compensator, transport, '
                    'records', max(0.0, steps - listed)))
-    out.append(row('engine_step', 'every engine step (the sum of the above)', steps))
+    out.append(row('engine_step', 'every engine step (the rows above but bullet_world, which is '
+                   'part of arm_step)', steps))
     return out
 
 

@@ -44,11 +44,13 @@ class TrialRecorder:
         self.truth = []           # (t, layer, max_depth, residual, breakthrough, rel_ap, contact,
                                   #  contact losses so far)
         self.last_truth = None
+        self.truth_msgs = []      # the GroundTruth messages of self.truth (ROS engine)
         self.stops = []           # (t, source, reason, retreat)
         self.status = []          # (t, phase name)
         self.phase = None         # the latest TrialStatus phase (ROS engine)
         self.retare = None        # the monitor's re-tare check when the retreat ended
         self.inputs = None        # (t, {key: value}): the monitor's input streams, latest
+        self.monitor_statuses = []  # every (t, {key: value}) of the monitor, in order
         self._last_kp = 0
 
     def on_state(self, msg):
@@ -66,6 +68,7 @@ class TrialRecorder:
         if msg.header.stamp.to_sec() < self.min_stamp:
             return
         self.last_truth = msg
+        self.truth_msgs.append(msg)
         self.truth.append((msg.header.stamp.to_sec(), msg.specimen_layer, msg.max_depth_cut_m,
                            msg.residual_inner_cortical_m, msg.breakthrough, msg.relative_ap_m,
                            msg.contact, msg.contact_loss_count))
@@ -89,6 +92,7 @@ class TrialRecorder:
         for status in msg.status:
             if status.name.endswith(': monitor'):
                 self.inputs = (t, {kv.key: kv.value for kv in status.values})
+                self.monitor_statuses.append(self.inputs)
 
     def on_status(self, msg):
         """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
@@ -99,6 +103,34 @@ class TrialRecorder:
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
+
+    def end_at(self, t_done):
+        """The ROS engine's simulator runs on after DONE until the next reset (as fast as the
+        machine allows at --real-time-factor 0): the trial's record ends at DONE, whenever the
+        worker got to it. The ground truth up to the first sample at or after DONE (the one the
+        core engine records at DONE), the recognizer's states and key points up to DONE, and the
+        monitor's inputs as it reported them when it heard the trial end (its first status with
+        trial_running false after one with true; the latest one without that key)."""
+        end = next((k for k, row in enumerate(self.truth) if row[0] >= t_done), None)
+        if end is not None:
+            self.truth = self.truth[:end + 1]
+            self.truth_msgs = self.truth_msgs[:end + 1]
+            self.last_truth = self.truth_msgs[-1]
+        self.states = [s for s in self.states if s[0] <= t_done]
+        self.key_points = [k for k in self.key_points if k[1] <= t_done]
+        inputs = self.trial_end_inputs()
+        if inputs is not None:
+            self.inputs = inputs
+
+    def trial_end_inputs(self):
+        """The monitor's status when it heard the trial end (see end_at), or None yet."""
+        running = False
+        for t, values in list(self.monitor_statuses):
+            if values.get('trial_running') == 'true':
+                running = True
+            elif running and values.get('trial_running') == 'false':
+                return (t, values)
+        return None
 
 
 def retare_columns(retare):
@@ -363,13 +395,10 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
                 and recorder.retare['t'] >= t_done - 1e-3)
     if not _wait_until(fresh, 5.0):
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
-    # The monitor's diagnostics at the trial's end (its input streams, complete).
-    # diagnostic_updater stamps them with the monitor's ROS time, the latest /clock: up to one
-    # clock period before the lockstep's step that handled DONE.
-    import rospy
-    clock_period_s = rospy.get_param('/simulator/clock_period_ms', 1) * 1e-3
-    _wait_until(lambda: (recorder.inputs is not None and t_done is not None
-                         and recorder.inputs[0] >= t_done - clock_period_s - 1e-3), 5.0)
+    # The monitor's diagnostics at the trial's end (its input streams, complete): the status it
+    # published when it heard the trial end (an event: trial_running turns false; the stamp is
+    # the monitor's ROS time, the latest /clock, which can trail DONE by a clock period).
+    _wait_until(lambda: recorder.trial_end_inputs() is not None, 5.0)
     # Each topic has its own connection: on a loaded machine the ground truth and the
     # recognizer's states may trail the status that said DONE. Wait until both have reached the
     # trial's end (events: the simulator and the recognizer go on publishing after it), so that
@@ -380,6 +409,8 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
                 and truth.header.stamp.to_sec() >= t_done
                 and (not recorder.states or recorder.states[-1][0] >= t_done))
     _wait_until(caught_up, 30.0)
+    if t_done is not None:
+        recorder.end_at(t_done)
     row['wall_s'] = time.time() - wall_start
     return analyse_trial(recorder, row, trial, trace_dir)
 
@@ -569,6 +600,7 @@ def main(argv=None):
             ['roslaunch', 'pedicle_drilling', args.launch,
              'patient_model:=%s' % args.default_model,
              'real_time_factor:=%g' % args.real_time_factor,
+             'clock_period_ms:=%d' % (10 if args.bags else 100),
              'segment_profile:=%s' % args.segment_profile,
              'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))

@@ -2,8 +2,8 @@
  * @file lockstep.hpp
  * @brief The simulator's lockstep (README "Lockstep"; issue 28): with the global parameter
  *        /use_sim_lockstep true, the Simulator publishes `simulator/step` (rosgraph_msgs/Clock)
- *        after each physics step's messages and steps again only when every participant has
- *        answered it on `simulator/step_ack` (pedicle_drilling/StepAck). A participant's step
+ *        after a physics step's messages and steps again only when every participant has
+ *        answered it (at every step a participant can act at: see below) on `simulator/step_ack` (pedicle_drilling/StepAck). A participant's step
  *        callback runs after the step's simulator messages (one nodelet manager: its callback
  *        queue is FIFO), so sim time never runs ahead of the nodes, and a loaded machine
  *        changes wall time, not the trial: the pipeline's trial of a seed is the core engine's.

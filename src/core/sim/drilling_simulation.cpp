@@ -682,7 +682,11 @@ struct DrillingSimulation::Impl {
       const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
       if (fk.ok) platform = fk.pose;
       converged_sliders.reset();
-      if (fk.ok && fk.residual_m < 1e-13) converged_sliders = sliders;
+      // (A pose of exactly zero height, roll and pitch would be a different guess: forward()
+      // starts a zero guess from the sliders' mean. Not kept then.)
+      const bool zero_pose =
+          fk.pose.z_m == 0.0 && fk.pose.roll_rad == 0.0 && fk.pose.pitch_rad == 0.0;
+      if (fk.ok && fk.residual_m < 1e-13 && !zero_pose) converged_sliders = sliders;
     }
     bone_world = spms_base_world * platformInBase() * bone_in_platform;
   }

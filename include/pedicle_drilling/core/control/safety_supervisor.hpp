@@ -96,6 +96,8 @@ class SafetySupervisor {
 
   /** @brief The planner's phase: while a trial runs, a stream never heard times out too. */
   void setTrialRunning(bool running) { trial_running_ = running; }
+  /** @brief What setTrialRunning() last said (false before any). */
+  bool trialRunning() const { return trial_running_; }
 
   /** @brief Evaluates the timeouts at `now` if armed (both streams heard, or a trial runs). */
   void check(double now);
