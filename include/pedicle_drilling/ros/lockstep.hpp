@@ -3,10 +3,11 @@
  * @brief The simulator's lockstep (README "Lockstep"; issue 28): with the global parameter
  *        /use_sim_lockstep true, the Simulator publishes `simulator/step` (rosgraph_msgs/Clock)
  *        after a physics step's messages and steps again only when every participant has
- *        answered it (at every step a participant can act at: see below) on `simulator/step_ack` (pedicle_drilling/StepAck). A participant's step
- *        callback runs after the step's simulator messages (one nodelet manager: its callback
- *        queue is FIFO), so sim time never runs ahead of the nodes, and a loaded machine
- *        changes wall time, not the trial: the pipeline's trial of a seed is the core engine's.
+ *        answered it (at every step a participant can act at: see below) on `simulator/step_ack`
+ * (pedicle_drilling/StepAck). A participant's step callback runs after the step's simulator
+ * messages (one nodelet manager: its callback queue is FIFO), so sim time never runs ahead of the
+ * nodes, and a loaded machine changes wall time, not the trial: the pipeline's trial of a seed is
+ * the core engine's.
  *
  * What a participant receives from another participant (a stop, a recognizer state, a predicted
  * pose) is handled at the first step after the one it was sent in (deliver()), in stamp order,
