@@ -287,9 +287,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         if (stream(n % controller_state_period_ == 0)) publishControllerStates(t);
         if (stream(n % ground_truth_period_ == 0 || step.layer_changed)) publishGroundTruth(t);
         if (stream(sim_->trackerDue(tracker_period_))) publishMarker(t);
-        if (stream(!delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9)) {
-          publishDelayedMarkers(t);
-        }
+        if (stream(delayedMarkerDue(t))) publishDelayedMarkers(t);
         if (stream(tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0)) {
           publishTidalVolume(t);
         }
@@ -299,8 +297,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         // A delayed tracker sample keeps its old stamp: a participant handles it at the time of
         // the last step it saw, which must be the step before it (as when every step waited).
         const double dt = 1.0 / sim_->params().physics_rate_hz;
-        const bool marker_next =
-            !delayed_markers_.empty() && delayed_markers_.front().first <= t + dt + 1e-9;
+        const bool marker_next = delayedMarkerDue(t + dt);
         sync = published || holds_next || marker_next || forced || lockstepStepWanted(stamp);
         if (lockstep_) ++(sync ? lockstep_steps_ : lockstep_skipped_);
         applyDueCommands(t);
@@ -621,8 +618,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
     sendMarker(m);
   }
 
+  /** @brief A delayed tracker sample is due by `t`. */
+  bool delayedMarkerDue(double t) const {
+    return !delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9;
+  }
+
   void publishDelayedMarkers(double t) {
-    while (!delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9) {
+    while (delayedMarkerDue(t)) {
       sendMarker(delayed_markers_.front().second);
       delayed_markers_.pop_front();
     }
