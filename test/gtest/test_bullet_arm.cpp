@@ -574,5 +574,69 @@ TEST(BulletArm, KeptInverseInertiaFollowsTheExactServo) {
   }
 }
 
+// BulletArmParams::direct_world_step: the multibody advanced through Bullet's own passes without
+// the world's collision, island and solver passes is the world's step, bit for bit, through a
+// move, a feed under a tip load and the spindle's run-up; a joint at its limit (a constraint
+// row) takes the world's step, and the two stay equal through it.
+TEST(BulletArm, DirectWorldStepIsTheWorldsStepBitForBit) {
+  const std::string xml = readFile(urdfPath("workcell.urdf"));
+  const Eigen::VectorXd q0 = [&] {
+    BulletArm probe(xml, "world", "drill_tip");
+    return poseVector(probe, readDrillingPose(kSourceDir + "/config/drilling_pose.yaml"));
+  }();
+  BulletArmParams world_params, direct_params;
+  world_params.inverse_inertia_tolerance = direct_params.inverse_inertia_tolerance = 1e-4;
+  world_params.direct_world_step = false;
+  BulletArm world(xml, "world", "drill_tip", world_params);
+  BulletArm direct(xml, "world", "drill_tip", direct_params);
+  int steps = 0;
+  int unequal = 0;
+  const auto run = [&](int n) {
+    for (int i = 0; i < n; ++i, ++steps) {
+      world.step(1e-3);
+      direct.step(1e-3);
+      const bool same =
+          (world.jointPositions().array() == direct.jointPositions().array()).all() &&
+          (world.jointVelocities().array() == direct.jointVelocities().array()).all() &&
+          (world.jointEfforts().array() == direct.jointEfforts().array()).all();
+      if (!same) ++unequal;
+    }
+  };
+  for (BulletArm* arm : {&world, &direct}) {
+    ASSERT_TRUE(arm->resetJointState(q0).ok());
+    ASSERT_TRUE(arm->setJointVelocityTargets({7}, Eigen::VectorXd::Constant(1, 1256.6)).ok());
+  }
+  run(300);
+  Eigen::VectorXd target = q0;
+  target[1] += 0.02;
+  target[4] -= 0.02;
+  for (BulletArm* arm : {&world, &direct}) ASSERT_TRUE(arm->setJointPositionTargets(target).ok());
+  run(500);
+  for (BulletArm* arm : {&world, &direct}) {
+    ASSERT_TRUE(arm->setJointVelocityTargets({6}, Eigen::VectorXd::Constant(1, 0.0005)).ok());
+    ASSERT_TRUE(arm->applyTipForce(Eigen::Vector3d(0.0, 0.0, 3.0)));
+  }
+  const std::uint64_t before_feed = direct.directWorldSteps();
+  run(500);
+  // The feed starts on its lower limit (a row: the world's step) and leaves it within steps.
+  EXPECT_GE(direct.directWorldSteps() - before_feed, 480u);
+  // The feed joint teleported onto its upper limit and held there: Bullet makes a limit row.
+  const ArmJointInfo feed = direct.jointInfo()[6];
+  Eigen::VectorXd at_limit = direct.jointPositions();
+  at_limit[6] = feed.upper;
+  for (BulletArm* arm : {&world, &direct}) {
+    ASSERT_TRUE(arm->resetJointState(at_limit).ok());
+    ASSERT_TRUE(arm->setJointVelocityTargets({6}, Eigen::VectorXd::Constant(1, 0.01)).ok());
+  }
+  const std::uint64_t before_limit = direct.directWorldSteps();
+  run(200);
+  std::cout << "[ direct step ] " << direct.directWorldSteps() << " of " << steps
+            << " sub-steps direct; " << unequal << " unequal" << std::endl;
+  EXPECT_EQ(unequal, 0);
+  EXPECT_EQ(world.directWorldSteps(), 0u);
+  EXPECT_LT(direct.directWorldSteps() - before_limit, 200u);  // the limit took the world's step
+  EXPECT_GT(world.jointVelocities().norm(), 0.0);             // not a frozen arm
+}
+
 }  // namespace
 }  // namespace pedicle_drilling::core

@@ -149,6 +149,7 @@ struct BulletArm::Impl {
   Eigen::VectorXd q_at_a_inv;
   std::vector<bool> rotor;  // joints whose motion leaves M unchanged (not watched)
   std::uint64_t a_inv_updates = 0;
+  std::uint64_t direct_steps = 0;
   // The implicit servo's damping, I + h A B's factorisation and B (valid until A or K change).
   Eigen::PartialPivLU<Eigen::MatrixXd> servo_lu;
   Eigen::VectorXd servo_damping, servo_b;
@@ -193,6 +194,8 @@ struct BulletArm::Impl {
   }
   void applyExternalLoads(bool with_gravity);
   void subStep(double h);
+  bool worldStepHasNothingToSolve() const;
+  void directWorldStep(double h);
   void integrateReference(double h);
   TargetResult validatePositions(Eigen::VectorXd* q, const std::vector<bool>* mask) const;
   TargetResult validateVelocities(Eigen::VectorXd* qd, const std::vector<bool>* mask) const;
@@ -749,10 +752,60 @@ void BulletArm::Impl::subStep(double h) {
   for (int k = 0; k < nj; ++k) mb->addJointTorque(k, btScalar(tau[k]));
   {
     const ScopedComponentTimer timer(profile, Component::kBulletWorld);
-    world->stepSimulation(btScalar(h), 0, btScalar(h));
+    if (params.direct_world_step && worldStepHasNothingToSolve()) {
+      directWorldStep(h);
+      ++direct_steps;
+    } else {
+      world->stepSimulation(btScalar(h), 0, btScalar(h));
+    }
   }
   forwardKinematics();
   sim_time += h;
+}
+
+bool BulletArm::Impl::worldStepHasNothingToSolve() const {
+  // Nothing but this arm in the world: no collision object to test, no rigid body or typed
+  // constraint, no other multibody or multibody constraint.
+  if (world->getNumCollisionObjects() != 0 || world->getNumConstraints() != 0 ||
+      world->getNumMultibodies() != 1 ||
+      world->getNumMultiBodyConstraints() != static_cast<int>(limit_constraints.size())) {
+    return false;
+  }
+  // btMultiBodyJointLimitConstraint::createConstraintRows (Bullet 3.24) skips a bound whose
+  // "penetration" (the same two differences, in btScalar) is positive: no row, no impulse.
+  for (const auto& c : limit_constraints) {
+    const int k = c->getLinkA();
+    const btScalar q = mb->getJointPos(k);
+    if (!(q - c->getLowerBound() > btScalar(0)) || !(c->getUpperBound() - q > btScalar(0))) {
+      return false;
+    }
+  }
+  return !mb->isUsingRK4Integration() && !mb->internalNeedsJointFeedback();
+}
+
+void BulletArm::Impl::directWorldStep(double h) {
+  // btMultiBodyDynamicsWorld's step for one awake multibody without colliders and with no
+  // constraint row, call for call (Bullet 3.24): solveExternalForces (the link transforms are
+  // already those of this state: every change of it ends in forwardKinematics()), the
+  // constraint solver's velocity deltas (zero, applied as the solver applies them), and
+  // integrateMultiBodyTransforms without the colliders' transforms (there are none).
+  const btScalar dt = btScalar(h);
+  const btVector3 g = world->getGravity();
+  mb->clearConstraintForces();
+  mb->addBaseForce(g * mb->getBaseMass());
+  for (int j = 0; j < mb->getNumLinks(); ++j) mb->addLinkForce(j, g * mb->getLinkMass(j));
+  scratch_r.resize(mb->getNumLinks() + 1);
+  scratch_v.resize(mb->getNumLinks() + 1);
+  scratch_m.resize(mb->getNumLinks() + 1);
+  const btContactSolverInfo& info = world->getSolverInfo();
+  mb->computeAccelerationsArticulatedBodyAlgorithmMultiDof(
+      dt, scratch_r, scratch_v, scratch_m, /*isConstraintPass=*/false,
+      info.m_jointFeedbackInWorldSpace, info.m_jointFeedbackInJointFrame);
+  mb->clearForcesAndTorques();
+  mb->processDeltaVeeMultiDof2();
+  mb->addSplitV();
+  mb->stepPositionsMultiDof(dt);
+  mb->substractSplitV();
 }
 
 // ------------------------------------------------------------------------------------------
@@ -967,6 +1020,8 @@ int BulletArm::step(double dt) {
 double BulletArm::simTime() const { return impl_->sim_time; }
 
 std::uint64_t BulletArm::inverseInertiaUpdates() const { return impl_->a_inv_updates; }
+
+std::uint64_t BulletArm::directWorldSteps() const { return impl_->direct_steps; }
 
 Eigen::VectorXd BulletArm::jointPositions() const {
   Eigen::VectorXd q(impl_->n());

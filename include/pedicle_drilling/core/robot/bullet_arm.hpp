@@ -93,6 +93,14 @@ struct BulletArmParams {
   /// M and is not watched. M^-1 sets only the servo's damping and the implicit step's
   /// stability, never a static deflection (K (q - q_ref) balances the loads whatever it is).
   double inverse_inertia_tolerance = 0.0;
+  /// @brief Advance the multibody through Bullet's own passes, in the order
+  /// btMultiBodyDynamicsWorld::stepSimulation runs them (forces and gravity, the articulated-body
+  /// pass, the solver's velocity deltas, position integration), without the world's collision,
+  /// island and constraint-solver passes, whenever they have nothing to do: the world holds only
+  /// this arm (no collision object, no other constraint) and every limited joint is strictly
+  /// inside its limits (Bullet 3.24's joint-limit constraint makes a row only at or beyond a
+  /// limit). Otherwise, or when false, the world's stepSimulation. Bit-identical to it (gtest).
+  bool direct_world_step = true;
 };
 
 /// @brief Type of a simulated (moving) joint.
@@ -172,6 +180,9 @@ class BulletArm {
   /// @brief How many times the joint-space inverse inertia has been computed (one per sub-step
   /// when inverse_inertia_tolerance is 0).
   std::uint64_t inverseInertiaUpdates() const;
+  /// @brief How many sub-steps advanced the multibody directly (BulletArmParams::
+  /// direct_world_step) rather than through the world's stepSimulation.
+  std::uint64_t directWorldSteps() const;
 
   /// @brief Joint positions [rad or m], base to tip.
   Eigen::VectorXd jointPositions() const;
