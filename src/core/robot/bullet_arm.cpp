@@ -114,6 +114,7 @@ struct BulletArm::Impl {
   BulletArmParams params;
   std::string base_link;
   std::string tip_link;
+  const LinkRef* tip_ref = nullptr;  // links[tip_link] (set by build; map nodes are stable)
   std::vector<Body> bodies;
   std::map<std::string, LinkRef> links;
   std::vector<ArmJointInfo> joint_info;
@@ -185,12 +186,14 @@ struct BulletArm::Impl {
   void forwardKinematics();
   Eigen::Isometry3d bodyPose(int body) const;  // Bullet frame B of a body
   Eigen::Isometry3d linkPose(const std::string& name) const;
+  Eigen::Isometry3d linkPose(const LinkRef& ref) const;
+  Eigen::Isometry3d tipLinkPose() const { return linkPose(*tip_ref); }
   Eigen::Vector3d jointAxisWorld(int j) const;
   Eigen::Vector3d jointPivotWorld(int j) const;
   Eigen::VectorXd gravityForce() const;  // generalized gravity force G (M qdd = G + ...)
   Eigen::MatrixXd jacobianAt(int body, const Eigen::Vector3d& point) const;
   Eigen::MatrixXd tipJacobian() const {
-    return jacobianAt(links.at(tip_link).body, linkPose(tip_link).translation());
+    return jacobianAt(tip_ref->body, tipLinkPose().translation());
   }
   void applyExternalLoads(bool with_gravity);
   void subStep(double h);
@@ -243,6 +246,7 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
   const urdf::ModelInterfaceSharedPtr model = parseModel(urdf_xml);
   const std::vector<urdf::JointConstSharedPtr> moving = movingJoints(*model);
   mergeBodies(*model, moving);
+  tip_ref = &links.at(tip_link);
   for (const auto& j : moving) {
     joint_info.push_back(jointInfo(*j));
     joint_names.push_back(j->name);
@@ -554,8 +558,12 @@ Eigen::Isometry3d BulletArm::Impl::linkPose(const std::string& name) const {
     throw std::out_of_range("BulletArm::linkPose: link '" + name +
                             "' is not part of the simulated chain");
   }
-  const Body& b = bodies[it->second.body];
-  return bodyPose(it->second.body) * b.com_frame.inverse() * it->second.head_to_link;
+  return linkPose(it->second);
+}
+
+Eigen::Isometry3d BulletArm::Impl::linkPose(const LinkRef& ref) const {
+  const Body& b = bodies[ref.body];
+  return bodyPose(ref.body) * b.com_frame.inverse() * ref.head_to_link;
 }
 
 Eigen::Vector3d BulletArm::Impl::jointAxisWorld(int j) const {
@@ -616,9 +624,9 @@ void BulletArm::Impl::applyExternalLoads(bool with_gravity) {
       mb->addLinkForce(k, toBt(Eigen::Vector3d(bodies[k + 1].mass * params.gravity)));
     }
   }
-  const LinkRef& tip = links.at(tip_link);
+  const LinkRef& tip = *tip_ref;
   if (tip.body > 0 && tip_force.squaredNorm() > 0.0) {
-    const Eigen::Vector3d p = linkPose(tip_link).translation();
+    const Eigen::Vector3d p = tipLinkPose().translation();
     const Eigen::Vector3d c = bodyPose(tip.body).translation();
     mb->addLinkForce(tip.body - 1, toBt(tip_force));
     mb->addLinkTorque(tip.body - 1, toBt(Eigen::Vector3d((p - c).cross(tip_force))));
@@ -710,7 +718,7 @@ void BulletArm::Impl::subStep(double h) {
     // The arm has barely moved since A was computed: the free velocity from the same loads
     // through the kept A, without the pre-pass's velocity-product (Coriolis, gyroscopic) terms.
     Eigen::VectorXd load = gravity + tau_gc;
-    if (links.at(tip_link).body > 0 && tip_force.squaredNorm() > 0.0) {
+    if (tip_ref->body > 0 && tip_force.squaredNorm() > 0.0) {
       load += tipJacobian().topRows<3>().transpose() * tip_force;
     }
     v_free = qd + h * (a_inv * load);
@@ -1059,7 +1067,7 @@ Eigen::Isometry3d BulletArm::linkPose(const std::string& name) const {
   return impl_->linkPose(name);
 }
 
-Eigen::Isometry3d BulletArm::tipPose() const { return impl_->linkPose(impl_->tip_link); }
+Eigen::Isometry3d BulletArm::tipPose() const { return impl_->tipLinkPose(); }
 
 Eigen::MatrixXd BulletArm::tipJacobian() const { return impl_->tipJacobian(); }
 

@@ -62,7 +62,12 @@ SpmsKinematics::SpmsKinematics(SpmsGeometry geometry) : geometry_(geometry) {
 }
 
 Eigen::Vector3d SpmsKinematics::platformJoint(int i, const PlatformFullPose& pose) const {
-  return pose.position(home_height_m_) + pose.rotation() * platform_local_[i];
+  return platformJoint(i, pose, pose.rotation());
+}
+
+Eigen::Vector3d SpmsKinematics::platformJoint(int i, const PlatformFullPose& pose,
+                                              const Eigen::Matrix3d& rotation) const {
+  return pose.position(home_height_m_) + rotation * platform_local_[i];
 }
 
 Eigen::Vector3d SpmsKinematics::sliderPoint(int i, double s_m) const {
@@ -113,13 +118,14 @@ SpmsIkResult SpmsKinematics::inverse(const PlatformPose& pose) const {
   }
   const SpmsGeometry& g = geometry_;
   const double L = g.rod_length_m;
-  const Eigen::Vector3d normal = res.pose.rotation() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d rot = res.pose.rotation();  // once per pose, not per leg
+  const Eigen::Vector3d normal = rot * Eigen::Vector3d::UnitZ();
   for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d d = platformJoint(i, res.pose) - base_point_[i];
+    const Eigen::Vector3d d = platformJoint(i, res.pose, rot) - base_point_[i];
     const double ud = rail_dir_[i].dot(d);
     const double disc = ud * ud - d.squaredNorm() + L * L;
-    std::ostringstream os;
     if (disc < 0.0) {
+      std::ostringstream os;
       os << "leg " << i << ": rod (" << L * 1e3 << " mm) cannot reach the platform joint";
       res.reason = os.str();
       return res;
@@ -128,14 +134,16 @@ SpmsIkResult SpmsKinematics::inverse(const PlatformPose& pose) const {
     const double s = ud - std::sqrt(disc);
     res.sliders[i] = s;
     if (s < g.slider_min_m || s > g.slider_max_m) {
+      std::ostringstream os;
       os << "leg " << i << ": slider " << s * 1e3 << " mm outside stroke [" << g.slider_min_m * 1e3
          << ", " << g.slider_max_m * 1e3 << "] mm";
       res.reason = os.str();
       return res;
     }
-    const Eigen::Vector3d rod = platformJoint(i, res.pose) - sliderPoint(i, s);
+    const Eigen::Vector3d rod = platformJoint(i, res.pose, rot) - sliderPoint(i, s);
     const double tilt = std::acos(std::clamp(rod.normalized().dot(normal), -1.0, 1.0));
     if (tilt > g.max_spherical_tilt_deg * kDeg) {
+      std::ostringstream os;
       os << "leg " << i << ": spherical joint tilt " << tilt / kDeg << " deg exceeds "
          << g.max_spherical_tilt_deg << " deg";
       res.reason = os.str();
@@ -181,8 +189,9 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     PlatformFullPose fp;
     *ok = dependentCoordinates(pp, &fp);
     Eigen::Vector3d r;
+    const Eigen::Matrix3d rot = fp.rotation();
     for (int i = 0; i < 3; ++i) {
-      r[i] = (platformJoint(i, fp) - sliderPoint(i, sliders[i])).norm() - L;
+      r[i] = (platformJoint(i, fp, rot) - sliderPoint(i, sliders[i])).norm() - L;
     }
     if (full) *full = fp;
     return r;
@@ -251,9 +260,10 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     return res;
   }
   // Same branch and joint-limit checks as the inverse.
-  const Eigen::Vector3d normal = full.rotation() * Eigen::Vector3d::UnitZ();
+  const Eigen::Matrix3d rot = full.rotation();
+  const Eigen::Vector3d normal = rot * Eigen::Vector3d::UnitZ();
   for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d rod = platformJoint(i, full) - sliderPoint(i, sliders[i]);
+    const Eigen::Vector3d rod = platformJoint(i, full, rot) - sliderPoint(i, sliders[i]);
     if (rod.dot(rail_dir_[i]) <= 0.0) {
       res.reason = "forward kinematics converged to the slider-above-joint branch";
       return res;

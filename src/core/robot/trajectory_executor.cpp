@@ -102,21 +102,27 @@ double JointTrajectoryExecutor::endTime() const {
 }
 
 TrajectoryState JointTrajectoryExecutor::sample(double t) const {
-  const auto n = static_cast<Eigen::Index>(names_.size());
   TrajectoryState out;
+  sample(t, &out);
+  return out;
+}
+
+void JointTrajectoryExecutor::sample(double t, TrajectoryState* state) const {
+  const auto n = static_cast<Eigen::Index>(names_.size());
+  TrajectoryState& out = *state;
   const Knot& last = knots_.back();
   if (t > last.t) {  // after the last point: at rest there (at the point itself: its state)
     out.position = last.q;
-    out.velocity = Eigen::VectorXd::Zero(n);
-    out.acceleration = Eigen::VectorXd::Zero(n);
-    return out;
+    out.velocity.setZero(n);
+    out.acceleration.setZero(n);
+    return;
   }
   const Knot& first = knots_.front();
   if (t <= first.t) {
     out.position = first.q;
     out.velocity = first.v;
     out.acceleration = first.a;
-    return out;
+    return;
   }
   const auto it = std::lower_bound(knots_.begin() + 1, knots_.end(), t,
                                    [](const Knot& k, double time) { return k.t < time; });
@@ -140,7 +146,6 @@ TrajectoryState JointTrajectoryExecutor::sample(double t) const {
     out.velocity[j] = x.v;
     out.acceleration[j] = x.a;
   }
-  return out;
 }
 
 void JointTrajectoryExecutor::prune(double t) {

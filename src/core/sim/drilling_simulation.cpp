@@ -396,6 +396,8 @@ struct DrillingSimulation::Impl {
   std::vector<std::string> commandable;
   std::vector<int> commandable_index;    // index in arm joints
   Eigen::VectorXd block_pos, block_vel;  // advanceArmBlock's targets (kept: no allocation)
+  Eigen::VectorXd block_q0, block_q1;    // the references at the block's ends (kept)
+  TrajectoryState sample_scratch;        // a trajectory sample (kept: no allocation)
   std::vector<int> spindle_index;        // the spindle joint's index in arm joints (one entry)
   Eigen::VectorXd home;                  // all arm joints
 
@@ -773,7 +775,8 @@ struct DrillingSimulation::Impl {
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
     for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
-      const TrajectoryState st = controller_trajectories[c]->sample(t);
+      TrajectoryState& st = sample_scratch;
+      controller_trajectories[c]->sample(t, &st);
       const std::vector<int>& columns = controller_columns[c];
       for (std::size_t j = 0; j < columns.size(); ++j) {
         reference_q[columns[j]] = st.position[static_cast<Eigen::Index>(j)];
@@ -785,8 +788,10 @@ struct DrillingSimulation::Impl {
   void advanceArmBlock() {
     ComponentLaps laps(profile);
     const double block = steps_per_arm_block * dt;
-    Eigen::VectorXd q0 = reference(time);
-    Eigen::VectorXd q1 = reference(time + block);
+    Eigen::VectorXd& q0 = block_q0;
+    Eigen::VectorXd& q1 = block_q1;
+    q0 = reference(time);
+    q1 = reference(time + block);
     if (feed_index >= 0) {
       // The drill device's feed drive (a lead-screw axis like the SPMS sliders) follows the
       // trajectory with its own limits, stepped at the physics rate over the coming block.
@@ -794,7 +799,8 @@ struct DrillingSimulation::Impl {
       const JointTrajectoryExecutor& feed_trajectory = *controller_trajectories[feed_controller];
       for (int k = 0; k < steps_per_arm_block && !stalled[static_cast<std::size_t>(feed_index)];
            ++k) {
-        const TrajectoryState ref = feed_trajectory.sample(time + k * dt);
+        TrajectoryState& ref = sample_scratch;
+        feed_trajectory.sample(time + k * dt, &ref);
         feed_drive.step(dt, ref.position[feed_column], ref.velocity[feed_column]);
       }
       q1[feed_index] = feed_drive.position();

@@ -143,6 +143,9 @@ class SpmsKinematics {
   double homeHeight() const { return home_height_m_; }
   /** @brief Spherical-joint centre i in the base frame for a full pose. */
   Eigen::Vector3d platformJoint(int i, const PlatformFullPose& pose) const;
+  /** @brief The same with the pose's rotation() already computed (once per pose, not per leg). */
+  Eigen::Vector3d platformJoint(int i, const PlatformFullPose& pose,
+                                const Eigen::Matrix3d& rotation) const;
   /** @brief Revolute-joint (slider) centre i in the base frame for slider position s [m]. */
   Eigen::Vector3d sliderPoint(int i, double s_m) const;
   /** @brief Unit rail direction of leg i. */

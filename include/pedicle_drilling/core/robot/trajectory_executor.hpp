@@ -132,6 +132,8 @@ class JointTrajectoryExecutor {
 
   /** @brief The reference at time t (t before the first knot: the first knot's state). */
   TrajectoryState sample(double t) const;
+  /** @brief The same into @p out, reusing its storage (no allocation once it has the size). */
+  void sample(double t, TrajectoryState* out) const;
 
   /** @brief Forgets the knots before t that no later sample() or command() at >= t needs. */
   void prune(double t);
