@@ -144,6 +144,11 @@ struct BulletArm::Impl {
   btAlignedObjectArray<btVector3> scratch_p;
   std::vector<btScalar> force_buf, accel_buf;
   std::vector<Eigen::Isometry3d> body_pose;  // by body index, as of the last forwardKinematics()
+  // The sub-step's and the target setters' vectors, kept so that a step allocates less.
+  Eigen::VectorXd step_q, step_qd, step_gravity, step_tau_gc, step_v_free, step_tau0, step_v_plus;
+  Eigen::VectorXd target_values;
+  std::vector<bool> target_mask;
+  std::vector<Eigen::Vector3d> gravity_com;
 
   // The joint-space inverse inertia and the joint positions it was computed at (size 0: none).
   Eigen::MatrixXd a_inv;
@@ -190,7 +195,8 @@ struct BulletArm::Impl {
   Eigen::Isometry3d tipLinkPose() const { return linkPose(*tip_ref); }
   Eigen::Vector3d jointAxisWorld(int j) const;
   Eigen::Vector3d jointPivotWorld(int j) const;
-  Eigen::VectorXd gravityForce() const;  // generalized gravity force G (M qdd = G + ...)
+  // The generalized gravity force G (M qdd = G + ...) into *g.
+  void gravityForce(Eigen::VectorXd* g);
   Eigen::MatrixXd jacobianAt(int body, const Eigen::Vector3d& point) const;
   Eigen::MatrixXd tipJacobian() const {
     return jacobianAt(tip_ref->body, tipLinkPose().translation());
@@ -575,10 +581,12 @@ Eigen::Vector3d BulletArm::Impl::jointPivotWorld(int j) const {
   return b.translation() - b.linear() * joint_data[j].pivot_to_com;
 }
 
-Eigen::VectorXd BulletArm::Impl::gravityForce() const {
+void BulletArm::Impl::gravityForce(Eigen::VectorXd* out) {
   const int nj = n();
-  Eigen::VectorXd g = Eigen::VectorXd::Zero(nj);
-  std::vector<Eigen::Vector3d> com(nj + 1);
+  Eigen::VectorXd& g = *out;
+  g.setZero(nj);
+  std::vector<Eigen::Vector3d>& com = gravity_com;
+  com.resize(static_cast<std::size_t>(nj + 1));
   for (int b = 1; b <= nj; ++b) com[b] = bodyPose(b).translation();
   for (int j = 0; j < nj; ++j) {
     const Eigen::Vector3d a = jointAxisWorld(j);
@@ -594,7 +602,6 @@ Eigen::VectorXd BulletArm::Impl::gravityForce() const {
     }
     g[j] = s;
   }
-  return g;
 }
 
 Eigen::MatrixXd BulletArm::Impl::jacobianAt(int body, const Eigen::Vector3d& point) const {
@@ -691,16 +698,25 @@ void BulletArm::Impl::subStep(double h) {
   // The bodies' poses are those of the state: every change of it ends in forwardKinematics().
   integrateReference(h);
 
-  Eigen::VectorXd q(nj), qd(nj);
+  Eigen::VectorXd& q = step_q;
+  Eigen::VectorXd& qd = step_qd;
+  q.resize(nj);
+  qd.resize(nj);
   for (int k = 0; k < nj; ++k) {
     q[k] = mb->getJointPos(k);
     qd[k] = mb->getJointVel(k);
   }
-  const Eigen::VectorXd gravity = gravityForce();
-  const Eigen::VectorXd tau_gc =
-      params.gravity_compensation ? Eigen::VectorXd(-gravity) : Eigen::VectorXd::Zero(nj);
+  gravityForce(&step_gravity);
+  const Eigen::VectorXd& gravity = step_gravity;
+  Eigen::VectorXd& tau_gc = step_tau_gc;
+  if (params.gravity_compensation) {
+    tau_gc = -gravity;
+  } else {
+    tau_gc.setZero(nj);
+  }
 
-  Eigen::VectorXd v_free(nj);
+  Eigen::VectorXd& v_free = step_v_free;
+  v_free.resize(nj);
   if (inverseInertiaStale(q)) {
     // Pre-pass: free velocity after one step under gravity, tip load and gravity compensation,
     // and the joint-space inverse mass matrix A = M^-1 at the current state.
@@ -738,11 +754,13 @@ void BulletArm::Impl::subStep(double h) {
     servo_valid = true;
   }
   const Eigen::VectorXd& b = servo_b;
-  Eigen::VectorXd tau0(nj);
+  Eigen::VectorXd& tau0 = step_tau0;
+  tau0.resize(nj);
   for (int k = 0; k < nj; ++k) {
     tau0[k] = -stiffness[k] * (q[k] - q_ref[k]) + servo_damping[k] * qd_ref[k];
   }
-  const Eigen::VectorXd v_plus = servo_lu.solve(v_free + h * a_inv * tau0);
+  Eigen::VectorXd& v_plus = step_v_plus;
+  v_plus = servo_lu.solve(v_free + h * a_inv * tau0);
   Eigen::VectorXd tau = tau_gc + tau0 - b.cwiseProduct(v_plus);
   if (params.enforce_effort_limits) {
     for (int k = 0; k < nj; ++k) {
@@ -943,8 +961,9 @@ TargetResult BulletArm::setJointPositionTargets(const std::map<std::string, doub
 
 TargetResult BulletArm::setJointPositionTargets(const std::vector<int>& index,
                                                 const Eigen::VectorXd& positions) {
-  std::vector<bool> mask;
-  Eigen::VectorXd v = impl_->q_ref;
+  std::vector<bool>& mask = impl_->target_mask;
+  Eigen::VectorXd& v = impl_->target_values;
+  v = impl_->q_ref;
   const TargetResult indexed = impl_->overlayIndexed(index, positions, &v, &mask);
   if (!indexed.ok()) return indexed;
   TargetResult r = impl_->validatePositions(&v, &mask);
@@ -959,8 +978,9 @@ TargetResult BulletArm::setJointPositionTargets(const std::vector<int>& index,
 
 TargetResult BulletArm::setJointVelocityTargets(const std::vector<int>& index,
                                                 const Eigen::VectorXd& velocities) {
-  std::vector<bool> mask;
-  Eigen::VectorXd v = impl_->qd_ref;
+  std::vector<bool>& mask = impl_->target_mask;
+  Eigen::VectorXd& v = impl_->target_values;
+  v = impl_->qd_ref;
   const TargetResult indexed = impl_->overlayIndexed(index, velocities, &v, &mask);
   if (!indexed.ok()) return indexed;
   TargetResult r = impl_->validateVelocities(&v, &mask);

@@ -397,7 +397,7 @@ struct DrillingSimulation::Impl {
   std::vector<int> commandable_index;    // index in arm joints
   Eigen::VectorXd block_pos, block_vel;  // advanceArmBlock's targets (kept: no allocation)
   Eigen::VectorXd block_q0, block_q1;    // the references at the block's ends (kept)
-  TrajectoryState sample_scratch;        // a trajectory sample (kept: no allocation)
+  std::vector<TrajectoryState> samples;  // a trajectory sample per controller (kept storage)
   std::vector<int> spindle_index;        // the spindle joint's index in arm joints (one entry)
   Eigen::VectorXd home;                  // all arm joints
 
@@ -775,7 +775,8 @@ struct DrillingSimulation::Impl {
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
     for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
-      TrajectoryState& st = sample_scratch;
+      samples.resize(controller_trajectories.size());
+      TrajectoryState& st = samples[c];
       controller_trajectories[c]->sample(t, &st);
       const std::vector<int>& columns = controller_columns[c];
       for (std::size_t j = 0; j < columns.size(); ++j) {
@@ -799,7 +800,7 @@ struct DrillingSimulation::Impl {
       const JointTrajectoryExecutor& feed_trajectory = *controller_trajectories[feed_controller];
       for (int k = 0; k < steps_per_arm_block && !stalled[static_cast<std::size_t>(feed_index)];
            ++k) {
-        TrajectoryState& ref = sample_scratch;
+        TrajectoryState& ref = samples[feed_controller];
         feed_trajectory.sample(time + k * dt, &ref);
         feed_drive.step(dt, ref.position[feed_column], ref.velocity[feed_column]);
       }
