@@ -1031,6 +1031,15 @@ TargetResult BulletArm::resetJointState(const Eigen::VectorXd& q) {
 
 void BulletArm::setProfile(ComponentProfile* profile) { impl_->profile = profile; }
 
+void BulletArm::setSubstep(double h) {
+  if (!(h > 0.0) || !std::isfinite(h)) {
+    throw std::invalid_argument("BulletArm: substep must be a positive finite number of seconds");
+  }
+  if (h == impl_->params.substep) return;
+  impl_->params.substep = h;
+  impl_->servo_valid = false;  // B = h K + D and I + h A B depend on h
+}
+
 int BulletArm::step(double dt) {
   if (!std::isfinite(dt) || dt <= 0.0) return 0;
   const double h = impl_->params.substep;

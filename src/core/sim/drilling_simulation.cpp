@@ -184,6 +184,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
     using P = DrillingSimulationParams;
     ParamTable<P> d;
     d.number("arm_rate_hz", &P::arm_rate_hz, Range::closed(1, 1000), "Hz")
+        .number("arm_rate_in_air_hz", &P::arm_rate_in_air_hz, Range::closed(1, 1000), "Hz")
+        .number("arm_air_clearance_m", &P::arm_air_clearance_m, Range::closed(1e-4, 0.1), "m")
         .number("arm_inverse_inertia_tolerance", &P::arm_inverse_inertia_tolerance,
                 Range::closed(0, 0.01), "rad or m")
         .number("slider_max_speed_m_s", &P::slider_max_speed_m_s, Range::aboveUpTo(0, 1), "m/s")
@@ -276,6 +278,17 @@ void DrillingSimulationParams::validate() const {
     throw std::invalid_argument("arm_rate_hz must divide the " + Range::format(physics_rate_hz) +
                                 " Hz physics rate (e.g. 1000, 500, 250)");
   }
+  const double air_ratio = physics_rate_hz / arm_rate_in_air_hz;
+  if (std::abs(air_ratio - std::round(air_ratio)) > 1e-9) {
+    throw std::invalid_argument("arm_rate_in_air_hz must divide the " +
+                                Range::format(physics_rate_hz) +
+                                " Hz physics rate (e.g. 1000, 500, 250)");
+  }
+  if (arm_rate_in_air_hz > arm_rate_hz) {
+    throw std::invalid_argument("arm_rate_in_air_hz (" + Range::format(arm_rate_in_air_hz) +
+                                " Hz) must not exceed arm_rate_hz (" + Range::format(arm_rate_hz) +
+                                " Hz)");
+  }
   const double decimation = physics_rate_hz / sensor.output_rate_hz;
   if (std::abs(decimation - std::round(decimation)) > 1e-9) {
     throw std::invalid_argument("force_sensor_rate_hz must divide the " +
@@ -357,6 +370,11 @@ struct DrillingSimulation::Impl {
   std::uint32_t contact_losses = 0;
 
   int steps_per_arm_block = 4;
+  int steps_per_air_block = 4;        // in air, clear of the bone (arm_rate_in_air_hz)
+  int block_steps = 4;                // the block under way
+  int block_phase = 0;                // its next step, 0 = a new block
+  double block_decision_depth = 0.0;  // tip_depth when the last block was chosen
+  std::uint64_t air_blocks = 0;
   double dt = 1e-3;
   std::uint64_t step_index = 0;
   // The sensed breath start (breath_sensor_rate_hz): the flow sensor's period in steps (0: off),
@@ -786,9 +804,26 @@ struct DrillingSimulation::Impl {
     return reference_q;
   }
 
+  /** @brief The next arm block's steps: the air rate's only out of contact and well clear. */
+  int chooseBlockSteps() {
+    const int steps = [this] {
+      if (steps_per_air_block == steps_per_arm_block || last_force.contact) {
+        return steps_per_arm_block;
+      }
+      const double approach_per_step =
+          std::max(0.0, tip_depth - block_decision_depth) / static_cast<double>(block_steps);
+      const double reach = 2.0 * steps_per_air_block * approach_per_step;
+      return -tip_depth > params.arm_air_clearance_m + reach ? steps_per_air_block
+                                                             : steps_per_arm_block;
+    }();
+    block_decision_depth = tip_depth;
+    if (steps != steps_per_arm_block) ++air_blocks;
+    return steps;
+  }
+
   void advanceArmBlock() {
     ComponentLaps laps(profile);
-    const double block = steps_per_arm_block * dt;
+    const double block = block_steps * dt;
     Eigen::VectorXd& q0 = block_q0;
     Eigen::VectorXd& q1 = block_q1;
     q0 = reference(time);
@@ -798,8 +833,7 @@ struct DrillingSimulation::Impl {
       // trajectory with its own limits, stepped at the physics rate over the coming block.
       q0[feed_index] = feed_drive.position();
       const JointTrajectoryExecutor& feed_trajectory = *controller_trajectories[feed_controller];
-      for (int k = 0; k < steps_per_arm_block && !stalled[static_cast<std::size_t>(feed_index)];
-           ++k) {
+      for (int k = 0; k < block_steps && !stalled[static_cast<std::size_t>(feed_index)]; ++k) {
         TrajectoryState& ref = samples[feed_controller];
         feed_trajectory.sample(time + k * dt, &ref);
         feed_drive.step(dt, ref.position[feed_column], ref.velocity[feed_column]);
@@ -828,6 +862,7 @@ struct DrillingSimulation::Impl {
     arm->applyTipForce(-last_force.thrust_N * r.col(2));
     tip_block_start = arm->tipPose().translation();
     laps.mark(Component::kArmControllers);
+    arm->setSubstep(block);
     arm->step(block);
     laps.mark(Component::kArmStep);
     const Eigen::Isometry3d tip = arm->tipPose();
@@ -916,6 +951,7 @@ struct DrillingSimulation::Impl {
     tip_block_start = tip_block_end = physics_tip = arm->tipPose().translation();
     drill_axis = arm->tipPose().linear().col(2);
     tip_depth = -(bone_world.inverse() * physics_tip).z();
+    block_decision_depth = tip_depth;
     relative_ap0 = physics_tip.z() - bone_world.translation().z();
   }
 };
@@ -935,6 +971,9 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
     throw std::invalid_argument(
         "DrillingSimulation: physics_rate_hz / arm_rate_hz must be an integer");
   }
+  s.steps_per_air_block =
+      static_cast<int>(std::lround(params.physics_rate_hz / params.arm_rate_in_air_hz));
+  s.block_steps = s.steps_per_arm_block;
   if (!(params.slider_max_accel_m_s2 > 0.0) || !std::isfinite(params.slider_max_accel_m_s2) ||
       !(params.slider_bandwidth_hz > 0.0) || !std::isfinite(params.slider_bandwidth_hz)) {
     throw std::invalid_argument(
@@ -1021,10 +1060,11 @@ void DrillingSimulation::reset(std::uint64_t seed, bool moving_bone) {
 
 SimulationStep DrillingSimulation::stepOnce() {
   Impl& s = *impl_;
-  const int phase = static_cast<int>(s.step_index % s.steps_per_arm_block);
+  const int phase = s.block_phase;
   if (phase == 0) {
     // Spindle run-up (rate limited) and the arm block.
-    const double block = s.steps_per_arm_block * s.dt;
+    s.block_steps = s.chooseBlockSteps();
+    const double block = s.block_steps * s.dt;
     if (s.params.spindle_watchdog_s > 0.0 && s.spindle_cmd_rpm > 0.0 &&
         s.time - s.spindle_cmd_t > s.params.spindle_watchdog_s) {
       s.spindle_cmd_rpm = 0.0;  // the driver heard nothing for too long: it stops the spindle
@@ -1039,7 +1079,8 @@ SimulationStep DrillingSimulation::stepOnce() {
   ComponentLaps laps(s.profile);
   ++s.step_index;
   s.time = static_cast<double>(s.step_index) * s.dt;
-  const double frac = static_cast<double>(phase + 1) / s.steps_per_arm_block;
+  const double frac = static_cast<double>(phase + 1) / s.block_steps;
+  s.block_phase = (phase + 1) % s.block_steps;
   s.physics_tip = s.tip_block_start + frac * (s.tip_block_end - s.tip_block_start);
 
   s.vent_now = s.ventilator.sample(s.time);
@@ -1306,6 +1347,8 @@ bool DrillingSimulation::startTrial() {
 }
 
 int DrillingSimulation::trialCount() const { return impl_->trial_count; }
+int DrillingSimulation::armBlockSteps() const { return impl_->block_steps; }
+std::uint64_t DrillingSimulation::armBlocksInAir() const { return impl_->air_blocks; }
 bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
 std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
 const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }

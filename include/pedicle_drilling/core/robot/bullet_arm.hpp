@@ -203,6 +203,9 @@ class BulletArm {
    *        0 < scale <= 10 and finite.
    */
   void setStiffnessScale(double scale);
+  /// @brief Sets the sub-step [s] of the following step() calls (the servo's implicit step is
+  /// refactorised for it). @throws std::invalid_argument unless positive and finite.
+  void setSubstep(double h);
 
   /// @brief Pose of any URDF link of the chain (including links merged through fixed joints)
   /// in the base_link frame. @throws std::out_of_range for an unknown link.

@@ -153,6 +153,13 @@ struct DrillingSimulationParams {
   std::string tip_link = "drill_tip";  ///< end of the arm chain (drill point)
   double physics_rate_hz = 1000.0;     ///< drilling physics and force-sensor rate
   double arm_rate_hz = 1000.0;         ///< Bullet arm rate; physics_rate / arm_rate integer
+  /// @brief The arm's rate while the drill is in air, clear of the bone (arm_air_clearance_m);
+  /// equal to arm_rate_hz: one rate throughout. physics_rate / it must be an integer.
+  double arm_rate_in_air_hz = 1000.0;
+  /// @brief A block runs at arm_rate_in_air_hz only with the tip out of contact and at least this
+  /// far above the bone's top surface, plus twice the block's approach at the last block's
+  /// speed [m].
+  double arm_air_clearance_m = 1.0e-3;
   /// @brief The arm's BulletArmParams::inverse_inertia_tolerance [rad or m]; 0 = every step.
   double arm_inverse_inertia_tolerance = 1.0e-4;
   BulletArmParams arm;  ///< servo model (substep, inverse_inertia_tolerance set from the above)
@@ -463,6 +470,10 @@ class DrillingSimulation {
   bool startTrial();
   /** @brief Trials started since construction (reset() does not count). */
   int trialCount() const;
+  /** @brief Physics steps in the arm block under way (arm_rate_in_air_hz's in air). */
+  int armBlockSteps() const;
+  /** @brief Arm blocks run at arm_rate_in_air_hz since construction. */
+  std::uint64_t armBlocksInAir() const;
   /** @brief Internal ventilator sample of the last step (unlagged). */
   const VentilatorSample& ventilatorSample() const;
   /**
