@@ -4,8 +4,8 @@
 // core, no ROS): a 60 s stationary drilling trial of urdf/workcell.urdf. The arm moves from its
 // home pose to the drilling pose of config/drilling_pose.yaml in 2 s, the spindle runs at
 // 12000 rpm and the feed joint advances at 0.5 mm/s (paper Sec. V-A) for the rest of the minute.
-// 1 kHz drilling physics and force sensor, 250 Hz Bullet arm (the default arm_rate_hz).
-// Prints
+// 1 kHz drilling physics and force sensor, the Bullet arm at 1 kHz (250 Hz in air, clear of the
+// bone). Prints
 //   BENCH sim_real_time_factor <ratio> x   simulated time / wall time (target >= 50 x)
 //   BENCH sim_step_cost <us> us            mean wall time of one 1 ms physics step
 #include <chrono>

@@ -284,11 +284,7 @@ void DrillingSimulationParams::validate() const {
                                 Range::format(physics_rate_hz) +
                                 " Hz physics rate (e.g. 1000, 500, 250)");
   }
-  if (arm_rate_in_air_hz > arm_rate_hz) {
-    throw std::invalid_argument("arm_rate_in_air_hz (" + Range::format(arm_rate_in_air_hz) +
-                                " Hz) must not exceed arm_rate_hz (" + Range::format(arm_rate_hz) +
-                                " Hz)");
-  }
+
   const double decimation = physics_rate_hz / sensor.output_rate_hz;
   if (std::abs(decimation - std::round(decimation)) > 1e-9) {
     throw std::invalid_argument("force_sensor_rate_hz must divide the " +
@@ -971,8 +967,10 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
     throw std::invalid_argument(
         "DrillingSimulation: physics_rate_hz / arm_rate_hz must be an integer");
   }
+  // Never faster than the arm's own rate (a lower arm_rate_hz runs at it in air as well).
   s.steps_per_air_block =
-      static_cast<int>(std::lround(params.physics_rate_hz / params.arm_rate_in_air_hz));
+      std::max(s.steps_per_arm_block,
+               static_cast<int>(std::lround(params.physics_rate_hz / params.arm_rate_in_air_hz)));
   s.block_steps = s.steps_per_arm_block;
   if (!(params.slider_max_accel_m_s2 > 0.0) || !std::isfinite(params.slider_max_accel_m_s2) ||
       !(params.slider_bandwidth_hz > 0.0) || !std::isfinite(params.slider_bandwidth_hz)) {
