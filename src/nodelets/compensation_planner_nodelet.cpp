@@ -319,8 +319,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     core::SequencerOutput out = sequencer_->takeOutput();
     // What the monitor, the recognizer or this planner handle at the next step (a predicted
     // pose, a stop, a phase; the commands to the simulator too, harmlessly).
-    if (!(out.spindle_rpm.empty() && out.tare_requests.empty() && out.trajectories.empty() &&
-          out.predicted.empty() && out.stops.empty() && out.phases.empty())) {
+    if (out.publishesAnything()) {
       lockstep_->noteSent();
     }
     logSequencerMessages(out.log, "CompensationPlanner");
@@ -424,13 +423,13 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
   }
 
-  /** @brief Under the lockstep: the step the next timer fires at (1 us early: the steps' grid
-   *         is 1 ms, the timers' rounding 1 ns). */
+  /** @brief Under the lockstep: the step the next timer fires at (LockstepParticipant::stepFor:
+   *         the timers' rounding is 1 ns). */
   std::optional<ros::Time> nextStep() {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::optional<double> due = timers_.nextDue();
     if (!due) return std::nullopt;
-    return ros::Time(std::max(0.0, *due - 1e-6));
+    return LockstepParticipant::stepFor(*due);
   }
 
   void publishStatus(core::TrialPhase p) {

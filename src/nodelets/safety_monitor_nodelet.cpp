@@ -242,13 +242,13 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
   }
 
-  /** @brief Under the lockstep: the next step on the check grid or of the diagnostics (1 us
-   *         early: the steps' grid is 1 ms, the grid test's rounding 1e-6 of a period). */
+  /** @brief Under the lockstep: the next step on the check grid or of the diagnostics
+   *         (LockstepParticipant::stepFor; the grid test's rounding is 1e-6 of a period). */
   std::optional<ros::Time> nextStep(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex_);
     const double next_check =
         (std::floor(t.toSec() * check_rate_hz_ + 1e-6) + 1.0) / check_rate_hz_;
-    ros::Time next(std::max(0.0, next_check - 1e-6));
+    ros::Time next = LockstepParticipant::stepFor(next_check);
     if (!next_diagnostics_.isZero()) next = std::min(next, next_diagnostics_);
     return next;
   }

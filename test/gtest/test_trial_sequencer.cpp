@@ -97,6 +97,28 @@ double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
 
 }  // namespace
 
+// What a node publishes from an output (the lockstep's noteSent) against what it only keeps.
+TEST(SequencerOutput, PublishesAnythingCountsWhatANodePublishesEmptyCountsEverything) {
+  pd::SequencerOutput out;
+  EXPECT_TRUE(out.empty());
+  EXPECT_FALSE(out.publishesAnything());
+  out.stop_timers = true;
+  out.log.push_back(pd::SequencerLog{});
+  EXPECT_FALSE(out.empty());
+  EXPECT_FALSE(out.publishesAnything());  // timers and log stay inside the node
+  for (int k = 0; k < 6; ++k) {
+    pd::SequencerOutput one;
+    if (k == 0) one.spindle_rpm.push_back(12000.0);
+    if (k == 1) one.phases.push_back(pd::TrialPhase{});
+    if (k == 2) one.stops.push_back("why");
+    if (k == 3) one.tare_requests.push_back(pd::TareRequest{});
+    if (k == 4) one.trajectories.emplace_back();
+    if (k == 5) one.predicted.emplace_back();
+    EXPECT_TRUE(one.publishesAnything()) << k;
+    EXPECT_FALSE(one.empty()) << k;
+  }
+}
+
 TEST(TrialSequencer, StartMovesToThePoseWithOnePointAndAsksForThePoseTimer) {
   pd::TrialSequencer seq(params(), workcellArm());
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);

@@ -24,6 +24,7 @@
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
+#include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <mutex>
@@ -64,6 +65,12 @@ class LockstepParticipant {
 
   /** @brief Whether the lockstep is on. */
   bool enabled() const { return enabled_; }
+
+  /**
+   * @brief A NextStepFn's answer for something due at @p due_s [s]: 1 us early, so that the
+   *        step at the due time is asked for whatever its rounding (the steps' grid is 1 ms).
+   */
+  static ros::Time stepFor(double due_s) { return ros::Time(std::max(0.0, due_s - 1e-6)); }
 
   /**
    * @brief The node's clock: under the lockstep the latest step or simulator stamp it has

@@ -80,10 +80,13 @@ void TrialSequencerParams::validate() const {
           "feed_joint", "limits must be finite with lower < upper");
 }
 
+bool SequencerOutput::publishesAnything() const {
+  return !(trajectories.empty() && spindle_rpm.empty() && phases.empty() && predicted.empty() &&
+           stops.empty() && tare_requests.empty());
+}
+
 bool SequencerOutput::empty() const {
-  return trajectories.empty() && spindle_rpm.empty() && phases.empty() && predicted.empty() &&
-         start_timers.empty() && !stop_timers && log.empty() && stops.empty() &&
-         tare_requests.empty();
+  return !publishesAnything() && start_timers.empty() && !stop_timers && log.empty();
 }
 
 TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,

@@ -1058,18 +1058,20 @@ void DrillingSimulation::reset(std::uint64_t seed, bool moving_bone) {
 
 SimulationStep DrillingSimulation::stepOnce() {
   Impl& s = *impl_;
+  // The spindle's driver (its watchdog and its rate-limited run-up) at the physics rate, whatever
+  // the arm's block: the speed the drilling physics and the sensor's spindle-synchronous
+  // vibration integrate every step.
+  if (s.params.spindle_watchdog_s > 0.0 && s.spindle_cmd_rpm > 0.0 &&
+      s.time - s.spindle_cmd_t > s.params.spindle_watchdog_s) {
+    s.spindle_cmd_rpm = 0.0;  // the driver heard nothing for too long: it stops the spindle
+    ++s.spindle_watchdog_trips;
+  }
+  const double max_change = s.params.spindle_accel_rpm_s * s.dt;
+  s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
   const int phase = s.block_phase;
   if (phase == 0) {
-    // Spindle run-up (rate limited) and the arm block.
+    // The arm block, its spindle joint at the driver's speed.
     s.block_steps = s.chooseBlockSteps();
-    const double block = s.block_steps * s.dt;
-    if (s.params.spindle_watchdog_s > 0.0 && s.spindle_cmd_rpm > 0.0 &&
-        s.time - s.spindle_cmd_t > s.params.spindle_watchdog_s) {
-      s.spindle_cmd_rpm = 0.0;  // the driver heard nothing for too long: it stops the spindle
-      ++s.spindle_watchdog_trips;
-    }
-    const double max_change = s.params.spindle_accel_rpm_s * block;
-    s.spindle_rpm += std::clamp(s.spindle_cmd_rpm - s.spindle_rpm, -max_change, max_change);
     s.arm->setJointVelocityTargets(s.spindle_index,
                                    Eigen::VectorXd::Constant(1, s.spindle_rpm * 2.0 * kPi / 60.0));
     s.advanceArmBlock();

@@ -200,6 +200,8 @@ struct SequencerOutput {
 
   /** @brief True if nothing was produced. */
   bool empty() const;
+  /** @brief True if it holds something a node publishes (not the timers or the log). */
+  bool publishesAnything() const;
 };
 
 /**
