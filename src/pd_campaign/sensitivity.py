@@ -9,8 +9,9 @@ campaign itself (scripts/campaign) into a subdirectory of --out: `nominal` and
 `<kind>.<name>-low` / `-high`, all on the same seeds (a trial's seed depends on the base seed,
 the seed space, the speed and the index only, design.py), so every end is paired with the
 nominal bench trial by trial. An end equal to the nominal value uses the nominal campaign. A
-subdirectory that already holds the finished campaign of the same scenario and design is kept
-(the sweep resumes). Written to --out, each through a temporary file: sensitivity.md (per case
+subdirectory that already holds the finished campaign of the same scenario and design, run by
+the same build (tools.build_id: the trial_engine executable, the package's libraries and this
+Python package's sources; its build.json), is kept (the sweep resumes). Written to --out, each through a temporary file: sensitivity.md (per case
 and speed, one row per constant, sorted by the largest swing: success at low, nominal and high
 with Wilson 95 % intervals, McNemar's exact p of each end against the nominal, the failure kinds
 that moved; then the verdict of each conclusion at the nominal bench and at every swept end),
@@ -363,19 +364,39 @@ def run_campaign_process(argv, log_path):
             raise
 
 
-def run_condition(condition, argv, expected, base_path):
+BUILD_FILE = 'build.json'
+
+
+def built_by(directory):
+    """The build_id() a finished campaign in `directory` was run by (None: unknown)."""
+    try:
+        with open(os.path.join(directory, BUILD_FILE)) as handle:
+            return json.load(handle).get('build_id')
+    except (OSError, ValueError, AttributeError):
+        return None
+
+
+def run_condition(condition, argv, expected, base_path, build=None):
     """('kept' | 'ran', exit status) of one bench: kept when its directory holds the finished
-    campaign already, else run into it."""
+    campaign already, run by the same build (`build`, tools.build_id(); None: never kept), else
+    run into it."""
     directory = condition['dir']
     text = scenario_text(condition, base_path)
-    if is_complete(directory, text, expected):
+    if build is not None and built_by(directory) == build and \
+            is_complete(directory, text, expected):
         return 'kept', 0
     os.makedirs(directory, exist_ok=True)
+    stamp = os.path.join(directory, BUILD_FILE)
+    if os.path.exists(stamp):
+        os.remove(stamp)  # the campaign about to run is not the one it described
     path = os.path.join(directory, 'scenario.yaml')
     with atomic_write(path) as handle:
         handle.write(text)
     status = run_campaign_process(argv + ['--scenario', path, '--out', directory],
                                   os.path.join(directory, 'campaign.log'))
+    if status == 0 and build is not None:
+        with atomic_write(stamp) as handle:
+            json.dump({'build_id': build}, handle)
     return 'ran', status
 
 
@@ -392,9 +413,10 @@ def run_all(benches, argv, expected, base_path, stream):
     status} (0 for a kept one). Stops at the first campaign that refuses its scenario (2)."""
     todo = [c for c in benches if c['scenario'] is not None]
     statuses, start, ran = {}, time.time(), 0
+    build = tools.build_id()
     for k, condition in enumerate(todo, 1):
         began = time.time()
-        how, status = run_condition(condition, argv, expected, base_path)
+        how, status = run_condition(condition, argv, expected, base_path, build)
         statuses[condition['id']] = status
         ran += how == 'ran'
         elapsed = time.time() - start

@@ -1,5 +1,7 @@
 """Where the package's built tools and files are, for the scripts that run them."""
 import argparse
+import glob
+import hashlib
 import os
 
 import rospkg
@@ -32,6 +34,25 @@ def tool(name):
         if d and os.access(os.path.join(d, name), os.X_OK):
             return [os.path.join(d, name)]
     return ['rosrun', 'pedicle_drilling', name]
+
+
+def build_id():
+    """What produced a trial row, as one digest: the trial_engine executable, the package's
+    shared libraries beside it and this Python package's sources (a rebuild of changed C++ or a
+    changed analysis changes it). None when trial_engine is not found in a folder (rosrun only)."""
+    command = tool('trial_engine')
+    if len(command) != 1:
+        return None
+    lib_dir = os.path.dirname(os.path.dirname(command[0]))  # devel/lib/pedicle_drilling -> lib
+    paths = [command[0]] + sorted(glob.glob(os.path.join(lib_dir, 'libpedicle_drilling*.so'))) \
+        + sorted(glob.glob(os.path.join(os.path.dirname(os.path.realpath(__file__)), '*.py')))
+    digest = hashlib.sha256()
+    for path in paths:
+        digest.update(os.path.basename(path).encode() + b'\0')
+        with open(path, 'rb') as handle:
+            for chunk in iter(lambda: handle.read(1 << 20), b''):
+                digest.update(chunk)
+    return digest.hexdigest()[:16]
 
 
 class _GivenOnce:

@@ -12,7 +12,7 @@ from scipy.stats import binomtest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
-from pd_campaign import design, sensitivity  # noqa: E402
+from pd_campaign import design, sensitivity, tools  # noqa: E402
 from pd_campaign.sensitivity import SweepError  # noqa: E402
 import test_atomic_outputs as atomic_checks  # noqa: E402  (its audit hook, not its tests)
 
@@ -538,6 +538,32 @@ def test_a_second_run_keeps_the_finished_campaigns_and_gives_the_same_table(tiny
     assert len(lines) == 4 and all('complete already, kept' in l for l in lines), lines
     with open(os.path.join(tiny_sweep['out'], 'sensitivity.csv')) as handle:
         assert handle.read() == tiny_sweep['table']
+
+
+def test_a_campaign_run_by_another_build_is_run_again_not_kept(tiny_sweep, tmp_path):
+    """Each finished campaign records the build that ran it (build.json: tools.build_id); a
+    second run keeps it only when that is today's build, so a code change that moves outcomes
+    cannot leave stale campaigns in a resumed sweep."""
+    import shutil
+    out = str(tmp_path / 'out')
+    shutil.copytree(tiny_sweep['out'], out)
+    folders = sorted(d for d in os.listdir(out) if os.path.isdir(os.path.join(out, d)))
+    builds = {sensitivity.built_by(os.path.join(out, d)) for d in folders}
+    assert builds == {tools.build_id()} and None not in builds, builds
+    stale = os.path.join(out, 'simulator_params.chisel_edge_share-low')
+    with open(os.path.join(stale, sensitivity.BUILD_FILE), 'w') as handle:
+        json.dump({'build_id': 'an-older-build'}, handle)
+    sweep = _sweep_file(tmp_path, TINY)
+    result = subprocess.run([TOOL, '--sweep', sweep, '--out', out] + TINY_ARGS,
+                            capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+    lines = [l for l in result.stdout.splitlines() if l.startswith(PROGRESS)]
+    assert len(lines) == 4, lines
+    rerun = [l for l in lines if 'finished' in l]
+    assert len(rerun) == 1 and 'chisel_edge_share' in rerun[0] and 'low' in rerun[0], lines
+    assert sensitivity.built_by(stale) == tools.build_id()
+    with open(os.path.join(out, 'sensitivity.csv')) as handle:
+        assert handle.read() == tiny_sweep['table']  # the same build: the same trials
 
 
 def test_the_tool_refuses_a_bad_sweep_before_running_anything(tmp_path):
