@@ -788,8 +788,8 @@ struct DrillingSimulation::Impl {
   /** @brief The controllers' reference positions at t, in the commandable joints' order. */
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
+    samples.resize(controller_trajectories.size());
     for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
-      samples.resize(controller_trajectories.size());
       TrajectoryState& st = samples[c];
       controller_trajectories[c]->sample(t, &st);
       const std::vector<int>& columns = controller_columns[c];
