@@ -326,22 +326,22 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     for (double rpm : out.spindle_rpm) {
       std_msgs::Float64 msg;
       msg.data = core::radPerSecFromRpm(rpm);
-      spindle_pub_.publish(msg);
+      publishInOrder(spindle_pub_, msg);
     }
     for (const core::TareRequest& r : out.tare_requests) {
       TareRequest msg;
       msg.header.stamp = lockstep_->now();
       msg.samples = static_cast<std::uint32_t>(r.samples);
       msg.max_spread_n = r.max_spread_n;
-      tare_request_pub_.publish(msg);
+      publishInOrder(tare_request_pub_, msg);
     }
     for (const core::JointTrajectoryCommand& c : out.trajectories) {
       // One stream per controller, each naming its own joints (as a lab's controllers take it).
       for (const auto& [index, part] : core::splitByController(c, controllers_)) {
-        trajectory_pubs_[index].publish(toMsg(part));
+        publishInOrder(trajectory_pubs_[index], toMsg(part));
       }
     }
-    for (const core::PredictedMarker& m : out.predicted) predicted_pub_.publish(toMsg(m));
+    for (const core::PredictedMarker& m : out.predicted) publishInOrder(predicted_pub_, toMsg(m));
     // A stop the planner decided is announced before the phase it causes (a listener that
     // waits for 'failed' or 'retreating' has the reason by then).
     for (const std::string& why : out.stops) {
@@ -350,7 +350,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       stop.source = getName();
       stop.reason = why;
       stop.retreat = true;
-      stop_pub_.publish(stop);
+      publishInOrder(stop_pub_, stop);
     }
     for (core::TrialPhase p : out.phases) publishStatus(p);
     if (lockstep_->enabled()) {
@@ -433,7 +433,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void publishStatus(core::TrialPhase p) {
-    status_pub_.publish(toMsg(p, lockstep_->now()));
+    publishInOrder(status_pub_, toMsg(p, lockstep_->now()));
     lockstep_->noteSent();
   }
 

@@ -27,6 +27,7 @@
 #include "pedicle_drilling/core/sim/fault_injector.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/publish_in_order.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
@@ -82,7 +83,7 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
         out.wrench.torque.x = out.wrench.torque.y = out.wrench.torque.z = f.x();
       }
     }
-    wrench_pub_.publish(out);
+    publishInOrder(wrench_pub_, out);
   }
 
   void onMarker(const geometry_msgs::PoseStamped::ConstPtr& msg) {
@@ -104,7 +105,7 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       out.pose.orientation.y = orientation.y();
       out.pose.orientation.z = orientation.z();
     }
-    marker_pub_.publish(out);
+    publishInOrder(marker_pub_, out);
   }
 
   void onCommand(std::size_t controller, const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
@@ -124,7 +125,7 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       return;
     }
     if (extra == 0.0) {
-      command_pubs_[controller].publish(msg);
+      command_pubs_[controller].publish(msg);  // a ConstPtr: shared, in order
       return;
     }
     // Delivered late with its own stamp: the controller treats its points as a late message's.
@@ -132,7 +133,9 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     delayed_.push_back(getNodeHandle().createTimer(
         ros::Duration(extra),
-        [this, controller, msg](const ros::TimerEvent&) { command_pubs_[controller].publish(msg); },
+        [this, controller, msg](const ros::TimerEvent&) {
+          command_pubs_[controller].publish(msg);  // a ConstPtr: shared, in order
+        },
         true));
   }
 

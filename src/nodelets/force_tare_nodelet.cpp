@@ -20,6 +20,7 @@
 #include "pedicle_drilling/TareRequest.h"
 #include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
+#include "pedicle_drilling/ros/publish_in_order.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -46,7 +47,7 @@ class ForceTareNodelet : public nodelet::Nodelet {
       NODELET_ERROR("ForceTare: tare request refused: %s", e.what());
       core::TareResult refused;
       refused.message = std::string("tare request refused: ") + e.what();
-      result_pub_.publish(toMsg(refused, msg->header.stamp));
+      publishInOrder(result_pub_, toMsg(refused, msg->header.stamp));
     }
   }
 
@@ -55,11 +56,11 @@ class ForceTareNodelet : public nodelet::Nodelet {
     geometry_msgs::WrenchStamped out;
     out.header = msg->header;
     out.wrench = toWrenchMsg(tare_.apply(msg->header.stamp.toSec(), fromWrenchMsg(msg->wrench)));
-    wrench_pub_.publish(out);
+    publishInOrder(wrench_pub_, out);
     if (const std::optional<core::TareResult> r = tare_.takeResult()) {
       TareResult result = toMsg(*r, msg->header.stamp);
       result.header.frame_id = msg->header.frame_id;
-      result_pub_.publish(result);
+      publishInOrder(result_pub_, result);
       if (r->success) {
         NODELET_INFO("ForceTare: %s", r->message.c_str());
       } else {

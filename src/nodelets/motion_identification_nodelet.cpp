@@ -40,6 +40,7 @@
 #include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 #include "pedicle_drilling/ros/identification_conversions.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/publish_in_order.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
@@ -198,7 +199,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     MotionModel msg = toMsg(result, p_.patient_frame.empty() ? p_.tracker_frame : p_.patient_frame,
                             p_.patient_id, core::methodName(options.method), path);
     msg.header.stamp = ros::Time::now();
-    model_pub_.publish(msg);
+    publishInOrder(model_pub_, msg);
     response.model = msg;
     response.success = true;
     std::ostringstream text;

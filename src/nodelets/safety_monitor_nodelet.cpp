@@ -23,6 +23,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include "pedicle_drilling/RetareCheck.h"
 #include "pedicle_drilling/StopCommand.h"
@@ -35,6 +36,41 @@
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
+
+/**
+ * @brief diagnostic_updater::Updater's tasks (added as to any Updater, the TopicDiagnostics
+ *        too), collected into one DiagnosticArray that the monitor publishes itself: in order
+ *        (publishInOrder; the Updater publishes by value) and stamped with the monitor's time
+ *        (the lockstep's step; the Updater stamps ros::Time::now(), the last /clock).
+ */
+class InOrderUpdater : public diagnostic_updater::Updater {
+ public:
+  /** @brief @p name: the nodelet's name, the statuses' prefix and hardware id. */
+  InOrderUpdater(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, std::string name)
+      : diagnostic_updater::Updater(nh, pnh, "/" + name), name_(std::move(name)) {
+    setHardwareID(name_);
+  }
+
+  /** @brief Every task's status, named "<nodelet name>: <task>", as force_update() names it. */
+  diagnostic_msgs::DiagnosticArray collect(const ros::Time& stamp) {
+    diagnostic_msgs::DiagnosticArray array;
+    array.header.stamp = stamp;
+    boost::mutex::scoped_lock lock(lock_);  // the Updater's: no task added meanwhile
+    for (const DiagnosticTaskInternal& task : getTasks()) {
+      diagnostic_updater::DiagnosticStatusWrapper status;
+      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
+      status.message = "No message was set";
+      status.hardware_id = name_;
+      task.run(status);
+      status.name = name_ + ": " + task.getName();
+      array.status.push_back(status);
+    }
+    return array;
+  }
+
+ private:
+  std::string name_;
+};
 
 /** @brief Nodelet wrapper of core::SafetySupervisor. */
 class SafetyMonitorNodelet : public nodelet::Nodelet {
@@ -89,29 +125,25 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   /**
-   * @brief /diagnostics through diagnostic_updater::Updater: the monitor's status, named
+   * @brief /diagnostics through diagnostic_updater's tasks: the monitor's status, named
    *        "<nodelet name>: monitor" (the planner's ~monitor_status_name and the rviz plugins
    *        read it by name), and a rate and stamp check of the F/T and the tracker stream as
-   *        their drivers publish them. The Updater publishes when force_update() is called:
-   *        wherever this nodelet published before, and every diagnostic_period_s (its own
-   *        ~diagnostic_period is not used: update() is never called).
+   *        their drivers publish them. Published by publishDiagnostics() (InOrderUpdater):
+   *        wherever this nodelet published before, and every diagnostic_period_s (the
+   *        Updater's own ~diagnostic_period is not used: update() is never called).
    *
    * The Updater's own publisher is neither latched nor told of new subscribers. roscpp keeps one
    * publication of /diagnostics per process, latched or not, and with the queue, as its first
    * advertiser says: advertised here first, latched, it keeps the process's /diagnostics latched
    * as before (failStartup()'s report relies on it too), so a late subscriber gets the latest
-   * status at once; and a subscriber connecting also gets a fresh one (force_update()).
+   * status at once; and a subscriber connecting also gets a fresh one.
    */
   void setupDiagnostics(ros::NodeHandle& nh, const SafetyMonitorNodeParams& params) {
     std::lock_guard<std::mutex> lock(mutex_);  // a subscriber may connect before the end
     diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>(
         "/diagnostics", 10, [this](const ros::SingleSubscriberPublisher&) { onSubscriber(); },
         ros::SubscriberStatusCallback(), ros::VoidConstPtr(), true);
-    // The Updater names a status "<node_name without its first character>: <task>" (made for
-    // ros::this_node::getName()'s leading "/"): the "/" given here keeps the nodelet's full name.
-    updater_ =
-        std::make_unique<diagnostic_updater::Updater>(nh, getPrivateNodeHandle(), "/" + getName());
-    updater_->setHardwareID(getName());
+    updater_ = std::make_unique<InOrderUpdater>(nh, getPrivateNodeHandle(), getName());
     updater_->add("monitor", this, &SafetyMonitorNodelet::monitorStatus);
     force_rate_hz_ = params.expected_force_rate_hz;
     tracker_rate_hz_ = params.expected_tracker_rate_hz;
@@ -214,7 +246,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     result.limit_n = supervisor_->params().safety.retare_max_offset_n;
     result.drift = check.drift;
     result.message = check.message;
-    retare_pub_.publish(result);
+    publishInOrder(retare_pub_, result);
     lockstep_->noteSent();
     last_retare_ = result;
     if (!check.done) {
@@ -255,7 +287,9 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   /** @brief /diagnostics now (the planner handles the monitor's status at the next step). */
   void publishDiagnostics() {
-    updater_->force_update();
+    // A subscriber can connect while onInit() runs, before the lockstep exists.
+    publishInOrder(diagnostics_pub_,
+                   updater_->collect(lockstep_ ? lockstep_->now() : ros::Time::now()));
     if (lockstep_) lockstep_->noteSent();
   }
 
@@ -274,7 +308,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     stop.source = getName();
     stop.retreat = true;
     stop.reason = core::describe(*v);
-    stop_pub_.publish(stop);
+    publishInOrder(stop_pub_, stop);
     lockstep_->noteSent();
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
     publishDiagnostics();
@@ -286,7 +320,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   /**
-   * @brief The monitor's status (the Updater's task "monitor"; run by force_update(), always
+   * @brief The monitor's status (the Updater's task "monitor"; run by publishDiagnostics(), always
    *        called with mutex_ held): OK while fine, ERROR with the reason from the stop on, WARN
    *        after a re-tare check that found a drift (until ~reset); the verdict's reason and
    *        each input stream as this monitor received it since ~reset: samples, samples missing
@@ -337,7 +371,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
   // Declared before what calls them (the lockstep, the subscribers, the timers): destroyed after.
-  std::unique_ptr<diagnostic_updater::Updater> updater_;
+  std::unique_ptr<InOrderUpdater> updater_;
   double force_rate_hz_ = 1000.0 / 3.0;  ///< the F/T stream's check reads it (a pointer)
   double tracker_rate_hz_ = 8.0;         ///< the tracker stream's check reads it (a pointer)
   std::unique_ptr<diagnostic_updater::TopicDiagnostic> force_stream_;

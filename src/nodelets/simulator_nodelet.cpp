@@ -135,7 +135,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     if (tidal_volume_period_ > 0) {
       tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 200);
       ventilator_settings_pub_ = nh.advertise<VentilatorSettings>("ventilator/settings", 1, true);
-      ventilator_settings_pub_.publish(toMsg(sim_->ventilator().model().settings()));
+      publishInOrder(ventilator_settings_pub_, toMsg(sim_->ventilator().model().settings()));
     }
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     static_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
@@ -506,7 +506,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   bool publishTareResult(double t) {
     const std::optional<core::TareResult> r = sim_->takeTareResult();
     if (!r) return false;
-    tare_result_pub_.publish(toMsg(*r, stampOf(t)));
+    publishInOrder(tare_result_pub_, toMsg(*r, stampOf(t)));
     if (r->success) {
       NODELET_INFO("Simulator: F/T %s", r->message.c_str());
     } else {
@@ -531,7 +531,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       core::TareResult refused;
       refused.t = sim_->time();
       refused.message = std::string("tare request refused: ") + e.what();
-      tare_result_pub_.publish(toMsg(refused, stampOf(refused.t)));
+      publishInOrder(tare_result_pub_, toMsg(refused, stampOf(refused.t)));
       return;
     }
     if (lockstep_) {
@@ -544,27 +544,29 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void publishWrench(const core::SimulationStep& step) {
     if (wrench_pub_.getNumSubscribers() == 0) return;
-    wrench_pub_.publish(wrenchMsg(step, stampOf(step.time_s)));
+    publishInOrder(wrench_pub_, wrenchMsg(step, stampOf(step.time_s)));
   }
 
   void publishTidalVolume(double t) {
-    tidal_volume_pub_.publish(tidalVolumeMsg(*sim_, stampOf(t)));
+    publishInOrder(tidal_volume_pub_, tidalVolumeMsg(*sim_, stampOf(t)));
     const core::BreathScheduler& ventilator = sim_->ventilator();
     if (ventilator.breathIndex() != last_breath_index_) {
       last_breath_index_ = ventilator.breathIndex();
       const VentilatorSettings settings = toMsg(ventilator.model().settings());
       if (settings != last_settings_msg_) {
-        ventilator_settings_pub_.publish(settings);
+        publishInOrder(ventilator_settings_pub_, settings);
         last_settings_msg_ = settings;
       }
     }
   }
 
-  void publishJointStates(double t) { joint_state_pub_.publish(jointStateMsg(*sim_, stampOf(t))); }
+  void publishJointStates(double t) {
+    publishInOrder(joint_state_pub_, jointStateMsg(*sim_, stampOf(t)));
+  }
 
   void publishControllerStates(double t) {
     for (std::size_t i = 0; i < controller_state_pubs_.size(); ++i) {
-      controller_state_pubs_[i].publish(toMsg(sim_->controllerState(i), stampOf(t)));
+      publishInOrder(controller_state_pubs_[i], toMsg(sim_->controllerState(i), stampOf(t)));
     }
   }
 
@@ -590,7 +592,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
           "Simulator: the spindle driver heard no spindle/command for %.3f s: spindle stopped",
           sim_->params().spindle_watchdog_s);
     }
-    ground_truth_pub_.publish(msg);
+    publishInOrder(ground_truth_pub_, msg);
   }
 
   void clearTransportCounters() {
@@ -632,7 +634,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   /** @brief A tracker sample out: tracker/marker_pose, and tf with ~tracker_tf_frame. */
   void sendMarker(const geometry_msgs::PoseStamped& m) {
-    marker_pub_.publish(m);
+    publishInOrder(marker_pub_, m);
     if (tracker_tf_frame_.empty()) return;
     geometry_msgs::TransformStamped t;
     t.header = m.header;
@@ -829,6 +831,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
       res.message = refused + "; nothing was reset";
       return true;
     }
+    const std::uint64_t grid_ns = 100000000ULL;
+    if (!req.time_zero.isZero() && req.time_zero.toNSec() % grid_ns != 0) {
+      res.success = false;
+      res.message = "time_zero must be a multiple of 0.1 s (got " +
+                    std::to_string(req.time_zero.toSec()) + " s); nothing was reset";
+      return true;
+    }
     if (req.hold_at_trial_start &&
         !(std::isfinite(req.pre_trial_s) && req.pre_trial_s >= 0.0 && req.pre_trial_s <= 60.0)) {
       res.success = false;
@@ -838,9 +847,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     // A new simulation, as the closed-loop engine builds one for every trial: sim time, the
     // breathing, the tracker's phase and the physics all start again from the seed. Stamps go on
-    // from the present: the new trial's time 0 is the next multiple of 0.1 s (so that the
-    // periodic checks of the nodes fall on the same steps as in the engine), no gap a watchdog
-    // would take for a silent sensor.
+    // from the present: the new trial's time 0 is the requested time_zero when it is ahead, else
+    // the next multiple of 0.1 s (either way on the 0.1 s grid, so that the periodic checks of
+    // the nodes fall on the same steps as in the engine). The nodes take the jump as the gap
+    // between two trials (the planner's start_trial resets the recognizer and the monitor).
     std::unique_ptr<core::DrillingSimulation> fresh;
     try {
       fresh = std::make_unique<core::DrillingSimulation>(urdf_xml_, distribution.sim, req.seed);
@@ -853,9 +863,17 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     std::unique_lock<std::mutex> lock(mutex_);
     const std::uint64_t present_ns = stampOf(sim_->time()).toNSec();
-    const std::uint64_t grid_ns = 100000000ULL;
+    const std::uint64_t next_ns = (present_ns / grid_ns + 1) * grid_ns;
+    const std::uint64_t zero_ns =
+        req.time_zero.toNSec() > present_ns ? req.time_zero.toNSec() : next_ns;
+    if (!req.time_zero.isZero() && zero_ns != req.time_zero.toNSec()) {
+      NODELET_WARN(
+          "Simulator: reset: time_zero %.1f s is not ahead of the present %.3f s; the "
+          "trial starts at %.1f s instead",
+          req.time_zero.toSec(), present_ns * 1e-9, next_ns * 1e-9);
+    }
     sim_ = std::move(fresh);
-    time_offset_ = static_cast<double>((present_ns / grid_ns + 1) * grid_ns) * 1e-9;
+    time_offset_ = static_cast<double>(zero_ns) * 1e-9;
     restart_pacing_ = true;
     streaming_ = false;  // an aborted trial's phase does not hold the next one's time
     wait_given_up_ = false;

@@ -99,7 +99,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       stop.source = getName();
       stop.retreat = false;
       stop.reason = recognizer_->stopReason();
-      stop_pub_.publish(stop);
+      publishInOrder(stop_pub_, stop);
       lockstep_->noteSent();
       NODELET_WARN("StateRecognizer: STOP: %s", stop.reason.c_str());
     }
@@ -119,7 +119,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     msg.stop = out.stop;
     msg.stop_index = out.stop ? static_cast<int64_t>(out.stop_index) : -1;
     msg.stop_time = out.stop ? out.stop_t : 0.0;
-    state_pub_.publish(msg);
+    publishInOrder(state_pub_, msg);
     lockstep_->noteSent();
   }
 

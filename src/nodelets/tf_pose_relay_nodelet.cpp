@@ -25,6 +25,7 @@
 
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
+#include "pedicle_drilling/ros/publish_in_order.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
@@ -109,7 +110,7 @@ class TfPoseRelayNodelet : public nodelet::Nodelet {
     out.pose.position.y = p.y;
     out.pose.position.z = p.z;
     out.pose.orientation = q;
-    pose_pub_.publish(out);
+    publishInOrder(pose_pub_, out);
   }
 
   TfPoseRelayNodeParams params_;

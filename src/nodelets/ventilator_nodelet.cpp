@@ -14,6 +14,7 @@
 #include "pedicle_drilling/SetVentilatorSettings.h"
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/ros/node_params.hpp"
+#include "pedicle_drilling/ros/publish_in_order.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
@@ -39,7 +40,7 @@ class VentilatorNodelet : public nodelet::Nodelet {
     }
     tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 100);
     settings_pub_ = pnh.advertise<VentilatorSettings>("settings", 1, true);
-    settings_pub_.publish(toMsg(scheduler_->model().settings()));
+    publishInOrder(settings_pub_, toMsg(scheduler_->model().settings()));
     set_settings_srv_ =
         pnh.advertiseService("set_settings", &VentilatorNodelet::onSetSettings, this);
     timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz), &VentilatorNodelet::onTimer, this);
@@ -58,13 +59,13 @@ class VentilatorNodelet : public nodelet::Nodelet {
                    scheduler_->lastTime(), stamp.toSec());
       const bool pending = scheduler_->hasPendingSettings();
       scheduler_->restart(stamp.toSec());
-      if (pending) settings_pub_.publish(toMsg(scheduler_->model().settings()));
+      if (pending) publishInOrder(settings_pub_, toMsg(scheduler_->model().settings()));
     }
     const long before = scheduler_->breathIndex();
     const bool pending = scheduler_->hasPendingSettings();
     const core::VentilatorSample sample = scheduler_->sample(stamp.toSec());
     if (pending && !scheduler_->hasPendingSettings() && scheduler_->breathIndex() != before) {
-      settings_pub_.publish(toMsg(scheduler_->model().settings()));
+      publishInOrder(settings_pub_, toMsg(scheduler_->model().settings()));
     }
     TidalVolume msg;
     msg.header.stamp = stamp;
@@ -73,7 +74,7 @@ class VentilatorNodelet : public nodelet::Nodelet {
     msg.flow_ml_s = sample.flow_ml_s;
     msg.breath_index = static_cast<uint32_t>(scheduler_->breathIndex());
     msg.time_in_breath_s = stamp.toSec() - scheduler_->breathStart();
-    tidal_volume_pub_.publish(msg);
+    publishInOrder(tidal_volume_pub_, msg);
   }
 
   bool onSetSettings(SetVentilatorSettings::Request& request,

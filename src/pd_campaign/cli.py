@@ -593,8 +593,13 @@ def run_campaign(argv=None):
     started = time.monotonic()
     if samples_dir:
         os.makedirs(samples_dir, exist_ok=True)
+    position = {trial['trial_id']: k for k, trial in enumerate(design)}
     for k, part in enumerate(slices):
         trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
+        if args.engine == 'ros':
+            # Each trial's stamps from its place in the design, not from when its worker got to
+            # it: the same trial on any run, job count or shard (worker.time_zero).
+            part = [dict(trial, design_position=position[trial['trial_id']]) for trial in part]
         with atomic_write(trial_file) as handle:
             json.dump(part, handle)
         if args.engine == 'core':

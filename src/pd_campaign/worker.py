@@ -12,6 +12,7 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import numpy as np
@@ -27,13 +28,31 @@ PIPELINE_SERVICES = {
 }
 
 
+def _recording(handler):
+    """A TrialRecorder callback: under the recorder's lock, and dropped once the trial's record
+    is closed (end_at): rospy's threads go on delivering what the simulator publishes after
+    DONE while the worker analyses the record."""
+    def wrapped(self, msg):
+        with self._lock:
+            if not self.closed:
+                handler(self, msg)
+    wrapped.__doc__ = handler.__doc__
+    return wrapped
+
+
 class TrialRecorder:
     """Collects what one trial needs from the topics (all sim-time stamps)."""
 
     def __init__(self):
+        self._lock = threading.Lock()
         self.clear()
 
     def clear(self, min_stamp=0.0, trial_start=0.0):
+        with self._lock:
+            self._clear(min_stamp, trial_start)
+
+    def _clear(self, min_stamp, trial_start):
+        self.closed = False       # end_at closed the record: nothing more is added
         # Messages stamped before min_stamp are the previous trial's, still in transit: dropped.
         # Stops before the trial's start are not the trial's (a monitor that stops between the
         # reset and the start is reset by the start; the core engine's cannot stop before it).
@@ -53,6 +72,7 @@ class TrialRecorder:
         self.monitor_statuses = []  # every (t, {key: value}) of the monitor, in order
         self._last_kp = 0
 
+    @_recording
     def on_state(self, msg):
         t = msg.header.stamp.to_sec()
         if t < self.min_stamp:
@@ -64,6 +84,7 @@ class TrialRecorder:
                 self.key_points.append((kp, t))
             self._last_kp = msg.last_key_point
 
+    @_recording
     def on_truth(self, msg):
         if msg.header.stamp.to_sec() < self.min_stamp:
             return
@@ -73,17 +94,20 @@ class TrialRecorder:
                            msg.residual_inner_cortical_m, msg.breakthrough, msg.relative_ap_m,
                            msg.contact, msg.contact_loss_count))
 
+    @_recording
     def on_stop(self, msg):
         if msg.header.stamp.to_sec() < self.trial_start:
             return
         self.stops.append((msg.header.stamp.to_sec(), msg.source, msg.reason, msg.retreat))
 
+    @_recording
     def on_retare(self, msg):
         """pedicle_drilling/RetareCheck: the SafetyMonitor's re-tare check after the retreat."""
         if msg.done and msg.header.stamp.to_sec() >= self.min_stamp:
             self.retare = {'t': msg.header.stamp.to_sec(), 'drift': msg.drift,
                            'offset_n': msg.offset_n, 'message': msg.message}
 
+    @_recording
     def on_diagnostics(self, msg):
         """/diagnostics: the SafetyMonitor's status carries its input streams as received."""
         t = msg.header.stamp.to_sec()
@@ -94,6 +118,7 @@ class TrialRecorder:
                 self.inputs = (t, {kv.key: kv.value for kv in status.values})
                 self.monitor_statuses.append(self.inputs)
 
+    @_recording
     def on_status(self, msg):
         """pedicle_drilling/TrialStatus: the phase, stamped with the (sim) time of the change."""
         if msg.header.stamp.to_sec() < self.min_stamp:
@@ -111,6 +136,8 @@ class TrialRecorder:
         core engine records at DONE), the recognizer's states and key points up to DONE, and the
         monitor's inputs as it reported them when it heard the trial end (its first status with
         trial_running false after one with true; the latest one without that key)."""
+        with self._lock:
+            self.closed = True
         end = next((k for k, row in enumerate(self.truth) if row[0] >= t_done), None)
         if end is not None:
             self.truth = self.truth[:end + 1]
@@ -210,8 +237,29 @@ def peak_forces(states, truth, t_stop=None):
     return (max(out) if out else None), (max(inn) if inn else None)
 
 
+# Sim time between two trials' starts (time_zero): more than a trial takes from its reset to the
+# next one (pre_trial_s <= 60 s, the identification's window, max_duration_s <= 600 s and the
+# run-on after DONE until the worker's next reset).
+TRIAL_SPACING_S = 2000
+
+
+def time_zero(trial, second=False):
+    """The sim time of the trial's time 0 (a whole number of seconds, so on the simulator's
+    0.1 s grid): set by its place in the campaign's design, so that the ROS pipeline's nodes see
+    the same stamps, and do the same arithmetic on them, in every run of the trial. A second
+    reset of the trial (the bench's model-played motion) starts half a spacing later. None
+    without a place: the simulator's default (the next 0.1 s)."""
+    position = trial.get('design_position')
+    if position is None:
+        return None
+    return (int(position) + 1) * TRIAL_SPACING_S + (TRIAL_SPACING_S // 2 if second else 0)
+
+
 def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     wall_start = time.time()
+    zeros = (time_zero(trial), time_zero(trial, second=True))
+    trial = dict(trial)
+    trial.pop('design_position', None)
     row = dict(trial)
     row['engine'] = 'ros'
     recorder.clear()
@@ -219,7 +267,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     # The trial starts where the core engine starts the seed's trial: the simulator holds sim
     # time there (pre_trial_s after the reset, then a breath phase drawn from the seed) until
     # the planner has started it (simulator/resume below).
-    reply = _reset(srv, trial, moving, args)
+    reply = _reset(srv, trial, moving, args, zeros[0])
     recorder.clear(reply.reset_time.to_sec(), reply.trial_start.to_sec())
     row['inner_cortical_mm'] = reply.inner_cortical_thickness_m * 1e3
     row['volunteer_id'] = reply.volunteer_id
@@ -257,7 +305,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
         # again; only what the bone plays changes.
         rospy.set_param('/simulator/bone_motion_model_path', model_path)
         try:
-            reply = _reset(srv, trial, moving, args)
+            reply = _reset(srv, trial, moving, args, zeros[1])
         finally:
             rospy.set_param('/simulator/bone_motion_model_path', '')
         recorder.clear(reply.reset_time.to_sec(), reply.trial_start.to_sec())
@@ -465,8 +513,10 @@ def analyse_trial(recorder, row, trial, trace_dir):
     # them at 1 kHz; the count at the last ground truth before the stop).
     at_stop = [r for r in recorder.truth if r[0] <= t1 and len(r) > 7]
     row['contact_loss_count'] = at_stop[-1][7] if at_stop else None
-    row['sim_duration_s'] = (recorder.truth[-1][0] - recorder.truth[0][0]) if recorder.truth \
-        else None
+    # From the trial's time 0 (the ROS engine: the reset's stamp, not the first ground truth
+    # this worker happened to receive after it) to the record's end.
+    start = getattr(recorder, 'min_stamp', 0.0) or (recorder.truth[0][0] if recorder.truth else 0)
+    row['sim_duration_s'] = (recorder.truth[-1][0] - start) if recorder.truth else None
     row.update(transport_columns(recorder.last_truth))
     row.update(input_columns(getattr(recorder, 'inputs', None)))
     row.update(retare_columns(getattr(recorder, 'retare', None)))
@@ -479,12 +529,20 @@ def analyse_trial(recorder, row, trial, trace_dir):
     return row
 
 
-def _reset(srv, trial, moving, args):
-    """simulator/reset for the trial, holding sim time at the engine's start of the trial."""
+def _reset(srv, trial, moving, args, zero_s=None):
+    """simulator/reset for the trial, holding sim time at the engine's start of the trial; its
+    time 0 at sim time zero_s (see time_zero) when given."""
+    import rospy
+    stamp = rospy.Time(int(zero_s)) if zero_s is not None else rospy.Time()
     reply = srv['reset'](seed=trial['seed'], moving_bone=moving, hold_at_trial_start=True,
-                         pre_trial_s=args.pre_trial_s)
+                         pre_trial_s=args.pre_trial_s, time_zero=stamp)
     if not reply.success:
         raise RuntimeError('simulator reset failed: %s' % reply.message)
+    if zero_s is not None and reply.reset_time != stamp:
+        # The simulator was already past it (a stalled worker): a valid trial, whose stamps
+        # (and so the last bits of its numbers) are not those of another run.
+        sys.stderr.write('campaign worker: %s started at sim time %.1f s, not %d s\n'
+                         % (trial['trial_id'], reply.reset_time.to_sec(), zero_s))
     return reply
 
 

@@ -98,7 +98,7 @@ void LockstepParticipant::onStep(const rosgraph_msgs::Clock::ConstPtr& msg) {
     const std::optional<ros::Time> timer = next_step_(t);
     ack.next_step = sent ? t + ros::Duration(0, 1) : timer.value_or(ros::TIME_MAX);
   }
-  ack_pub_.publish(ack);
+  publishInOrder(ack_pub_, ack);
 }
 
 }  // namespace pedicle_drilling

@@ -522,6 +522,47 @@ def test_the_retare_check_is_recorded_apart_from_the_stops():
         'retare_offset_n': 0.01, 'drift_detected': False}
 
 
+def test_the_record_of_a_trial_ends_at_done_whatever_arrives_after():
+    """The ROS engine's simulator runs on after DONE while the worker analyses the trial: once
+    end_at() closed the record, what rospy's threads deliver later is not added (before, a
+    ground truth appended after the cut moved sim_duration_s and the last truth run to run)."""
+    import types
+    from pd_campaign.worker import TrialRecorder
+
+    def truth(t):
+        stamp = types.SimpleNamespace(to_sec=lambda: t)
+        return types.SimpleNamespace(header=types.SimpleNamespace(stamp=stamp), specimen_layer=0,
+                                     max_depth_cut_m=t * 1e-3, residual_inner_cortical_m=1e-3,
+                                     breakthrough=False, relative_ap_m=0.0, contact=False,
+                                     contact_loss_count=0)
+    recorder = TrialRecorder()
+    recorder.clear(100.0, 101.0)
+    for t in (99.95, 100.0, 100.05, 100.1, 100.15, 100.2):
+        recorder.on_truth(truth(t))
+    recorder.end_at(100.07)
+    assert [r[0] for r in recorder.truth] == [100.0, 100.05, 100.1]
+    recorder.on_truth(truth(100.25))
+    assert recorder.truth[-1][0] == 100.1 and recorder.last_truth.max_depth_cut_m == 100.1e-3
+    recorder.clear(200.0)  # the next trial records again
+    recorder.on_truth(truth(200.0))
+    assert [r[0] for r in recorder.truth] == [200.0]
+
+
+def test_a_ros_trials_time_zero_is_its_place_in_the_design():
+    """ResetSimulation.time_zero from the trial's place in the campaign's design (whole seconds:
+    on the simulator's 0.1 s grid), not from the worker that runs it; the bench's second reset of
+    a trial half a spacing later; none without a place (the simulator's default)."""
+    from pd_campaign.worker import TRIAL_SPACING_S, time_zero
+    assert time_zero({'design_position': 0}) == TRIAL_SPACING_S
+    assert time_zero({'design_position': 7}) == 8 * TRIAL_SPACING_S
+    assert time_zero({'design_position': 7}, second=True) == 8.5 * TRIAL_SPACING_S
+    assert isinstance(time_zero({'design_position': 7}, second=True), int)
+    assert time_zero({'seed': 3}) is None
+    # More than a trial can take from its reset to the next: pre_trial_s, the identification's
+    # window, max_duration_s (at most 600 s) and the run-on after DONE.
+    assert TRIAL_SPACING_S // 2 > 60 + 60 + 600
+
+
 def test_the_ros_pipelines_pace_and_lockstep_options():
     """--engine ros runs as fast as the lockstep lets it unless a bag is recorded (issue 31);
     --lockstep-every-step is the ROS pipeline's, refused with the core engine; a bad real-time

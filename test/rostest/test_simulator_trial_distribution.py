@@ -146,6 +146,27 @@ class TrialDistributionTest(unittest.TestCase):
             self.assertIn('inner_cortical_thickness_mm', res.message)
             self.assertIn('nothing was reset', res.message)
 
+    def test_time_zero_sets_the_trials_stamps(self):
+        # ResetSimulation.time_zero: kept when ahead of the present and on the 0.1 s grid (a
+        # campaign gives a trial the same stamps in every run); one behind the present falls back
+        # to the next 0.1 s; one off the grid is refused, naming the field.
+        plain = self.reset(seed=31, moving_bone=False)
+        self.assertTrue(plain.success, plain.message)
+        self.assertEqual(plain.reset_time.nsecs % 100000000, 0)
+        ahead = rospy.Time(plain.reset_time.secs + 1000, plain.reset_time.nsecs)
+        res = self.reset(seed=31, moving_bone=False, time_zero=ahead)
+        self.assertTrue(res.success, res.message)
+        self.assertEqual(res.reset_time, ahead)
+        behind = self.reset(seed=31, moving_bone=False, time_zero=rospy.Time(1))
+        self.assertTrue(behind.success, behind.message)
+        self.assertGreater(behind.reset_time, ahead)
+        self.assertEqual(behind.reset_time.nsecs % 100000000, 0)
+        off_grid = rospy.Time(behind.reset_time.secs + 1000, 50000000)
+        res = self.reset(seed=31, moving_bone=False, time_zero=off_grid)
+        self.assertFalse(res.success)
+        self.assertIn('time_zero', res.message)
+        self.assertIn('nothing was reset', res.message)
+
 
 if __name__ == '__main__':
     rospy.init_node('test_simulator_trial_distribution')

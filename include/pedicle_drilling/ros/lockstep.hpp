@@ -5,9 +5,10 @@
  *        after a physics step's messages and steps again only when every participant has
  *        answered it (at every step a participant can act at: see below) on `simulator/step_ack`
  * (pedicle_drilling/StepAck). A participant's step callback runs after the step's simulator
- * messages (one nodelet manager: its callback queue is FIFO), so sim time never runs ahead of the
- * nodes, and a loaded machine changes wall time, not the trial: the pipeline's trial of a seed is
- * the core engine's.
+ * messages (one nodelet manager: its callback queue is FIFO, and every nodelet publishes shared
+ * messages, which roscpp queues in publishing order: publishInOrder()), so sim time never runs
+ * ahead of the nodes, and a loaded machine changes wall time, not the trial: the pipeline's trial
+ * of a seed is the core engine's.
  *
  * What a participant receives from another participant (a stop, a recognizer state, a predicted
  * pose) is handled at the first step after the one it was sent in (deliver()), in stamp order,
@@ -24,12 +25,15 @@
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
+#include "pedicle_drilling/ros/publish_in_order.hpp"
+
 #include <algorithm>
 #include <cstdint>
 #include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace pedicle_drilling {
