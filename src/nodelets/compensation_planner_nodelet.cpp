@@ -22,6 +22,7 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -237,6 +238,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     NODELET_WARN("CompensationPlanner: stop from %s (retreat %s): %s", msg->source.c_str(),
                  msg->retreat ? "yes" : "no", msg->reason.c_str());
+    if (msg->header.stamp >= trial_start_stamp_) ++stops_heard_;
     sequencer_->onStop(now(), msg->retreat, msg->reason);
     carryOut();
   }
@@ -302,6 +304,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         callTriggerChain(&trial_start_clients_, params_.trial_start_timeout_s, &res.message);
     lock.lock();
     if (!started) return true;
+    trial_start_stamp_ = lockstep_->now();
+    stops_heard_ = 0;
     res.message = sequencer_->start(request, patient_.motionModel(), now());
     res.success = res.message.empty();
     if (res.success) {
@@ -433,10 +437,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   void publishStatus(core::TrialPhase p) {
-    publishInOrder(status_pub_, toMsg(p, lockstep_->now()));
+    TrialStatus msg = toMsg(p, lockstep_->now());
+    msg.stops = stops_heard_;
+    publishInOrder(status_pub_, msg);
     lockstep_->noteSent();
   }
 
+  ros::Time trial_start_stamp_;    ///< the latest trial's start (start_trial)
+  std::uint32_t stops_heard_ = 0;  ///< drill/stop commands handled since, stamped at or after it
   std::mutex mutex_;
   CompensationPlannerNodeParams params_;  ///< every parameter, loaded once
   core::PatientModel patient_;

@@ -263,6 +263,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *         diagnostic_period_s of sim time. */
   void onStep(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex_);
+    // This monitor asks for a step every 1 / check_rate_hz: one much later is a new simulation
+    // (simulator/reset moved sim time ahead, ResetSimulation.time_zero), not a silent sensor.
+    // It starts afresh, as ~reset does, instead of taking the jump for a stream timeout.
+    if (!last_step_.isZero() && (t - last_step_).toSec() > kResetGapS) resetLocked();
+    last_step_ = t;
     const double x = t.toSec() * check_rate_hz_;
     if (std::abs(x - std::round(x)) < 1e-6) {
       supervisor_->check(now());
@@ -358,15 +363,24 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
     const std::string previous = core::toString(supervisor_->verdict().reason);
+    resetLocked();
+    response.success = true;
+    response.message = "monitor reset (previous verdict: " + previous + ")";
+    return true;
+  }
+
+  /** @brief ~reset's work (mutex_ held): verdict, retare check and stream statistics. */
+  void resetLocked() {
     supervisor_->reset();
     last_retare_.reset();
     force_stats_.reset();
     tracker_stats_.reset();
     publishDiagnostics();
-    response.success = true;
-    response.message = "monitor reset (previous verdict: " + previous + ")";
-    return true;
   }
+
+  /** @brief A gap between two lockstep steps that only a simulator reset makes [s]. */
+  static constexpr double kResetGapS = 1.0;
+  ros::Time last_step_;  ///< the latest lockstep step (zero: none yet)
 
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;

@@ -67,6 +67,7 @@ class TrialRecorder:
         self.stops = []           # (t, source, reason, retreat)
         self.status = []          # (t, phase name)
         self.phase = None         # the latest TrialStatus phase (ROS engine)
+        self.stops_heard = 0      # the planner's count of the trial's stops at that phase
         self.retare = None        # the monitor's re-tare check when the retreat ended
         self.inputs = None        # (t, {key: value}): the monitor's input streams, latest
         self.monitor_statuses = []  # every (t, {key: value}) of the monitor, in order
@@ -125,6 +126,7 @@ class TrialRecorder:
             return
         self.phase = msg.phase
         self.status.append((msg.header.stamp.to_sec(), msg.phase_name))
+        self.stops_heard = msg.stops  # the planner's count of the trial's stops, so far
 
     def status_time(self, name):
         return next((t for (t, s) in self.status if s == name), None)
@@ -144,6 +146,7 @@ class TrialRecorder:
             self.truth_msgs = self.truth_msgs[:end + 1]
             self.last_truth = self.truth_msgs[-1]
         self.states = [s for s in self.states if s[0] <= t_done]
+        self.stops = [s for s in self.stops if s[0] <= t_done]
         self.key_points = [k for k in self.key_points if k[1] <= t_done]
         inputs = self.trial_end_inputs()
         if inputs is not None:
@@ -414,21 +417,28 @@ def check_bag(path):
             'complete': not summary, 'summary': '; '.join(summary)}
 
 
-def _wait_until(predicate, bound_s, period_s=0.01):
+def _wait_until(predicate, bound_s, period_s=0.01, what=None):
     """Polls predicate() until it holds (True) or `bound_s` of wall time passed (False): the
-    bound only keeps a dead node from hanging the worker."""
-    deadline = time.time() + bound_s
+    bound only keeps a dead node from hanging the worker. A wait named `what` that took over
+    5 s of wall time, or ran out, is reported on stderr (the campaign's log)."""
+    start = time.time()
+    deadline = start + bound_s
+    held = True
     while not predicate():
         if time.time() >= deadline:
-            return False
+            held = False
+            break
         time.sleep(period_s)
-    return True
+    if what and (not held or time.time() - start > 5.0):
+        sys.stderr.write('campaign worker: waited %.1f s for %s%s\n'
+                         % (time.time() - start, what, '' if held else ' (gave up)'))
+    return held
 
 
 def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     from pedicle_drilling.msg import TrialStatus  # ROS engine only
     if not _wait_until(lambda: recorder.phase in (TrialStatus.DONE, TrialStatus.FAILED),
-                       args.trial_timeout, 0.02):
+                       args.trial_timeout, 0.02, 'the trial to end'):
         raise RuntimeError('trial did not finish within %.0f s wall (status: %s)' % (
             args.trial_timeout, recorder.status[-1][1] if recorder.status else 'none'))
     if recorder.phase == TrialStatus.FAILED:
@@ -441,12 +451,13 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
     def fresh():
         return (recorder.retare is not None and t_done is not None
                 and recorder.retare['t'] >= t_done - 1e-3)
-    if not _wait_until(fresh, 5.0):
+    if not _wait_until(fresh, 5.0, what='the re-tare check'):
         recorder.retare = None  # none for this trial (a previous trial's, latched, is not it)
     # The monitor's diagnostics at the trial's end (its input streams, complete): the status it
     # published when it heard the trial end (an event: trial_running turns false; the stamp is
     # the monitor's ROS time, the latest /clock, which can trail DONE by a clock period).
-    _wait_until(lambda: recorder.trial_end_inputs() is not None, 5.0)
+    _wait_until(lambda: recorder.trial_end_inputs() is not None, 5.0,
+                what="the monitor's status at the trial's end")
     # Each topic has its own connection: on a loaded machine the ground truth and the
     # recognizer's states may trail the status that said DONE. Wait until both have reached the
     # trial's end (events: the simulator and the recognizer go on publishing after it), so that
@@ -456,7 +467,16 @@ def finish_trial(recorder, row, trial, args, trace_dir, wall_start):
         return (t_done is not None and truth is not None
                 and truth.header.stamp.to_sec() >= t_done
                 and (not recorder.states or recorder.states[-1][0] >= t_done))
-    _wait_until(caught_up, 30.0)
+    _wait_until(caught_up, 30.0, what='the ground truth and the states to reach DONE')
+    # The stops come on their own connection too: wait until every stop the planner handled in
+    # the trial (its DONE status counts them) is recorded; one still missing after the bound is
+    # an error, not a trial without a stop.
+    def stops_in():
+        return len([s for s in recorder.stops if t_done is None or s[0] <= t_done]) >= \
+            recorder.stops_heard
+    if not _wait_until(stops_in, 30.0, what='the stops the planner handled'):
+        raise RuntimeError('the record has %d of the %d stop(s) the planner handled'
+                           % (len(recorder.stops), recorder.stops_heard))
     if t_done is not None:
         recorder.end_at(t_done)
     row['wall_s'] = time.time() - wall_start

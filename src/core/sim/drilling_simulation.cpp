@@ -272,25 +272,27 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
   return t;
 }
 
+namespace {
+
+/** @brief Throws, naming the parameter, unless @p rate_hz divides the physics rate. */
+void requireDividesPhysicsRate(double physics_rate_hz, double rate_hz, const std::string& name,
+                               const std::string& examples) {
+  const double ratio = physics_rate_hz / rate_hz;
+  if (std::abs(ratio - std::round(ratio)) > 1e-9) {
+    throw std::invalid_argument(name + " must divide the " + Range::format(physics_rate_hz) +
+                                " Hz physics rate (e.g. " + examples + ")");
+  }
+}
+
+}  // namespace
+
 void DrillingSimulationParams::validate() const {
   table().validate(*this);
-  if (std::abs(physics_rate_hz / arm_rate_hz - std::round(physics_rate_hz / arm_rate_hz)) > 1e-9) {
-    throw std::invalid_argument("arm_rate_hz must divide the " + Range::format(physics_rate_hz) +
-                                " Hz physics rate (e.g. 1000, 500, 250)");
-  }
-  const double air_ratio = physics_rate_hz / arm_rate_in_air_hz;
-  if (std::abs(air_ratio - std::round(air_ratio)) > 1e-9) {
-    throw std::invalid_argument("arm_rate_in_air_hz must divide the " +
-                                Range::format(physics_rate_hz) +
-                                " Hz physics rate (e.g. 1000, 500, 250)");
-  }
-
-  const double decimation = physics_rate_hz / sensor.output_rate_hz;
-  if (std::abs(decimation - std::round(decimation)) > 1e-9) {
-    throw std::invalid_argument("force_sensor_rate_hz must divide the " +
-                                Range::format(physics_rate_hz) +
-                                " Hz physics rate (e.g. 1000, 500, 250, 100)");
-  }
+  requireDividesPhysicsRate(physics_rate_hz, arm_rate_hz, "arm_rate_hz", "1000, 500, 250");
+  requireDividesPhysicsRate(physics_rate_hz, arm_rate_in_air_hz, "arm_rate_in_air_hz",
+                            "1000, 500, 250");
+  requireDividesPhysicsRate(physics_rate_hz, sensor.output_rate_hz, "force_sensor_rate_hz",
+                            "1000, 500, 250, 100");
   ventilator.validate();
   specimen.validate();
   variability.validate();
@@ -747,6 +749,7 @@ struct DrillingSimulation::Impl {
           spec.joints, own_limits, own_hold, params.controller_rules));
       controller_columns.push_back(std::move(columns));
     }
+    samples.resize(controller_trajectories.size());  // reference() and advanceArmBlock() fill them
     const auto feed = std::find(commandable.begin(), commandable.end(), "feed_joint");
     if (feed != commandable.end()) {
       feed_index = static_cast<int>(feed - commandable.begin());
@@ -788,7 +791,6 @@ struct DrillingSimulation::Impl {
   /** @brief The controllers' reference positions at t, in the commandable joints' order. */
   const Eigen::VectorXd& reference(double t) {
     reference_q.resize(static_cast<Eigen::Index>(commandable.size()));
-    samples.resize(controller_trajectories.size());
     for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
       TrajectoryState& st = samples[c];
       controller_trajectories[c]->sample(t, &st);
