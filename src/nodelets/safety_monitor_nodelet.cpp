@@ -17,6 +17,7 @@
 #include <std_srvs/Trigger.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -263,10 +264,12 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *         diagnostic_period_s of sim time. */
   void onStep(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex_);
-    // This monitor asks for a step every 1 / check_rate_hz: one much later is a new simulation
-    // (simulator/reset moved sim time ahead, ResetSimulation.time_zero), not a silent sensor.
-    // It starts afresh, as ~reset does, instead of taking the jump for a stream timeout.
-    if (!last_step_.isZero() && (t - last_step_).toSec() > kResetGapS) resetLocked();
+    // This monitor asks for a step every 1 / check_rate_hz (and the simulator's streams step it
+    // more often): a step much later is a new simulation (simulator/reset moved sim time ahead,
+    // ResetSimulation.time_zero), not a silent sensor. It starts afresh, as ~reset does,
+    // instead of taking the jump for a stream timeout.
+    const double reset_gap_s = std::max(kResetGapS, 2.0 / check_rate_hz_);
+    if (!last_step_.isZero() && (t - last_step_).toSec() > reset_gap_s) resetLocked();
     last_step_ = t;
     const double x = t.toSec() * check_rate_hz_;
     if (std::abs(x - std::round(x)) < 1e-6) {
@@ -378,7 +381,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     publishDiagnostics();
   }
 
-  /** @brief A gap between two lockstep steps that only a simulator reset makes [s]. */
+  /** @brief A gap between two lockstep steps that only a simulator reset makes [s] (at least
+   *         two check periods). */
   static constexpr double kResetGapS = 1.0;
   ros::Time last_step_;  ///< the latest lockstep step (zero: none yet)
 

@@ -240,9 +240,12 @@ def peak_forces(states, truth, t_stop=None):
     return (max(out) if out else None), (max(inn) if inn else None)
 
 
-# Sim time between two trials' starts (time_zero): more than a trial takes from its reset to the
-# next one (pre_trial_s <= 60 s, the identification's window, max_duration_s <= 600 s and the
-# run-on after DONE until the worker's next reset).
+# Sim time between two trials' starts (time_zero); half of it between a trial's two resets (the
+# bench's model-played motion). Each half is more than a reset can be from the next: the hold
+# (pre_trial_s, at most 60 s, the simulator's bound; the identification window with online
+# identification), a breath (60 s at 1 bpm), max_duration_s (at most 600 s) and the run-on after DONE until the
+# worker's next reset. A time_zero the simulator is already past falls back to the next 0.1 s
+# (a valid trial, reported on stderr).
 TRIAL_SPACING_S = 2000
 
 

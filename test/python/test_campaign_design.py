@@ -552,15 +552,19 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
     """ResetSimulation.time_zero from the trial's place in the campaign's design (whole seconds:
     on the simulator's 0.1 s grid), not from the worker that runs it; the bench's second reset of
     a trial half a spacing later; none without a place (the simulator's default)."""
+    from pd_campaign.cli import SCENARIO_KEYS
     from pd_campaign.worker import TRIAL_SPACING_S, time_zero
     assert time_zero({'design_position': 0}) == TRIAL_SPACING_S
     assert time_zero({'design_position': 7}) == 8 * TRIAL_SPACING_S
     assert time_zero({'design_position': 7}, second=True) == 8.5 * TRIAL_SPACING_S
     assert isinstance(time_zero({'design_position': 7}, second=True), int)
     assert time_zero({'seed': 3}) is None
-    # More than a trial can take from its reset to the next: pre_trial_s, the identification's
-    # window, max_duration_s (at most 600 s) and the run-on after DONE.
-    assert TRIAL_SPACING_S // 2 > 60 + 60 + 600
+    # Half a spacing is more than a reset can be from the next: the hold (pre_trial_s, at most
+    # 60 s, ResetSimulation's bound), a breath (60 s at 1 bpm; slower still, the simulator falls
+    # back to the next 0.1 s), the longest trial a scenario may ask for, and two minutes of
+    # run-on after DONE.
+    longest_trial_s = SCENARIO_KEYS['max_duration_s'][2]
+    assert TRIAL_SPACING_S // 2 > 60 + 60 + longest_trial_s + 120
 
 
 def test_the_ros_pipelines_pace_and_lockstep_options():
