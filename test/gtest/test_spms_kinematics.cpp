@@ -169,7 +169,7 @@ TEST(SpmsKinematics, ForwardWithKeptJacobianEqualsNewton) {
   SpmsGeometry g;
   g.rail_inclination_deg = 15.0;
   SpmsKinematics k(g);
-  Eigen::Matrix3d kept = Eigen::Matrix3d::Constant(std::nan(""));
+  SpmsFkJacobian kept;
   PlatformPose guess_newton, guess_kept;
   int chord_iterations = 0;
   int newton_iterations = 0;
@@ -184,7 +184,8 @@ TEST(SpmsKinematics, ForwardWithKeptJacobianEqualsNewton) {
     const SpmsFkResult newton = k.forward(ik.sliders, guess_newton);
     const SpmsFkResult chord = k.forward(ik.sliders, guess_kept, &kept);
     ASSERT_TRUE(newton.ok && chord.ok) << newton.reason << chord.reason;
-    ASSERT_TRUE(kept.allFinite());
+    ASSERT_TRUE(kept.matrix.allFinite());
+    EXPECT_TRUE(chord.rotation == chord.pose.rotation());  // the same bits
     EXPECT_NEAR(chord.pose.z_m, newton.pose.z_m, 1e-12);
     EXPECT_NEAR(chord.pose.roll_rad, newton.pose.roll_rad, 1e-12);
     EXPECT_NEAR(chord.pose.pitch_rad, newton.pose.pitch_rad, 1e-12);
@@ -198,18 +199,23 @@ TEST(SpmsKinematics, ForwardWithKeptJacobianEqualsNewton) {
   }
   std::cout << "[ forward ] iterations over 4001 steps: Newton " << newton_iterations
             << " (7 residuals each), kept Jacobian " << chord_iterations << std::endl;
-  const Eigen::Matrix3d right = kept;
+  const Eigen::Matrix3d right = kept.matrix;
   PlatformPose p;
   p.z_m = 2e-3;
   p.roll_rad = 2.0 * kDeg;
   const SpmsIkResult ik = k.inverse(p);
   ASSERT_TRUE(ik.reachable);
-  Eigen::Matrix3d wrong = 0.1 * right;
+  SpmsFkJacobian wrong;
+  wrong.matrix = 0.1 * right;
   const SpmsFkResult from_wrong = k.forward(ik.sliders, PlatformPose{}, &wrong);
   ASSERT_TRUE(from_wrong.ok) << from_wrong.reason;
   EXPECT_NEAR(from_wrong.pose.z_m, 2e-3, 1e-9);
   EXPECT_NEAR(from_wrong.pose.roll_rad, 2.0 * kDeg, 1e-9);
-  EXPECT_LT((wrong - right).norm(), 0.05 * right.norm());  // replaced by a computed one
+  EXPECT_LT((wrong.matrix - right).norm(), 0.05 * right.norm());  // replaced by a computed one
+  // ... with its factorisation: the kept LU solves with the new matrix.
+  ASSERT_TRUE(wrong.factorised);
+  const Eigen::Vector3d b(1.0, -2.0, 0.5);
+  EXPECT_LT((wrong.matrix * wrong.lu.solve(b) - b).norm(), 1e-9);
 }
 
 }  // namespace

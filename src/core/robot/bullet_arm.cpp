@@ -25,7 +25,7 @@
 #include <stdexcept>
 #include <utility>
 
-#include <urdf_parser/urdf_parser.h>
+#include <urdf_model/model.h>
 #include <Eigen/Dense>
 
 #pragma GCC diagnostic push
@@ -43,6 +43,8 @@
 #include <BulletDynamics/Featherstone/btMultiBodyJointLimitConstraint.h>
 #include <BulletDynamics/Featherstone/btMultiBodyLink.h>
 #pragma GCC diagnostic pop
+
+#include "pedicle_drilling/core/robot/urdf_model.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -145,7 +147,8 @@ struct BulletArm::Impl {
   std::vector<btScalar> force_buf, accel_buf;
   std::vector<Eigen::Isometry3d> body_pose;  // by body index, as of the last forwardKinematics()
   // The sub-step's and the target setters' vectors, kept so that a step allocates less.
-  Eigen::VectorXd step_q, step_qd, step_gravity, step_tau_gc, step_v_free, step_tau0, step_v_plus;
+  Eigen::VectorXd step_q, step_qd, step_gravity, step_tau_gc, step_v_free, step_tau0, step_v_plus,
+      step_load, step_tau;
   Eigen::VectorXd target_values;
   std::vector<bool> target_mask;
   std::vector<Eigen::Vector3d> gravity_com;
@@ -181,7 +184,7 @@ struct BulletArm::Impl {
   int n() const { return static_cast<int>(joint_info.size()); }
 
   void build(const std::string& urdf_xml);
-  urdf::ModelInterfaceSharedPtr parseModel(const std::string& urdf_xml) const;
+  std::shared_ptr<const urdf::ModelInterface> parseModel(const std::string& urdf_xml) const;
   std::vector<urdf::JointConstSharedPtr> movingJoints(const urdf::ModelInterface& model) const;
   void mergeBodies(const urdf::ModelInterface& model,
                    const std::vector<urdf::JointConstSharedPtr>& moving);
@@ -189,7 +192,7 @@ struct BulletArm::Impl {
   std::vector<Eigen::Isometry3d> jointFrames(const std::vector<urdf::JointConstSharedPtr>& moving);
   void buildBullet(const std::vector<Eigen::Isometry3d>& joint_frame);
   void forwardKinematics();
-  Eigen::Isometry3d bodyPose(int body) const;  // Bullet frame B of a body
+  const Eigen::Isometry3d& bodyPose(int body) const;  // Bullet frame B of a body
   Eigen::Isometry3d linkPose(const std::string& name) const;
   Eigen::Isometry3d linkPose(const LinkRef& ref) const;
   Eigen::Isometry3d tipLinkPose() const { return linkPose(*tip_ref); }
@@ -249,7 +252,7 @@ struct BulletArm::Impl {
 // ------------------------------------------------------------------------------------------
 
 void BulletArm::Impl::build(const std::string& urdf_xml) {
-  const urdf::ModelInterfaceSharedPtr model = parseModel(urdf_xml);
+  const std::shared_ptr<const urdf::ModelInterface> model = parseModel(urdf_xml);
   const std::vector<urdf::JointConstSharedPtr> moving = movingJoints(*model);
   mergeBodies(*model, moving);
   tip_ref = &links.at(tip_link);
@@ -260,11 +263,12 @@ void BulletArm::Impl::build(const std::string& urdf_xml) {
   buildBullet(jointFrames(moving));
 }
 
-urdf::ModelInterfaceSharedPtr BulletArm::Impl::parseModel(const std::string& urdf_xml) const {
+std::shared_ptr<const urdf::ModelInterface> BulletArm::Impl::parseModel(
+    const std::string& urdf_xml) const {
   if (urdf_xml.find_first_not_of(" \t\r\n") == std::string::npos) {
     throw std::runtime_error("BulletArm: empty URDF string");
   }
-  urdf::ModelInterfaceSharedPtr model = urdf::parseURDF(urdf_xml);
+  std::shared_ptr<const urdf::ModelInterface> model = parseUrdfKept(urdf_xml);
   if (!model) {
     throw std::runtime_error(
         "BulletArm: urdfdom could not parse the URDF (malformed XML or invalid robot "
@@ -556,7 +560,7 @@ void BulletArm::Impl::forwardKinematics() {
   for (int b = 1; b <= n(); ++b) body_pose[b] = toEigen(mb->getLink(b - 1).m_cachedWorldTransform);
 }
 
-Eigen::Isometry3d BulletArm::Impl::bodyPose(int body) const { return body_pose[body]; }
+const Eigen::Isometry3d& BulletArm::Impl::bodyPose(int body) const { return body_pose[body]; }
 
 Eigen::Isometry3d BulletArm::Impl::linkPose(const std::string& name) const {
   auto it = links.find(name);
@@ -733,7 +737,8 @@ void BulletArm::Impl::subStep(double h) {
   } else {
     // The arm has barely moved since A was computed: the free velocity from the same loads
     // through the kept A, without the pre-pass's velocity-product (Coriolis, gyroscopic) terms.
-    Eigen::VectorXd load = gravity + tau_gc;
+    Eigen::VectorXd& load = step_load;
+    load = gravity + tau_gc;
     if (tip_ref->body > 0 && tip_force.squaredNorm() > 0.0) {
       load += tipJacobian().topRows<3>().transpose() * tip_force;
     }
@@ -761,7 +766,8 @@ void BulletArm::Impl::subStep(double h) {
   }
   Eigen::VectorXd& v_plus = step_v_plus;
   v_plus = servo_lu.solve(v_free + h * a_inv * tau0);
-  Eigen::VectorXd tau = tau_gc + tau0 - b.cwiseProduct(v_plus);
+  Eigen::VectorXd& tau = step_tau;
+  tau = tau_gc + tau0 - b.cwiseProduct(v_plus);
   if (params.enforce_effort_limits) {
     for (int k = 0; k < nj; ++k) {
       const double e = joint_info[k].effort;

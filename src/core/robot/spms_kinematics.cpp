@@ -168,7 +168,7 @@ bool SpmsKinematics::isReachable(const PlatformPose& pose, std::string* reason) 
 
 SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
                                      const PlatformPose& initial_guess,
-                                     Eigen::Matrix3d* jacobian) const {
+                                     SpmsFkJacobian* jacobian) const {
   SpmsFkResult res;
   const SpmsGeometry& g = geometry_;
   for (int i = 0; i < 3; ++i) {
@@ -180,8 +180,10 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     }
   }
   const double L = g.rod_length_m;
-  // Residual: rod-length error per leg (m), for q = (z, roll, pitch).
-  auto residual = [&](const Eigen::Vector3d& q, PlatformFullPose* full, bool* ok) {
+  // Residual: rod-length error per leg (m), for q = (z, roll, pitch); the full pose and its
+  // rotation on request.
+  auto residual = [&](const Eigen::Vector3d& q, PlatformFullPose* full, Eigen::Matrix3d* rotation,
+                      bool* ok) {
     PlatformPose pp;
     pp.z_m = q[0];
     pp.roll_rad = q[1];
@@ -194,6 +196,7 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
       r[i] = (platformJoint(i, fp, rot) - sliderPoint(i, sliders[i])).norm() - L;
     }
     if (full) *full = fp;
+    if (rotation) *rotation = rot;
     return r;
   };
   // Central differences of the residual at q (m, rad steps of 1e-7).
@@ -207,7 +210,8 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
       qm[j] -= h[j];
       bool ok1 = true;
       bool ok2 = true;
-      jac.col(j) = (residual(qp, nullptr, &ok1) - residual(qm, nullptr, &ok2)) / (2.0 * h[j]);
+      jac.col(j) = (residual(qp, nullptr, nullptr, &ok1) - residual(qm, nullptr, nullptr, &ok2)) /
+                   (2.0 * h[j]);
       *ok = *ok && ok1 && ok2;
     }
     return jac;
@@ -216,18 +220,28 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
   if (q.isZero()) q[0] = (sliders.mean() - g.home_slider_m) * rail_dir_[0].z();
   bool ok = true;
   PlatformFullPose full;
-  Eigen::Vector3d r = residual(q, &full, &ok);
-  Eigen::Matrix3d own;
-  Eigen::Matrix3d& jac = jacobian ? *jacobian : own;
-  // Chord steps on the kept Jacobian while each cuts the residual tenfold; else (and without
-  // one) Newton's method, a new Jacobian at every iterate, which is then kept.
-  bool reuse = jacobian != nullptr && jacobian->allFinite();
+  Eigen::Matrix3d full_rotation;
+  Eigen::Vector3d r = residual(q, &full, &full_rotation, &ok);
+  SpmsFkJacobian own;
+  SpmsFkJacobian& kept = jacobian ? *jacobian : own;
+  Eigen::Matrix3d& jac = kept.matrix;
+  // Chord steps on the kept Jacobian and its factorisation while each cuts the residual
+  // tenfold; else (and without one) Newton's method, a new Jacobian at every iterate, which is
+  // then kept.
+  bool reuse = jacobian != nullptr && jac.allFinite();
   int it = 0;
   for (; it < kMaxIterations && ok; ++it) {
     const double size = r.cwiseAbs().maxCoeff();
     if (size < 1e-13) break;
-    if (!reuse) jac = differences(q, &ok);
-    const Eigen::Vector3d delta = jac.fullPivLu().solve(-r);
+    if (!reuse) {
+      jac = differences(q, &ok);
+      kept.factorised = false;
+    }
+    if (!kept.factorised) {
+      kept.lu.compute(jac);
+      kept.factorised = true;
+    }
+    const Eigen::Vector3d delta = kept.lu.solve(-r);
     if (!delta.allFinite()) {
       if (reuse) {
         reuse = false;
@@ -241,8 +255,9 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     const double scale = std::min(1.0, 0.1 / max_rot);
     const Eigen::Vector3d q_next = q + scale * delta;
     PlatformFullPose full_next;
+    Eigen::Matrix3d rotation_next;
     bool ok_next = true;
-    const Eigen::Vector3d r_next = residual(q_next, &full_next, &ok_next);
+    const Eigen::Vector3d r_next = residual(q_next, &full_next, &rotation_next, &ok_next);
     if (reuse && (!ok_next || !(r_next.cwiseAbs().maxCoeff() < 0.1 * size))) {
       reuse = false;  // the kept Jacobian is too far off: Newton from this iterate
       continue;
@@ -250,17 +265,19 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     q = q_next;
     r = r_next;
     full = full_next;
+    full_rotation = rotation_next;
     ok = ok_next;
   }
   res.iterations = it;
   res.pose = full;
+  res.rotation = full_rotation;
   res.residual_m = r.cwiseAbs().maxCoeff();
   if (!ok || !(res.residual_m < 1e-9)) {
     res.reason = "forward kinematics did not converge (slider combination not assemblable)";
     return res;
   }
   // Same branch and joint-limit checks as the inverse.
-  const Eigen::Matrix3d rot = full.rotation();
+  const Eigen::Matrix3d& rot = full_rotation;
   const Eigen::Vector3d normal = rot * Eigen::Vector3d::UnitZ();
   for (int i = 0; i < 3; ++i) {
     const Eigen::Vector3d rod = platformJoint(i, full, rot) - sliderPoint(i, sliders[i]);

@@ -5,7 +5,6 @@
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 
 #include <urdf_model/model.h>
-#include <urdf_parser/urdf_parser.h>
 
 #include <algorithm>
 #include <array>
@@ -19,6 +18,7 @@
 #include "pedicle_drilling/core/common/portable_random.hpp"
 #include "pedicle_drilling/core/robot/stage_axis.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
+#include "pedicle_drilling/core/robot/urdf_model.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
 
 namespace pedicle_drilling::core {
@@ -350,7 +350,7 @@ SpmsGeometry DrillingSimulationParams::urdfSpmsGeometry() {
 struct DrillingSimulation::Impl {
   ComponentProfile* profile = nullptr;  ///< setProfile()
   DrillingSimulationParams params;
-  urdf::ModelInterfaceSharedPtr model;
+  std::shared_ptr<const urdf::ModelInterface> model;  // shared: parseUrdfKept
   std::unique_ptr<BulletArm> arm;
   SpmsKinematics spms;
   BreathScheduler ventilator;
@@ -459,14 +459,18 @@ struct DrillingSimulation::Impl {
   // SPMS controller streams (slider joints, the SpmsKinematics convention).
   std::array<StageAxis, 3> slider_axes;
   std::unique_ptr<JointTrajectoryExecutor> spms_trajectory;
+  TrajectoryState spms_sample;  // kept storage for the SPMS stream's samples
   std::uint64_t bench_period_steps = 125;
   std::uint64_t bench_stream_due = 0;  // 0: stream from now at the next step (after a reset)
   Eigen::Vector3d previous_targets = Eigen::Vector3d::Zero();
   bool have_previous_targets = false;
   PlatformFullPose platform;
+  /// platform.rotation(), kept with the pose (updatePlatform sets both from the forward
+  /// kinematics' result, whose rotation is the one its last residual computed: the same bits)
+  Eigen::Matrix3d platform_rotation = Eigen::Matrix3d::Identity();
   // The rod-length Jacobian the platform's forward kinematics keeps between steps (NaN: none;
   // cleared at every trial's reset, so that the iteration's path does not carry over).
-  Eigen::Matrix3d platform_jacobian = Eigen::Matrix3d::Constant(std::nan(""));
+  SpmsFkJacobian platform_jacobian;
   // The sliders of the last forward kinematics, kept when it ended within its 1e-13 m test: the
   // same sliders from that pose pass the test at once and give the same pose, bit for bit, so
   // the solve is skipped (issue 31: a stationary bench's sliders come to rest). Likewise the
@@ -663,11 +667,12 @@ struct DrillingSimulation::Impl {
       BreathScheduler vent = ventilator;
       desired_heave = benchHeave(&vent, time);
       // The drives read the set-point at the start of the step (time - dt).
-      const TrajectoryState ref = spms_trajectory->sample(time - dt);
+      spms_trajectory->sample(time - dt, &spms_sample);
       spms_trajectory->prune(time - dt);
-      set_point = ref.position;
-      slider_targets = spms_trajectory->sample(time).position;
-      ref_velocity = ref.velocity;
+      set_point = spms_sample.position;
+      ref_velocity = spms_sample.velocity;
+      spms_trajectory->sample(time, &spms_sample);
+      slider_targets = spms_sample.position;
     } else {
       const double t_lag = std::max(0.0, time - patient.lag_s);
       // Earlier times than the last call are clamped by the scheduler (lag change on reset).
@@ -698,7 +703,10 @@ struct DrillingSimulation::Impl {
       guess.roll_rad = platform.roll_rad;
       guess.pitch_rad = platform.pitch_rad;
       const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
-      if (fk.ok) platform = fk.pose;
+      if (fk.ok) {
+        platform = fk.pose;
+        platform_rotation = fk.rotation;
+      }
       converged_sliders.reset();
       // (A pose of exactly zero height, roll and pitch would be a different guess: forward()
       // starts a zero guess from the sliders' mean. Not kept then.)
@@ -716,7 +724,7 @@ struct DrillingSimulation::Impl {
 
   Eigen::Isometry3d platformInBase() const {
     Eigen::Isometry3d t = Eigen::Isometry3d::Identity();
-    t.linear() = platform.rotation();
+    t.linear() = platform_rotation;
     t.translation() = platform.position(spms.homeHeight());
     return t;
   }
@@ -913,7 +921,7 @@ struct DrillingSimulation::Impl {
     tare.reset();
     // The SPMS controller starts its stream from where the sliders are.
     spms_trajectory->hold(sliders);
-    platform_jacobian.setConstant(std::nan(""));
+    platform_jacobian.reset();
     converged_sliders.reset();
     ik_heave.reset();
     bench_stream_due = 0;
@@ -987,7 +995,7 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
     throw std::invalid_argument("DrillingSimulation: speeds and noise must be positive");
   }
   s.dt = 1.0 / params.physics_rate_hz;
-  s.model = urdf::parseURDF(urdf_xml);
+  s.model = parseUrdfKept(urdf_xml);
   if (!s.model) {
     throw std::runtime_error(
         "DrillingSimulation: urdfdom could not parse the URDF (malformed XML or invalid robot "

@@ -89,6 +89,7 @@ class ControllerWatch {
     std::string mismatch;              ///< why the last state was unusable ("" : it was)
     bool seeded = false;               ///< the expectation has its start (a state after start())
     double last_state_t = -1.0;
+    TrajectoryState expected_sample;  ///< kept storage for the expectation's sample
   };
   /** @brief Every controller's expectation has its start (no command needs keeping). */
   bool allSeeded() const;

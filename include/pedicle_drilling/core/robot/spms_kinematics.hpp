@@ -22,6 +22,8 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <Eigen/LU>
+#include <limits>
 #include <string>
 
 namespace pedicle_drilling::core {
@@ -70,11 +72,29 @@ struct SpmsIkResult {
 
 /** @brief Result of a forward-kinematics query. */
 struct SpmsFkResult {
-  bool ok = false;          ///< converged and all checks passed
-  std::string reason;       ///< empty if ok
-  PlatformFullPose pose;    ///< solved pose
+  bool ok = false;        ///< converged and all checks passed
+  std::string reason;     ///< empty if ok
+  PlatformFullPose pose;  ///< solved pose
+  /// pose.rotation(), as computed for the last residual (the same bits: no second evaluation)
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
   int iterations = 0;       ///< Newton iterations used
   double residual_m = 0.0;  ///< max |rod length error| at the solution [m]
+};
+
+/**
+ * @brief A rod-length Jacobian kept between SpmsKinematics::forward() calls, with its
+ * factorisation (a caller stepping the platform every millisecond keeps one; issue 31).
+ */
+struct SpmsFkJacobian {
+  /// The Jacobian; non-finite (the default) makes forward() compute one.
+  Eigen::Matrix3d matrix = Eigen::Matrix3d::Constant(std::numeric_limits<double>::quiet_NaN());
+  Eigen::FullPivLU<Eigen::Matrix3d> lu;  ///< the factorisation of `matrix` when `factorised`
+  bool factorised = false;               ///< `lu` is of the present `matrix`
+  /** @brief Forget the Jacobian (the next forward() computes one). */
+  void reset() {
+    matrix.setConstant(std::numeric_limits<double>::quiet_NaN());
+    factorised = false;
+  }
 };
 
 /**
@@ -120,15 +140,16 @@ class SpmsKinematics {
    * the dependent x, y, yaw are solved from the three leg-plane constraints. Starts from
    * `initial_guess` (default: home). Converges to < 1e-12 m on the rod-length residual.
    *
-   * `jacobian` (optional, in/out): a rod-length Jacobian from an earlier call near this pose;
-   * the iteration reuses it (a chord iteration, one residual per step instead of seven) and
-   * recomputes it by central differences only when the residual stops falling tenfold per step.
-   * Same convergence test; a caller stepping the platform every millisecond passes the same
-   * matrix each time. A non-finite matrix is recomputed.
+   * `jacobian` (optional, in/out): a rod-length Jacobian from an earlier call near this pose,
+   * and its factorisation; the iteration reuses both (a chord iteration, one residual per step
+   * instead of seven, no new factorisation) and recomputes them by central differences only
+   * when the residual stops falling tenfold per step. Same convergence test; a caller stepping
+   * the platform every millisecond passes the same object each time. A non-finite matrix is
+   * recomputed.
    */
   SpmsFkResult forward(const Eigen::Vector3d& sliders,
                        const PlatformPose& initial_guess = PlatformPose{},
-                       Eigen::Matrix3d* jacobian = nullptr) const;
+                       SpmsFkJacobian* jacobian = nullptr) const;
 
   /**
    * @brief Dependent coordinates: the x, y, yaw forced by the leg planes for (roll, pitch).
