@@ -12,7 +12,7 @@ import time
 
 import yaml
 
-from . import engine_core, plots, profile, report, tools
+from . import engine_core, profile, report, tools
 from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
@@ -23,6 +23,7 @@ DEFAULT_SCENARIO = os.path.join(PACKAGE_ROOT, 'config', 'scenario_paper.yaml')
 DEFAULT_MODEL = os.path.join(PACKAGE_ROOT, 'config', 'patient_default.yaml')
 # Table II files a campaign copies from its identification; shards share them.
 TABLE2_FILES = ('table2.md', 'table2.csv')
+TABLE2_VOLUNTEERS = (1, 2, 3, 4, 5)  # table2.py's IDS: the five virtual volunteers' models
 SIMULATOR_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'simulator.yaml')
 
 # Scenario keys: name -> (type, min, max). Documented in doc/experiments.md ("Scenario files").
@@ -280,6 +281,15 @@ def parse_args(argv):
     parser.add_argument('--profile', action='store_true',
                         help='--engine core: where the trials\' wall time goes, by component '
                         '(OUT/profile.md and profile.json; issue 31)')
+    parser.add_argument('--identification', default=None, metavar='DIR',
+                        help='use the Table II identification in DIR (written by table2.py '
+                        '--out DIR, or a campaign\'s OUT/identification) instead of running it '
+                        '(campaign_sensitivity identifies once for all its campaigns). The '
+                        'identification takes no scenario setting, so it is the same for every '
+                        'scenario; it must come from this build')
+    parser.add_argument('--no-figures', action='store_true',
+                        help='write trials.csv, summary.json and report.md without the figures '
+                        '(campaign_sensitivity\'s campaigns: it reads their trials only)')
     parser.add_argument('--lockstep-every-step', action='store_true',
                         help='--engine ros: the simulator waits for the participants at every '
                         'step (~lockstep_every_step), not only where one of them needs it; the '
@@ -369,6 +379,12 @@ def parse_args(argv):
     if space not in SEED_SPACES:
         raise UsageError('--seed-space %r is not one of: %s' % (space, ', '.join(SEED_SPACES)))
     args.seed_space = space
+    if args.identification is not None:
+        args.identification = os.path.abspath(args.identification)
+        missing = check_identification(args.identification)
+        if missing:
+            raise UsageError('--identification %s is not a Table II identification (table2.py '
+                             '--out DIR): %s missing' % (args.identification, missing))
     shard_spec = None
     if args.shard:
         try:
@@ -376,6 +392,15 @@ def parse_args(argv):
         except ValueError as error:
             raise UsageError(str(error))
     return args, scenario, cases, rpms, trials, seed, shard_spec
+
+
+def check_identification(directory):
+    """The first file a Table II identification directory lacks (None: complete): its
+    TABLE2_FILES and each volunteer's linear and hysteresis model."""
+    needed = list(TABLE2_FILES) + [os.path.join('models', 'volunteer_%d_%s.yaml' % (v, kind))
+                                   for v in TABLE2_VOLUNTEERS for kind in ('linear', 'hysteresis')]
+    return next((name for name in needed
+                 if not os.path.isfile(os.path.join(directory, name))), None)
 
 
 class Progress:
@@ -425,8 +450,9 @@ def _clock(seconds):
     return '%d:%02d' % (seconds // 60, seconds % 60)
 
 
-def write_outputs(rows, meta, out_dir, notes=''):
-    """trials.csv, summary.json, report.md and figures from the finished rows."""
+def write_outputs(rows, meta, out_dir, notes='', figures=True):
+    """trials.csv, summary.json, report.md and (`figures`) the figures from the finished
+    rows."""
     report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
     # Everything below from the rows as trials.csv keeps them (6 significant digits), so that a
     # merge of shards, which can only read trials.csv, gives the very same summary and report.
@@ -435,6 +461,21 @@ def write_outputs(rows, meta, out_dir, notes=''):
     faults = report.fault_summary(rows)
     rows = [r for r in rows if r['fault'] == 'none']  # the paper's figures: fault-free trials
     report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'), faults)
+    drawn = draw_figures(summary, rows, meta, out_dir) if figures else []
+    table2 = os.path.join(out_dir, 'table2.md')
+    if os.path.exists(table2):
+        with open(table2) as handle:
+            notes = notes + '\n\n## Table II (identification on the five virtual volunteers)\n\n' \
+                + handle.read()
+    report.write_report_md(summary, meta, drawn, os.path.join(out_dir, 'report.md'), notes,
+                           faults, rows)
+    return summary
+
+
+def draw_figures(summary, rows, meta, out_dir):
+    """The report's figures, [(title, file name)] (matplotlib imported only here: a campaign
+    without figures does not load it)."""
+    from . import plots
     figures = []
     # Under the peak_forces protocol no trial is a success: Table III, Fig. 15 and Fig. 18 (the
     # residual of the recognizer's stops) have nothing to show.
@@ -448,14 +489,7 @@ def write_outputs(rows, meta, out_dir, notes=''):
             ('Table II', plots.table2(os.path.join(out_dir, 'table2.csv'), out_dir))):
         if name:
             figures.append((title, name))
-    table2 = os.path.join(out_dir, 'table2.md')
-    if os.path.exists(table2):
-        with open(table2) as handle:
-            notes = notes + '\n\n## Table II (identification on the five virtual volunteers)\n\n' \
-                + handle.read()
-    report.write_report_md(summary, meta, figures, os.path.join(out_dir, 'report.md'), notes,
-                           faults, rows)
-    return summary
+    return figures
 
 
 def class_params(given, from_scenario, option):
@@ -561,7 +595,13 @@ def run_campaign(argv=None):
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
     models_dir = ''
-    if scenario.get('identification', 'volunteers') == 'volunteers':
+    if scenario.get('identification', 'volunteers') == 'volunteers' and args.identification:
+        # Table II identified already (the same for every scenario: it reads no setting of it).
+        for name in TABLE2_FILES:
+            with atomic_path(os.path.join(out_dir, name)) as tmp:
+                shutil.copyfile(os.path.join(args.identification, name), tmp)
+        models_dir = os.path.join(args.identification, 'models')
+    elif scenario.get('identification', 'volunteers') == 'volunteers':
         # Table II: identify the five virtual volunteers from their own 30 s recordings; the
         # simulator's patients are these volunteers, and the trials use these models.
         ident_dir = os.path.join(out_dir, 'identification')
@@ -688,7 +728,7 @@ def run_campaign(argv=None):
     with lock:
         finished = list(rows)
         appender.close()
-    write_outputs(finished, meta, out_dir)
+    write_outputs(finished, meta, out_dir, figures=not args.no_figures)
     if args.profile and all(os.path.exists(p) for p in profiles):
         profile.write(profiles, out_dir, time.monotonic() - started, len(workers))
         for path in profiles:

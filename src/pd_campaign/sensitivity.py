@@ -408,29 +408,72 @@ def _log_tail(directory, lines=5):
         return ''
 
 
-def run_all(benches, argv, expected, base_path, stream):
-    """Runs every bench that needs a campaign, one line on `stream` per finished one; {id:
-    status} (0 for a kept one). Stops at the first campaign that refuses its scenario (2)."""
+IDENTIFICATION_DIR = 'identification'
+
+
+def identify(out, jobs):
+    """Table II once for the whole sweep, into OUT/identification (the campaigns read it with
+    --identification: it takes no scenario setting, so every bench's campaign would identify the
+    same models). Raises RuntimeError with table2.py's message when it fails."""
+    directory = os.path.join(out, IDENTIFICATION_DIR)
+    result = subprocess.run(tools.tool('table2.py') + ['--out', directory, '--jobs', str(jobs)],
+                            capture_output=True, text=True)
+    if result.returncode != 0:
+        raise RuntimeError('the Table II identification failed:\n%s'
+                           % (result.stderr or result.stdout))
+    return directory
+
+
+def run_all(benches, argv, expected, base_path, stream, jobs=1, out=None):
+    """Runs every bench that needs a campaign, up to `jobs` campaigns at once (each one
+    trial_engine process: a trial depends on its seed only, so the campaigns' trials do not
+    depend on it), one line on `stream` per finished one; {id: status} (0 for a kept one). The
+    Table II identification runs once, into `out` (None: each campaign identifies itself). Stops
+    starting campaigns at the first that refuses its scenario (2), lets the running ones finish,
+    then raises SweepError."""
+    import concurrent.futures
     todo = [c for c in benches if c['scenario'] is not None]
     statuses, start, ran = {}, time.time(), 0
     build = tools.build_id()
-    for k, condition in enumerate(todo, 1):
+    pending = [c for c in todo if not (built_by(c['dir']) == build and is_complete(
+        c['dir'], scenario_text(c, base_path), expected))]
+    if pending and out is not None:
+        argv = argv + ['--identification', identify(out, jobs), '--no-figures']
+    refused = []
+
+    def one(condition):
         began = time.time()
         how, status = run_condition(condition, argv, expected, base_path, build)
-        statuses[condition['id']] = status
-        ran += how == 'ran'
-        elapsed = time.time() - start
-        eta = elapsed / ran * (len(todo) - k) if ran else 0
-        what = ('finished in %s (exit %d)' % (cli._clock(time.time() - began), status)
-                if how == 'ran' else 'complete already, kept')
-        stream.write('campaign_sensitivity: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
-            k, len(todo), label(condition), what, cli._clock(elapsed), cli._clock(eta)))
-        stream.flush()
-        if status == 130:
-            raise KeyboardInterrupt()
-        if status == 2:
-            raise SweepError('the campaign refused %s (%s):\n%s' % (
-                label(condition), condition['dir'], _log_tail(condition['dir'])))
+        return condition, how, status, time.time() - began
+
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        futures = [pool.submit(one, c) for c in todo]
+        try:
+            for k, future in enumerate(concurrent.futures.as_completed(futures), 1):
+                condition, how, status, took = future.result()
+                statuses[condition['id']] = status
+                ran += how == 'ran'
+                elapsed = time.time() - start
+                eta = elapsed / ran * (len(todo) - k) if ran else 0
+                what = ('finished in %s (exit %d)' % (cli._clock(took), status)
+                        if how == 'ran' else 'complete already, kept')
+                stream.write('campaign_sensitivity: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
+                    k, len(todo), label(condition), what, cli._clock(elapsed), cli._clock(eta)))
+                stream.flush()
+                if status == 130:
+                    raise KeyboardInterrupt()
+                if status == 2 and not refused:
+                    refused.append(condition)
+                    for other in futures:
+                        other.cancel()  # the running ones finish; no new one starts
+        except KeyboardInterrupt:
+            # Ctrl-C reached the campaigns too (one process group): each keeps its finished
+            # trials and exits; none starts after it.
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+    if refused:
+        raise SweepError('the campaign refused %s (%s):\n%s' % (
+            label(refused[0]), refused[0]['dir'], _log_tail(refused[0]['dir'])))
     return statuses
 
 
@@ -903,7 +946,8 @@ def parse_args(argv):
     parser.add_argument('--seed-space', help='calibration | evaluation (default: the '
                         'scenario\'s, else evaluation)')
     parser.add_argument('--jobs', type=int, default=2,
-                        help='parallel trial_engine processes per campaign')
+                        help='campaigns run at once, one trial_engine process each (a trial '
+                        'depends on its seed only: the results do not depend on it)')
     parser.add_argument('--out', default='sensitivity_out')
     parser.add_argument('--only', action='append', default=[], metavar='NAME',
                         help='sweep only this constant (its name with or without the kind; '
@@ -914,8 +958,10 @@ def parse_args(argv):
 def campaign_argv(args):
     """The options every sub-campaign gets (the scenario and the folder apart), resolved by the
     campaign's own parser, and the design values a finished sub-campaign's meta must have."""
+    if not 1 <= args.jobs <= 64:
+        raise SweepError('--jobs must be in 1..64, got %d' % args.jobs)
     # No --case: the scenario's cases (all three unless it names fewer).
-    argv = ['--engine', 'core', '--jobs', str(args.jobs)]
+    argv = ['--engine', 'core', '--jobs', '1']
     for option in ('rpm', 'trials', 'seed', 'seed_space'):
         value = getattr(args, option)
         if value is not None:
@@ -928,7 +974,7 @@ def campaign_argv(args):
     if scenario.get('faults') or scenario.get('protocol', 'recognition') != 'recognition':
         raise SweepError('--scenario %s: a fault campaign or the peak_forces protocol has no '
                          'success to compare' % args.scenario)
-    argv = ['--engine', 'core', '--jobs', str(args.jobs),
+    argv = ['--engine', 'core', '--jobs', '1',
             '--rpm', ','.join('%r' % r for r in rpms),
             '--trials', ','.join(str(t) for t in trials) if isinstance(trials, list)
             else str(trials), '--seed', str(seed), '--seed-space', parsed.seed_space]
@@ -964,7 +1010,8 @@ def main(argv=None):
                          'nominal value, which use the nominal campaign: %d) into %s\n' % (
                              len(setup['entries']), runs, len(benches) - runs, setup['out']))
         sys.stdout.flush()
-        statuses = run_all(benches, campaign, expected, args.scenario, sys.stdout)
+        statuses = run_all(benches, campaign, expected, args.scenario, sys.stdout, args.jobs,
+                           setup['out'])
     except (SweepError, cli.UsageError) as error:
         sys.stderr.write('campaign_sensitivity: %s\n' % error)
         return 2

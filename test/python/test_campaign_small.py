@@ -244,16 +244,25 @@ def _trials_without_wall_time(path):
 def test_core_engine_gives_the_same_trials_whatever_the_job_count(tmp_path):
     """One seed, one trial, bit for bit: --jobs 1 and --jobs 2 write the same trials.csv (apart
     from wall time) and the same summary, traces included; the issue's own design (30 trials
-    per case, 90 trials per run, about 15 s each)."""
+    per case, 90 trials per run, about 15 s each). The second run takes the first's Table II
+    identification (--identification, as campaign_sensitivity's campaigns do) and draws no
+    figure (--no-figures)."""
     outputs = []
     for jobs in ('1', '2'):
         out = tmp_path / ('jobs%s' % jobs)
+        reuse = ['--identification', str(outputs[0] / 'identification'), '--no-figures'] \
+            if outputs else []
         result = subprocess.run(
             ['rosrun', 'pedicle_drilling', 'campaign', '--case', 'all', '--rpm', '12000',
-             '--trials', '30', '--jobs', jobs, '--seed', '4242', '--out', str(out)],
+             '--trials', '30', '--jobs', jobs, '--seed', '4242', '--out', str(out)] + reuse,
             capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stderr[-3000:]
         outputs.append(out)
+    assert not (outputs[1] / 'identification').exists()  # not identified again
+    assert (outputs[1] / 'table2.md').read_bytes() == (outputs[0] / 'table2.md').read_bytes()
+    assert sorted(p.name for p in outputs[0].glob('*.png'))  # the figures ...
+    assert not list(outputs[1].glob('*.png'))  # ... not with --no-figures
+    assert (outputs[1] / 'report.md').stat().st_size > 1000
     first, second = (_trials_without_wall_time(o / 'trials.csv') for o in outputs)
     assert len(first) == 90
     assert all(r['error'] == '' for r in first), [r['error'] for r in first]
@@ -264,6 +273,24 @@ def test_core_engine_gives_the_same_trials_whatever_the_job_count(tmp_path):
             (outputs[1] / 'traces' / name).read_bytes(), name
     with open(outputs[0] / 'summary.json') as a, open(outputs[1] / 'summary.json') as b:
         assert json.load(a)['groups'] == json.load(b)['groups']
+
+
+def test_an_incomplete_identification_is_refused_naming_what_it_lacks(tmp_path):
+    ident = tmp_path / 'ident'
+    (ident / 'models').mkdir(parents=True)
+    for name in ('table2.md', 'table2.csv'):
+        (ident / name).write_text('x')
+    for v in (1, 2, 3, 4, 5):
+        for kind in ('linear', 'hysteresis'):
+            if (v, kind) != (4, 'hysteresis'):
+                (ident / 'models' / ('volunteer_%d_%s.yaml' % (v, kind))).write_text('x')
+    result = subprocess.run(
+        ['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'campaign'), '--trials', '1',
+         '--identification', str(ident), '--out', str(tmp_path / 'out')],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 2, result.stderr
+    assert '--identification' in result.stderr and 'volunteer_4_hysteresis.yaml' in result.stderr
+    assert not (tmp_path / 'out').exists()
 
 
 def test_core_engine_refuses_what_it_does_not_support(tmp_path):

@@ -385,6 +385,8 @@ TINY = [{'name': 'simulator_params.chisel_edge_share', 'low': 0.5, 'high': 0.7, 
         {'name': 'engine_delays.tracker_to_pipeline_s', 'low': 0.0, 'high': 0.02, 'unit': 's',
          'source': 'doc/bench_sources.md item 1'}]
 PROGRESS = 'campaign_sensitivity: ['
+BENCHES = ('engine_delays.tracker_to_pipeline_s-high', 'nominal',
+           'simulator_params.chisel_edge_share-high', 'simulator_params.chisel_edge_share-low')
 TINY_ARGS = ['--rpm', '12000', '--trials', '2', '--seed', '5', '--jobs', '2']
 
 
@@ -450,8 +452,19 @@ def test_the_tiny_sweep_runs_one_campaign_per_end_and_prints_one_line_each(tiny_
     assert len(lines) == 4 and all('finished' in l for l in lines), lines
     assert '\r' not in tiny_sweep['first'].stdout
     assert sorted(d for d in os.listdir(out) if os.path.isdir(os.path.join(out, d))) == [
-        'engine_delays.tracker_to_pipeline_s-high', 'nominal',
+        'engine_delays.tracker_to_pipeline_s-high', 'identification', 'nominal',
         'simulator_params.chisel_edge_share-high', 'simulator_params.chisel_edge_share-low']
+    # Table II identified once for the sweep: every campaign took it, none drew figures.
+    with open(os.path.join(out, 'identification', 'table2.md')) as handle:
+        table2 = handle.read()
+    for bench in BENCHES:
+        folder = os.path.join(out, bench)
+        with open(os.path.join(folder, 'campaign.log')) as handle:
+            assert 'identifying the five virtual volunteers' not in handle.read(), bench
+        assert not os.path.exists(os.path.join(folder, 'identification')), bench
+        with open(os.path.join(folder, 'table2.md')) as handle:
+            assert handle.read() == table2, bench
+        assert not [n for n in os.listdir(folder) if n.endswith('.png')], bench
     for name in ('sensitivity.md', 'sensitivity.csv', 'sensitivity.json', 'sensitivity.png'):
         assert os.path.getsize(os.path.join(out, name)) > 100, name
     assert not [n for n in os.listdir(out) if '.tmp' in n]
@@ -465,7 +478,7 @@ def test_the_tiny_sweep_runs_one_campaign_per_end_and_prints_one_line_each(tiny_
 def test_every_campaign_of_the_sweep_drills_the_same_seeds(tiny_sweep):
     out = tiny_sweep['out']
     keys = {}
-    for name in os.listdir(out):
+    for name in BENCHES:
         if os.path.isdir(os.path.join(out, name)):
             keys[name] = sorted((r['case'], r['rpm'], r['seed']) for r in _trials(
                 os.path.join(out, name)))
@@ -548,7 +561,8 @@ def test_a_campaign_run_by_another_build_is_run_again_not_kept(tiny_sweep, tmp_p
     out = str(tmp_path / 'out')
     shutil.copytree(tiny_sweep['out'], out)
     folders = sorted(d for d in os.listdir(out) if os.path.isdir(os.path.join(out, d)))
-    builds = {sensitivity.built_by(os.path.join(out, d)) for d in folders}
+    builds = {sensitivity.built_by(os.path.join(out, d)) for d in folders
+              if d != sensitivity.IDENTIFICATION_DIR}
     assert builds == {tools.build_id()} and None not in builds, builds
     stale = os.path.join(out, 'simulator_params.chisel_edge_share-low')
     with open(os.path.join(stale, sensitivity.BUILD_FILE), 'w') as handle:
@@ -579,6 +593,8 @@ def test_the_tool_refuses_a_bad_sweep_before_running_anything(tmp_path):
     assert result.returncode == 2 and '--only no_such' in result.stderr
     result = _run('--sweep', _sweep_file(tmp_path, TINY), '--rpm', '99', '--out', str(out))
     assert result.returncode == 2 and '--rpm' in result.stderr
+    result = _run('--sweep', _sweep_file(tmp_path, TINY), '--jobs', '0', '--out', str(out))
+    assert result.returncode == 2 and '--jobs' in result.stderr
     assert not out.exists()
 
 
