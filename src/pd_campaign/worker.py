@@ -543,12 +543,15 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row.update(transport_columns(recorder.last_truth))
     row.update(input_columns(getattr(recorder, 'inputs', None)))
     row.update(retare_columns(getattr(recorder, 'retare', None)))
+    # json.dumps, then one write: the same text as json.dump, through the C encoder (json.dump
+    # encodes in Python, chunk by chunk: a third of the campaign process's time per trial).
+    text = json.dumps({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
+                       'feature': [s[2] for s in states],
+                       'key_points': [{'id': k, 't': t - t_drill} for k, t in recorder.key_points
+                                      if t >= t_drill],
+                       'stop_t': stop[0] - t_drill if stop else None})
     with atomic_write(os.path.join(trace_dir, trial['trial_id'] + '.json')) as handle:
-        json.dump({'t': [s[0] - t_drill for s in states], 'force': [s[1] for s in states],
-                   'feature': [s[2] for s in states],
-                   'key_points': [{'id': k, 't': t - t_drill} for k, t in recorder.key_points
-                                  if t >= t_drill],
-                   'stop_t': stop[0] - t_drill if stop else None}, handle)
+        handle.write(text)
     return row
 
 

@@ -5,6 +5,7 @@
  */
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <iostream>
 
@@ -131,6 +132,39 @@ TEST(SpmsKinematics, UnreachablePosesReportReason) {
   const SpmsIkResult rr = small.inverse(tilt);
   EXPECT_FALSE(rr.reachable);
   EXPECT_FALSE(rr.reason.empty());
+}
+
+// The spherical joints' limit decides as acos(cosine) > limit, also a hair either side of it
+// (inverse and forward skip the acos only well within the limit: issue 31).
+TEST(SpmsKinematics, TheTiltLimitDecidesExactlyAtItsBoundary) {
+  PlatformPose p;
+  p.z_m = 3e-3;
+  p.roll_rad = 4.0 * kDeg;
+  p.pitch_rad = -2.0 * kDeg;
+  const SpmsIkResult free = SpmsKinematics().inverse(p);
+  ASSERT_TRUE(free.reachable) << free.reason;
+  const Eigen::Matrix3d rot = free.pose.rotation();
+  double worst = 0.0;  // the largest tilt of the three rods, as the checks compute it
+  for (int i = 0; i < 3; ++i) {
+    const Eigen::Vector3d rod = SpmsKinematics().platformJoint(i, free.pose) -
+                                SpmsKinematics().sliderPoint(i, free.sliders[i]);
+    const double c = std::clamp(rod.normalized().dot(rot * Eigen::Vector3d::UnitZ()), -1.0, 1.0);
+    worst = std::max(worst, std::acos(c) / kDeg);
+  }
+  for (const double margin : {1e-9, 1e-6, 1e-3}) {
+    SpmsGeometry over;  // the limit just above the worst tilt: every check passes
+    over.max_spherical_tilt_deg = worst + margin;
+    SpmsGeometry under;  // just below: the worst rod is refused, by name
+    under.max_spherical_tilt_deg = worst - margin;
+    EXPECT_TRUE(SpmsKinematics(over).inverse(p).reachable) << margin;
+    const SpmsIkResult refused = SpmsKinematics(under).inverse(p);
+    EXPECT_FALSE(refused.reachable) << margin;
+    EXPECT_NE(refused.reason.find("spherical joint tilt"), std::string::npos) << refused.reason;
+    EXPECT_TRUE(SpmsKinematics(over).forward(free.sliders, PlatformPose{}).ok) << margin;
+    const SpmsFkResult fk = SpmsKinematics(under).forward(free.sliders, PlatformPose{});
+    EXPECT_FALSE(fk.ok) << margin;
+    EXPECT_NE(fk.reason.find("spherical joint tilt"), std::string::npos) << fk.reason;
+  }
 }
 
 TEST(SpmsKinematics, ForwardRejectsSlidersOutOfStroke) {

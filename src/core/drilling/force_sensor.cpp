@@ -94,10 +94,14 @@ Wrench ForceSensor::vibration(double spindle_rpm, bool in_contact, double dt) {
   spindle_phase_ = std::fmod(spindle_phase_ + 2.0 * kPi * (spindle_rpm / 60.0) * dt, 2.0 * kPi);
   if (spindle_rpm > 0.0 && (in_contact || !params_.vibration_only_in_contact)) {
     const double ph = spindle_phase_ + vibration_phase0_;
-    const double grow =
-        params_.spindle_vibration_speed_exponent == 0.0
-            ? 1.0
-            : std::pow(spindle_rpm / kVibrationRefRpm, params_.spindle_vibration_speed_exponent);
+    if (!(spindle_rpm == grow_rpm_)) {  // the spindle runs at a constant speed most of a trial
+      grow_rpm_ = spindle_rpm;
+      grow_ =
+          params_.spindle_vibration_speed_exponent == 0.0
+              ? 1.0
+              : std::pow(spindle_rpm / kVibrationRefRpm, params_.spindle_vibration_speed_exponent);
+    }
+    const double grow = grow_;
     v[0] = grow * params_.spindle_vibration_lateral_n * std::cos(ph);
     v[1] = grow * params_.spindle_vibration_lateral_n * std::sin(ph);
     v[2] = grow * (params_.spindle_vibration_axial_n * std::sin(ph) +

@@ -39,6 +39,10 @@ double LeadScrew::motorAngleFromSlider(double slider_m) const {
 
 SpmsKinematics::SpmsKinematics(SpmsGeometry geometry) : geometry_(geometry) {
   const SpmsGeometry& g = geometry_;
+  // A tilt's cosine above this is well within the limit (1e-9 in cosine is far more than
+  // acos's rounding), so the joint-limit checks decide as acos(cosine) > limit would, without
+  // an acos per leg per query (issue 31: the simulation solves the platform every step).
+  tilt_certainly_within_cos_ = std::cos(g.max_spherical_tilt_deg * kDeg) + 1e-9;
   if (!(g.base_radius_m > 0.0 && g.platform_radius_m > 0.0 && g.rod_length_m > 0.0 &&
         g.slider_max_m > g.slider_min_m && g.home_slider_m >= g.slider_min_m &&
         g.home_slider_m <= g.slider_max_m)) {
@@ -141,7 +145,9 @@ SpmsIkResult SpmsKinematics::inverse(const PlatformPose& pose) const {
       return res;
     }
     const Eigen::Vector3d rod = platformJoint(i, res.pose, rot) - sliderPoint(i, s);
-    const double tilt = std::acos(std::clamp(rod.normalized().dot(normal), -1.0, 1.0));
+    const double cosine = std::clamp(rod.normalized().dot(normal), -1.0, 1.0);
+    if (cosine > tilt_certainly_within_cos_) continue;  // the same decision, without the acos
+    const double tilt = std::acos(cosine);
     if (tilt > g.max_spherical_tilt_deg * kDeg) {
       std::ostringstream os;
       os << "leg " << i << ": spherical joint tilt " << tilt / kDeg << " deg exceeds "
@@ -285,7 +291,9 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
       res.reason = "forward kinematics converged to the slider-above-joint branch";
       return res;
     }
-    const double tilt = std::acos(std::clamp(rod.normalized().dot(normal), -1.0, 1.0));
+    const double cosine = std::clamp(rod.normalized().dot(normal), -1.0, 1.0);
+    if (cosine > tilt_certainly_within_cos_) continue;  // the same decision, without the acos
+    const double tilt = std::acos(cosine);
     if (tilt > g.max_spherical_tilt_deg * kDeg) {
       std::ostringstream os;
       os << "leg " << i << ": spherical joint tilt " << tilt / kDeg << " deg over limit";

@@ -12,6 +12,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -121,6 +122,9 @@ class ForceSensor {
   std::uint64_t calls_ = 0;        ///< sample() calls
   double spindle_phase_ = 0.0;
   double vibration_phase0_ = 0.0;
+  /// The vibration's growth with speed, kept for the speed it was computed at (NaN: none).
+  double grow_rpm_ = std::numeric_limits<double>::quiet_NaN();
+  double grow_ = 1.0;
   std::uint64_t samples_ = 0;
 };
 

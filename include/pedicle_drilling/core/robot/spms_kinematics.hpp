@@ -176,6 +176,7 @@ class SpmsKinematics {
 
  private:
   SpmsGeometry geometry_;
+  double tilt_certainly_within_cos_ = 1.0;  ///< see the constructor
   Eigen::Vector3d base_point_[3];
   Eigen::Vector3d rail_dir_[3];
   Eigen::Vector3d tangent_[3];
