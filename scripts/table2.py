@@ -2,7 +2,7 @@
 """Table II of the paper for the five default virtual volunteers, plus a Fig. 14-style plot.
 
     rosrun pedicle_drilling table2.py [--out DIR] [--method ceres|pso] [--paper-denoising]
-                                      [--plot-volunteer 1]
+                                      [--plot-volunteer 1] [--jobs J] [--no-figure]
 
 Runs `generate_volunteers` (ids 1..5, 30 s), then `identify` on each volunteer's 8 Hz CSV with
 the linear (paper) and the hysteresis model. By default Tv is de-noised like the displacement
@@ -12,6 +12,7 @@ up to ~7 %); --paper-denoising uses the paper's displacement-only de-noising. Wr
               vs true slopes q1 of AP and SI (linear model) with the relative error
   table2.csv  volunteer,model,axis,wavelet,q1,q2,q0,r2,rmse,q1_true,q2_true,q1_rel_err
   table2_fig14.png  de-noised displacement and both model fits per axis for one volunteer
+              (not with --no-figure)
   data/       the volunteers' CSV and truth files; models/ the identified model YAML files
 The Markdown table is also printed. Exit status 0, 1 when a tool fails, 2 on a bad option or an
 --out that cannot be created (one line naming it).
@@ -94,6 +95,9 @@ def main(argv):
     parser.add_argument('--plot-volunteer', type=int, default=1, choices=IDS)
     parser.add_argument('--jobs', type=int, default=1,
                         help='identifications run at once (each is independent; same output)')
+    parser.add_argument('--no-figure', action='store_true',
+                        help='no table2_fig14.png (the campaign\'s identification: it needs the '
+                        'models and the table only; matplotlib is half of this tool\'s time)')
     args = parser.parse_args(argv)
 
     data_dir = os.path.join(args.out, 'data')
@@ -178,10 +182,11 @@ def main(argv):
         f.write(text)
     print(text)
 
-    png = os.path.join(args.out, 'table2_fig14.png')
-    plot(fit_csvs, args.plot_volunteer, png)
-    print('table2: wrote %s, %s, %s' % (os.path.join(args.out, 'table2.md'),
-                                        os.path.join(args.out, 'table2.csv'), png))
+    written = [os.path.join(args.out, 'table2.md'), os.path.join(args.out, 'table2.csv')]
+    if not args.no_figure:
+        written.append(os.path.join(args.out, 'table2_fig14.png'))
+        plot(fit_csvs, args.plot_volunteer, written[-1])
+    print('table2: wrote %s' % ', '.join(written))
     return 0
 
 

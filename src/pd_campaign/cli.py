@@ -607,7 +607,7 @@ def run_campaign(argv=None):
         ident_dir = os.path.join(out_dir, 'identification')
         sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
         result = subprocess.run(tools.tool('table2.py') + ['--out', ident_dir,
-                                                           '--jobs', str(args.jobs)],
+                                                           '--jobs', str(args.jobs), '--no-figure'],
                                 capture_output=True, text=True)
         if result.returncode != 0:
             sys.stderr.write('campaign: Table II identification failed:\n%s\n'

@@ -416,7 +416,8 @@ def identify(out, jobs):
     --identification: it takes no scenario setting, so every bench's campaign would identify the
     same models). Raises RuntimeError with table2.py's message when it fails."""
     directory = os.path.join(out, IDENTIFICATION_DIR)
-    result = subprocess.run(tools.tool('table2.py') + ['--out', directory, '--jobs', str(jobs)],
+    result = subprocess.run(tools.tool('table2.py') + ['--out', directory, '--jobs', str(jobs),
+                                                       '--no-figure'],
                             capture_output=True, text=True)
     if result.returncode != 0:
         raise RuntimeError('the Table II identification failed:\n%s'

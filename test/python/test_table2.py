@@ -77,3 +77,17 @@ def test_markdown_table_and_figure(table2):
     png = out / 'table2_fig14.png'
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     assert png.stat().st_size > 20000
+
+
+def test_no_figure_writes_the_same_table_and_models_without_the_plot(table2, tmp_path, bin_dir):
+    """--no-figure (the campaign's identification): the same table and models, no plot."""
+    out, _, _ = table2
+    env = dict(os.environ, PEDICLE_DRILLING_BIN_DIR=bin_dir)
+    run = subprocess.run(['/usr/bin/python3', os.path.join(ROOT, 'scripts', 'table2.py'),
+                          '--out', str(tmp_path), '--no-figure', '--jobs', '2'],
+                         capture_output=True, text=True, timeout=300, env=env)
+    assert run.returncode == 0, run.stderr
+    assert not (tmp_path / 'table2_fig14.png').exists()
+    for name in ('table2.md', 'table2.csv', 'models/volunteer_3_linear.yaml',
+                 'models/volunteer_5_hysteresis.yaml'):
+        assert (tmp_path / name).read_bytes() == (out / name).read_bytes(), name
