@@ -635,16 +635,11 @@ def run_campaign(argv=None):
         os.makedirs(samples_dir, exist_ok=True)
     position = {trial['trial_id']: k for k, trial in enumerate(design)}
     for k, part in enumerate(slices):
-        trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
-        if args.engine == 'ros':
-            # Each trial's stamps from its place in the design, not from when its worker got to
-            # it: the same trial on any run, job count or shard (worker.time_zero).
-            part = [dict(trial, design_position=position[trial['trial_id']]) for trial in part]
-        with atomic_write(trial_file) as handle:
-            json.dump(part, handle)
         if args.engine == 'core':
+            # The trials through stdin, the next to the process that finished one (feed below;
+            # a trial depends on its seed only, not on the process that runs it).
             workers.append(engine_core.start(engine_core.trial_engine_command(
-                trial_file, pose, models_dir,
+                '-', pose, models_dir,
                 scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
                 float(scenario.get('feed_rate_mm_s', 0.5)),
                 float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
@@ -656,6 +651,12 @@ def run_campaign(argv=None):
                 scenario.get('simulator_params'), scenario.get('planner_params'),
                 scenario.get('engine_delays'), samples_dir, profiles[k])))
             continue
+        # Each trial's stamps from its place in the design, not from when its worker got to it:
+        # the same trial on any run, job count or shard (worker.time_zero).
+        part = [dict(trial, design_position=position[trial['trial_id']]) for trial in part]
+        trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
+        with atomic_write(trial_file) as handle:
+            json.dump(part, handle)
         command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
                    '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
                    '--trials', trial_file, '--out', out_dir,
@@ -685,11 +686,17 @@ def run_campaign(argv=None):
         workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True,
                                         start_new_session=True))
 
+    feed = engine_core.TrialFeed(selected) if args.engine == 'core' else None
+
     def collect(worker):
+        if feed:
+            feed.start(worker)
         for line in worker.stdout:
             line = line.strip()
             if not line.startswith('{'):
                 continue
+            if feed:
+                feed.next(worker)  # before the analysis: the engine is not kept waiting
             raw = (engine_core.row_from_line(line, os.path.join(out_dir, 'traces'))
                    if args.engine == 'core' else json.loads(line))
             row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})

@@ -5,6 +5,7 @@ A trial's record depends on its seed only, so the rows do not depend on --jobs o
 import json
 import os
 import subprocess
+import threading
 import types
 
 from pd_campaign import worker
@@ -147,7 +148,41 @@ def row_from_line(line, trace_dir):
 
 
 def start(command):
-    return subprocess.Popen(command, stdout=subprocess.PIPE, text=True, start_new_session=True)
+    """trial_engine `command` started with pipes: stdin for `--trials -` (TrialFeed), stdout for
+    its JSON lines."""
+    return subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                            start_new_session=True)
+
+
+class TrialFeed:
+    """The design's trials to `trial_engine --trials -` processes, in design order, the next one to
+    the process that finished one: each holds one trial queued behind the one it runs, so none
+    waits for the campaign, and none idles while another finishes a fixed share of the design
+    (issue 31). Thread-safe: each process's reader thread calls start() once, then next() on each
+    of its output lines; a process's stdin is closed when the trials run out."""
+
+    AHEAD = 2  # trials a process holds: the one it runs and the next
+
+    def __init__(self, trials):
+        self._trials = iter(trials)
+        self._lock = threading.Lock()
+
+    def start(self, process):
+        for _ in range(self.AHEAD):
+            self.next(process)
+
+    def next(self, process):
+        with self._lock:
+            trial = next(self._trials, None)
+        try:
+            if trial is None:
+                if not process.stdin.closed:
+                    process.stdin.close()
+                return
+            process.stdin.write(json.dumps(trial) + '\n')
+            process.stdin.flush()
+        except (BrokenPipeError, ValueError):
+            pass  # the process ended (its exit status says why); its trials are not finished
 
 
 def drilling_pose(package_root):

@@ -15,6 +15,12 @@
 // A trial may name a fault to inject ("fault": "force_silent", ...; README "Fault campaign");
 // its record then says when it took effect.
 //
+// `--trials -` reads the trials from stdin instead, one JSON object per line, and runs each as it
+// arrives (its output line flushed before the next is read); end of input ends the run. The
+// campaign feeds each of its trial_engine processes this way, the next trial to the process that
+// finished one (issue 31: no process idles while the other finishes a fixed half of the design).
+// A line that is not a valid trial is exit 2 naming its line number (the trials before it ran).
+//
 // Command-line parsing: CLI11 (Debian libcli11-dev): header-only, typed options with ranges,
 // --help, and a repeated single-value option is an error rather than silently ignored; the
 // conventions shared by every tool are in tool_cli.hpp.
@@ -249,7 +255,8 @@ std::string samplesToNpy(const std::vector<pd::EngineSample>& samples) {
 /** @brief Declares every option of the tool (its values go to *o and *config). */
 void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
   app->add_option("--trials", o->trials_path,
-                  "JSON list of trials: {trial_id, seed, case, rpm, ...}")
+                  "JSON list of trials: {trial_id, seed, case, rpm, ...}; '-': one trial per "
+                  "line on stdin, each run as it arrives")
       ->required();
   app->add_option("--drilling-pose", o->drilling_pose,
                   "arm joint values of config/drilling_pose.yaml, comma-separated (rad)")
@@ -418,6 +425,27 @@ void validatePlanner(const pd::TrialSequencerParams& p) {
   pd::TrialSequencerParams::table().validate(p);
 }
 
+/** @brief One trial of the input checked. @throws UsageError naming what is wrong. */
+void checkTrial(const json& t) {
+  if (!t.is_object()) throw UsageError("--trials: a trial is not a JSON object");
+  for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
+    if (!t.contains(key)) {
+      throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
+    }
+  }
+  if (t.contains("fault")) {
+    if (!t.at("fault").is_string()) throw UsageError("--trials: fault must be a string");
+    try {
+      pd::parseFaultKind(t.at("fault").get<std::string>());
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--trials: ") + e.what());
+    }
+  }
+  if (!t.at("seed").is_number_unsigned()) {
+    throw UsageError("--trials: seed " + t.at("seed").dump() + " is not an integer in [0, 2^64)");
+  }
+}
+
 /** @brief The --trials file, every trial checked. @throws UsageError naming what is wrong. */
 json readTrials(const std::string& path) {
   json trials;
@@ -427,32 +455,17 @@ json readTrials(const std::string& path) {
     throw UsageError("--trials '" + path + "' is not JSON: " + e.what());
   }
   if (!trials.is_array()) throw UsageError("--trials '" + path + "' is not a list");
-  for (const json& t : trials) {
-    for (const char* key : {"trial_id", "seed", "case", "rpm"}) {
-      if (!t.contains(key)) {
-        throw UsageError("--trials: a trial has no '" + std::string(key) + "'");
-      }
-    }
-    if (t.contains("fault")) {
-      if (!t.at("fault").is_string()) throw UsageError("--trials: fault must be a string");
-      try {
-        pd::parseFaultKind(t.at("fault").get<std::string>());
-      } catch (const std::invalid_argument& e) {
-        throw UsageError(std::string("--trials: ") + e.what());
-      }
-    }
-    if (!t.at("seed").is_number_unsigned()) {
-      throw UsageError("--trials: seed " + t.at("seed").dump() + " is not an integer in [0, 2^64)");
-    }
-  }
+  for (const json& t : trials) checkTrial(t);
   return trials;
 }
 
-/** @brief Runs the trials and writes one JSON line each (the patient model per volunteer). */
-void runTrials(const json& trials, const Options& o, const pd::EngineConfig& config,
-               const pd::PatientModel& stationary_model, pd::ClosedLoopEngine* engine) {
-  std::map<std::string, pd::PatientModel> models;
-  for (const json& t : trials) {
+/** @brief Runs one trial and writes its JSON line (the patient model per volunteer, read once
+ * into `models`). */
+void runTrial(const json& t, const Options& o, const pd::EngineConfig& config,
+              const pd::PatientModel& stationary_model, pd::ClosedLoopEngine* engine,
+              std::map<std::string, pd::PatientModel>* models_read) {
+  std::map<std::string, pd::PatientModel>& models = *models_read;
+  {
     json out = {{"trial", t}};
     try {
       pd::EngineTrialSpec spec;
@@ -504,6 +517,34 @@ void runTrials(const json& trials, const Options& o, const pd::EngineConfig& con
   }
 }
 
+/** @brief Runs the trials of a --trials file, in order. */
+void runTrials(const json& trials, const Options& o, const pd::EngineConfig& config,
+               const pd::PatientModel& stationary_model, pd::ClosedLoopEngine* engine) {
+  std::map<std::string, pd::PatientModel> models;
+  for (const json& t : trials) runTrial(t, o, config, stationary_model, engine, &models);
+}
+
+/** @brief `--trials -`: runs each trial as its line arrives on stdin, until the end of input.
+ * @throws UsageError naming the first line that is not a valid trial (those before it ran). */
+void runStreamedTrials(const Options& o, const pd::EngineConfig& config,
+                       const pd::PatientModel& stationary_model, pd::ClosedLoopEngine* engine) {
+  std::map<std::string, pd::PatientModel> models;
+  std::string line;
+  for (long number = 1; std::getline(std::cin, line); ++number) {
+    if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
+    json t;
+    try {
+      t = json::parse(line);
+      checkTrial(t);
+    } catch (const json::parse_error& e) {
+      throw UsageError("--trials -: line " + std::to_string(number) + " is not JSON: " + e.what());
+    } catch (const UsageError& e) {
+      throw UsageError("line " + std::to_string(number) + ": " + e.what());
+    }
+    runTrial(t, o, config, stationary_model, engine, &models);
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -535,7 +576,7 @@ int main(int argc, char** argv) {
   json trials;
   pd::PatientModel stationary_model;
   try {
-    trials = readTrials(o.trials_path);
+    if (o.trials_path != "-") trials = readTrials(o.trials_path);
     if (o.urdf_path.empty()) o.urdf_path = packageFile("urdf/workcell.urdf", "--urdf");
     if (o.default_model.empty()) {
       o.default_model = packageFile("config/patient_default.yaml", "--default-model");
@@ -600,7 +641,16 @@ int main(int argc, char** argv) {
     std::cerr << "trial_engine: bad configuration: " << e.what() << "\n";
     return 2;
   }
-  runTrials(trials, o, config, stationary_model, engine.get());
+  if (o.trials_path == "-") {
+    try {
+      runStreamedTrials(o, config, stationary_model, engine.get());
+    } catch (const UsageError& e) {
+      std::cerr << "trial_engine: " << e.what() << "\n";
+      return 2;
+    }
+  } else {
+    runTrials(trials, o, config, stationary_model, engine.get());
+  }
   if (!o.profile_path.empty()) {
     json wall = json::object();
     for (int c = 0; c < static_cast<int>(pd::Component::kCount); ++c) {

@@ -588,3 +588,49 @@ def test_the_profile_is_the_core_engines():
     assert cli.parse_args(['--profile'])[0].profile
     with pytest.raises(cli.UsageError, match='--profile'):
         cli.parse_args(['--engine', 'ros', '--profile'])
+
+
+class _Pipe:
+    """A process's stdin as TrialFeed writes it; `broken` after `limit` lines."""
+
+    def __init__(self, limit=None):
+        self.lines, self.closed, self.limit = [], False, limit
+
+    def write(self, text):
+        if self.limit is not None and len(self.lines) >= self.limit:
+            raise BrokenPipeError()
+        self.lines.append(json.loads(text))
+
+    def flush(self):
+        pass
+
+    def close(self):
+        self.closed = True
+
+
+class _Process:
+    def __init__(self, limit=None):
+        self.stdin = _Pipe(limit)
+
+
+def test_the_trial_feed_hands_each_trial_once_in_design_order_and_closes_when_out():
+    from pd_campaign import engine_core
+    trials = [{'trial_id': 't%d' % k, 'seed': k} for k in range(7)]
+    feed = engine_core.TrialFeed(trials)
+    a, b = _Process(), _Process()
+    feed.start(a)
+    feed.start(b)  # each holds two: the one it runs and the next
+    assert [t['trial_id'] for t in a.stdin.lines] == ['t0', 't1']
+    assert [t['trial_id'] for t in b.stdin.lines] == ['t2', 't3']
+    for process in (b, b, a, a, b):  # each finished trial brings the next to its process
+        feed.next(process)
+    assert [t['trial_id'] for t in b.stdin.lines] == ['t2', 't3', 't4', 't5']
+    assert [t['trial_id'] for t in a.stdin.lines] == ['t0', 't1', 't6']
+    assert a.stdin.closed and b.stdin.closed  # out of trials: end of input for both
+    # A process whose pipe broke (it ended) takes nothing more; the rest go to the others.
+    feed = engine_core.TrialFeed(trials[:3])
+    dead, alive = _Process(limit=0), _Process()
+    feed.start(dead)
+    feed.start(alive)
+    feed.next(alive)
+    assert [t['trial_id'] for t in alive.stdin.lines] == ['t2']

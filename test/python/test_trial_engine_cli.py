@@ -39,6 +39,32 @@ def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
     assert again.stdout == result.stdout
 
 
+def test_trials_from_stdin_give_the_files_lines_and_a_bad_line_is_named(bin_dir, tmp_path):
+    """`--trials -` (the campaign's feed): each line of stdin a trial, run as it arrives; the
+    same output as the file gives, bit for bit. A line that is not a trial ends the run with exit
+    2 naming its number, after the trials before it."""
+    trials = [{'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary',
+               'rpm': 12000},
+              {'trial_id': 'compensated-12000-000', 'seed': 9, 'case': 'stationary',
+               'rpm': 16000}]
+    from_file = run(bin_dir, '--trials', trials_file(tmp_path, trials), '--drilling-pose', POSE)
+    assert from_file.returncode == 0, from_file.stderr
+    tool = [os.path.join(bin_dir, 'trial_engine'), '--trials', '-', '--drilling-pose', POSE]
+    text = '\n'.join(json.dumps(t) for t in trials) + '\n\n'  # an empty line is skipped
+    streamed = subprocess.run(tool, input=text, capture_output=True, text=True, timeout=300)
+    assert streamed.returncode == 0, streamed.stderr
+    assert streamed.stdout == from_file.stdout
+    bad = json.dumps(trials[0]) + '\n{"trial_id": "b", "case": "stationary", "rpm": 1}\n'
+    refused = subprocess.run(tool, input=bad, capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 2
+    assert 'line 2' in refused.stderr and "'seed'" in refused.stderr
+    assert [json.loads(l)['trial']['trial_id'] for l in refused.stdout.splitlines()] == [
+        'stationary-12000-000']
+    garbled = subprocess.run(tool, input='{"trial_id"\n', capture_output=True, text=True,
+                             timeout=60)
+    assert garbled.returncode == 2 and 'line 1 is not JSON' in garbled.stderr
+
+
 @pytest.mark.parametrize('trials, extra, named', [
     ('not json', [], '--trials'),
     ('{"trial_id": "a"}', [], 'not a list'),

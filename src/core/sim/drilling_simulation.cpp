@@ -476,6 +476,10 @@ struct DrillingSimulation::Impl {
   // the solve is skipped (issue 31: a stationary bench's sliders come to rest). Likewise the
   // inverse of the last heave. Cleared at every reset.
   std::optional<Eigen::Vector3d> converged_sliders;
+  // The steps of the last two solves of the platform (newest first; 0: none since the reset)
+  // and the pose before the last: the next solve's start, extrapolated (updatePlatform).
+  std::array<std::uint64_t, 2> solved_steps{0, 0};
+  PlatformFullPose platform_before;
   std::optional<double> ik_heave;
   SpmsIkResult ik_of_heave;
   double desired_heave = 0.0;
@@ -702,10 +706,20 @@ struct DrillingSimulation::Impl {
       guess.z_m = platform.z_m;
       guess.roll_rad = platform.roll_rad;
       guess.pitch_rad = platform.pitch_rad;
+      if (solved_steps[0] + 1 == step_index && solved_steps[1] + 2 == step_index) {
+        // Solved at the last two steps: start from their linear extrapolation, a breathing
+        // platform's next pose to second order (one chord iteration fewer than from the last
+        // pose; the same 1e-13 m test ends it). Issue 31.
+        guess.z_m = 2.0 * platform.z_m - platform_before.z_m;
+        guess.roll_rad = 2.0 * platform.roll_rad - platform_before.roll_rad;
+        guess.pitch_rad = 2.0 * platform.pitch_rad - platform_before.pitch_rad;
+      }
       const SpmsFkResult fk = spms.forward(sliders, guess, &platform_jacobian);
       if (fk.ok) {
+        platform_before = platform;
         platform = fk.pose;
         platform_rotation = fk.rotation;
+        solved_steps = {step_index, solved_steps[0]};
       }
       converged_sliders.reset();
       // (A pose of exactly zero height, roll and pitch would be a different guess: forward()
@@ -923,6 +937,7 @@ struct DrillingSimulation::Impl {
     spms_trajectory->hold(sliders);
     platform_jacobian.reset();
     converged_sliders.reset();
+    solved_steps = {0, 0};
     ik_heave.reset();
     bench_stream_due = 0;
     have_previous_targets = false;
