@@ -380,6 +380,10 @@ def parse_args(argv):
         raise UsageError('--seed-space %r is not one of: %s' % (space, ', '.join(SEED_SPACES)))
     args.seed_space = space
     if args.identification is not None:
+        if scenario.get('identification', 'volunteers') != 'volunteers':
+            raise UsageError('--identification gives the volunteers\' Table II models; the '
+                             'scenario identifies online (identification: %s)'
+                             % scenario.get('identification'))
         args.identification = os.path.abspath(args.identification)
         missing = check_identification(args.identification)
         if missing:
@@ -394,12 +398,16 @@ def parse_args(argv):
     return args, scenario, cases, rpms, trials, seed, shard_spec
 
 
+def identification_files():
+    """The files of a Table II identification a campaign uses: TABLE2_FILES and each
+    volunteer's linear and hysteresis model."""
+    return list(TABLE2_FILES) + [os.path.join('models', 'volunteer_%d_%s.yaml' % (v, kind))
+                                 for v in TABLE2_VOLUNTEERS for kind in ('linear', 'hysteresis')]
+
+
 def check_identification(directory):
-    """The first file a Table II identification directory lacks (None: complete): its
-    TABLE2_FILES and each volunteer's linear and hysteresis model."""
-    needed = list(TABLE2_FILES) + [os.path.join('models', 'volunteer_%d_%s.yaml' % (v, kind))
-                                   for v in TABLE2_VOLUNTEERS for kind in ('linear', 'hysteresis')]
-    return next((name for name in needed
+    """The first file a Table II identification directory lacks (None: complete)."""
+    return next((name for name in identification_files()
                  if not os.path.isfile(os.path.join(directory, name))), None)
 
 
@@ -596,11 +604,17 @@ def run_campaign(argv=None):
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
     models_dir = ''
     if scenario.get('identification', 'volunteers') == 'volunteers' and args.identification:
-        # Table II identified already (the same for every scenario: it reads no setting of it).
+        # Table II identified already (the same for every scenario: it reads no setting of it),
+        # copied into OUT/identification/ (the campaign's output keeps the models it used).
+        ident_dir = os.path.join(out_dir, 'identification')
+        os.makedirs(os.path.join(ident_dir, 'models'), exist_ok=True)
+        for name in identification_files():
+            with atomic_path(os.path.join(ident_dir, name)) as tmp:
+                shutil.copyfile(os.path.join(args.identification, name), tmp)
         for name in TABLE2_FILES:
             with atomic_path(os.path.join(out_dir, name)) as tmp:
-                shutil.copyfile(os.path.join(args.identification, name), tmp)
-        models_dir = os.path.join(args.identification, 'models')
+                shutil.copyfile(os.path.join(ident_dir, name), tmp)
+        models_dir = os.path.join(ident_dir, 'models')
     elif scenario.get('identification', 'volunteers') == 'volunteers':
         # Table II: identify the five virtual volunteers from their own 30 s recordings; the
         # simulator's patients are these volunteers, and the trials use these models.
@@ -687,23 +701,37 @@ def run_campaign(argv=None):
                                         start_new_session=True))
 
     feed = engine_core.TrialFeed(selected) if args.engine == 'core' else None
+    reader_errors = []
 
     def collect(worker):
-        if feed:
-            feed.start(worker)
-        for line in worker.stdout:
-            line = line.strip()
-            if not line.startswith('{'):
-                continue
+        try:
             if feed:
-                feed.next(worker)  # before the analysis: the engine is not kept waiting
-            raw = (engine_core.row_from_line(line, os.path.join(out_dir, 'traces'))
-                   if args.engine == 'core' else json.loads(line))
-            row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
+                feed.start(worker)
+            for line in worker.stdout:
+                line = line.strip()
+                if not line.startswith('{'):
+                    continue
+                if feed:
+                    feed.next(worker)  # before the analysis: the engine is not kept waiting
+                raw = (engine_core.row_from_line(line, os.path.join(out_dir, 'traces'))
+                       if args.engine == 'core' else json.loads(line))
+                row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
+                with lock:
+                    rows.append(row)
+                    progress.update(row)
+                    appender.append(row)
+        except Exception as error:
+            # A reader that fails stops its worker (a trial_engine would otherwise wait for its
+            # next trial for ever); the campaign then ends with exit 1, naming it.
             with lock:
-                rows.append(row)
-                progress.update(row)
-                appender.append(row)
+                reader_errors.append('%s: %s' % (type(error).__name__, error))
+            try:
+                os.killpg(worker.pid, signal.SIGTERM)
+            except ProcessLookupError:
+                pass
+        finally:
+            if feed:
+                feed.close(worker)
 
     appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'))
     readers = [threading.Thread(target=collect, args=(w,), daemon=True) for w in workers]
@@ -731,6 +759,9 @@ def run_campaign(argv=None):
     if any(worker.returncode == 2 for worker in workers):
         sys.stderr.write('campaign: a worker refused the scenario (see its message above)\n')
         return 2
+    for error in reader_errors:
+        sys.stderr.write('campaign: reading a worker\'s trials failed (its worker was stopped): '
+                         '%s\n' % error)
     sys.stderr.write('\n')
     with lock:
         finished = list(rows)
@@ -744,7 +775,7 @@ def run_campaign(argv=None):
                      % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))
     if interrupted:
         return 130
-    return 0 if len(finished) == len(selected) else 1
+    return 0 if len(finished) == len(selected) and not reader_errors else 1
 
 
 def run_merge(argv=None):

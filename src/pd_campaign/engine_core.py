@@ -2,6 +2,7 @@
 one process per job. Each process prints one JSON line per trial with what the ROS worker
 records from the topics; the same analysis (worker.analyse_trial) turns it into a trials.csv row.
 A trial's record depends on its seed only, so the rows do not depend on --jobs or --shard."""
+import collections
 import json
 import os
 import subprocess
@@ -164,7 +165,7 @@ class TrialFeed:
     AHEAD = 2  # trials a process holds: the one it runs and the next
 
     def __init__(self, trials):
-        self._trials = iter(trials)
+        self._trials = collections.deque(trials)
         self._lock = threading.Lock()
 
     def start(self, process):
@@ -173,16 +174,27 @@ class TrialFeed:
 
     def next(self, process):
         with self._lock:
-            trial = next(self._trials, None)
+            trial = self._trials.popleft() if self._trials else None
         try:
             if trial is None:
-                if not process.stdin.closed:
-                    process.stdin.close()
+                self.close(process)
                 return
             process.stdin.write(json.dumps(trial) + '\n')
             process.stdin.flush()
         except (BrokenPipeError, ValueError):
-            pass  # the process ended (its exit status says why); its trials are not finished
+            # The process ended (its exit status says why): the trial goes back to the front,
+            # for a process still running. The trials it had taken are not finished.
+            with self._lock:
+                self._trials.appendleft(trial)
+
+    @staticmethod
+    def close(process):
+        """End of input for `process` (it finishes what it holds, then exits)."""
+        try:
+            if not process.stdin.closed:
+                process.stdin.close()
+        except (BrokenPipeError, OSError):
+            pass
 
 
 def drilling_pose(package_root):

@@ -17,6 +17,7 @@ with Wilson 95 % intervals, McNemar's exact p of each end against the nominal, t
 that moved; then the verdict of each conclusion at the nominal bench and at every swept end),
 sensitivity.csv, sensitivity.json and sensitivity.png (a tornado plot per case and speed).
 """
+import collections
 import copy
 import csv
 import json
@@ -26,6 +27,7 @@ import re
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import yaml
@@ -51,6 +53,10 @@ DELAY_RANGE = (0.0, 1.0)  # engine_delays, s (the campaign's scenario check)
 
 class SweepError(ValueError):
     """A sweep file, or an entry of it, that cannot be run; the message names the entry."""
+
+
+class IdentificationError(RuntimeError):
+    """The sweep's one Table II identification (table2.py) failed."""
 
 
 # --- the sweep file -----------------------------------------------------------------------------
@@ -346,22 +352,43 @@ def is_complete(directory, text, expected):
         return False
 
 
+# The sweep's running campaigns (run_campaign_process), so that a stop of the sweep reaches them.
+_RUNNING = set()
+_RUNNING_LOCK = threading.Lock()
+STOP_GRACE_S = 10.0  # a campaign's own Ctrl-C handling, before the sweep sends it SIGINT
+
+
 def run_campaign_process(argv, log_path):
-    """Runs the campaign with `argv`, its output to `log_path`; its exit status. On Ctrl-C the
-    campaign (in the same process group) stops its own workers and keeps its finished trials;
-    this waits for it, then raises KeyboardInterrupt."""
+    """Runs the campaign with `argv`, its output to `log_path`; its exit status. A campaign
+    stopped by SIGINT (Ctrl-C reaches the whole process group; stop_running() sends it to the
+    campaigns when only the sweep got it) stops its own workers and keeps its finished trials
+    (exit 130)."""
     with open(log_path, 'w') as log:  # not atomic: the sub-campaign's live log
         process = subprocess.Popen(tools.tool('campaign') + argv, stdout=log,
                                    stderr=subprocess.STDOUT)
+        with _RUNNING_LOCK:
+            _RUNNING.add(process)
         try:
             return process.wait()
-        except KeyboardInterrupt:
+        finally:
+            with _RUNNING_LOCK:
+                _RUNNING.discard(process)
+
+
+def stop_running(futures):
+    """Stops the sweep's running campaigns: each gets STOP_GRACE_S to end by itself (a Ctrl-C on
+    the terminal reached it too), then SIGINT; waits for `futures` (their threads) to end."""
+    import concurrent.futures
+    _, still = concurrent.futures.wait(futures, timeout=STOP_GRACE_S)
+    if still:
+        with _RUNNING_LOCK:
+            running = list(_RUNNING)
+        for process in running:
             try:
-                process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
                 process.send_signal(signal.SIGINT)
-                process.wait()
-            raise
+            except ProcessLookupError:
+                pass
+        concurrent.futures.wait(still)
 
 
 BUILD_FILE = 'build.json'
@@ -414,14 +441,14 @@ IDENTIFICATION_DIR = 'identification'
 def identify(out, jobs):
     """Table II once for the whole sweep, into OUT/identification (the campaigns read it with
     --identification: it takes no scenario setting, so every bench's campaign would identify the
-    same models). Raises RuntimeError with table2.py's message when it fails."""
+    same models). Raises IdentificationError with table2.py's message when it fails."""
     directory = os.path.join(out, IDENTIFICATION_DIR)
     result = subprocess.run(tools.tool('table2.py') + ['--out', directory, '--jobs', str(jobs),
                                                        '--no-figure'],
                             capture_output=True, text=True)
     if result.returncode != 0:
-        raise RuntimeError('the Table II identification failed:\n%s'
-                           % (result.stderr or result.stdout))
+        raise IdentificationError('the Table II identification failed:\n%s'
+                                  % (result.stderr or result.stdout))
     return directory
 
 
@@ -440,41 +467,51 @@ def run_all(benches, argv, expected, base_path, stream, jobs=1, out=None):
         c['dir'], scenario_text(c, base_path), expected))]
     if pending and out is not None:
         argv = argv + ['--identification', identify(out, jobs), '--no-figures']
-    refused = []
+    refused = None
 
     def one(condition):
         began = time.time()
         how, status = run_condition(condition, argv, expected, base_path, build)
         return condition, how, status, time.time() - began
 
+    waiting = collections.deque(todo)
+    running = set()
+    done_count = 0
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        futures = [pool.submit(one, c) for c in todo]
         try:
-            for k, future in enumerate(concurrent.futures.as_completed(futures), 1):
-                condition, how, status, took = future.result()
-                statuses[condition['id']] = status
-                ran += how == 'ran'
-                elapsed = time.time() - start
-                eta = elapsed / ran * (len(todo) - k) if ran else 0
-                what = ('finished in %s (exit %d)' % (cli._clock(took), status)
-                        if how == 'ran' else 'complete already, kept')
-                stream.write('campaign_sensitivity: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
-                    k, len(todo), label(condition), what, cli._clock(elapsed), cli._clock(eta)))
-                stream.flush()
-                if status == 130:
-                    raise KeyboardInterrupt()
-                if status == 2 and not refused:
-                    refused.append(condition)
-                    for other in futures:
-                        other.cancel()  # the running ones finish; no new one starts
-        except KeyboardInterrupt:
-            # Ctrl-C reached the campaigns too (one process group): each keeps its finished
-            # trials and exits; none starts after it.
-            pool.shutdown(wait=True, cancel_futures=True)
+            while waiting or running:
+                # At most `jobs` campaigns at a time; none starts after a refusal.
+                while waiting and len(running) < max(1, jobs) and refused is None:
+                    running.add(pool.submit(one, waiting.popleft()))
+                if not running:
+                    break
+                finished, running = concurrent.futures.wait(
+                    running, return_when=concurrent.futures.FIRST_COMPLETED)
+                for future in finished:
+                    condition, how, status, took = future.result()
+                    done_count += 1
+                    statuses[condition['id']] = status
+                    ran += how == 'ran'
+                    elapsed = time.time() - start
+                    eta = elapsed / ran * (len(todo) - done_count) if ran else 0
+                    what = ('finished in %s (exit %d)' % (cli._clock(took), status)
+                            if how == 'ran' else 'complete already, kept')
+                    stream.write('campaign_sensitivity: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
+                        done_count, len(todo), label(condition), what, cli._clock(elapsed),
+                        cli._clock(eta)))
+                    stream.flush()
+                    if status == 130:
+                        raise KeyboardInterrupt()
+                    if status == 2 and refused is None:
+                        refused = condition  # the running ones finish; no new one starts
+        except BaseException:
+            # Ctrl-C, or anything else: the running campaigns keep their finished trials and
+            # stop; none starts after.
+            stop_running(running)
             raise
-    if refused:
+    if refused is not None:
         raise SweepError('the campaign refused %s (%s):\n%s' % (
-            label(refused[0]), refused[0]['dir'], _log_tail(refused[0]['dir'])))
+            label(refused), refused['dir'], _log_tail(refused['dir'])))
     return statuses
 
 
@@ -1001,7 +1038,8 @@ def prepare(args):
 
 def main(argv=None):
     """`rosrun pedicle_drilling campaign_sensitivity`: exit 0, 1 when a campaign left trials
-    unfinished (the report covers the others), 2 for a refused sweep or scenario, 130 on Ctrl-C."""
+    unfinished (the report covers the others) or the identification failed, 2 for a refused
+    sweep or scenario, 130 on Ctrl-C."""
     args = parse_args(argv)
     try:
         setup, campaign, expected, benches = prepare(args)
@@ -1016,6 +1054,9 @@ def main(argv=None):
     except (SweepError, cli.UsageError) as error:
         sys.stderr.write('campaign_sensitivity: %s\n' % error)
         return 2
+    except IdentificationError as error:
+        sys.stderr.write('campaign_sensitivity: %s\n' % error)
+        return 1
     except (OSError, RuntimeError, ValueError, subprocess.CalledProcessError) as error:
         sys.stderr.write('campaign_sensitivity: cannot ask the built tools (make build?): %s\n'
                          % error)

@@ -167,6 +167,17 @@ TEST(SpmsKinematics, TheTiltLimitDecidesExactlyAtItsBoundary) {
   }
 }
 
+TEST(SpmsKinematics, ATiltLimitOutsideItsRangeIsRefused) {
+  for (const double limit : {0.0, -10.0, 180.5, std::nan("")}) {
+    SpmsGeometry g;
+    g.max_spherical_tilt_deg = limit;
+    EXPECT_THROW(SpmsKinematics k(g), std::invalid_argument) << limit;
+  }
+  SpmsGeometry g;
+  g.max_spherical_tilt_deg = 180.0;
+  EXPECT_NO_THROW(SpmsKinematics k(g));
+}
+
 TEST(SpmsKinematics, ForwardRejectsSlidersOutOfStroke) {
   SpmsKinematics k;
   const SpmsFkResult fk = k.forward(Eigen::Vector3d(0.15, 0.15, 0.30));

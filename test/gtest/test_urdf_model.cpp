@@ -2,7 +2,10 @@
 // per trial from one description).
 #include <gtest/gtest.h>
 
+#include <atomic>
 #include <string>
+#include <thread>
+#include <vector>
 
 #include "pedicle_drilling/core/robot/urdf_model.hpp"
 #include "support.hpp"
@@ -37,6 +40,24 @@ TEST(UrdfModel, AMalformedTextIsNullAndKeepsTheLastModel) {
   EXPECT_FALSE(parseUrdfKept("<robot name=\"broken\"><link name=\"a\"></robot"));
   EXPECT_FALSE(parseUrdfKept(""));
   EXPECT_EQ(parseUrdfKept(tinyRobot("good")).get(), good.get());
+}
+
+// Nodelets in one manager reset their simulations from several threads: each caller gets the
+// model of its own text.
+TEST(UrdfModel, CallersOnSeveralThreadsEachGetTheirOwnTextsModel) {
+  std::vector<std::thread> threads;
+  std::atomic<int> wrong{0};
+  for (int t = 0; t < 4; ++t) {
+    threads.emplace_back([t, &wrong] {
+      const std::string name = "robot" + std::to_string(t % 2);
+      for (int i = 0; i < 50; ++i) {
+        const auto model = parseUrdfKept(tinyRobot(name));
+        if (!model || model->getName() != name) ++wrong;
+      }
+    });
+  }
+  for (std::thread& thread : threads) thread.join();
+  EXPECT_EQ(wrong.load(), 0);
 }
 
 TEST(UrdfModel, TheWorkcellParses) {

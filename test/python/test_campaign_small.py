@@ -258,7 +258,12 @@ def test_core_engine_gives_the_same_trials_whatever_the_job_count(tmp_path):
             capture_output=True, text=True, timeout=900)
         assert result.returncode == 0, result.stderr[-3000:]
         outputs.append(out)
-    assert not (outputs[1] / 'identification').exists()  # not identified again
+    # Not identified again: the given table and models copied, nothing else.
+    assert not (outputs[1] / 'identification' / 'data').exists()
+    for name in ('table2.csv', 'models/volunteer_2_linear.yaml',
+                 'models/volunteer_5_hysteresis.yaml'):
+        assert (outputs[1] / 'identification' / name).read_bytes() == \
+            (outputs[0] / 'identification' / name).read_bytes(), name
     assert (outputs[1] / 'table2.md').read_bytes() == (outputs[0] / 'table2.md').read_bytes()
     assert sorted(p.name for p in outputs[0].glob('*.png'))  # the figures ...
     assert not list(outputs[1].glob('*.png'))  # ... not with --no-figures
@@ -381,3 +386,24 @@ def test_a_profiled_campaign_says_where_its_time_goes_and_changes_no_trial(tmp_p
         with open(out / 'trials.csv') as handle:
             return [{k: v for k, v in row.items() if k != 'wall_s'} for row in csv.DictReader(handle)]
     assert trials(outs['plain']) == trials(outs['profiled'])
+
+
+def test_a_failing_reader_stops_its_worker_and_the_campaign_exits_1(tmp_path, monkeypatch):
+    """A trial the campaign cannot read (here: writing its trace fails) stops that worker, whose
+    trial_engine would otherwise wait for its next trial for ever; the campaign ends, exit 1,
+    naming the error."""
+    import threading
+    from pd_campaign import cli, engine_core
+
+    def unreadable(line, trace_dir):
+        raise OSError('the traces folder is full')
+
+    monkeypatch.setattr(engine_core, 'row_from_line', unreadable)
+    result = {}
+    run = threading.Thread(target=lambda: result.update(status=cli.run_campaign(
+        ['--case', 'stationary', '--rpm', '12000', '--trials', '4', '--jobs', '1', '--seed', '3',
+         '--no-figures', '--out', str(tmp_path / 'out')])), daemon=True)
+    run.start()
+    run.join(timeout=300)
+    assert not run.is_alive(), 'the campaign hangs on a worker whose reader failed'
+    assert result['status'] == 1

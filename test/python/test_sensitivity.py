@@ -461,7 +461,7 @@ def test_the_tiny_sweep_runs_one_campaign_per_end_and_prints_one_line_each(tiny_
         folder = os.path.join(out, bench)
         with open(os.path.join(folder, 'campaign.log')) as handle:
             assert 'identifying the five virtual volunteers' not in handle.read(), bench
-        assert not os.path.exists(os.path.join(folder, 'identification')), bench
+        assert not os.path.exists(os.path.join(folder, 'identification', 'data')), bench
         with open(os.path.join(folder, 'table2.md')) as handle:
             assert handle.read() == table2, bench
         assert not [n for n in os.listdir(folder) if n.endswith('.png')], bench
@@ -611,3 +611,61 @@ def test_the_scenarios_cases_are_the_sweeps(tmp_path):
     for name in ('nominal', 'simulator_params.chisel_edge_share-low',
                  'simulator_params.chisel_edge_share-high'):
         assert {r['case'] for r in _trials(os.path.join(out, name))} == {'compensated'}, name
+
+
+def _fake_benches(n):
+    return [{'id': 'b%d' % k, 'dir': '/nonexistent/b%d' % k, 'scenario': {}, 'entry': None,
+             'end': None} for k in range(n)]
+
+
+def test_a_refusal_starts_no_further_campaign_and_is_a_sweep_error(monkeypatch):
+    """Up to --jobs campaigns at once; after one refuses its scenario (exit 2) none starts, the
+    running ones finish, and the sweep says which one refused (no traceback)."""
+    import threading
+    started, lock = [], threading.Lock()
+    gate = threading.Event()
+
+    def fake(condition, argv, expected, base_path, build=None):
+        with lock:
+            started.append(condition['id'])
+        if condition['id'] == 'b1':
+            return 'ran', 2
+        gate.wait(5)  # b0 runs until the refusal has been seen
+        return 'ran', 0
+
+    monkeypatch.setattr(sensitivity, 'run_condition', fake)
+    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
+    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
+    monkeypatch.setattr(sensitivity, '_log_tail', lambda directory: 'refused: bad scenario')
+    lines = []
+
+    class Stream:
+        def write(self, text):
+            lines.append(text)
+            if '[1/' in text:
+                gate.set()
+
+        def flush(self):
+            pass
+
+    with pytest.raises(sensitivity.SweepError, match='refused b1'):
+        sensitivity.run_all(_fake_benches(6), [], {}, 'x.yaml', Stream(), jobs=2)
+    assert sorted(started) == ['b0', 'b1'], started  # nothing after the refusal
+    assert len(lines) == 2
+
+
+def test_a_stopped_campaign_stops_the_sweep(monkeypatch):
+    monkeypatch.setattr(sensitivity, 'run_condition',
+                        lambda c, *a, **k: ('ran', 130 if c['id'] == 'b0' else 0))
+    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
+    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
+
+    class Stream:
+        def write(self, text):
+            pass
+
+        def flush(self):
+            pass
+
+    with pytest.raises(KeyboardInterrupt):
+        sensitivity.run_all(_fake_benches(3), [], {}, 'x.yaml', Stream(), jobs=1)

@@ -48,6 +48,9 @@ SpmsKinematics::SpmsKinematics(SpmsGeometry geometry) : geometry_(geometry) {
         g.home_slider_m <= g.slider_max_m)) {
     throw std::invalid_argument("SpmsKinematics: inconsistent geometry");
   }
+  if (!(g.max_spherical_tilt_deg > 0.0 && g.max_spherical_tilt_deg <= 180.0)) {
+    throw std::invalid_argument("SpmsKinematics: max_spherical_tilt_deg must be in (0, 180] deg");
+  }
   const double gamma = g.rail_inclination_deg * kDeg;
   for (int i = 0; i < 3; ++i) {
     const double th = (g.leg_azimuth_offset_deg + 120.0 * i) * kDeg;

@@ -6,16 +6,30 @@
 
 namespace pedicle_drilling::core {
 
+namespace {
+
+/** @brief What parseUrdfKept keeps. Never destroyed: a thread may still parse at exit. */
+struct Kept {
+  std::mutex mutex;
+  std::string xml;
+  std::shared_ptr<const urdf::ModelInterface> model;
+};
+
+Kept& kept() {
+  static Kept* const state = new Kept;
+  return *state;
+}
+
+}  // namespace
+
 std::shared_ptr<const urdf::ModelInterface> parseUrdfKept(const std::string& urdf_xml) {
-  static std::mutex mutex;
-  static std::string kept_xml;
-  static std::shared_ptr<const urdf::ModelInterface> kept_model;
-  const std::lock_guard<std::mutex> lock(mutex);
-  if (kept_model && kept_xml == urdf_xml) return kept_model;
+  Kept& k = kept();
+  const std::lock_guard<std::mutex> lock(k.mutex);
+  if (k.model && k.xml == urdf_xml) return k.model;
   std::shared_ptr<const urdf::ModelInterface> model = urdf::parseURDF(urdf_xml);
   if (!model) return nullptr;
-  kept_xml = urdf_xml;
-  kept_model = model;
+  k.xml = urdf_xml;
+  k.model = model;
   return model;
 }
 

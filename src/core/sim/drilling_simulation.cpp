@@ -476,8 +476,11 @@ struct DrillingSimulation::Impl {
   // the solve is skipped (issue 31: a stationary bench's sliders come to rest). Likewise the
   // inverse of the last heave. Cleared at every reset.
   std::optional<Eigen::Vector3d> converged_sliders;
-  // The steps of the last two solves of the platform (newest first; 0: none since the reset)
-  // and the pose before the last: the next solve's start, extrapolated (updatePlatform).
+  // The steps of the platform's last two successful solves (newest first) and the pose before
+  // the last: a solve at the step after two consecutive ones starts from their extrapolation
+  // (updatePlatform). A reset clears them to step 0, which step_index has passed unless the
+  // reset is at step 0, after the constructor's solve there: then step 0 is a real solve of the
+  // platform's pose, and steps 1 and 2 extrapolate from it as from any other.
   std::array<std::uint64_t, 2> solved_steps{0, 0};
   PlatformFullPose platform_before;
   std::optional<double> ik_heave;
