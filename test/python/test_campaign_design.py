@@ -627,10 +627,12 @@ def test_the_trial_feed_hands_each_trial_once_in_design_order_and_closes_when_ou
     assert [t['trial_id'] for t in b.stdin.lines] == ['t2', 't3', 't4', 't5']
     assert [t['trial_id'] for t in a.stdin.lines] == ['t0', 't1', 't6']
     assert a.stdin.closed and b.stdin.closed  # out of trials: end of input for both
-    # A process whose pipe broke (it ended) takes nothing more; the rest go to the others.
+    # A process whose pipe broke (it ended) takes nothing: its trials go to a running one.
     feed = engine_core.TrialFeed(trials[:3])
     dead, alive = _Process(limit=0), _Process()
     feed.start(dead)
     feed.start(alive)
     feed.next(alive)
-    assert [t['trial_id'] for t in alive.stdin.lines] == ['t2']
+    assert [t['trial_id'] for t in alive.stdin.lines] == ['t0', 't1', 't2']
+    feed.next(alive)
+    assert alive.stdin.closed
