@@ -285,27 +285,31 @@ SpmsFkResult SpmsKinematics::forward(const Eigen::Vector3d& sliders,
     res.reason = "forward kinematics did not converge (slider combination not assemblable)";
     return res;
   }
+  res.reason = assemblyProblem(sliders, full, full_rotation);
+  res.ok = res.reason.empty();
+  return res;
+}
+
+std::string SpmsKinematics::assemblyProblem(const Eigen::Vector3d& sliders,
+                                            const PlatformFullPose& pose,
+                                            const Eigen::Matrix3d& rot) const {
   // Same branch and joint-limit checks as the inverse.
-  const Eigen::Matrix3d& rot = full_rotation;
   const Eigen::Vector3d normal = rot * Eigen::Vector3d::UnitZ();
   for (int i = 0; i < 3; ++i) {
-    const Eigen::Vector3d rod = platformJoint(i, full, rot) - sliderPoint(i, sliders[i]);
+    const Eigen::Vector3d rod = platformJoint(i, pose, rot) - sliderPoint(i, sliders[i]);
     if (rod.dot(rail_dir_[i]) <= 0.0) {
-      res.reason = "forward kinematics converged to the slider-above-joint branch";
-      return res;
+      return "forward kinematics converged to the slider-above-joint branch";
     }
     const double cosine = std::clamp(rod.normalized().dot(normal), -1.0, 1.0);
     if (cosine > tilt_certainly_within_cos_) continue;  // the same decision, without the acos
     const double tilt = std::acos(cosine);
-    if (tilt > g.max_spherical_tilt_deg * kDeg) {
+    if (tilt > geometry_.max_spherical_tilt_deg * kDeg) {
       std::ostringstream os;
       os << "leg " << i << ": spherical joint tilt " << tilt / kDeg << " deg over limit";
-      res.reason = os.str();
-      return res;
+      return os.str();
     }
   }
-  res.ok = true;
-  return res;
+  return "";
 }
 
 }  // namespace pedicle_drilling::core

@@ -175,6 +175,10 @@ class SpmsKinematics {
   const SpmsGeometry& geometry() const { return geometry_; }
 
  private:
+  /** @brief Why a converged forward solution is not an assembly of the platform ("": it is):
+   * the slider-above-joint branch or a spherical joint over its tilt limit. */
+  std::string assemblyProblem(const Eigen::Vector3d& sliders, const PlatformFullPose& pose,
+                              const Eigen::Matrix3d& rotation) const;
   SpmsGeometry geometry_;
   double tilt_certainly_within_cos_ = 1.0;  ///< see the constructor
   Eigen::Vector3d base_point_[3];
