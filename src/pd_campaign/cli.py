@@ -603,30 +603,26 @@ def run_campaign(argv=None):
         json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
                    'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
     models_dir = ''
-    if scenario.get('identification', 'volunteers') == 'volunteers' and args.identification:
-        # Table II identified already (the same for every scenario: it reads no setting of it),
-        # copied into OUT/identification/ (the campaign's output keeps the models it used).
-        ident_dir = os.path.join(out_dir, 'identification')
-        os.makedirs(os.path.join(ident_dir, 'models'), exist_ok=True)
-        for name in identification_files():
-            with atomic_path(os.path.join(ident_dir, name)) as tmp:
-                shutil.copyfile(os.path.join(args.identification, name), tmp)
-        for name in TABLE2_FILES:
-            with atomic_path(os.path.join(out_dir, name)) as tmp:
-                shutil.copyfile(os.path.join(ident_dir, name), tmp)
-        models_dir = os.path.join(ident_dir, 'models')
-    elif scenario.get('identification', 'volunteers') == 'volunteers':
+    if scenario.get('identification', 'volunteers') == 'volunteers':
         # Table II: identify the five virtual volunteers from their own 30 s recordings; the
         # simulator's patients are these volunteers, and the trials use these models.
         ident_dir = os.path.join(out_dir, 'identification')
-        sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
-        result = subprocess.run(tools.tool('table2.py') + ['--out', ident_dir,
-                                                           '--jobs', str(args.jobs), '--no-figure'],
-                                capture_output=True, text=True)
-        if result.returncode != 0:
-            sys.stderr.write('campaign: Table II identification failed:\n%s\n'
-                             % (result.stderr or result.stdout))
-            return 1
+        if args.identification:
+            # Identified already (the same for every scenario: it reads no setting of it),
+            # copied into OUT/identification/ (the campaign's output keeps the models it used).
+            os.makedirs(os.path.join(ident_dir, 'models'), exist_ok=True)
+            for name in identification_files():
+                with atomic_path(os.path.join(ident_dir, name)) as tmp:
+                    shutil.copyfile(os.path.join(args.identification, name), tmp)
+        else:
+            sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
+            result = subprocess.run(tools.tool('table2.py') + [
+                '--out', ident_dir, '--jobs', str(args.jobs), '--no-figure'],
+                capture_output=True, text=True)
+            if result.returncode != 0:
+                sys.stderr.write('campaign: Table II identification failed:\n%s\n'
+                                 % (result.stderr or result.stdout))
+                return 1
         for name in TABLE2_FILES:
             with atomic_path(os.path.join(out_dir, name)) as tmp:
                 shutil.copyfile(os.path.join(ident_dir, name), tmp)

@@ -403,14 +403,20 @@ def built_by(directory):
         return None
 
 
+def is_kept(condition, expected, base_path, build):
+    """A bench whose directory holds its finished campaign already, run by the same build
+    (`build`, tools.build_id(); None: never kept)."""
+    directory = condition['dir']
+    return build is not None and built_by(directory) == build and \
+        is_complete(directory, scenario_text(condition, base_path), expected)
+
+
 def run_condition(condition, argv, expected, base_path, build=None):
-    """('kept' | 'ran', exit status) of one bench: kept when its directory holds the finished
-    campaign already, run by the same build (`build`, tools.build_id(); None: never kept), else
-    run into it."""
+    """('kept' | 'ran', exit status) of one bench: kept when is_kept(), else run into its
+    directory."""
     directory = condition['dir']
     text = scenario_text(condition, base_path)
-    if build is not None and built_by(directory) == build and \
-            is_complete(directory, text, expected):
+    if is_kept(condition, expected, base_path, build):
         return 'kept', 0
     os.makedirs(directory, exist_ok=True)
     stamp = os.path.join(directory, BUILD_FILE)
@@ -463,8 +469,7 @@ def run_all(benches, argv, expected, base_path, stream, jobs=1, out=None):
     todo = [c for c in benches if c['scenario'] is not None]
     statuses, start, ran = {}, time.time(), 0
     build = tools.build_id()
-    pending = [c for c in todo if not (built_by(c['dir']) == build and is_complete(
-        c['dir'], scenario_text(c, base_path), expected))]
+    pending = [c for c in todo if not is_kept(c, expected, base_path, build)]
     if pending and out is not None:
         argv = argv + ['--identification', identify(out, jobs), '--no-figures']
     refused = None
