@@ -79,17 +79,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
     tf_buffer_ = std::make_unique<tf2_ros::Buffer>();
     tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_);
+    // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
+    // 1.10.2): every publisher and client exists before the first callback is registered, and
+    // the steps of the lockstep come last.
     for (const core::ControllerSpec& c : controllers_) {
       trajectory_pubs_.push_back(
           nh.advertise<trajectory_msgs::JointTrajectory>(c.name + "/command", 10));
-      // The closed loop on what the arm does (core::ControllerWatch): the controller's state.
-      const std::string name = c.name;
-      controller_state_subs_.push_back(nh.subscribe<JointTrajectoryControllerState>(
-          name + "/state", 10,
-          [this, name](const JointTrajectoryControllerState::ConstPtr& msg) {
-            onControllerState(name, msg);
-          },
-          ros::VoidConstPtr(), ros::TransportHints().tcpNoDelay()));
     }
     // rad/s (REP 103), not latched: a driver that reconnects must not get an old speed again;
     // repeated every ~spindle_keepalive_s while it runs, for the driver's watchdog.
@@ -97,7 +92,30 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     predicted_pub_ =
         nh.advertise<geometry_msgs::PoseStamped>("compensation/predicted_marker_pose", 50);
     status_pub_ = nh.advertise<TrialStatus>("compensation/status", 10, true);
+    // The F/T tare before contact (~tare_samples > 0): the sensor driver's protocol.
+    tare_request_pub_ = nh.advertise<TareRequest>("ft_sensor/tare_request", 10);
+    stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    for (const std::string& name : params_.trial_start_services) {
+      trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
+    }
+    publishStatus(core::TrialPhase::kIdle);
+    const core::TrialSequencerParams& p = sequencer_->params();
+    NODELET_INFO(
+        "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
+        "compensator %s",
+        patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
+        p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str());
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
+    // The closed loop on what the arm does (core::ControllerWatch): the controllers' states.
+    for (const core::ControllerSpec& c : controllers_) {
+      const std::string name = c.name;
+      controller_state_subs_.push_back(nh.subscribe<JointTrajectoryControllerState>(
+          name + "/state", 10,
+          [this, name](const JointTrajectoryControllerState::ConstPtr& msg) {
+            onControllerState(name, msg);
+          },
+          ros::VoidConstPtr(), hints));
+    }
     tidal_sub_ =
         nh.subscribe("tidal_volume", 10, &CompensationPlannerNodelet::onTidalVolume, this, hints);
     settings_sub_ =
@@ -105,18 +123,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     marker_sub_ =
         nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker, this, hints);
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
-    // The F/T tare before contact (~tare_samples > 0): the sensor driver's protocol.
-    tare_request_pub_ = nh.advertise<TareRequest>("ft_sensor/tare_request", 10);
     tare_result_sub_ =
         nh.subscribe("ft_sensor/tare_result", 10, &CompensationPlannerNodelet::onTareResult, this);
     state_sub_ = nh.subscribe("drilling_state", 100, &CompensationPlannerNodelet::onDrillingState,
                               this, hints);
-    stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     diagnostics_sub_ =
         nh.subscribe("/diagnostics", 50, &CompensationPlannerNodelet::onDiagnostics, this);
-    for (const std::string& name : params_.trial_start_services) {
-      trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
-    }
     // ~start_trial calls other nodelets' services and waits for them: it gets a callback queue
     // and a thread of its own, so that it never blocks the manager's worker threads.
     ros::NodeHandle start_nh(pnh);
@@ -125,13 +137,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         start_nh.advertiseService("start_trial", &CompensationPlannerNodelet::onStartTrial, this);
     start_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &start_queue_);
     start_spinner_->start();
-    publishStatus(core::TrialPhase::kIdle);
-    const core::TrialSequencerParams& p = sequencer_->params();
-    NODELET_INFO(
-        "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
-        "compensator %s",
-        patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
-        p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str());
+    lockstep_->start();  // last: the steps call onStep
   }
 
   /**

@@ -59,12 +59,14 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       failStartup(getName(), e.what());  // throws: the load fails
     }
     model_pub_ = nh.advertise<MotionModel>("motion_model", 1, true);
-    tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume, this);
     if (!p_.use_pose_topic || !p_.patient_frame.empty()) {
       tf_buffer_ =
           std::make_unique<tf2_ros::Buffer>(ros::Duration(std::max(60.0, 2 * p_.window_s)));
       tf_listener_ = std::make_unique<tf2_ros::TransformListener>(*tf_buffer_, nh, true);
     }
+    // After the buffer: the nodelet manager runs this nodelet's callbacks while onInit still
+    // runs (nodelet 1.10.2).
+    tv_sub_ = nh.subscribe("tidal_volume", 1000, &MotionIdentificationNodelet::onTidalVolume, this);
     if (p_.use_pose_topic) {
       pose_sub_ = nh.subscribe("tracker/marker_pose", 1000,
                                &MotionIdentificationNodelet::onMarkerPose, this);

@@ -85,18 +85,19 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
       check_rate_hz_ = params.check_rate_hz;
       diagnostic_period_s_ = params.diagnostic_period_s;
-      setupDiagnostics(nh, params);  // before the lockstep's steps can call it
       // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
       // at every step whose time is a multiple of 1 / check_rate_hz (the engine's), after the
-      // predicted poses and statuses sent in the step before.
-      auto participant = std::make_unique<LockstepParticipant>(
+      // predicted poses and statuses sent in the step before. Its steps come from start(), at
+      // the end; it exists before anything that reads the monitor's time (now()).
+      lockstep_ = std::make_unique<LockstepParticipant>(
           nh, getName(), [this](const ros::Time& t) { onStep(t); }, true,
           [this](const ros::Time& t) { return nextStep(t); });
-      std::lock_guard<std::mutex> lock(mutex_);  // a /diagnostics subscriber may read it
-      lockstep_ = std::move(participant);
     } catch (const std::exception& e) {
-      failStartup(getName(), e.what());  // throws: the load fails
+      failStartup(getName(), e.what());  // throws: the load fails, nothing advertised yet
     }
+    // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
+    // 1.10.2): everything a callback touches exists before the callback can be registered.
+    setupDiagnostics(nh, params);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     retare_pub_ = pnh.advertise<RetareCheck>("retare_check", 10, true);
     reset_srv_ = pnh.advertiseService("reset", &SafetyMonitorNodelet::onReset, this);
@@ -121,8 +122,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
         "%.3f s, checks at %.0f Hz",
         p.position_threshold_m * 1e3, p.force_threshold_N, p.force_timeout_s, p.tracker_timeout_s,
         params.check_rate_hz);
-    std::lock_guard<std::mutex> lock(mutex_);
-    publishDiagnostics();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      publishDiagnostics();
+    }
+    lockstep_->start();  // last: the steps call onStep
   }
 
   /**

@@ -139,6 +139,21 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
     static_broadcaster_ = std::make_unique<tf2_ros::StaticTransformBroadcaster>();
+    if (lockstep_) step_pub_ = nh.advertise<rosgraph_msgs::Clock>("simulator/step", 10);
+    publishStaticTransforms();
+    NODELET_INFO(
+        "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
+        "factor %s, %s /clock%s",
+        urdf_path.c_str(), sim_->params().arm_rate_hz,
+        real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
+        publish_clock_ ? "publishing" : "not publishing",
+        lockstep_ ? ", in lockstep with the participants of simulator/step" : "");
+    // From here on, callbacks: the nodelet manager runs them while onInit still runs (nodelet
+    // 1.10.2), on its threads (this nodelet's queue) and on this nodelet's own queues once
+    // their spinners start, at the end. They touch sim_ under mutex_ only; onInit no longer
+    // reads it.
+    std::vector<std::string> controller_names;
+    for (const core::ControllerSpec& c : sim_->controllers()) controller_names.push_back(c.name);
     // Under the lockstep, the commands, the participants' answers and simulator/resume share
     // one queue and its own thread: a participant publishes its commands before its answer, so
     // a command is handled before the answer that lets the simulator step (one nodelet manager:
@@ -149,8 +164,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     if (lockstep_) command_nh.setCallbackQueue(&lockstep_queue_);
     // One command stream per controller (simulator parameters arm_controller, feed_controller
     // and their joints), each with ros_control's rules (controller_rules).
-    for (const core::ControllerSpec& c : sim_->controllers()) {
-      const std::string name = c.name;
+    for (const std::string& name : controller_names) {
       trajectory_subs_.push_back(command_nh.subscribe<trajectory_msgs::JointTrajectory>(
           name + "/command", 10,
           [this, name](const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
@@ -172,32 +186,27 @@ class SimulatorNodelet : public nodelet::Nodelet {
     trial_nh.setCallbackQueue(&trial_queue_);
     reset_srv_ = trial_nh.advertiseService("simulator/reset", &SimulatorNodelet::onReset, this);
     if (lockstep_) {
-      step_pub_ = nh.advertise<rosgraph_msgs::Clock>("simulator/step", 10);
       ack_sub_ = command_nh.subscribe("simulator/step_ack", 100, &SimulatorNodelet::onAck, this,
                                       ros::TransportHints().tcpNoDelay());
-      lockstep_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &lockstep_queue_);
-      lockstep_spinner_->start();
     }
     start_trial_srv_ =
         trial_nh.advertiseService("simulator/start_trial", &SimulatorNodelet::onStartTrial, this);
-    trial_spinner_ = std::make_unique<ros::AsyncSpinner>(2, &trial_queue_);
-    trial_spinner_->start();
     set_ventilator_srv_ = nh.advertiseService("simulator/set_ventilator_settings",
                                               &SimulatorNodelet::onSetVentilatorSettings, this);
     set_amplitude_srv_ = nh.advertiseService("simulator/set_patient_amplitude",
                                              &SimulatorNodelet::onSetPatientAmplitude, this);
     stall_joint_srv_ =
         nh.advertiseService("simulator/stall_joint", &SimulatorNodelet::onStallJoint, this);
-    publishStaticTransforms();
-    NODELET_INFO(
-        "Simulator: workcell '%s', arm at %.0f Hz, physics at 1 kHz, real-time "
-        "factor %s, %s /clock%s",
-        urdf_path.c_str(), sim_->params().arm_rate_hz,
-        real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
-        publish_clock_ ? "publishing" : "not publishing",
-        lockstep_ ? ", in lockstep with the participants of simulator/step" : "");
     running_ = true;
     thread_ = std::thread(&SimulatorNodelet::loop, this);
+    // Last, these two queues' threads: a reset served while onInit still read sim_ (a campaign
+    // worker calls it as soon as the service is advertised) replaced the simulation under it.
+    if (lockstep_) {
+      lockstep_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &lockstep_queue_);
+      lockstep_spinner_->start();
+    }
+    trial_spinner_ = std::make_unique<ros::AsyncSpinner>(2, &trial_queue_);
+    trial_spinner_->start();
   }
 
   ros::Time stampOf(double sim_time) const { return ros::Time(sim_time + time_offset_); }
@@ -746,9 +755,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
     noteLateness(command);
     const core::TargetResult r = sim_->commandTrajectory(controller, command);
     wait_given_up_ = false;
+    reportTrajectory(controller, r);  // counts under mutex_
     lock.unlock();
     command_cv_.notify_all();
-    reportTrajectory(controller, r);
   }
 
   /** @brief Late: its start passed before it arrived (half a physics step of rounding allowed);
@@ -924,8 +933,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
   core::CommandTransport command_transport_;  ///< under the lockstep (set at every reset)
   double tracker_delay_s_ = 0.0;              ///< (re-read at every reset)
   std::deque<std::pair<double, geometry_msgs::PoseStamped>> delayed_markers_;
-  std::vector<PendingCommand> pending_;  ///< under the lockstep, for the next step
-  std::uint32_t lockstep_timeouts_ = 0;
+  std::vector<PendingCommand> pending_;              ///< under the lockstep, for the next step
+  std::atomic<std::uint32_t> lockstep_timeouts_{0};  ///< counted on the stepping thread
   std::mutex ack_mutex_;
   std::condition_variable ack_cv_;
   /** @brief A lockstep participant as its latest answer says. */

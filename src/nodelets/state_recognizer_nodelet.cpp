@@ -61,6 +61,10 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
+    NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
+                 recognizer_ -> describe().c_str());
+    // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
+    // 1.10.2): the publishers exist before the callbacks that use them are registered.
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
@@ -69,8 +73,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
                      ros::TransportHints().tcpNoDelay());
-    NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
-                 recognizer_ -> describe().c_str());
+    lockstep_->start();  // last
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {

@@ -41,12 +41,14 @@ class VentilatorNodelet : public nodelet::Nodelet {
     tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 100);
     settings_pub_ = pnh.advertise<VentilatorSettings>("settings", 1, true);
     publishInOrder(settings_pub_, toMsg(scheduler_->model().settings()));
-    set_settings_srv_ =
-        pnh.advertiseService("set_settings", &VentilatorNodelet::onSetSettings, this);
-    timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz), &VentilatorNodelet::onTimer, this);
     NODELET_INFO("Ventilator: %.0f ml, %.1f /min, %s, publishing at %.1f Hz",
                  scheduler_->model().settings().tv_max_ml, scheduler_->model().settings().rate_bpm,
                  core::waveformName(scheduler_->model().settings().waveform).c_str(), rate_hz);
+    // Last: the nodelet manager runs these callbacks while onInit still runs (nodelet 1.10.2),
+    // and they change scheduler_.
+    set_settings_srv_ =
+        pnh.advertiseService("set_settings", &VentilatorNodelet::onSetSettings, this);
+    timer_ = nh.createTimer(ros::Duration(1.0 / rate_hz), &VentilatorNodelet::onTimer, this);
   }
 
   void onTimer(const ros::TimerEvent& event) {

@@ -737,6 +737,20 @@ def main(argv=None):
     finally:
         shutdown()
         devnull.close()
+        # A process of the launch that died (the nodelet manager's crash ends every service
+        # call with a transport error) is named on stderr, which the campaign shows.
+        for line in died_processes(os.path.join(log_dir, 'children.log')):
+            sys.stderr.write('campaign worker: %s\n' % line)
+
+
+def died_processes(log_path):
+    """The lines of roslaunch's log (children.log) that report a process of the launch dead,
+    with its exit code (-11: a segmentation fault)."""
+    try:
+        with open(log_path, errors='replace') as handle:
+            return [line.strip() for line in handle if 'process has died' in line]
+    except OSError:
+        return []
 
 
 if __name__ == '__main__':

@@ -23,15 +23,22 @@ bool useSimLockstep() {
 
 LockstepParticipant::LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
                                          bool deferred_first, NextStepFn next_step)
-    : enabled_(useSimLockstep()),
+    : nh_(nh),
+      enabled_(useSimLockstep()),
       deferred_first_(deferred_first),
       node_(std::move(node)),
       on_step_(std::move(on_step)),
       next_step_(std::move(next_step)) {
   if (!enabled_) return;
-  ack_pub_ = nh.advertise<StepAck>("simulator/step_ack", 10);
-  step_sub_ = nh.subscribe("simulator/step", 10, &LockstepParticipant::onStep, this,
-                           ros::TransportHints().tcpNoDelay());
+  ack_pub_ = nh_.advertise<StepAck>("simulator/step_ack", 10);
+}
+
+void LockstepParticipant::start() {
+  if (started_) throw std::logic_error("LockstepParticipant::start: called twice");
+  started_ = true;
+  if (!enabled_) return;
+  step_sub_ = nh_.subscribe("simulator/step", 10, &LockstepParticipant::onStep, this,
+                            ros::TransportHints().tcpNoDelay());
 }
 
 ros::Time LockstepParticipant::now() const {

@@ -72,3 +72,18 @@ def test_every_required_topic_is_recorded():
     for topic in ('/spindle/command', '/ventilator/settings', '/diagnostics'):
         assert topic in worker.BAG_REQUIRED
     assert '/clock' not in worker.BAG_TOPICS  # rosbag play --clock makes the clock
+
+
+def test_a_dead_process_of_the_launch_is_named_from_roslaunchs_log(tmp_path):
+    """A crash of the nodelet manager ends every service call with a transport error; the
+    worker names the dead process from roslaunch's own lines (children.log)."""
+    log = tmp_path / 'children.log'
+    log.write_text(
+        '... logging to /tmp/x/roslaunch.log\n'
+        'process[pedicle_drilling_manager-1]: started with pid [4242]\n'
+        '[pedicle_drilling_manager-1] process has died [pid 4242, exit code -11, cmd '
+        '/usr/lib/nodelet/nodelet manager __name:=pedicle_drilling_manager].\n'
+        'log file: /tmp/x/pedicle_drilling_manager-1*.log\n')
+    died = worker.died_processes(str(log))
+    assert len(died) == 1 and 'exit code -11' in died[0], died
+    assert worker.died_processes(str(tmp_path / 'missing.log')) == []

@@ -18,7 +18,8 @@ def files(pattern):
     return [f for f in found if '/catkin_ws/' not in f]
 
 
-@pytest.mark.parametrize('path', files('launch_scripts/*.launch') + files('test/rostest/*.test'))
+@pytest.mark.parametrize('path', files('launch_scripts/*.launch') + files('test/rostest/*.test') +
+                         files('test/rostest_gtest/*.test'))
 def test_launch_file_parses_with_roslaunch(path):
     # `roslaunch --nodes` resolves every include, $(find) and arg and lists the nodes; an arg
     # without a default (replay.launch's bag) is given a placeholder.

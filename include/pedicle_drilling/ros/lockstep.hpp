@@ -55,8 +55,7 @@ class LockstepParticipant {
   using NextStepFn = std::function<std::optional<ros::Time>(const ros::Time& t)>;
 
   /**
-   * @brief Subscribes `simulator/step` on @p nh's callback queue (the nodelet's: FIFO with its
-   *        other subscriptions) and advertises `simulator/step_ack`, when /use_sim_lockstep.
+   * @brief Advertises `simulator/step_ack` when /use_sim_lockstep; start() subscribes the steps.
    * @param node the name in the answers (the nodelet's name).
    * @param deferred_first handle the messages sent in earlier steps before @p on_step (the
    *        engine's order for the safety monitor: a predicted pose, then the step's check);
@@ -65,6 +64,16 @@ class LockstepParticipant {
    */
   LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
                       bool deferred_first = false, NextStepFn next_step = nullptr);
+
+  /**
+   * @brief Subscribes `simulator/step` on the constructor's node handle's queue (the nodelet's:
+   *        FIFO with its other subscriptions), when the lockstep is on. Called last in onInit,
+   *        once everything @p on_step and @p next_step touch exists: the nodelet manager
+   *        (nodelet 1.10.2) runs a nodelet's callbacks while its onInit still runs, and the
+   *        simulator steps before its participants are loaded. Once; a second call throws
+   *        std::logic_error.
+   */
+  void start();
 
   /** @brief Whether the lockstep is on. */
   bool enabled() const { return enabled_; }
@@ -108,6 +117,8 @@ class LockstepParticipant {
   };
   void onStep(const rosgraph_msgs::Clock::ConstPtr& msg);
 
+  ros::NodeHandle nh_;
+  bool started_ = false;
   bool enabled_ = false;
   bool deferred_first_ = false;
   std::string node_;
