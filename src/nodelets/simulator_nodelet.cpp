@@ -118,6 +118,22 @@ class SimulatorNodelet : public nodelet::Nodelet {
       // Safe state: nothing is advertised, the error names the parameter or the file.
       failStartup(getName(), e.what());  // throws: the load fails
     }
+    advertiseOutputs(nh, urdf_path);
+    registerCallbacks(nh);
+    running_ = true;
+    thread_ = std::thread(&SimulatorNodelet::loop, this);
+    // Last, these two queues' threads: a reset served while onInit still read sim_ (a campaign
+    // worker calls it as soon as the service is advertised) replaced the simulation under it.
+    if (lockstep_) {
+      lockstep_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &lockstep_queue_);
+      lockstep_spinner_->start();
+    }
+    trial_spinner_ = std::make_unique<ros::AsyncSpinner>(2, &trial_queue_);
+    trial_spinner_->start();
+  }
+
+  /** @brief onInit's publishers, the static frames and the start-up line: before any callback. */
+  void advertiseOutputs(ros::NodeHandle& nh, const std::string& urdf_path) {
     if (publish_clock_) {
       clock_pub_ = nh.advertise<rosgraph_msgs::Clock>("/clock", 10);
     } else {
@@ -148,6 +164,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
         real_time_factor_ > 0.0 ? std::to_string(real_time_factor_).c_str() : "max",
         publish_clock_ ? "publishing" : "not publishing",
         lockstep_ ? ", in lockstep with the participants of simulator/step" : "");
+  }
+
+  /** @brief onInit's subscriptions and services (their callbacks may run at once). */
+  void registerCallbacks(ros::NodeHandle& nh) {
     // From here on, callbacks: the nodelet manager runs them while onInit still runs (nodelet
     // 1.10.2), on its threads (this nodelet's queue) and on this nodelet's own queues once
     // their spinners start, at the end. They touch sim_ under mutex_ only; onInit no longer
@@ -197,16 +217,6 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                              &SimulatorNodelet::onSetPatientAmplitude, this);
     stall_joint_srv_ =
         nh.advertiseService("simulator/stall_joint", &SimulatorNodelet::onStallJoint, this);
-    running_ = true;
-    thread_ = std::thread(&SimulatorNodelet::loop, this);
-    // Last, these two queues' threads: a reset served while onInit still read sim_ (a campaign
-    // worker calls it as soon as the service is advertised) replaced the simulation under it.
-    if (lockstep_) {
-      lockstep_spinner_ = std::make_unique<ros::AsyncSpinner>(1, &lockstep_queue_);
-      lockstep_spinner_->start();
-    }
-    trial_spinner_ = std::make_unique<ros::AsyncSpinner>(2, &trial_queue_);
-    trial_spinner_->start();
   }
 
   ros::Time stampOf(double sim_time) const { return ros::Time(sim_time + time_offset_); }
