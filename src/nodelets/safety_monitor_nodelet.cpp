@@ -299,10 +299,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   /** @brief /diagnostics now (the planner handles the monitor's status at the next step). */
   void publishDiagnostics() {
-    // A subscriber can connect while onInit() runs, before the lockstep exists.
-    publishInOrder(diagnostics_pub_,
-                   updater_->collect(lockstep_ ? lockstep_->now() : ros::Time::now()));
-    if (lockstep_) lockstep_->noteSent();
+    // lockstep_ exists before /diagnostics is advertised (onInit), so a subscriber that
+    // connects while onInit runs finds it.
+    publishInOrder(diagnostics_pub_, updater_->collect(lockstep_->now()));
+    lockstep_->noteSent();
   }
 
   void onCheck(const ros::TimerEvent&) {

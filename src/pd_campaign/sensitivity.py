@@ -414,10 +414,10 @@ def is_kept(condition, expected, base_path, build):
 def run_condition(condition, argv, expected, base_path, build=None):
     """('kept' | 'ran', exit status) of one bench: kept when is_kept(), else run into its
     directory."""
-    directory = condition['dir']
-    text = scenario_text(condition, base_path)
     if is_kept(condition, expected, base_path, build):
         return 'kept', 0
+    directory = condition['dir']
+    text = scenario_text(condition, base_path)
     os.makedirs(directory, exist_ok=True)
     stamp = os.path.join(directory, BUILD_FILE)
     if os.path.exists(stamp):
