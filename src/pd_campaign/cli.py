@@ -290,6 +290,14 @@ def parse_args(argv):
     parser.add_argument('--no-figures', action='store_true',
                         help='write trials.csv, summary.json and report.md without the figures '
                         '(campaign_sensitivity\'s campaigns: it reads their trials only)')
+    parser.add_argument('--pin-workers', default='auto', choices=('auto', 'on', 'off'),
+                        help='--engine ros: run each worker (its master, launch and nodelet '
+                        'manager) on one CPU of this process\'s CPU set. auto (default): when '
+                        'there are no more workers than CPUs; on: round robin; off: never. '
+                        'The lockstep hands every synchronised step between the manager\'s '
+                        'threads, and a hand-off to a thread on another CPU costs a '
+                        'cross-CPU wake-up: pinned, the same trials take about a quarter less '
+                        'wall time (doc/benchmarks.md)')
     parser.add_argument('--lockstep-every-step', action='store_true',
                         help='--engine ros: the simulator waits for the participants at every '
                         'step (~lockstep_every_step), not only where one of them needs it; the '
@@ -396,6 +404,17 @@ def parse_args(argv):
         except ValueError as error:
             raise UsageError(str(error))
     return args, scenario, cases, rpms, trials, seed, shard_spec
+
+
+def worker_cpus(jobs, mode, allowed):
+    """The CPU each of `jobs` ROS workers is pinned to (None: not pinned), from the CPU set
+    `allowed` (os.sched_getaffinity: a Slurm allocation's CPUs, not the machine's) and
+    --pin-workers `mode`: auto pins one worker per CPU when there are no more workers than
+    CPUs, on pins round robin, off never. A trial does not depend on it (the lockstep)."""
+    cpus = sorted(allowed)
+    if mode == 'off' or not cpus or (mode == 'auto' and jobs > len(cpus)):
+        return [None] * jobs
+    return [cpus[k % len(cpus)] for k in range(jobs)]
 
 
 def identification_files():
@@ -644,6 +663,7 @@ def run_campaign(argv=None):
     if samples_dir:
         os.makedirs(samples_dir, exist_ok=True)
     position = {trial['trial_id']: k for k, trial in enumerate(design)}
+    cpus = worker_cpus(len(slices), args.pin_workers, os.sched_getaffinity(0))
     for k, part in enumerate(slices):
         if args.engine == 'core':
             # The trials through stdin, the next to the process that finished one (feed below;
@@ -692,6 +712,8 @@ def run_campaign(argv=None):
             command += ['--simulator-param', 'lockstep_every_step=true']
         if args.bags:
             command.append('--bags')
+        if cpus[k] is not None:
+            command += ['--cpu', str(cpus[k])]
         # The worker imports pd_campaign as this process did: catkin's devel space has it.
         workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True,
                                         start_new_session=True))

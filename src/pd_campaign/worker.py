@@ -620,7 +620,14 @@ def main(argv=None):
                         'command_delay_s, command_jitter_s, tracker_delay_s)')
     parser.add_argument('--launch', default='campaign_pipeline.launch')
     parser.add_argument('--real-time-factor', type=float, default=20.0)
+    parser.add_argument('--cpu', type=int, default=None,
+                        help='run this worker and everything it starts on this CPU (campaign '
+                        '--pin-workers)')
     args = parser.parse_args(argv)
+    if args.cpu is not None:
+        # Inherited by the master, roslaunch and the nodelet manager started below: the
+        # lockstep's thread hand-offs stay on one CPU (no cross-CPU wake-ups).
+        os.sched_setaffinity(0, {args.cpu})
     if args.pre_trial_s is None:
         args.pre_trial_s = args.identification_window_s if not args.models_dir else 1.0
     with open(args.trials) as handle:

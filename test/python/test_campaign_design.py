@@ -10,7 +10,7 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
-from pd_campaign import design, report, stats  # noqa: E402
+from pd_campaign import cli, design, report, stats  # noqa: E402
 
 
 def test_wilson_interval_known_values():
@@ -636,3 +636,38 @@ def test_the_trial_feed_hands_each_trial_once_in_design_order_and_closes_when_ou
     assert [t['trial_id'] for t in alive.stdin.lines] == ['t0', 't1', 't2']
     feed.next(alive)
     assert alive.stdin.closed
+
+
+def test_ros_workers_are_pinned_one_per_cpu_of_the_allowed_set():
+    """campaign --pin-workers: one ROS worker per CPU of the process's CPU set (a Slurm
+    allocation's, not the machine's), round robin only when asked, never when off."""
+    assert cli.worker_cpus(2, 'auto', {0, 1}) == [0, 1]
+    assert cli.worker_cpus(1, 'auto', {3, 5}) == [3]
+    assert cli.worker_cpus(3, 'auto', {0, 1}) == [None, None, None]  # more workers than CPUs
+    assert cli.worker_cpus(3, 'on', {4, 2}) == [2, 4, 2]
+    assert cli.worker_cpus(2, 'off', {0, 1}) == [None, None]
+
+
+def test_worker_runs_on_the_cpu_it_is_given(tmp_path):
+    """The worker pins itself before it starts its master and launch (they inherit it)."""
+    trials = tmp_path / 'none.json'
+    trials.write_text('[]')
+    cpu = min(os.sched_getaffinity(0))
+    script = ('import os, sys\n'
+              'from pd_campaign import worker\n'
+              'class Stop(Exception):\n'
+              '    pass\n'
+              'def popen(*a, **k):\n'
+              '    print(sorted(os.sched_getaffinity(0)))\n'
+              '    raise Stop()\n'
+              'worker.subprocess.Popen = popen\n'
+              'try:\n'
+              '    worker.main(sys.argv[1:])\n'
+              'except Stop:\n'
+              '    pass\n')
+    result = subprocess.run(
+        [sys.executable, '-c', script, '--port', '14990', '--trials', str(trials), '--out',
+         str(tmp_path / 'out'), '--default-model', 'unused.yaml', '--cpu', str(cpu)],
+        capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.split('\n')[0] == '[%d]' % cpu, result.stdout

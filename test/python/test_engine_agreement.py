@@ -79,14 +79,16 @@ def test_waiting_at_every_step_changes_no_ros_trial(tmp_path):
     """Fewer synchronised steps (issue 31, StepAck.next_step) are the same trials, and the ROS
     pipeline gives a seed the same trial in every run: the realistic bench (its delays, the
     tracker's 14 ms among them) through the ROS pipeline twice, once waiting for the
-    participants at every step (--lockstep-every-step) and with one worker instead of two. Every trials.csv column is equal to the
-    last bit (the stop's key point and raw sample and its stamps too), but the wall time. Every
-    node publishes in order (publishInOrder) and each trial's stamps start at its place in the
-    design (ResetSimulation.time_zero); before either, two runs differed in the last bits and,
-    through them, by micrometres after the stop."""
+    participants at every step (--lockstep-every-step), with one worker instead of two, and
+    not pinned to a CPU (--pin-workers off; the first run pins each worker). Every trials.csv
+    column is equal to the last bit (the stop's key point and raw sample and its stamps too),
+    but the wall time. Every node publishes in order (publishInOrder) and each trial's stamps
+    start at its place in the design (ResetSimulation.time_zero); before either, two runs
+    differed in the last bits and, through them, by micrometres after the stop."""
     runs = {}
     for name, extra in [('fewer', ['--jobs', '2']),
-                        ('every', ['--lockstep-every-step', '--jobs', '1'])]:
+                        ('every', ['--lockstep-every-step', '--jobs', '1',
+                                   '--pin-workers', 'off'])]:
         out = tmp_path / name
         result = subprocess.run(
             ['rosrun', 'pedicle_drilling', 'campaign', '--scenario',
