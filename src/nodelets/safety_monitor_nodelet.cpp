@@ -20,6 +20,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -286,14 +287,25 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
   }
 
-  /** @brief Under the lockstep: the next step on the check grid or of the diagnostics
-   *         (LockstepParticipant::stepFor; the grid test's rounding is 1e-6 of a period). */
+  /**
+   * @brief Under the lockstep: the next step on the check grid at which a check can change
+   *        anything, or of the diagnostics (LockstepParticipant::stepFor; the grid test's
+   *        rounding is 1e-6 of a period). A check before the first stream's timeout is due
+   *        changes nothing (SafetySupervisor::quietUntil): the monitor asks for the grid step
+   *        one period before it, and for every one after it until a sample comes. Its inputs
+   *        only change at steps it sees (the streams' steps, the steps after a participant
+   *        sent), after which this is asked again. Issue 31: the 200 Hz checks were a quarter
+   *        of the steps the simulator waited at, with nothing to do at almost all of them.
+   */
   std::optional<ros::Time> nextStep(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double next_check =
-        (std::floor(t.toSec() * check_rate_hz_ + 1e-6) + 1.0) / check_rate_hz_;
-    ros::Time next = LockstepParticipant::stepFor(next_check);
-    if (!next_diagnostics_.isZero()) next = std::min(next, next_diagnostics_);
+    const double tick =
+        core::nextUsefulCheckTick(t.toSec(), check_rate_hz_, supervisor_->quietUntil());
+    std::optional<ros::Time> next;
+    if (std::isfinite(tick)) next = LockstepParticipant::stepFor(tick / check_rate_hz_);
+    if (!next_diagnostics_.isZero() && (!next || next_diagnostics_ < *next)) {
+      next = next_diagnostics_;
+    }
     return next;
   }
 

@@ -3,6 +3,7 @@
 
 #include <cmath>
 #include <limits>
+#include <random>
 #include <stdexcept>
 
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
@@ -140,6 +141,92 @@ TEST(SafetySupervisorTest, RejectsBadParametersNamingThem) {
   p = SupervisorParams();
   p.safety.force_threshold_N = 0.0;
   EXPECT_THROW(SafetySupervisor s(p), std::invalid_argument);
+}
+
+TEST(SafetySupervisorTest, QuietUntilBoundsWhatACheckCanChange) {
+  SafetySupervisor s;  // force_timeout_s 0.1, tracker_timeout_s 0.5
+  EXPECT_EQ(s.quietUntil(), std::numeric_limits<double>::infinity());  // not checking yet
+  s.setTrialRunning(true);
+  EXPECT_EQ(s.quietUntil(), -std::numeric_limits<double>::infinity());  // the next check arms
+  s.check(2.0);
+  EXPECT_DOUBLE_EQ(s.quietUntil(), 2.1);  // armed at 2.0, no force ever: 2.0 + 0.1
+  s.onForce(2.05, Eigen::Vector3d(0, 0, 1));
+  s.onTracked(2.05, at(2.05, kBone));
+  EXPECT_DOUBLE_EQ(s.quietUntil(), 2.15);
+  s.check(2.14);
+  EXPECT_FALSE(s.verdict().stop);
+  s.check(2.16);
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.quietUntil(), std::numeric_limits<double>::infinity());  // latched
+}
+
+TEST(SafetySupervisorTest, NextUsefulCheckTickIsTheGridStepAPeriodBeforeQuiet) {
+  const double inf = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(nextUsefulCheckTick(1.0, 200.0, -inf), 201.0);  // unarmed: the next grid step
+  EXPECT_EQ(nextUsefulCheckTick(1.002, 200.0, -inf), 201.0);
+  EXPECT_EQ(nextUsefulCheckTick(1.0, 200.0, 1.1), 219.0);    // 1.095 s: a period before 1.1 s
+  EXPECT_EQ(nextUsefulCheckTick(1.0, 200.0, 1.003), 201.0);  // never before the next step
+  EXPECT_EQ(nextUsefulCheckTick(1.0, 200.0, inf), inf);
+}
+
+// The monitor's nodelet under the lockstep skips the 200 Hz checks before quietUntil() (one
+// period early): random streams with silences, a supervisor checked at every tick and one
+// checked only at the grid steps it sees (a sample, the trial's start, or the step it asked
+// for, recomputed after every step it sees). Their verdicts are equal at every 1 ms step,
+// timeouts included.
+TEST(SafetySupervisorTest, SkippingTheChecksBeforeQuietUntilChangesNoVerdict) {
+  int timeouts = 0;
+  for (unsigned seed = 1; seed <= 300; ++seed) {
+    std::mt19937 rng(seed);
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    SafetySupervisor every, fewer;
+    const int steps = 8000;
+    // Silences: [start, end) in ms, per stream.
+    const auto silence = [&](double longest_ms) {
+      const int start = static_cast<int>(u(rng) * steps);
+      return std::make_pair(start, start + static_cast<int>(u(rng) * longest_ms));
+    };
+    const auto force_gap = silence(300.0), tracker_gap = silence(1200.0);
+    const int trial_start = static_cast<int>(u(rng) * 2000.0);
+    const bool never_tracked = u(rng) < 0.1;
+    double wanted_tick = -1.0;  // fewer's next check (grid index); -1: the next one
+    for (int n = 0; n < steps; ++n) {
+      const double t = n * 1e-3;
+      bool seen = false;
+      for (SafetySupervisor* s : {&every, &fewer}) {
+        if (n == trial_start) s->setTrialRunning(true);
+        if (n % 3 == 0 && (n < force_gap.first || n >= force_gap.second)) {
+          s->onForce(t, Eigen::Vector3d(0, 0, 1.0 + 1e-3 * n));
+          seen = true;
+        }
+        if (!never_tracked && n % 125 == 0 && (n < tracker_gap.first || n >= tracker_gap.second)) {
+          s->onTracked(t, at(t, kBone));
+          seen = true;
+        }
+      }
+      if (n == trial_start) seen = true;  // the planner's phase: a step every participant sees
+      if (n % 5 == 0) {
+        every.check(t);
+        if (seen || n / 5 >= wanted_tick) {  // a step it sees on the grid checks too
+          fewer.check(t);
+          seen = true;
+        }
+      }
+      if (seen) {  // the nodelet's nextStep after a step it saw
+        wanted_tick = nextUsefulCheckTick(t, 200.0, fewer.quietUntil());
+      }
+      ASSERT_EQ(every.verdict().stop, fewer.verdict().stop)
+          << "seed " << seed << " t " << t << " " << every.verdict().message << " wanted "
+          << wanted_tick << " quiet " << fewer.quietUntil() << " start " << trial_start << " fg "
+          << force_gap.first << "-" << force_gap.second << " tg " << tracker_gap.first << "-"
+          << tracker_gap.second;
+      ASSERT_EQ(every.verdict().reason, fewer.verdict().reason) << "seed " << seed;
+      ASSERT_EQ(every.verdict().t, fewer.verdict().t) << "seed " << seed;
+    }
+    const auto r = every.verdict().reason;
+    timeouts += r == SafetyVerdict::kForceTimeout || r == SafetyVerdict::kTrackerTimeout;
+  }
+  EXPECT_GT(timeouts, 100);  // the streams' silences stopped many of the 300
 }
 
 }  // namespace

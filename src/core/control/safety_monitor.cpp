@@ -1,6 +1,7 @@
 // Monitor of Algorithm 1 and the retreat planner.
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdio>
@@ -192,6 +193,15 @@ const SafetyVerdict& SafetyMonitor::check(double t) {
                 params_.tracker_timeout_s, t));
   }
   return verdict_;
+}
+
+double SafetyMonitor::quietUntil() const {
+  if (verdict_.stop) return std::numeric_limits<double>::infinity();
+  if (!armed_) return -std::numeric_limits<double>::infinity();
+  // check(t) triggers when t - ref > timeout: not at t <= ref + timeout, up to the rounding of
+  // the two sums (a caller keeps a margin: the monitor's nodelet asks for one check early).
+  return std::min((have_force_ ? last_force_t_ : armed_t_) + params_.force_timeout_s,
+                  (have_tracker_ ? last_tracker_t_ : armed_t_) + params_.tracker_timeout_s);
 }
 
 const ParamTable<RetreatParams>& RetreatParams::table() {

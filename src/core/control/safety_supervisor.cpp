@@ -1,6 +1,8 @@
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace pedicle_drilling::core {
@@ -34,6 +36,13 @@ const StampedPosition* StampPairer::add(const StampedPosition& sample, bool is_p
 void StampPairer::clear() {
   tracked_.clear();
   predicted_.clear();
+}
+
+double nextUsefulCheckTick(double t, double rate_hz, double quiet) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  if (quiet == kInf) return kInf;
+  const double next = std::floor(t * rate_hz + 1e-6) + 1.0;  // the grid's rounding: 1e-6 period
+  return quiet == -kInf ? next : std::max(next, std::floor(quiet * rate_hz) - 1.0);
 }
 
 SafetySupervisor::SafetySupervisor(const SupervisorParams& params)

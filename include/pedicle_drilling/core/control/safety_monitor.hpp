@@ -133,6 +133,14 @@ class SafetyMonitor {
   /** @brief Evaluate timeouts at time t and return the (latched) verdict. */
   const SafetyVerdict& check(double t);
 
+  /**
+   * @brief Without a new input, check(t) changes nothing for any t <= the returned time: the
+   *        earlier of the two streams' timeouts (last sample, or the arming time, plus the
+   *        timeout); -infinity before arming (the next check arms), +infinity once stopped.
+   *        A check that cannot change anything may be skipped (the lockstep's fewer steps).
+   */
+  double quietUntil() const;
+
   /** @brief Current verdict without evaluating timeouts. */
   const SafetyVerdict& verdict() const { return verdict_; }
 

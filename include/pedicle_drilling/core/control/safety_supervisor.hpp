@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include <deque>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -75,6 +76,14 @@ enum class PairResult {
 };
 
 /** @brief Streams in, one stop out: SafetyMonitor plus pairing, arming and the stop report. */
+/**
+ * @brief The grid index k (the check at k / rate_hz) of a monitor's next check after time `t`
+ *        that can change anything, given its quietUntil() `quiet`: the next grid step, or the
+ *        one a period before `quiet` when that is later (a margin far above the rounding of
+ *        the timeouts' sums); +infinity when no check can (stopped, or not checking).
+ */
+double nextUsefulCheckTick(double t, double rate_hz, double quiet);
+
 class SafetySupervisor {
  public:
   /** @brief Construct. @throws std::invalid_argument if params.validate() fails. */
@@ -101,6 +110,16 @@ class SafetySupervisor {
 
   /** @brief Evaluates the timeouts at `now` if armed (both streams heard, or a trial runs). */
   void check(double now);
+
+  /**
+   * @brief Without a new input (sample, prediction or trial phase), check() changes nothing
+   *        up to and including the returned time (SafetyMonitor::quietUntil; +infinity while
+   *        check() does not evaluate).
+   */
+  double quietUntil() const {
+    return heardBoth() || trial_running_ ? monitor_.quietUntil()
+                                         : std::numeric_limits<double>::infinity();
+  }
 
   /**
    * @brief The verdict the first time it is a stop, then never again until reset(): the one
