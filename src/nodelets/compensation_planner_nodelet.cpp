@@ -74,6 +74,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       lockstep_ = std::make_unique<LockstepParticipant>(
           nh, getName(), [this](const ros::Time& t) { onStep(t); }, false,
           [this](const ros::Time&) { return nextStep(); });
+      // Under the lockstep: one thread for the participants' callbacks (issue 31); ~start_trial
+      // keeps its own queue and thread below (it waits for the other nodelets' services).
+      lockstep_->shareQueue({&nh, &pnh});
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }

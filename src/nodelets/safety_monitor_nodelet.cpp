@@ -93,6 +93,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       lockstep_ = std::make_unique<LockstepParticipant>(
           nh, getName(), [this](const ros::Time& t) { onStep(t); }, true,
           [this](const ros::Time& t) { return nextStep(t); });
+      lockstep_->shareQueue({&nh, &pnh});  // under the lockstep: the participants' thread
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails, nothing advertised yet
     }

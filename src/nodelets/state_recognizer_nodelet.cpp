@@ -58,6 +58,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       lockstep_ = std::make_unique<LockstepParticipant>(
           nh, getName(), nullptr, false,
           [](const ros::Time&) { return std::optional<ros::Time>(); });
+      lockstep_->shareQueue({&nh, &pnh});  // under the lockstep: the participants' thread
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }

@@ -580,6 +580,20 @@ def _wait_sim_until(recorder, stamp):
         raise RuntimeError('sim time did not reach %.3f s' % stamp)
 
 
+def batch_scheduling():
+    """This worker and everything it starts (inherited) under SCHED_BATCH: a thread woken by
+    another (a message queued, a condition notified) does not preempt it. Under the lockstep the
+    simulator's thread then publishes a whole step before the participants run, and the
+    participants' thread handles all of it at once, instead of one thread switch per message
+    (a third of the ROS trial's wall time; doc/benchmarks.md). Only the order of execution
+    changes, which the lockstep makes irrelevant to the trial. An unprivileged process may
+    choose it; where it is refused the worker says so and runs as it is."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_BATCH, os.sched_param(0))
+    except (AttributeError, OSError) as error:
+        sys.stderr.write('campaign worker: SCHED_BATCH refused (%s); running as it is\n' % error)
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser()
     parser.add_argument('--port', type=int, required=True)
@@ -628,6 +642,7 @@ def main(argv=None):
         # Inherited by the master, roslaunch and the nodelet manager started below: the
         # lockstep's thread hand-offs stay on one CPU (no cross-CPU wake-ups).
         os.sched_setaffinity(0, {args.cpu})
+    batch_scheduling()
     if args.pre_trial_s is None:
         args.pre_trial_s = args.identification_window_s if not args.models_dir else 1.0
     with open(args.trials) as handle:

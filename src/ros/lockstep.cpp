@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
 #include "pedicle_drilling/StepAck.h"
@@ -39,6 +40,27 @@ void LockstepParticipant::start() {
   if (!enabled_) return;
   step_sub_ = nh_.subscribe("simulator/step", 10, &LockstepParticipant::onStep, this,
                             ros::TransportHints().tcpNoDelay());
+}
+
+void LockstepParticipant::shareQueue(std::initializer_list<ros::NodeHandle*> handles) {
+  if (started_) throw std::logic_error("LockstepParticipant::shareQueue: after start()");
+  if (!enabled_) return;
+  ros::CallbackQueue* queue = sharedQueue();
+  nh_.setCallbackQueue(queue);
+  for (ros::NodeHandle* nh : handles) nh->setCallbackQueue(queue);
+}
+
+ros::CallbackQueue* LockstepParticipant::sharedQueue() {
+  // Never destroyed: its detached thread serves it until ROS shuts down, and the nodelets that
+  // registered on it may be unloaded in any order before then.
+  static ros::CallbackQueue* const queue = [] {
+    auto* q = new ros::CallbackQueue();
+    std::thread([q] {
+      while (!ros::isShuttingDown()) q->callAvailable(ros::WallDuration(0.1));
+    }).detach();
+    return q;
+  }();
+  return queue;
 }
 
 ros::Time LockstepParticipant::now() const {

@@ -648,8 +648,9 @@ def test_ros_workers_are_pinned_one_per_cpu_of_the_allowed_set():
     assert cli.worker_cpus(2, 'off', {0, 1}) == [None, None]
 
 
-def test_worker_runs_on_the_cpu_it_is_given(tmp_path):
-    """The worker pins itself before it starts its master and launch (they inherit it)."""
+def test_worker_runs_on_the_cpu_it_is_given_under_batch_scheduling(tmp_path):
+    """The worker pins itself and takes SCHED_BATCH before it starts its master and launch
+    (they inherit both)."""
     trials = tmp_path / 'none.json'
     trials.write_text('[]')
     cpu = min(os.sched_getaffinity(0))
@@ -659,6 +660,7 @@ def test_worker_runs_on_the_cpu_it_is_given(tmp_path):
               '    pass\n'
               'def popen(*a, **k):\n'
               '    print(sorted(os.sched_getaffinity(0)))\n'
+              '    print(os.sched_getscheduler(0) == os.SCHED_BATCH)\n'
               '    raise Stop()\n'
               'worker.subprocess.Popen = popen\n'
               'try:\n'
@@ -670,4 +672,4 @@ def test_worker_runs_on_the_cpu_it_is_given(tmp_path):
          str(tmp_path / 'out'), '--default-model', 'unused.yaml', '--cpu', str(cpu)],
         capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr[-2000:]
-    assert result.stdout.split('\n')[0] == '[%d]' % cpu, result.stdout
+    assert result.stdout.split('\n')[:2] == ['[%d]' % cpu, 'True'], result.stdout

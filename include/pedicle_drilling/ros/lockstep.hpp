@@ -22,6 +22,7 @@
  */
 #pragma once
 
+#include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
 
@@ -30,6 +31,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <functional>
+#include <initializer_list>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -74,6 +76,26 @@ class LockstepParticipant {
    *        std::logic_error.
    */
   void start();
+  /**
+   * @brief Under the lockstep, puts this participant's steps and every callback of @p handles
+   *        (its subscriptions, services and connection callbacks; call it before anything is
+   *        registered on them) on the process's participants' queue (sharedQueue()): one
+   *        thread runs the callbacks of every participant that shares it, in the order they
+   *        arrived, so that a synchronised step passes from one participant to the next
+   *        without a thread switch (issue 31). Each participant's callbacks stay in their
+   *        order, and what one sends another is handled at the next step (deliver()), so the
+   *        trial is the same as on the nodelet manager's threads. Nothing without the lockstep:
+   *        on hardware each nodelet keeps its own queue (a slow planner never delays the
+   *        monitor). A callback on it must not wait for another callback on it (a service of a
+   *        participant is called from elsewhere: the planner's start_trial thread). Before
+   *        start(); throws std::logic_error after it.
+   */
+  void shareQueue(std::initializer_list<ros::NodeHandle*> handles);
+  /**
+   * @brief The participants' queue of this process, and the one thread that serves it (made
+   *        at the first call; it runs until ROS shuts down).
+   */
+  static ros::CallbackQueue* sharedQueue();
 
   /** @brief Whether the lockstep is on. */
   bool enabled() const { return enabled_; }
