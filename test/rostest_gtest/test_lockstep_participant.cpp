@@ -1,7 +1,8 @@
 /**
  * @file test_lockstep_participant.cpp
  * @brief LockstepParticipant subscribes the simulator's steps in start(), not in its
- *        constructor (rostest lockstep_participant.test, /use_sim_lockstep true).
+ *        constructor, and shareQueue() runs them and the inputs it is given on the participants'
+ *        thread (rostest lockstep_participant.test, /use_sim_lockstep true).
  */
 #include <gtest/gtest.h>
 #include <ros/callback_queue.h>
@@ -10,8 +11,12 @@
 
 #include <chrono>
 #include <functional>
+#include <mutex>
+#include <set>
 #include <stdexcept>
+#include <string>
 #include <thread>
+#include <vector>
 
 #include "pedicle_drilling/StepAck.h"
 #include "pedicle_drilling/ros/lockstep.hpp"
@@ -54,6 +59,55 @@ TEST(LockstepParticipant, HearsTheStepsOnlyFromStart) {
   EXPECT_TRUE(serveUntil(&queue, [&] { return steps == 1 && acks == 1; }))
       << steps << " steps, " << acks << " answers";
   EXPECT_THROW(participant.start(), std::logic_error);
+}
+
+// shareQueue(): the participant's steps and the callbacks of the handles it is given run on
+// the process's participants' thread, without anyone serving their own queue, one after the
+// other in arrival order; refused after start().
+TEST(LockstepParticipant, SharedQueueRunsTheStepsAndTheInputsOnItsThread) {
+  ros::NodeHandle nh("shared");
+  ros::NodeHandle inputs_nh("shared");
+  ros::CallbackQueue unserved;  // nobody serves it: what runs, runs on the shared thread
+  nh.setCallbackQueue(&unserved);
+  inputs_nh.setCallbackQueue(&unserved);
+  std::mutex mutex;
+  std::vector<std::string> order;
+  std::set<std::thread::id> threads;
+  const auto note = [&](const std::string& what) {
+    std::lock_guard<std::mutex> lock(mutex);
+    order.push_back(what);
+    threads.insert(std::this_thread::get_id());
+  };
+  LockstepParticipant participant(nh, "shared_participant",
+                                  [&](const ros::Time&) { note("step"); });
+  participant.shareQueue({&inputs_nh});
+  ros::Subscriber input_sub = inputs_nh.subscribe<rosgraph_msgs::Clock>(
+      "input", 10, [&](const rosgraph_msgs::Clock::ConstPtr&) { note("input"); });
+  participant.start();
+  EXPECT_THROW(participant.shareQueue({&inputs_nh}), std::logic_error);
+  ros::NodeHandle pub_nh("shared");
+  ros::CallbackQueue pub_queue;
+  pub_nh.setCallbackQueue(&pub_queue);
+  ros::Publisher step_pub = pub_nh.advertise<rosgraph_msgs::Clock>("simulator/step", 10);
+  ros::Publisher input_pub = pub_nh.advertise<rosgraph_msgs::Clock>("input", 10);
+  ASSERT_TRUE(serveUntil(&pub_queue, [&] {
+    return step_pub.getNumSubscribers() == 1u && input_pub.getNumSubscribers() == 1u;
+  }));
+  // Shared messages, as the nodelets publish them (in order, inside publish()).
+  auto msg = boost::make_shared<rosgraph_msgs::Clock>();
+  msg->clock = ros::Time(3.0);
+  input_pub.publish(msg);
+  step_pub.publish(msg);
+  const auto done = [&] {
+    std::lock_guard<std::mutex> lock(mutex);
+    return order.size() == 2;
+  };
+  ASSERT_TRUE(serveUntil(&pub_queue, done));
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_EQ(order, (std::vector<std::string>{"input", "step"}));
+  ASSERT_EQ(threads.size(), 1u);
+  EXPECT_NE(*threads.begin(), std::this_thread::get_id());
+  EXPECT_EQ(unserved.isEmpty(), true);
 }
 
 }  // namespace
