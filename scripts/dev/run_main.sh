@@ -30,26 +30,29 @@ start=$(date +%s)
 #    12000 rpm, 100 at 16000 and 20000 rpm, so that the Wilson intervals span a few points.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
   --rpm 12000,16000,20000 --trials 200,100,100 --jobs "${JOBS}" --out "${OUT}/campaign"
+# The Table II identification takes no scenario setting: the campaigns below read the first
+# one's (the same build) instead of identifying the five volunteers again.
+IDENT=(--identification "${OUT}/campaign/identification")
 # 2. Beyond the paper: the exact profile on the paper's bench; the bone moving as the virtual
 #    patient, linear vs hysteresis model.
 for scenario in exact virtual_patient hysteresis; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_${scenario}.yaml" \
-    --trials 200 --jobs "${JOBS}" --out "${OUT}/campaign_${scenario}"
+    --trials 200 --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_${scenario}"
 done
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
-  --jobs "${JOBS}" --out "${OUT}/campaign_faults"
+  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_faults"
 # 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes
 #     through the inner layer; the force sensor at the DAQ rate calibrated against Fig. 16
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
-  --jobs "${JOBS}" --out "${OUT}/campaign_peak_forces"
+  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_peak_forces"
 # 2d. The realistic bench (scenario_realistic.yaml, issue 29): the paper's design
 #     on the same specimens with the imperfections the simulator can express at sourced values
 #     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
 #     --benches: McNemar per case and speed).
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
-  --jobs "${JOBS}" --out "${OUT}/campaign_realistic"
+  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
 # 2e. Sensitivity of the conclusions (issue 29): every uncertain constant of
@@ -85,13 +88,14 @@ for run in ros ros_repeat; do
   every=()
   [ "${run}" = ros_repeat ] && every=(--lockstep-every-step)
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
-    --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" "${every[@]}" \
+    --rpm 12000 --trials 30 --engine ros --jobs "${JOBS}" "${every[@]}" "${IDENT[@]}" \
     --out "${OUT}/campaign_${run}"
 done
 # ... and the realistic bench's first 10 trials per case (its simulator_params and delays on the
 # Simulator nodelet), beside the core engine's.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
-  --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" --out "${OUT}/campaign_realistic_ros"
+  --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" "${IDENT[@]}" \
+  --out "${OUT}/campaign_realistic_ros"
 {
   echo "# Engine agreement (same seeds)"
   echo

@@ -28,7 +28,7 @@ import sys
 import numpy as np
 import yaml
 
-from . import baselines, compare, report, stats, tools
+from . import baselines, compare, report, sensitivity, stats, tools
 from .atomic import atomic_savefig, atomic_write
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
@@ -153,20 +153,28 @@ def grid_points(grid):
         *[[str(v) for v in grid[n]] for n in names])]
 
 
-def tune_entry(entry, train, validation, log=sys.stderr):
-    """{params, train, validation, grid_size, top}: the entry's chosen settings and scores."""
+def tune_entry(entry, train, validation, log=sys.stderr, jobs=1):
+    """{params, train, validation, grid_size, top}: the entry's chosen settings and scores. The
+    grid's points are scored `jobs` at a time (one `recognize` process each; a score depends on
+    its point only, so the choice does not depend on `jobs`)."""
+    import concurrent.futures
     fixed = {k: str(v) for k, v in (entry.get('params') or {}).items()}
     points = grid_points(entry.get('tune') or {}) or [{}]
-    train_scores = []
-    for k, point in enumerate(points):
-        train_scores.append(offline_score(entry['recognizer'], dict(fixed, **point), train))
-        log.write('leaderboard: %s grid %d/%d on train: %s\n' % (
-            entry['name'], k + 1, len(points), train_scores[-1]))
-    order = sorted(range(len(points)), key=lambda i: (_rank(train_scores[i]), -i), reverse=True)
-    validation_scores = [None] * len(points)
-    for i in order[:TOP_ON_TRAIN]:
-        validation_scores[i] = offline_score(entry['recognizer'], dict(fixed, **points[i]),
-                                             validation)
+    with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
+        train_scores = list(pool.map(
+            lambda point: offline_score(entry['recognizer'], dict(fixed, **point), train),
+            points))
+        for k, score in enumerate(train_scores):
+            log.write('leaderboard: %s grid %d/%d on train: %s\n' % (
+                entry['name'], k + 1, len(points), score))
+        order = sorted(range(len(points)), key=lambda i: (_rank(train_scores[i]), -i),
+                       reverse=True)
+        validation_scores = [None] * len(points)
+        top = order[:TOP_ON_TRAIN]
+        for i, score in zip(top, pool.map(
+                lambda i: offline_score(entry['recognizer'], dict(fixed, **points[i]),
+                                        validation), top)):
+            validation_scores[i] = score
     best, top = select(points, train_scores, validation_scores)
     return {'params': dict(fixed, **points[best]), 'train': train_scores[best],
             'validation': validation_scores[best], 'grid_size': len(points),
@@ -185,12 +193,14 @@ def train_entry(entry, dataset_dir, out_dir, train, validation):
             'grid_size': 0, 'top': []}
 
 
-def run_campaign(entry, params, scenario, meta, args, out_dir):
+def run_campaign(entry, params, scenario, meta, args, out_dir, identification):
+    """The entry's closed-loop campaign: trials.csv, summary.json and report.md, no figures
+    (the leaderboard draws its own), on the leaderboard's one Table II identification."""
     command = tools.tool('campaign') + [
         '--scenario', scenario, '--seed', str(meta['base_seed']), '--seed-space', 'evaluation',
         '--case', ','.join(args.cases), '--rpm', ','.join(str(r) for r in args.rpms),
         '--trials', str(args.trials), '--jobs', str(args.jobs), '--out', out_dir,
-        '--recognizer', entry['recognizer']]
+        '--recognizer', entry['recognizer'], '--identification', identification, '--no-figures']
     for name, value in sorted(params.items()):
         command += ['--recognizer-param', '%s=%s' % (name, value)]
     if subprocess.run(command).returncode != 0:
@@ -369,9 +379,16 @@ def main(argv=None):
             tuning[entry['name']] = train_entry(entry, args.dataset, args.out, traces['train'],
                                                 traces['validation'])
         else:
-            tuning[entry['name']] = tune_entry(entry, traces['train'], traces['validation'])
+            tuning[entry['name']] = tune_entry(entry, traces['train'], traces['validation'],
+                                               jobs=args.jobs)
     with atomic_write(os.path.join(args.out, 'tuning.json')) as handle:
         json.dump(tuning, handle, indent=1)
+    # Table II once for every closed-loop campaign (it takes no scenario setting).
+    try:
+        identification = sensitivity.identify(args.out, args.jobs)
+    except sensitivity.IdentificationError as e:
+        sys.stderr.write('leaderboard: %s\n' % e)
+        return 1
     boards = {}
     for bench in benches:
         scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])
@@ -380,7 +397,7 @@ def main(argv=None):
             sys.stderr.write('leaderboard: %s on the %s bench\n' % (entry['name'], bench))
             rows_by_entry[entry['name']] = run_campaign(
                 entry, tuning[entry['name']]['params'], scenario, meta, args,
-                os.path.join(args.out, 'closed_loop', bench, entry['name']))
+                os.path.join(args.out, 'closed_loop', bench, entry['name']), identification)
         boards[bench] = board_rows(rows_by_entry, config['reference'])
     with atomic_write(os.path.join(args.out, 'leaderboard.json')) as handle:
         json.dump({'meta': meta, 'trials': args.trials, 'boards': boards, 'tuning': tuning},
