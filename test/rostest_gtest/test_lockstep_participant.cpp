@@ -107,7 +107,7 @@ TEST(LockstepParticipant, SharedQueueRunsTheStepsAndTheInputsOnItsThread) {
   EXPECT_EQ(order, (std::vector<std::string>{"input", "step"}));
   ASSERT_EQ(threads.size(), 1u);
   EXPECT_NE(*threads.begin(), std::this_thread::get_id());
-  EXPECT_EQ(unserved.isEmpty(), true);
+  EXPECT_TRUE(unserved.isEmpty());
 }
 
 }  // namespace

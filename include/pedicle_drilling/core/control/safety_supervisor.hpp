@@ -75,7 +75,6 @@ enum class PairResult {
   kStale,          ///< A tracked sample whose stamp is not newer than the last: ignored.
 };
 
-/** @brief Streams in, one stop out: SafetyMonitor plus pairing, arming and the stop report. */
 /**
  * @brief The grid index k (the check at k / rate_hz) of a monitor's next check after time `t`
  *        that can change anything, given its quietUntil() `quiet`: the next grid step, or the
@@ -84,6 +83,7 @@ enum class PairResult {
  */
 double nextUsefulCheckTick(double t, double rate_hz, double quiet);
 
+/** @brief Streams in, one stop out: SafetyMonitor plus pairing, arming and the stop report. */
 class SafetySupervisor {
  public:
   /** @brief Construct. @throws std::invalid_argument if params.validate() fails. */
