@@ -33,26 +33,32 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml"
 # The Table II identification takes no scenario setting: the campaigns below read the first
 # one's (the same build) instead of identifying the five volunteers again.
 IDENT=(--identification "${OUT}/campaign/identification")
+# A trial that an earlier campaign of this run ran already (the same build, engine options and
+# trial entry: the same record, bit for bit) is taken from it, row and trace, not run again
+# (--reuse-trials; doc/experiments.md, "Reusing trials"): the sweeps' nominal benches repeat the
+# main campaigns' first trials, the speed sweep repeats the paper bench's sweep at 12000 rpm.
+REUSE=(--reuse-trials "${OUT}")
 # 2. Beyond the paper: the exact profile on the paper's bench; the bone moving as the virtual
 #    patient, linear vs hysteresis model.
 for scenario in exact virtual_patient hysteresis; do
   rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_${scenario}.yaml" \
-    --trials 200 --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_${scenario}"
+    --trials 200 --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" \
+    --out "${OUT}/campaign_${scenario}"
 done
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
-  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_faults"
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_faults"
 # 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes
 #     through the inner layer; the force sensor at the DAQ rate calibrated against Fig. 16
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
-  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_peak_forces"
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_peak_forces"
 # 2d. The realistic bench (scenario_realistic.yaml, issue 29): the paper's design
 #     on the same specimens with the imperfections the simulator can express at sourced values
 #     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
 #     --benches: McNemar per case and speed).
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
-  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_realistic"
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
 # 2e. Sensitivity of the conclusions (issue 29): every uncertain constant of
@@ -62,15 +68,16 @@ rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_real
 #     not a measurement; doc/experiments.md, "Sensitivity of the conclusions").
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_paper.yaml" \
   --sweep "${ROOT}/config/sensitivity.yaml" --rpm 12000 --trials "${SENSITIVITY_TRIALS:-20}" \
-  --jobs "${JOBS}" --out "${OUT}/sensitivity_paper" > /dev/null
+  --jobs "${JOBS}" "${REUSE[@]}" --out "${OUT}/sensitivity_paper" > /dev/null
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_realistic.yaml" \
   --sweep "${ROOT}/config/sensitivity_realistic.yaml" --rpm 12000 \
-  --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" --out "${OUT}/sensitivity_realistic" \
+  --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" "${REUSE[@]}" \
+  --out "${OUT}/sensitivity_realistic" \
   > /dev/null
 # 2f. Fig. 15's question: the compensated case at 12000/16000/20000 rpm, 50 trials per speed,
 #     over every speed-dependent candidate (config/sensitivity_speed.yaml).
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
-  --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" \
+  --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" "${REUSE[@]}" \
   --out "${OUT}/sensitivity_speed" > /dev/null
 # 2g. The open benchmark (issue 32): a small labelled dataset (doc/dataset.md; `--large` for the
 #     full one) and the leaderboard of literature baselines tuned on its training split, run in

@@ -12,7 +12,7 @@ import time
 
 import yaml
 
-from . import engine_core, profile, report, tools
+from . import engine_core, profile, report, reuse, tools
 from .atomic import atomic_path, atomic_write
 from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
@@ -298,6 +298,13 @@ def parse_args(argv):
                         'threads, and a hand-off to a thread on another CPU costs a '
                         'cross-CPU wake-up: pinned, the same trials take about a quarter less '
                         'wall time (doc/benchmarks.md)')
+    parser.add_argument('--reuse-trials', default=None, metavar='ROOT',
+                        help='--engine core: take the trials that a finished campaign in ROOT '
+                        '(or one or two folders below it) ran with the same build, package '
+                        'files and engine options, row and trace, instead of running them '
+                        'again (a trial\'s record depends on these and its seed only; '
+                        'doc/experiments.md, "Reusing trials"). make run gives its results '
+                        'folder')
     parser.add_argument('--lockstep-every-step', action='store_true',
                         help='--engine ros: the simulator waits for the participants at every '
                         'step (~lockstep_every_step), not only where one of them needs it; the '
@@ -320,6 +327,11 @@ def parse_args(argv):
         if args.lockstep_every_step:
             raise UsageError('--lockstep-every-step is the ROS pipeline\'s: use it with '
                              '--engine ros')
+        if args.reuse_trials is not None and (args.samples or args.profile):
+            raise UsageError('--reuse-trials takes trials without their samples or profile: '
+                             'not with --samples or --profile')
+    elif args.reuse_trials is not None:
+        raise UsageError('--reuse-trials takes core-engine trials: use it with --engine core')
     elif args.samples:
         raise UsageError('--samples is written by --engine core only')
     elif args.profile:
@@ -397,6 +409,10 @@ def parse_args(argv):
         if missing:
             raise UsageError('--identification %s is not a Table II identification (table2.py '
                              '--out DIR): %s missing' % (args.identification, missing))
+    if args.reuse_trials is not None:
+        if not os.path.isdir(args.reuse_trials):
+            raise UsageError('--reuse-trials %s is not a folder' % args.reuse_trials)
+        args.reuse_trials = os.path.abspath(args.reuse_trials)
     shard_spec = None
     if args.shard:
         try:
@@ -597,6 +613,7 @@ def run_campaign(argv=None):
     selected = shard(design, *shard_spec) if shard_spec else design
     out_dir = os.path.abspath(args.out)
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
+    reuse.unmark(out_dir)  # not a source of trials until this campaign has finished
     # The report's meta data describe the design only, so that merged shards report the same.
     meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
             'seed_space': args.seed_space,
@@ -646,16 +663,41 @@ def run_campaign(argv=None):
             with atomic_path(os.path.join(out_dir, name)) as tmp:
                 shutil.copyfile(os.path.join(ident_dir, name), tmp)
         models_dir = os.path.join(ident_dir, 'models')
-    jobs = min(args.jobs, len(selected))
-    slices = [selected[i::jobs] for i in range(jobs)]
-    sys.stderr.write('campaign: %d trials (%s), %d worker(s), output %s\n'
+    pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
+
+    def core_command(samples_dir=None, profile_path=None):
+        return engine_core.trial_engine_command(
+            '-', pose, models_dir,
+            scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
+            float(scenario.get('feed_rate_mm_s', 0.5)),
+            float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
+            COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
+            [(FAULT_PARAMS[k], int(v) if k == 'command_fault_count' else float(v))
+             for k, v in sorted((scenario.get('fault_params') or {}).items())],
+            recognizer, compensator, params['recognizer'], params['compensator'],
+            scenario.get('simulator'), scenario.get('protocol', 'recognition'),
+            scenario.get('simulator_params'), scenario.get('planner_params'),
+            scenario.get('engine_delays'), samples_dir, profile_path)
+
+    engine_key = reuse.engine_key(core_command(), PACKAGE_ROOT) if args.engine == 'core' else None
+    taken = {}
+    if args.reuse_trials and engine_key:
+        try:
+            taken = reuse.find(args.reuse_trials, engine_key, selected, exclude=out_dir)
+        except reuse.ReuseError as error:
+            sys.stderr.write('campaign: --reuse-trials: %s\n' % error)
+            return 1
+    pending = [trial for trial in selected if trial['trial_id'] not in taken]
+    jobs = min(args.jobs, len(pending))
+    slices = [pending[i::jobs] for i in range(jobs)]
+    sys.stderr.write('campaign: %d trials (%s), %s%d worker(s), output %s\n'
                      % (len(selected), 'shard ' + args.shard if args.shard else 'full design',
-                        jobs, out_dir))
+                        '%d taken from finished campaigns (--reuse-trials), ' % len(taken)
+                        if args.reuse_trials else '', jobs, out_dir))
     rows = []
     lock = threading.Lock()
     progress = Progress(len(selected))
     workers = []
-    pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
     samples_dir = os.path.join(out_dir, 'samples') if args.samples else None
     profiles = [os.path.join(out_dir, 'profile-worker-%d.json' % k) if args.profile else None
                 for k in range(len(slices))]
@@ -668,18 +710,7 @@ def run_campaign(argv=None):
         if args.engine == 'core':
             # The trials through stdin, the next to the process that finished one (feed below;
             # a trial depends on its seed only, not on the process that runs it).
-            workers.append(engine_core.start(engine_core.trial_engine_command(
-                '-', pose, models_dir,
-                scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
-                float(scenario.get('feed_rate_mm_s', 0.5)),
-                float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
-                COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
-                [(FAULT_PARAMS[k], int(v) if k == 'command_fault_count' else float(v))
-                 for k, v in sorted((scenario.get('fault_params') or {}).items())],
-                recognizer, compensator, params['recognizer'], params['compensator'],
-                scenario.get('simulator'), scenario.get('protocol', 'recognition'),
-                scenario.get('simulator_params'), scenario.get('planner_params'),
-                scenario.get('engine_delays'), samples_dir, profiles[k])))
+            workers.append(engine_core.start(core_command(samples_dir, profiles[k])))
             continue
         # Each trial's stamps from its place in the design, not from when its worker got to it:
         # the same trial on any run, job count or shard (worker.time_zero).
@@ -718,7 +749,7 @@ def run_campaign(argv=None):
         workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True,
                                         start_new_session=True))
 
-    feed = engine_core.TrialFeed(selected) if args.engine == 'core' else None
+    feed = engine_core.TrialFeed(pending) if args.engine == 'core' else None
     reader_errors = []
 
     def collect(worker):
@@ -752,6 +783,12 @@ def run_campaign(argv=None):
                 feed.close(worker)
 
     appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'))
+    for trial in selected:  # in design order, before the engines' trials
+        if trial['trial_id'] in taken:
+            row = reuse.take(*taken[trial['trial_id']], out_dir)
+            rows.append(row)
+            progress.update(row)
+            appender.append(row)
     readers = [threading.Thread(target=collect, args=(w,), daemon=True) for w in workers]
     for reader in readers:
         reader.start()
@@ -793,7 +830,10 @@ def run_campaign(argv=None):
                      % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))
     if interrupted:
         return 130
-    return 0 if len(finished) == len(selected) and not reader_errors else 1
+    complete = len(finished) == len(selected) and not reader_errors
+    if complete and engine_key:
+        reuse.mark(out_dir, engine_key)  # its trials may now be taken (--reuse-trials)
+    return 0 if complete else 1
 
 
 def run_merge(argv=None):

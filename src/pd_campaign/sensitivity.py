@@ -992,6 +992,10 @@ def parse_args(argv):
                         help='campaigns run at once, one trial_engine process each (a trial '
                         'depends on its seed only: the results do not depend on it)')
     parser.add_argument('--out', default='sensitivity_out')
+    parser.add_argument('--reuse-trials', default=None, metavar='ROOT',
+                        help='each campaign takes the trials a finished campaign under ROOT ran '
+                        'with the same build and engine options (campaign --reuse-trials): '
+                        'the nominal bench\'s trials from the main campaign, for instance')
     parser.add_argument('--only', action='append', default=[], metavar='NAME',
                         help='sweep only this constant (its name with or without the kind; '
                         'repeatable)')
@@ -1021,6 +1025,10 @@ def campaign_argv(args):
             '--rpm', ','.join('%r' % r for r in rpms),
             '--trials', ','.join(str(t) for t in trials) if isinstance(trials, list)
             else str(trials), '--seed', str(seed), '--seed-space', parsed.seed_space]
+    if args.reuse_trials is not None:
+        if not os.path.isdir(args.reuse_trials):
+            raise SweepError('--reuse-trials %s is not a folder' % args.reuse_trials)
+        argv += ['--reuse-trials', os.path.abspath(args.reuse_trials)]
     expected = {'cases': list(cases), 'rpms': rpms, 'trials': trials, 'seed': seed,
                 'seed_space': parsed.seed_space, 'engine': 'core'}
     return argv, scenario, expected

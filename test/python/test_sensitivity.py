@@ -553,6 +553,25 @@ def test_a_second_run_keeps_the_finished_campaigns_and_gives_the_same_table(tiny
         assert handle.read() == tiny_sweep['table']
 
 
+def test_a_sweep_reusing_the_trials_takes_them_all_and_gives_the_same_table(tiny_sweep,
+                                                                          tmp_path):
+    """--reuse-trials: every campaign of the same sweep into another folder takes all its trials
+    from the first one's (the same build and engine options), and the table is the same."""
+    out = str(tmp_path / 'out')
+    result = _run('--sweep', _sweep_file(tmp_path, TINY), '--out', out,
+                  '--reuse-trials', tiny_sweep['out'], *TINY_ARGS)
+    assert result.returncode == 0, result.stderr[-2000:]
+    for bench in BENCHES:
+        with open(os.path.join(out, bench, 'campaign.log')) as handle:
+            assert '6 trials (full design), 6 taken from finished campaigns' in handle.read(), \
+                bench
+    with open(os.path.join(out, 'sensitivity.csv')) as handle:
+        assert handle.read() == tiny_sweep['table']
+    result = _run('--sweep', _sweep_file(tmp_path, TINY), '--out', out,
+                  '--reuse-trials', str(tmp_path / 'absent'), *TINY_ARGS)
+    assert result.returncode == 2 and '--reuse-trials' in result.stderr
+
+
 def test_a_campaign_run_by_another_build_is_run_again_not_kept(tiny_sweep, tmp_path):
     """Each finished campaign records the build that ran it (build.json: tools.build_id); a
     second run keeps it only when that is today's build, so a code change that moves outcomes

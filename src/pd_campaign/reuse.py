@@ -1,0 +1,151 @@
+"""Trials a core-engine campaign takes from finished campaigns instead of running them again
+(`campaign --reuse-trials ROOT`, issue 31).
+
+A core trial's record is a function of the trial (its id, case, speed, seed, fault) and of what
+trial_engine runs it with: the build, the package's files it reads at run time (urdf/, config/,
+the plugin manifests) and its options, the Table II models among them. `engine_key` digests all
+of these but the trial, files by their content (not their path); two trials with equal keys and
+equal trial entries have the same record, bit for bit (doc/experiments.md, "Reproducibility"),
+so the same trials.csv row and trace. `make run` runs some trials twice without this: each
+sensitivity sweep's nominal campaign repeats the first trials of a main campaign, and the speed
+sweep repeats trials of the paper bench's sweep.
+
+A finished campaign writes SOURCE_FILE (its key) after its report; a campaign in that folder
+removes it first, so a folder with SOURCE_FILE holds a complete campaign of that key. A trial is
+taken only without an error, with its trace present."""
+import glob
+import hashlib
+import json
+import os
+import shutil
+
+from . import report, tools
+from .atomic import atomic_path, atomic_write
+
+SOURCE_FILE = 'trial_source.json'
+# trial_engine options whose value is a file or a folder: digested by content (a folder: the
+# files of that name pattern in it, the ones trial_engine reads)
+_FILE_OPTIONS = {'--models-dir': 'volunteer_*.yaml', '--default-model': None, '--urdf': None}
+# options that do not change a trial's record: the trials' source; a side output is refused
+_DROPPED_OPTIONS = ('--trials',)
+_PACKAGE_PATTERNS = ('urdf/**/*', 'config/**/*', '*_plugins.xml')
+_VERSION = b'pedicle_drilling core trial record 1\0'
+
+
+class ReuseError(RuntimeError):
+    """A folder's campaign cannot be read as a source of trials."""
+
+
+def _digest_path(digest, path, pattern='**/*'):
+    """The content of a file, or of the files of `pattern` in a folder (sorted names)."""
+    if os.path.isdir(path):
+        names = sorted(os.path.relpath(p, path)
+                       for p in glob.glob(os.path.join(path, pattern), recursive=True)
+                       if os.path.isfile(p))
+        for name in names:
+            digest.update(b'F' + name.encode() + b'\0')
+            _digest_path(digest, os.path.join(path, name))
+        return
+    with open(path, 'rb') as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b''):
+            digest.update(chunk)
+    digest.update(b'\0')
+
+
+def engine_key(command, package_root, build=None):
+    """Digest of what a trial's record depends on besides the trial: the build
+    (tools.build_id(), or `build`), the package's run-time files under `package_root` and
+    trial_engine's `command` (its executable, covered by the build, and `--trials` left out;
+    file and folder options by content). None when the build cannot be identified."""
+    build = build or tools.build_id()
+    if build is None:
+        return None
+    digest = hashlib.sha256(_VERSION)
+    digest.update(build.encode() + b'\0')
+    files = sorted({os.path.relpath(p, package_root) for pattern in _PACKAGE_PATTERNS
+                    for p in glob.glob(os.path.join(package_root, pattern), recursive=True)
+                    if os.path.isfile(p)})
+    for name in files:
+        digest.update(b'P' + name.encode() + b'\0')
+        _digest_path(digest, os.path.join(package_root, name))
+    args = list(command[1:])
+    k = 0
+    while k < len(args):
+        option = args[k]
+        if option in _DROPPED_OPTIONS:
+            k += 2
+            continue
+        digest.update(b'A' + option.encode() + b'\0')
+        if option in _FILE_OPTIONS and k + 1 < len(args):
+            _digest_path(digest, args[k + 1], _FILE_OPTIONS[option] or '**/*')
+            k += 2
+            continue
+        k += 1
+    return digest.hexdigest()
+
+
+def _trial_text(trial):
+    return json.dumps(trial, sort_keys=True)
+
+
+def unmark(out_dir):
+    """`out_dir` no longer holds a finished campaign (one is about to run there)."""
+    try:
+        os.remove(os.path.join(out_dir, SOURCE_FILE))
+    except FileNotFoundError:
+        pass
+
+
+def mark(out_dir, key):
+    """`out_dir` holds a finished campaign whose trials were run with `key`."""
+    with atomic_write(os.path.join(out_dir, SOURCE_FILE)) as handle:
+        json.dump({'engine_key': key}, handle)
+
+
+def sources(root, key, exclude=None):
+    """Folders at most two levels below `root` (and `root`) holding a finished campaign of
+    `key`, sorted; `exclude` (a campaign's own folder) left out."""
+    found = []
+    for depth in ('', '*', os.path.join('*', '*')):
+        for path in glob.glob(os.path.join(root, depth, SOURCE_FILE)):
+            folder = os.path.dirname(os.path.abspath(path))
+            if exclude and os.path.abspath(exclude) == folder:
+                continue
+            try:
+                with open(path) as handle:
+                    if json.load(handle).get('engine_key') == key:
+                        found.append(folder)
+            except (OSError, ValueError, AttributeError):
+                continue  # not a source (being written, or not ours)
+    return sorted(set(found))
+
+
+def find(root, key, trials, exclude=None):
+    """{trial_id: (row, trace path)} of the `trials` (design entries) that a finished campaign
+    of `key` under `root` ran without an error and with its trace."""
+    wanted = {t['trial_id']: _trial_text(t) for t in trials}
+    taken = {}
+    for folder in sources(root, key, exclude):
+        try:
+            with open(os.path.join(folder, 'design.json')) as handle:
+                ran = {t['trial_id']: _trial_text(t) for t in json.load(handle)['trials']}
+            rows = report.read_trials_csv(os.path.join(folder, 'trials.csv'))
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            raise ReuseError('%s: %s' % (folder, error)) from None
+        for row in rows:
+            trial_id = row['trial_id']
+            if trial_id in taken or wanted.get(trial_id) is None:
+                continue
+            if ran.get(trial_id) != wanted[trial_id] or row.get('error'):
+                continue
+            trace = os.path.join(folder, 'traces', trial_id + '.json')
+            if os.path.isfile(trace):
+                taken[trial_id] = (row, trace)
+    return taken
+
+
+def take(row, trace, out_dir):
+    """The trial's trace copied into `out_dir`/traces (atomically); its row."""
+    with atomic_path(os.path.join(out_dir, 'traces', os.path.basename(trace))) as tmp:
+        shutil.copyfile(trace, tmp)
+    return row
