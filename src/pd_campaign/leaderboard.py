@@ -24,6 +24,7 @@ import json
 import os
 import subprocess
 import sys
+import tempfile
 
 import numpy as np
 import yaml
@@ -111,24 +112,56 @@ def outcome_of(stop_index, labels, residual_mm=None):
 
 def offline_score(recognizer, settings, traces):
     """Runs `recognize` once over all traces with the settings; {correct, early, late, none}."""
-    command = tools.tool('recognize') + ['--json', '--recognizer', recognizer]
-    for name, value in sorted(settings.items()):
-        command += ['--param', '%s=%s' % (name, value)]
-    for trace in traces:
-        command += ['--input', trace[0]]
-    result = subprocess.run(command, capture_output=True, text=True)
+    return offline_scores(recognizer, [settings], traces)[0]
+
+
+def offline_scores(recognizer, settings_list, traces):
+    """offline_score() of each settings of `settings_list`, from one `recognize` process that
+    reads the traces once and runs every settings' recognizer over them (--param-sets)."""
+    lines = []
+    for settings in settings_list:
+        items = ['%s=%s' % (name, value) for name, value in sorted(settings.items())]
+        if any(len(item.split()) != 1 for item in items):
+            raise LeaderboardError('recognize %s: a setting with a blank: %s' % (recognizer, items))
+        lines.append(' '.join(items))
+    with tempfile.TemporaryDirectory(prefix='leaderboard-') as scratch:
+        sets = os.path.join(scratch, 'param_sets.txt')
+        with open(sets, 'w') as handle:
+            handle.write(''.join(line + '\n' for line in lines))
+        command = tools.tool('recognize') + ['--json', '--recognizer', recognizer,
+                                             '--param-sets', sets]
+        for trace in traces:
+            command += ['--input', trace[0]]
+        result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
-        raise LeaderboardError('recognize %s %s: %s' % (recognizer, settings,
+        raise LeaderboardError('recognize %s %s: %s' % (recognizer, settings_list,
                                                         result.stderr.strip()[-500:]))
-    lines = [json.loads(line) for line in result.stdout.splitlines() if line.startswith('{')]
-    if len(lines) != len(traces):
-        raise LeaderboardError('recognize gave %d results for %d traces' % (
-            len(lines), len(traces)))
-    counts = {'correct': 0, 'shallow': 0, 'early': 0, 'late': 0, 'none': 0}
-    for line, (_, labels, residual_mm) in zip(lines, traces):
-        stop = line.get('stop')
-        counts[outcome_of(stop['index'] if stop else None, labels, residual_mm)] += 1
-    return counts
+    results = [json.loads(line) for line in result.stdout.splitlines() if line.startswith('{')]
+    if len(results) != len(traces) * len(settings_list):
+        raise LeaderboardError('recognize gave %d results for %d traces and %d settings' % (
+            len(results), len(traces), len(settings_list)))
+    scores = []
+    for k in range(len(settings_list)):
+        counts = {'correct': 0, 'shallow': 0, 'early': 0, 'late': 0, 'none': 0}
+        mine = results[k * len(traces):(k + 1) * len(traces)]
+        if any(line.get('param_set') != k for line in mine):
+            raise LeaderboardError('recognize gave the parameter sets out of order')
+        for line, (_, labels, residual_mm) in zip(mine, traces):
+            stop = line.get('stop')
+            counts[outcome_of(stop['index'] if stop else None, labels, residual_mm)] += 1
+        scores.append(counts)
+    return scores
+
+
+def scores_in_parallel(recognizer, settings_list, traces, pool, jobs):
+    """offline_scores() of `settings_list` in `jobs` contiguous parts, one process each on
+    `pool`; the scores in the list's order (a score depends on its settings only)."""
+    size = -(-len(settings_list) // max(1, jobs))
+    parts = [settings_list[i:i + size] for i in range(0, len(settings_list), size)]
+    scores = []
+    for part in pool.map(lambda part: offline_scores(recognizer, part, traces), parts):
+        scores.extend(part)
+    return scores
 
 
 def _rank(counts):
@@ -155,15 +188,14 @@ def grid_points(grid):
 
 def tune_entry(entry, train, validation, log=sys.stderr, jobs=1):
     """{params, train, validation, grid_size, top}: the entry's chosen settings and scores. The
-    grid's points are scored `jobs` at a time (one `recognize` process each; a score depends on
-    its point only, so the choice does not depend on `jobs`)."""
+    grid's points are scored in `jobs` parts at a time (one `recognize` process each, reading the
+    traces once; a score depends on its point only, so the choice does not depend on `jobs`)."""
     import concurrent.futures
     fixed = {k: str(v) for k, v in (entry.get('params') or {}).items()}
     points = grid_points(entry.get('tune') or {}) or [{}]
     with concurrent.futures.ThreadPoolExecutor(max_workers=max(1, jobs)) as pool:
-        train_scores = list(pool.map(
-            lambda point: offline_score(entry['recognizer'], dict(fixed, **point), train),
-            points))
+        train_scores = scores_in_parallel(
+            entry['recognizer'], [dict(fixed, **point) for point in points], train, pool, jobs)
         for k, score in enumerate(train_scores):
             log.write('leaderboard: %s grid %d/%d on train: %s\n' % (
                 entry['name'], k + 1, len(points), score))
@@ -171,9 +203,9 @@ def tune_entry(entry, train, validation, log=sys.stderr, jobs=1):
                        reverse=True)
         validation_scores = [None] * len(points)
         top = order[:TOP_ON_TRAIN]
-        for i, score in zip(top, pool.map(
-                lambda i: offline_score(entry['recognizer'], dict(fixed, **points[i]),
-                                        validation), top)):
+        for i, score in zip(top, scores_in_parallel(
+                entry['recognizer'], [dict(fixed, **points[i]) for i in top], validation, pool,
+                jobs)):
             validation_scores[i] = score
     best, top = select(points, train_scores, validation_scores)
     return {'params': dict(fixed, **points[best]), 'train': train_scores[best],
@@ -326,6 +358,32 @@ def figure(boards, config, path):
     plt.close(fig)
 
 
+def tune_all(entries, traces, args):
+    """({name: tuning} in the entries' order, the Table II identification's folder; None when
+    it failed, reported). The learned entry's training (Python) and Table II (once for every
+    closed-loop campaign: it takes no scenario setting) run on a thread beside the grids'
+    `recognize` processes; neither depends on the other."""
+    import concurrent.futures
+    with concurrent.futures.ThreadPoolExecutor(max_workers=1) as beside:
+        learned = {entry['name']: beside.submit(
+            train_entry, entry, args.dataset, args.out, traces['train'], traces['validation'])
+            for entry in entries if entry.get('train') == 'learned'}
+        identification = beside.submit(sensitivity.identify, args.out, args.jobs)
+        tuned = {}
+        for entry in entries:
+            sys.stderr.write('leaderboard: tuning %s\n' % entry['name'])
+            if entry['name'] not in learned:
+                tuned[entry['name']] = tune_entry(entry, traces['train'], traces['validation'],
+                                                  jobs=args.jobs)
+        tuning = {entry['name']: (learned[entry['name']].result() if entry['name'] in learned
+                                  else tuned[entry['name']]) for entry in entries}
+        try:
+            return tuning, identification.result()
+        except sensitivity.IdentificationError as e:
+            sys.stderr.write('leaderboard: %s\n' % e)
+            return tuning, None
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog='campaign_leaderboard',
@@ -372,23 +430,11 @@ def main(argv=None):
     traces = {split: export_traces(os.path.join(args.dataset, split + '.npz'),
                                    os.path.join(args.out, 'traces', split))
               for split in ('train', 'validation')}
-    tuning = {}
-    for entry in config['entries']:
-        sys.stderr.write('leaderboard: tuning %s\n' % entry['name'])
-        if entry.get('train') == 'learned':
-            tuning[entry['name']] = train_entry(entry, args.dataset, args.out, traces['train'],
-                                                traces['validation'])
-        else:
-            tuning[entry['name']] = tune_entry(entry, traces['train'], traces['validation'],
-                                               jobs=args.jobs)
+    tuning, identification = tune_all(config['entries'], traces, args)
+    if identification is None:
+        return 1
     with atomic_write(os.path.join(args.out, 'tuning.json')) as handle:
         json.dump(tuning, handle, indent=1)
-    # Table II once for every closed-loop campaign (it takes no scenario setting).
-    try:
-        identification = sensitivity.identify(args.out, args.jobs)
-    except sensitivity.IdentificationError as e:
-        sys.stderr.write('leaderboard: %s\n' % e)
-        return 1
     boards = {}
     for bench in benches:
         scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])

@@ -2,6 +2,7 @@
 //
 //   recognize --input force.csv [--json] [--recognizer CLASS] [--param name=value ...]
 //   recognize --json --input a.csv --input b.csv ...   (one JSON line per trace)
+//   recognize --json --param-sets sets.txt --input a.csv ...   (every set over every trace)
 //
 // force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
 // key points and the stop. Command-line parsing: CLI11 with the tools' conventions
@@ -159,6 +160,7 @@ struct Options {
   bool json = false;
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";
   std::vector<std::string> params;
+  std::string param_sets;
 };
 
 /** @brief Declares every option of the tool (its values go to *o). */
@@ -194,13 +196,46 @@ void addOptions(CLI::App* app, Options* o) {
             }
           },
           "name=value"));
+  app->add_option("--param-sets", o->param_sets,
+                  "a file of parameter sets, one per line (name=value items separated by blanks, "
+                  "added to --param; an empty line: --param alone): each set's recognizer over "
+                  "every trace, the traces read once (a tuning grid). Needs --json; each line "
+                  "then carries \"param_set\", the set's line from 0");
 }
 
-/** @brief The --param settings; what is wrong (a name given twice) in *error, else "". */
-pedicle_drilling::core::RecognizerSettings settingsOf(const Options& o, std::string* error) {
+/** @brief The lines of a --param-sets file, each split into name=value items. */
+std::vector<std::vector<std::string>> readParamSets(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("--param-sets: cannot open '" + path + "'");
+  std::vector<std::vector<std::string>> sets;
+  std::string line;
+  while (std::getline(in, line)) {
+    std::istringstream items(line);
+    std::vector<std::string> set;
+    for (std::string item; items >> item;) {
+      try {
+        pedicle_drilling::core::parseNameValue(item, "--param-sets");
+      } catch (const std::invalid_argument& e) {
+        throw InputError("--param-sets '" + path + "' line " + std::to_string(sets.size() + 1) +
+                         ": " + e.what());
+      }
+      set.push_back(item);
+    }
+    sets.push_back(set);
+  }
+  if (sets.empty()) throw InputError("--param-sets '" + path + "' has no line");
+  return sets;
+}
+
+/** @brief The --param settings and `extra` (a --param-sets line); what is wrong (a name given
+ *         twice) in *error, else "". */
+pedicle_drilling::core::RecognizerSettings settingsOf(const Options& o, std::string* error,
+                                                      const std::vector<std::string>& extra = {}) {
   pedicle_drilling::core::RecognizerSettings settings;
   std::set<std::string> given;
-  for (const std::string& item : o.params) {
+  std::vector<std::string> items = o.params;
+  items.insert(items.end(), extra.begin(), extra.end());
+  for (const std::string& item : items) {
     const auto setting = pedicle_drilling::core::parseNameValue(item, "--param");
     if (!given.insert(setting.first).second) {
       *error = "option '--param " + setting.first + "' given more than once: give it once";
@@ -210,10 +245,12 @@ pedicle_drilling::core::RecognizerSettings settingsOf(const Options& o, std::str
   return settings;
 }
 
-/** @brief The result as one JSON line {key_points, stop} (and the input's path, if given). */
-std::string jsonLine(const RecognizerOutput& o, const std::string* input) {
+/** @brief The result as one JSON line {key_points, stop} (and the input's path, and the
+ *         parameter set's line, if given: `set` >= 0). */
+std::string jsonLine(const RecognizerOutput& o, const std::string* input, int set = -1) {
   std::ostringstream os;
   os << "{";
+  if (set >= 0) os << "\"param_set\":" << set << ",";
   if (input) os << "\"input\":" << nlohmann::json(*input).dump() << ",";
   os << "\"key_points\":[";
   for (int j = 0; j < o.num_key_points; ++j) {
@@ -272,16 +309,33 @@ int main(int argc, char** argv) {
   if (options.inputs.size() > 1 && !options.json) {
     return tools::usageError(app, "several --input traces need --json (one line each)");
   }
-  std::string error;
-  const pedicle_drilling::core::RecognizerSettings settings = settingsOf(options, &error);
-  if (!error.empty()) return tools::usageError(app, error);
-  pedicle_drilling::RecognizerLoader loader;  // outlives the recognizer
-  std::unique_ptr<pedicle_drilling::core::RecognizerInterface> rec;
-  try {
-    rec = loader.create(options.recognizer_class, settings);
-  } catch (const std::exception& e) {
-    std::cerr << "recognize: --recognizer " << options.recognizer_class << ": " << e.what() << "\n";
-    return tools::kUsageExit;
+  std::vector<std::vector<std::string>> sets{{}};  // no --param-sets: --param alone
+  if (!options.param_sets.empty()) {
+    if (!options.json) return tools::usageError(app, "--param-sets needs --json (one line each)");
+    try {
+      sets = readParamSets(options.param_sets);
+    } catch (const InputError& e) {
+      std::cerr << "recognize: bad input: " << e.what() << "\n";
+      return tools::kUsageExit;
+    }
+  }
+  // Every set's recognizer is made before any trace is run: a bad set is exit 2, nothing printed.
+  pedicle_drilling::RecognizerLoader loader;  // outlives the recognizers
+  std::vector<std::unique_ptr<pedicle_drilling::core::RecognizerInterface>> recognizers;
+  for (std::size_t k = 0; k < sets.size(); ++k) {
+    const std::string where =
+        options.param_sets.empty() ? "" : "--param-sets line " + std::to_string(k + 1) + ": ";
+    std::string error;
+    const pedicle_drilling::core::RecognizerSettings settings =
+        settingsOf(options, &error, sets[k]);
+    if (!error.empty()) return tools::usageError(app, where + error);
+    try {
+      recognizers.push_back(loader.create(options.recognizer_class, settings));
+    } catch (const std::exception& e) {
+      std::cerr << "recognize: " << where << "--recognizer " << options.recognizer_class << ": "
+                << e.what() << "\n";
+      return tools::kUsageExit;
+    }
   }
   // Every trace is read before any is run: a bad one is exit 2 with nothing printed.
   std::vector<std::vector<Sample>> traces;
@@ -295,14 +349,18 @@ int main(int argc, char** argv) {
     std::cerr << "recognize: bad input: " << e.what() << "\n";
     return tools::kUsageExit;
   }
-  for (std::size_t k = 0; k < traces.size(); ++k) {
-    rec->reset();
-    for (const Sample& s : traces[k]) rec->push(s.t, s.f);
-    if (options.json) {
-      std::cout << jsonLine(rec->output(),
-                            options.inputs.size() > 1 ? &options.inputs[k] : nullptr);
-    } else {
-      printText(rec->output(), traces[k].size());
+  for (std::size_t set = 0; set < recognizers.size(); ++set) {
+    pedicle_drilling::core::RecognizerInterface& rec = *recognizers[set];
+    for (std::size_t k = 0; k < traces.size(); ++k) {
+      rec.reset();
+      for (const Sample& s : traces[k]) rec.push(s.t, s.f);
+      if (options.json) {
+        std::cout << jsonLine(rec.output(),
+                              options.inputs.size() > 1 ? &options.inputs[k] : nullptr,
+                              options.param_sets.empty() ? -1 : static_cast<int>(set));
+      } else {
+        printText(rec.output(), traces[k].size());
+      }
     }
   }
   return 0;

@@ -148,3 +148,48 @@ def test_text_output_agrees_with_json(bin_dir, tmp_path):
     # The stop names the key point it was commanded at: 4 (confirmed) or 5 (fail-safe).
     assert stop[0][5] == 'key_point' and int(stop[0][6]) == result['stop']['key_point']
     assert result['stop']['key_point'] in (4, 5)
+
+
+def test_param_sets_give_each_sets_lines_as_run_alone(bin_dir, tmp_path):
+    """--param-sets: every set's recognizer over every trace, the sets in file order, each line
+    the one of that set run alone with its items as --param (added to the --param given)."""
+    paths = []
+    for k, profile_steps in enumerate([[(4.0, 3.0), (6.0, 0.7), (4.0, 3.0)], [(2.0, 3.0)]]):
+        rows, _ = profile(profile_steps, seed=20 + k)
+        paths.append(tmp_path / ('force%d.csv' % k))
+        write_csv(paths[-1], rows)
+    sets = ['f_th=0.2', '', 'f_th=0.6 window=5']
+    (tmp_path / 'sets.txt').write_text(''.join(line + '\n' for line in sets))
+    inputs = [arg for path in paths for arg in ('--input', str(path))]
+    out = run(bin_dir, '--json', '--param', 'k_ratio=0.5', '--param-sets',
+              str(tmp_path / 'sets.txt'), *inputs)
+    assert out.returncode == 0, out.stderr
+    lines = [json.loads(line) for line in out.stdout.splitlines()]
+    assert [line.pop('param_set') for line in lines] == [0, 0, 1, 1, 2, 2]
+    alone = []
+    for line in sets:
+        params = [arg for item in line.split() for arg in ('--param', item)]
+        result = run(bin_dir, '--json', '--param', 'k_ratio=0.5', *params, *inputs)
+        assert result.returncode == 0, result.stderr
+        alone += [json.loads(text) for text in result.stdout.splitlines()]
+    assert lines == alone
+    assert lines[0]['stop'] != lines[4]['stop'], 'the sets must differ somewhere'
+
+
+@pytest.mark.parametrize('text, extra, message', [
+    ('f_th=0.2\n', [], '--param-sets needs --json'),
+    ('f_th=0.2\nwindow\n', ['--json'], "line 2"),
+    ('f_th=0.2 f_th=0.3\n', ['--json'], "--param-sets line 1: option '--param f_th' given more"),
+    ('k_ratio=0.7\n', ['--json', '--param', 'k_ratio=0.5'], "given more than once"),
+    ('no_such=1\n', ['--json'], '--param-sets line 1: --recognizer'),
+    ('', ['--json'], 'has no line'),
+])
+def test_bad_param_sets_exit_2_printing_nothing(bin_dir, tmp_path, text, extra, message):
+    rows, _ = profile([(2.0, 3.0)], seed=3)
+    write_csv(tmp_path / 'force.csv', rows)
+    (tmp_path / 'sets.txt').write_text(text)
+    out = run(bin_dir, '--param-sets', str(tmp_path / 'sets.txt'), '--input',
+              str(tmp_path / 'force.csv'), *extra)
+    assert out.returncode == 2
+    assert message in out.stderr
+    assert out.stdout == ''
