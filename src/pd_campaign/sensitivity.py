@@ -32,7 +32,7 @@ import time
 
 import yaml
 
-from . import cli, engine_core, report, stats, tools
+from . import campaign_process, cli, engine_core, report, stats, tools
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
 
@@ -362,17 +362,18 @@ def run_campaign_process(argv, log_path):
     """Runs the campaign with `argv`, its output to `log_path`; its exit status. A campaign
     stopped by SIGINT (Ctrl-C reaches the whole process group; stop_running() sends it to the
     campaigns when only the sweep got it) stops its own workers and keeps its finished trials
-    (exit 130)."""
-    with open(log_path, 'w') as log:  # not atomic: the sub-campaign's live log
-        process = subprocess.Popen(tools.tool('campaign') + argv, stdout=log,
-                                   stderr=subprocess.STDOUT)
+    (exit 130). The campaign is forked from a server that imported its modules once
+    (campaign_process)."""
+    with open(log_path, 'w'):  # not atomic: the sub-campaign's live log, written by it
+        pass
+    process = campaign_process.CampaignProcess(argv, log_path)
+    with _RUNNING_LOCK:
+        _RUNNING.add(process)
+    try:
+        return process.wait()
+    finally:
         with _RUNNING_LOCK:
-            _RUNNING.add(process)
-        try:
-            return process.wait()
-        finally:
-            with _RUNNING_LOCK:
-                _RUNNING.discard(process)
+            _RUNNING.discard(process)
 
 
 def stop_running(futures):
