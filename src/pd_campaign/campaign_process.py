@@ -31,7 +31,8 @@ def _main(argv, log_path):
     """The child: its output appended to `log_path` (None: the tool's own), then the
     campaign."""
     if log_path is not None:
-        handle = os.open(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND, 0o644)
+        flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
+        handle = os.open(log_path, flags, 0o644)  # not atomic: the live log, appended to
         os.dup2(handle, 1)
         os.dup2(handle, 2)
         os.close(handle)

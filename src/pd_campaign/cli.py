@@ -785,7 +785,7 @@ def run_campaign(argv=None):
     appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'))
     for trial in selected:  # in design order, before the engines' trials
         if trial['trial_id'] in taken:
-            row = reuse.take(*taken[trial['trial_id']], out_dir)
+            row = reuse.take(trial['trial_id'], *taken[trial['trial_id']], out_dir)
             rows.append(row)
             progress.update(row)
             appender.append(row)

@@ -126,7 +126,7 @@ def offline_scores(recognizer, settings_list, traces):
         lines.append(' '.join(items))
     with tempfile.TemporaryDirectory(prefix='leaderboard-') as scratch:
         sets = os.path.join(scratch, 'param_sets.txt')
-        with open(sets, 'w') as handle:
+        with atomic_write(sets) as handle:
             handle.write(''.join(line + '\n' for line in lines))
         command = tools.tool('recognize') + ['--json', '--recognizer', recognizer,
                                              '--param-sets', sets]

@@ -17,10 +17,9 @@ import glob
 import hashlib
 import json
 import os
-import shutil
 
 from . import report, tools
-from .atomic import atomic_path, atomic_write
+from .atomic import atomic_write
 
 SOURCE_FILE = 'trial_source.json'
 # trial_engine options whose value is a file or a folder: digested by content (a folder: the
@@ -120,32 +119,58 @@ def sources(root, key, exclude=None):
     return sorted(set(found))
 
 
+def _mark_of(folder):
+    """The identity (inode, modification time) of `folder`'s SOURCE_FILE; None without one."""
+    try:
+        status = os.stat(os.path.join(folder, SOURCE_FILE))
+    except FileNotFoundError:
+        return None
+    return status.st_ino, status.st_mtime_ns
+
+
+def _read_source(folder, wanted):
+    """{trial_id: (row, trace bytes)} of the `wanted` trials {trial_id: entry text} that the
+    campaign in `folder` ran without an error and with its trace."""
+    with open(os.path.join(folder, 'design.json')) as handle:
+        ran = {t['trial_id']: _trial_text(t) for t in json.load(handle)['trials']}
+    found = {}
+    for row in report.read_trials_csv(os.path.join(folder, 'trials.csv')):
+        trial_id = row['trial_id']
+        if wanted.get(trial_id) is None or ran.get(trial_id) != wanted[trial_id]:
+            continue
+        if row.get('error'):
+            continue
+        try:
+            with open(os.path.join(folder, 'traces', trial_id + '.json'), 'rb') as handle:
+                found[trial_id] = (row, handle.read())
+        except FileNotFoundError:
+            continue
+    return found
+
+
 def find(root, key, trials, exclude=None):
-    """{trial_id: (row, trace path)} of the `trials` (design entries) that a finished campaign
-    of `key` under `root` ran without an error and with its trace."""
+    """{trial_id: (row, trace bytes)} of the `trials` (design entries) that a finished campaign
+    of `key` under `root` ran without an error and with its trace. A folder in which another
+    campaign starts while it is read (its SOURCE_FILE removed or replaced) gives nothing."""
     wanted = {t['trial_id']: _trial_text(t) for t in trials}
     taken = {}
     for folder in sources(root, key, exclude):
+        before = _mark_of(folder)
         try:
-            with open(os.path.join(folder, 'design.json')) as handle:
-                ran = {t['trial_id']: _trial_text(t) for t in json.load(handle)['trials']}
-            rows = report.read_trials_csv(os.path.join(folder, 'trials.csv'))
+            found = _read_source(folder, wanted) if before is not None else {}
         except (OSError, ValueError, KeyError, TypeError) as error:
+            if _mark_of(folder) != before:
+                continue  # rewritten while read: not a source any more
             raise ReuseError('%s: %s' % (folder, error)) from None
-        for row in rows:
-            trial_id = row['trial_id']
-            if trial_id in taken or wanted.get(trial_id) is None:
-                continue
-            if ran.get(trial_id) != wanted[trial_id] or row.get('error'):
-                continue
-            trace = os.path.join(folder, 'traces', trial_id + '.json')
-            if os.path.isfile(trace):
-                taken[trial_id] = (row, trace)
+        if _mark_of(folder) != before:
+            continue
+        for trial_id, value in found.items():
+            taken.setdefault(trial_id, value)
     return taken
 
 
-def take(row, trace, out_dir):
-    """The trial's trace copied into `out_dir`/traces (atomically); its row."""
-    with atomic_path(os.path.join(out_dir, 'traces', os.path.basename(trace))) as tmp:
-        shutil.copyfile(trace, tmp)
+def take(trial_id, row, trace, out_dir):
+    """The trial's trace (bytes) written into `out_dir`/traces (atomically); its row."""
+    with atomic_write(os.path.join(out_dir, 'traces', trial_id + '.json'), 'wb') as handle:
+        handle.write(trace)
     return row

@@ -127,6 +127,43 @@ def test_only_finished_trials_without_error_are_taken(tmp_path):
     assert reuse.find(str(results), key, changed) == {}
 
 
+def test_a_source_rewritten_while_read_gives_nothing(tmp_path, monkeypatch):
+    """A campaign that starts in a source's folder while it is read (it removes the mark first,
+    then rewrites trials.csv): nothing is taken from it, and its half-written files are no
+    error; a source that stays marked but cannot be read is one, naming the folder."""
+    results = tmp_path / 'results'
+    assert _campaign(results / 'first', 1).returncode == 0
+    source = results / 'first'
+    key = json.loads((source / reuse.SOURCE_FILE).read_text())['engine_key']
+    design = json.loads((source / 'design.json').read_text())['trials']
+    read = reuse.report.read_trials_csv
+
+    def restarted(path):
+        reuse.unmark(str(source))
+        return read(path)
+
+    monkeypatch.setattr(reuse.report, 'read_trials_csv', restarted)
+    assert reuse.find(str(results), key, design) == {}
+
+    def restarted_and_empty(path):
+        reuse.unmark(str(source))
+        raise ValueError('%s: missing columns trial_id' % path)
+
+    reuse.mark(str(source), key)
+    monkeypatch.setattr(reuse.report, 'read_trials_csv', restarted_and_empty)
+    assert reuse.find(str(results), key, design) == {}
+
+    def broken(path):
+        raise ValueError('%s: missing columns trial_id' % path)
+
+    reuse.mark(str(source), key)
+    monkeypatch.setattr(reuse.report, 'read_trials_csv', broken)
+    with pytest.raises(reuse.ReuseError, match='first'):
+        reuse.find(str(results), key, design)
+    monkeypatch.setattr(reuse.report, 'read_trials_csv', read)
+    assert len(reuse.find(str(results), key, design)) == 3
+
+
 @pytest.mark.parametrize('extra, message', [
     (['--engine', 'ros'], 'use it with --engine core'),
     (['--samples'], 'not with --samples or --profile'),
