@@ -56,6 +56,8 @@ class CampaignProcess:
         return self._process.pid
 
     def send_signal(self, number):
+        if self._process.exitcode is not None:
+            return  # ended and reaped: its pid may be another process's now
         try:
             os.kill(self._process.pid, number)
         except ProcessLookupError:

@@ -682,11 +682,14 @@ def run_campaign(argv=None):
     engine_key = reuse.engine_key(core_command(), PACKAGE_ROOT) if args.engine == 'core' else None
     taken = {}
     if args.reuse_trials and engine_key:
-        try:
-            taken = reuse.find(args.reuse_trials, engine_key, selected, exclude=out_dir)
-        except reuse.ReuseError as error:
-            sys.stderr.write('campaign: --reuse-trials: %s\n' % error)
-            return 1
+        unreadable = []
+        taken = reuse.find(args.reuse_trials, engine_key, selected, exclude=out_dir,
+                           unreadable=unreadable)
+        for why in unreadable:
+            sys.stderr.write('campaign: --reuse-trials: left out, unreadable: %s\n' % why)
+    elif args.reuse_trials:
+        sys.stderr.write('campaign: --reuse-trials: every trial runs: %s\n' % reuse.unkeyable(
+            core_command(), tools.build_id()))
     pending = [trial for trial in selected if trial['trial_id'] not in taken]
     jobs = min(args.jobs, len(pending))
     slices = [pending[i::jobs] for i in range(jobs)]
@@ -847,6 +850,7 @@ def run_merge(argv=None):
     metas = []
     out_dir = os.path.abspath(args.out)
     os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
+    reuse.unmark(out_dir)  # a merge is no source of trials (--reuse-trials)
     for directory in args.dirs:
         try:
             with open(os.path.join(directory, 'design.json')) as handle:

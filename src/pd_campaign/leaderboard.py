@@ -111,25 +111,32 @@ def outcome_of(stop_index, labels, residual_mm=None):
 
 
 def offline_score(recognizer, settings, traces):
-    """Runs `recognize` once over all traces with the settings; {correct, early, late, none}."""
-    return offline_scores(recognizer, [settings], traces)[0]
+    """Runs `recognize` once over all traces with the settings (as --param: a value may hold a
+    blank); {correct, early, late, none}."""
+    return offline_scores(recognizer, [settings], traces, sets_file=False)[0]
 
 
-def offline_scores(recognizer, settings_list, traces):
+def offline_scores(recognizer, settings_list, traces, sets_file=True):
     """offline_score() of each settings of `settings_list`, from one `recognize` process that
-    reads the traces once and runs every settings' recognizer over them (--param-sets)."""
+    reads the traces once and runs every settings' recognizer over them (--param-sets, whose
+    items are separated by blanks; `sets_file` False: one settings, given as --param)."""
     lines = []
     for settings in settings_list:
         items = ['%s=%s' % (name, value) for name, value in sorted(settings.items())]
-        if any(len(item.split()) != 1 for item in items):
-            raise LeaderboardError('recognize %s: a setting with a blank: %s' % (recognizer, items))
-        lines.append(' '.join(items))
+        if sets_file and any(len(item.split()) != 1 for item in items):
+            raise LeaderboardError('recognize %s: a grid setting with a blank: %s' % (
+                recognizer, items))
+        lines.append(items)
     with tempfile.TemporaryDirectory(prefix='leaderboard-') as scratch:
-        sets = os.path.join(scratch, 'param_sets.txt')
-        with atomic_write(sets) as handle:
-            handle.write(''.join(line + '\n' for line in lines))
-        command = tools.tool('recognize') + ['--json', '--recognizer', recognizer,
-                                             '--param-sets', sets]
+        command = tools.tool('recognize') + ['--json', '--recognizer', recognizer]
+        if sets_file:
+            sets = os.path.join(scratch, 'param_sets.txt')
+            with atomic_write(sets) as handle:
+                handle.write(''.join(' '.join(items) + '\n' for items in lines))
+            command += ['--param-sets', sets]
+        else:
+            assert len(lines) == 1
+            command += [arg for item in lines[0] for arg in ('--param', item)]
         for trace in traces:
             command += ['--input', trace[0]]
         result = subprocess.run(command, capture_output=True, text=True)
@@ -144,7 +151,7 @@ def offline_scores(recognizer, settings_list, traces):
     for k in range(len(settings_list)):
         counts = {'correct': 0, 'shallow': 0, 'early': 0, 'late': 0, 'none': 0}
         mine = results[k * len(traces):(k + 1) * len(traces)]
-        if any(line.get('param_set') != k for line in mine):
+        if sets_file and any(line.get('param_set') != k for line in mine):
             raise LeaderboardError('recognize gave the parameter sets out of order')
         for line, (_, labels, residual_mm) in zip(mine, traces):
             stop = line.get('stop')
@@ -432,10 +439,10 @@ def main(argv=None):
                                    os.path.join(args.out, 'traces', split))
               for split in ('train', 'validation')}
     tuning, identification = tune_all(config['entries'], traces, args)
-    if identification is None:
-        return 1
     with atomic_write(os.path.join(args.out, 'tuning.json')) as handle:
         json.dump(tuning, handle, indent=1)
+    if identification is None:
+        return 1
     boards = {}
     for bench in benches:
         scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])

@@ -31,15 +31,12 @@ _PACKAGE_PATTERNS = ('urdf/**/*', 'config/**/*', '*_plugins.xml')
 _VERSION = b'pedicle_drilling core trial record 1\0'
 
 
-class ReuseError(RuntimeError):
-    """A folder's campaign cannot be read as a source of trials."""
-
-
 def _digest_path(digest, path, pattern='**/*'):
     """The content of a file, or of the files of `pattern` in a folder (sorted names)."""
     if os.path.isdir(path):
         names = sorted(os.path.relpath(p, path)
-                       for p in glob.glob(os.path.join(path, pattern), recursive=True)
+                       for p in glob.glob(os.path.join(glob.escape(path), pattern),
+                                          recursive=True)
                        if os.path.isfile(p))
         for name in names:
             digest.update(b'F' + name.encode() + b'\0')
@@ -51,18 +48,35 @@ def _digest_path(digest, path, pattern='**/*'):
     digest.update(b'\0')
 
 
+def unkeyable(command, build):
+    """Why a trial run by `command` cannot be keyed (None: it can): code outside the build
+    (a Python class of another package, plugins of PEDICLE_DRILLING_PLUGIN_XML) or no build to
+    identify (the tools found through rosrun only)."""
+    if build is None:
+        return 'the build is not identified (trial_engine found through rosrun only)'
+    if os.environ.get('PEDICLE_DRILLING_PLUGIN_XML'):
+        return 'PEDICLE_DRILLING_PLUGIN_XML adds plugins outside the build'
+    for option, value in zip(command, command[1:]):
+        if option in ('--recognizer', '--compensator') and value.startswith('python:') \
+                and not value.startswith('python:pd_campaign.'):
+            return '%s %s is Python code outside the build' % (option, value)
+    return None
+
+
 def engine_key(command, package_root, build=None):
     """Digest of what a trial's record depends on besides the trial: the build
     (tools.build_id(), or `build`), the package's run-time files under `package_root` and
     trial_engine's `command` (its executable, covered by the build, and `--trials` left out;
-    file and folder options by content). None when the build cannot be identified."""
+    file and folder options by content, and so is the file a NAME=VALUE names). None when
+    unkeyable()."""
     build = build or tools.build_id()
-    if build is None:
+    if unkeyable(command, build):
         return None
     digest = hashlib.sha256(_VERSION)
     digest.update(build.encode() + b'\0')
     files = sorted({os.path.relpath(p, package_root) for pattern in _PACKAGE_PATTERNS
-                    for p in glob.glob(os.path.join(package_root, pattern), recursive=True)
+                    for p in glob.glob(os.path.join(glob.escape(package_root), pattern),
+                                       recursive=True)
                     if os.path.isfile(p)})
     for name in files:
         digest.update(b'P' + name.encode() + b'\0')
@@ -79,6 +93,9 @@ def engine_key(command, package_root, build=None):
             _digest_path(digest, args[k + 1], _FILE_OPTIONS[option] or '**/*')
             k += 2
             continue
+        value = option.partition('=')[2]
+        if value and os.path.isfile(value):  # e.g. a learned recognizer's model=PATH
+            _digest_path(digest, value)
         k += 1
     return digest.hexdigest()
 
@@ -106,7 +123,7 @@ def sources(root, key, exclude=None):
     `key`, sorted; `exclude` (a campaign's own folder) left out."""
     found = []
     for depth in ('', '*', os.path.join('*', '*')):
-        for path in glob.glob(os.path.join(root, depth, SOURCE_FILE)):
+        for path in glob.glob(os.path.join(glob.escape(root), depth, SOURCE_FILE)):
             folder = os.path.dirname(os.path.abspath(path))
             if exclude and os.path.abspath(exclude) == folder:
                 continue
@@ -148,10 +165,12 @@ def _read_source(folder, wanted):
     return found
 
 
-def find(root, key, trials, exclude=None):
+def find(root, key, trials, exclude=None, unreadable=None):
     """{trial_id: (row, trace bytes)} of the `trials` (design entries) that a finished campaign
     of `key` under `root` ran without an error and with its trace. A folder in which another
-    campaign starts while it is read (its SOURCE_FILE removed or replaced) gives nothing."""
+    campaign starts while it is read (its SOURCE_FILE removed or replaced) gives nothing; one
+    that stays marked but cannot be read gives nothing either, and is appended to `unreadable`
+    (a list) as "folder: why"."""
     wanted = {t['trial_id']: _trial_text(t) for t in trials}
     taken = {}
     for folder in sources(root, key, exclude):
@@ -159,9 +178,9 @@ def find(root, key, trials, exclude=None):
         try:
             found = _read_source(folder, wanted) if before is not None else {}
         except (OSError, ValueError, KeyError, TypeError) as error:
-            if _mark_of(folder) != before:
-                continue  # rewritten while read: not a source any more
-            raise ReuseError('%s: %s' % (folder, error)) from None
+            if _mark_of(folder) == before and unreadable is not None:
+                unreadable.append('%s: %s' % (folder, error))
+            continue
         if _mark_of(folder) != before:
             continue
         for trial_id, value in found.items():

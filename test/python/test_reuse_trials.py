@@ -59,6 +59,39 @@ def test_the_key_follows_what_a_record_depends_on(tmp_path):
         (root / name).write_text(before)
     assert key not in changed and len(set(changed)) == len(changed)
     assert reuse.engine_key(_command(models), str(root), build='b1') == key
+    # A file a NAME=VALUE names (a learned recognizer's model) by content too.
+    model = tmp_path / 'model.json'
+    model.write_text('{}')
+    with_model = _command(models, '--recognizer-param', 'model=%s' % model)
+    first = reuse.engine_key(with_model, str(root), build='b1')
+    model.write_text('{"w": 1}')
+    assert reuse.engine_key(with_model, str(root), build='b1') not in (first, key)
+
+
+def test_code_outside_the_build_is_not_keyed(tmp_path, monkeypatch):
+    root, models = _package(tmp_path)
+    assert reuse.engine_key(_command(models), str(root), build='b1') is not None
+    ours = _command(models, '--recognizer', 'python:pd_campaign.recognizers.ThresholdRecognizer')
+    assert reuse.engine_key(ours, str(root), build='b1') is not None
+    for extra in (['--recognizer', 'python:lab.recognizers.Mine'],
+                  ['--compensator', 'python:lab.compensators.Mine']):
+        command = _command(models, *extra)
+        assert reuse.engine_key(command, str(root), build='b1') is None
+        assert 'outside the build' in reuse.unkeyable(command, 'b1')
+    assert 'not identified' in reuse.unkeyable(_command(models), None)
+    monkeypatch.setenv('PEDICLE_DRILLING_PLUGIN_XML', str(tmp_path / 'plugins.xml'))
+    assert reuse.engine_key(_command(models), str(root), build='b1') is None
+
+
+def test_folders_with_glob_characters_are_read_as_named(tmp_path):
+    root, models = _package(tmp_path)
+    odd = tmp_path / 'run [1]*'
+    odd.mkdir()
+    (odd / 'volunteer_1_linear.yaml').write_text('k: 2\n')
+    assert reuse.engine_key(_command(odd), str(root), build='b1') != reuse.engine_key(
+        _command(models), str(root), build='b1')
+    reuse.mark(str(odd), 'k')
+    assert reuse.sources(str(odd), 'k') == [str(odd)]
 
 
 def _campaign(out, trials, *extra):
@@ -129,8 +162,8 @@ def test_only_finished_trials_without_error_are_taken(tmp_path):
 
 def test_a_source_rewritten_while_read_gives_nothing(tmp_path, monkeypatch):
     """A campaign that starts in a source's folder while it is read (it removes the mark first,
-    then rewrites trials.csv): nothing is taken from it, and its half-written files are no
-    error; a source that stays marked but cannot be read is one, naming the folder."""
+    then rewrites trials.csv): nothing is taken from it, and its half-written files are not
+    reported; a source that stays marked but cannot be read gives nothing and is reported."""
     results = tmp_path / 'results'
     assert _campaign(results / 'first', 1).returncode == 0
     source = results / 'first'
@@ -158,8 +191,9 @@ def test_a_source_rewritten_while_read_gives_nothing(tmp_path, monkeypatch):
 
     reuse.mark(str(source), key)
     monkeypatch.setattr(reuse.report, 'read_trials_csv', broken)
-    with pytest.raises(reuse.ReuseError, match='first'):
-        reuse.find(str(results), key, design)
+    unreadable = []
+    assert reuse.find(str(results), key, design, unreadable=unreadable) == {}
+    assert len(unreadable) == 1 and unreadable[0].startswith(str(source) + ': ')
     monkeypatch.setattr(reuse.report, 'read_trials_csv', read)
     assert len(reuse.find(str(results), key, design)) == 3
 
@@ -181,3 +215,17 @@ def test_a_missing_root_is_refused(tmp_path):
     assert result.returncode == 2
     assert '--reuse-trials %s is not a folder' % (tmp_path / 'absent') in result.stderr
     assert not (tmp_path / 'out' / 'trials.csv').exists()
+
+
+def test_a_merged_folder_is_no_source(tmp_path):
+    results = tmp_path / 'results'
+    assert _campaign(results / 'first', 1).returncode == 0
+    merged = results / 'merged'
+    merged.mkdir()
+    reuse.mark(str(merged), 'an earlier campaign of this folder')
+    result = subprocess.run(['rosrun', 'pedicle_drilling', 'campaign_merge',
+                             str(results / 'first'), '--out', str(merged)],
+                            capture_output=True, text=True, timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert (merged / 'trials.csv').exists()
+    assert not (merged / reuse.SOURCE_FILE).exists()
