@@ -42,9 +42,7 @@ def _digest_path(digest, path, pattern='**/*'):
             digest.update(b'F' + name.encode() + b'\0')
             _digest_path(digest, os.path.join(path, name))
         return
-    with open(path, 'rb') as handle:
-        for chunk in iter(lambda: handle.read(1 << 20), b''):
-            digest.update(chunk)
+    tools.update_digest(digest, path)
     digest.update(b'\0')
 
 

@@ -49,10 +49,15 @@ def build_id():
     digest = hashlib.sha256()
     for path in paths:
         digest.update(os.path.basename(path).encode() + b'\0')
-        with open(path, 'rb') as handle:
-            for chunk in iter(lambda: handle.read(1 << 20), b''):
-                digest.update(chunk)
+        update_digest(digest, path)
     return digest.hexdigest()[:16]
+
+
+def update_digest(digest, path):
+    """`digest` (a hashlib object) updated with the content of the file `path`."""
+    with open(path, 'rb') as handle:
+        for chunk in iter(lambda: handle.read(1 << 20), b''):
+            digest.update(chunk)
 
 
 class _GivenOnce:
