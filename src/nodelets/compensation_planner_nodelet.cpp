@@ -54,8 +54,20 @@ namespace pedicle_drilling {
 class CompensationPlannerNodelet : public nodelet::Nodelet {
  public:
   ~CompensationPlannerNodelet() override {
-    // Join the start thread before any member it may use goes away.
+    // Unloaded from a running manager: every callback ends before any member it may use goes
+    // away (members are destroyed in reverse order; a callback runs on another thread). The
+    // start thread, the lockstep's steps (the participants' thread), then the rest.
     if (start_spinner_) start_spinner_->stop();
+    if (lockstep_) lockstep_->stop();
+    for (ros::Subscriber* sub : {&tidal_sub_, &settings_sub_, &marker_sub_, &stop_sub_, &state_sub_,
+                                 &diagnostics_sub_, &tare_result_sub_}) {
+      sub->shutdown();
+    }
+    for (ros::Subscriber& sub : controller_state_subs_) sub.shutdown();
+    for (ros::Timer* timer :
+         {&pose_timer_, &registration_timer_, &segment_timer_, &keepalive_timer_}) {
+      timer->stop();
+    }
   }
 
  private:

@@ -75,6 +75,19 @@ class InOrderUpdater : public diagnostic_updater::Updater {
 
 /** @brief Nodelet wrapper of core::SafetySupervisor. */
 class SafetyMonitorNodelet : public nodelet::Nodelet {
+ public:
+  ~SafetyMonitorNodelet() override {
+    // Unloaded from a running manager: every callback ends before any member it may use goes
+    // away (the lockstep's steps run on the participants' thread, the rest on the manager's).
+    if (lockstep_) lockstep_->stop();
+    for (ros::Subscriber* sub : {&wrench_sub_, &tracker_sub_, &predicted_sub_, &status_sub_}) {
+      sub->shutdown();
+    }
+    reset_srv_.shutdown();
+    check_timer_.stop();
+    diagnostic_timer_.stop();
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();

@@ -33,6 +33,16 @@ namespace pedicle_drilling {
 
 /** @brief Nodelet wrapper of core::StateRecognizer. */
 class StateRecognizerNodelet : public nodelet::Nodelet {
+ public:
+  ~StateRecognizerNodelet() override {
+    // Unloaded from a running manager (the unloaded-recognizer fault): every callback ends
+    // before any member it may use goes away; the steps run on the participants' thread.
+    if (lockstep_) lockstep_->stop();
+    wrench_sub_.shutdown();
+    tare_sub_.shutdown();
+    reset_srv_.shutdown();
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();

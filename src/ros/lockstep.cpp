@@ -34,6 +34,17 @@ LockstepParticipant::LockstepParticipant(ros::NodeHandle nh, std::string node, S
   ack_pub_ = nh_.advertise<StepAck>("simulator/step_ack", 10);
 }
 
+LockstepParticipant::~LockstepParticipant() { stop(); }
+
+void LockstepParticipant::stop() {
+  // roscpp's unsubscription waits for a callback of this subscription that another thread is
+  // running (its callback queue's per-subscription lock) and drops the queued ones. Before
+  // ack_pub_ goes: an unloaded recognizer's step answered on the participants' thread while
+  // its publisher was destroyed aborted the nodelet manager (boost assertion `px != 0` in
+  // roscpp's TopicManager::publish).
+  step_sub_.shutdown();
+}
+
 void LockstepParticipant::start() {
   if (started_) throw std::logic_error("LockstepParticipant::start: called twice");
   started_ = true;

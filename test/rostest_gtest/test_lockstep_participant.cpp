@@ -10,7 +10,9 @@
 #include <rosgraph_msgs/Clock.h>
 
 #include <chrono>
+#include <condition_variable>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <set>
 #include <stdexcept>
@@ -108,6 +110,63 @@ TEST(LockstepParticipant, SharedQueueRunsTheStepsAndTheInputsOnItsThread) {
   ASSERT_EQ(threads.size(), 1u);
   EXPECT_NE(*threads.begin(), std::this_thread::get_id());
   EXPECT_TRUE(unserved.isEmpty());
+}
+
+// stop() (and so the destructor: a nodelet unloaded from a running manager) waits for a step
+// that the participants' thread is handling and lets it answer: before, the answer's publisher
+// went while the step still ran, and the manager aborted (the unloaded-recognizer fault).
+TEST(LockstepParticipant, DestroyedDuringAStepTheStepEndsAndAnswers) {
+  ros::NodeHandle nh("stopping");
+  ros::CallbackQueue unserved;
+  nh.setCallbackQueue(&unserved);
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool entered = false, destroying = false, destroyed = false, destroyed_during_step = true;
+  auto participant = std::make_unique<LockstepParticipant>(nh, "stopping", [&](const ros::Time&) {
+    std::unique_lock<std::mutex> lock(mutex);
+    entered = true;
+    cv.notify_all();
+    cv.wait(lock, [&] { return destroying; });
+    // The destructor has begun; it must not end before this step (and its answer) has. A bound
+    // on the wait, not a pace: the outcome below does not depend on it when stop() is right.
+    cv.wait_for(lock, std::chrono::milliseconds(500), [&] { return destroyed; });
+    destroyed_during_step = destroyed;
+  });
+  participant->shareQueue({});
+  participant->start();
+  ros::NodeHandle pub_nh("stopping");
+  ros::CallbackQueue pub_queue;
+  pub_nh.setCallbackQueue(&pub_queue);
+  ros::Publisher step_pub = pub_nh.advertise<rosgraph_msgs::Clock>("simulator/step", 10);
+  int acks = 0;
+  ros::Subscriber ack_sub = pub_nh.subscribe<StepAck>(
+      "simulator/step_ack", 10, [&acks](const StepAck::ConstPtr&) { ++acks; });
+  ASSERT_TRUE(serveUntil(&pub_queue, [&] {
+    return step_pub.getNumSubscribers() == 1u && ack_sub.getNumPublishers() == 1u;
+  }));
+  auto msg = boost::make_shared<rosgraph_msgs::Clock>();
+  msg->clock = ros::Time(4.0);
+  step_pub.publish(msg);
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(60), [&] { return entered; }));
+  }
+  std::thread destroyer([&] {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      destroying = true;
+    }
+    cv.notify_all();
+    participant.reset();
+    std::lock_guard<std::mutex> lock(mutex);
+    destroyed = true;
+    cv.notify_all();
+  });
+  destroyer.join();
+  EXPECT_FALSE(destroyed_during_step);
+  EXPECT_TRUE(serveUntil(&pub_queue, [&] { return acks == 1; })) << acks << " answers";
+  // Stopped: later steps are not heard.
+  EXPECT_TRUE(serveUntil(&pub_queue, [&] { return step_pub.getNumSubscribers() == 0u; }));
 }
 
 }  // namespace

@@ -67,6 +67,20 @@ class LockstepParticipant {
   LockstepParticipant(ros::NodeHandle nh, std::string node, StepFn on_step,
                       bool deferred_first = false, NextStepFn next_step = nullptr);
 
+  /** @brief stop(): a step running on another thread ends before the members go. */
+  ~LockstepParticipant();
+  LockstepParticipant(const LockstepParticipant&) = delete;
+  LockstepParticipant& operator=(const LockstepParticipant&) = delete;
+
+  /**
+   * @brief Stops hearing the steps. Waits for a step being handled on another thread (the
+   *        participants' thread, when a nodelet is unloaded from a running manager) to end,
+   *        answer included; no step callback, deferred message or answer runs after it. A
+   *        nodelet whose step callback uses its own members calls it first in its destructor.
+   *        Idempotent.
+   */
+  void stop();
+
   /**
    * @brief Subscribes `simulator/step` on the constructor's node handle's queue (the nodelet's:
    *        FIFO with its other subscriptions), when the lockstep is on. Called last in onInit,
