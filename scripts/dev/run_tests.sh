@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs every test tier and prints one summary line "N passed, N failed".
 #   1. gtest suites of the core (test/gtest -> devel/lib/pedicle_drilling/test_*)
-#   2. rostest scenarios (test/rostest/*.test), one at a time, the rviz offscreen check included
+#   2. rostest scenarios (test/rostest/*.test, and test/rostest_gtest/*.test with a C++ test
+#      node), one at a time, the rviz offscreen check included
 #   3. python tests (test/python), pytest
 # Needs a DISPLAY for the rviz scenario: `make test` runs this under xvfb-run.
 # Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
@@ -48,7 +49,7 @@ for source in "${ROOT}"/test/gtest/test_*.cpp; do
 done
 
 echo "== rostest scenarios"
-for scenario in "${ROOT}"/test/rostest/*.test; do
+for scenario in "${ROOT}"/test/rostest/*.test "${ROOT}"/test/rostest_gtest/*.test; do
   name="$(basename "${scenario}" .test)"
   [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
   start=$(date +%s)
