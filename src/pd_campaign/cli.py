@@ -347,11 +347,6 @@ def parse_args(argv):
     elif scenario.get('protocol', 'recognition') != 'recognition':
         raise UsageError('scenario key protocol: %r is run by --engine core only (the ROS '
                          'pipeline\'s recognizer always stops the drill)' % scenario['protocol'])
-    elif (args.recognizer_param or args.compensator_param or scenario.get('recognizer_params')
-          or scenario.get('compensator_params')):
-        raise UsageError('recognizer/compensator parameters are passed by --engine core only (on '
-                         'the ROS pipeline set the nodelets\' ~recognizer_params and '
-                         '~compensator_params)')
     elif scenario.get('faults') or scenario.get('fault_params'):
         raise UsageError('scenario keys faults/fault_params: faults are injected by --engine core '
                          'only (the ROS pipeline has one rostest per fault, README)')
@@ -738,6 +733,11 @@ def run_campaign(argv=None):
                    '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
                    '--recognizer', recognizer,
                    '--compensator', compensator]
+        # The classes' parameters as the core engine takes them (NAME=VALUE text); the worker
+        # puts them in the nodelets' parameter files (worker.plugin_config).
+        for kind in ('recognizer', 'compensator'):
+            for name, value in sorted(params[kind].items()):
+                command += ['--%s-param' % kind, '%s=%s' % (name, value)]
         for name, value in sorted((scenario.get('engine_delays') or {}).items()):
             command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
         for name, value in sorted((scenario.get('simulator_params') or {}).items()):

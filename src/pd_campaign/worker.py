@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from pd_campaign.atomic import atomic_write
-from pd_campaign import outcome
+from pd_campaign import outcome, tools
 
 PIPELINE_SERVICES = {
     'reset': '/simulator/reset',
@@ -580,6 +580,34 @@ def _wait_sim_until(recorder, stamp):
         raise RuntimeError('sim time did not reach %.3f s' % stamp)
 
 
+PAPER_CLASSES = {'recognizer': 'pedicle_drilling/PaperRecognizer',
+                 'compensator': 'pedicle_drilling/PaperCompensator'}
+NODE_CONFIGS = {'recognizer': 'recognizer.yaml', 'compensator': 'compensation_planner.yaml'}
+
+
+def plugin_config(kind, class_name, settings, package_root, out_path):
+    """The nodelet's parameter file with a class's NAME=VALUE settings (campaign
+    --recognizer-param / --compensator-param, as the core engine takes them), written to
+    `out_path`; None when there are none (the launch then loads the package's file). The paper
+    recognizer's parameters are the StateRecognizer's own (~window, ~f_th, ...), typed as YAML
+    reads the text; another class gets them as text in ~recognizer_params / ~compensator_params
+    and parses them itself, as in the core engine."""
+    if not settings:
+        return None
+    import yaml
+    with open(os.path.join(package_root, 'config', NODE_CONFIGS[kind])) as handle:
+        config = yaml.safe_load(handle) or {}
+    if class_name == PAPER_CLASSES[kind]:
+        for item in settings:
+            name, value = item.split('=', 1)
+            config[name] = yaml.safe_load(value)
+    else:
+        config[kind + '_params'] = dict(item.split('=', 1) for item in settings)
+    with atomic_write(out_path) as handle:
+        yaml.safe_dump(config, handle, default_flow_style=False)
+    return out_path
+
+
 def batch_scheduling():
     """This worker and everything it starts (inherited) under SCHED_BATCH: a thread woken by
     another (a message queued, a condition notified) does not preempt it. Under the lockstep the
@@ -618,6 +646,10 @@ def main(argv=None):
                         help='the StateRecognizer nodelet\'s ~recognizer class')
     parser.add_argument('--compensator', default='pedicle_drilling/PaperCompensator',
                         help='the CompensationPlanner nodelet\'s ~compensator class')
+    parser.add_argument('--recognizer-param', action='append', default=[],
+                        metavar='NAME=VALUE', help='a recognizer parameter (campaign\'s)')
+    parser.add_argument('--compensator-param', action='append', default=[],
+                        metavar='NAME=VALUE', help='a compensator parameter (campaign\'s)')
     parser.add_argument('--segment-profile', default='rest_to_rest',
                         help="the planner's ~segment_profile (scenario key compensation_profile)")
     parser.add_argument('--bone-motion', default='virtual_patient',
@@ -702,8 +734,15 @@ def main(argv=None):
         # does not have to follow a /clock that runs many times faster than real time.
         rospy.init_node('campaign_worker_%d' % args.port, disable_signals=True)
         rospy.set_param('/use_sim_time', True)
+        configs = []
+        for kind, launch_arg in (('recognizer', 'recognizer_config'),
+                                 ('compensator', 'planner_config')):
+            path = plugin_config(kind, getattr(args, kind), getattr(args, kind + '_param'),
+                                 tools.package_dir(), os.path.join(log_dir, NODE_CONFIGS[kind]))
+            if path:
+                configs.append('%s:=%s' % (launch_arg, path))
         children.append(subprocess.Popen(
-            ['roslaunch', 'pedicle_drilling', args.launch,
+            ['roslaunch', 'pedicle_drilling', args.launch] + configs + [
              'patient_model:=%s' % args.default_model,
              'real_time_factor:=%g' % args.real_time_factor,
              'clock_period_ms:=%d' % (10 if args.bags else 100),

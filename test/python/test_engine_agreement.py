@@ -106,3 +106,44 @@ def test_waiting_at_every_step_changes_no_ros_trial(tmp_path):
         for column, value in a.items():
             if column not in WALL:
                 assert value == b[column], (trial_id, column, value, b[column])
+
+
+def test_class_parameters_reach_the_ros_pipeline(tmp_path):
+    """--recognizer-param / --compensator-param on --engine ros (before: core engine only): the
+    worker writes them into the StateRecognizer's and the CompensationPlanner's parameter files
+    (the paper recognizer's as its own ~pre_average, ~f_th, ...; another class's as text in
+    ~recognizer_params / ~compensator_params) and the pipeline runs the core engine's trial of
+    each seed with them. Each setting changes a stop here (core engine with and without it), so
+    a setting lost on the way fails the test."""
+    cases = [('paper', ['--case', 'stationary'], ['--recognizer-param', 'pre_average=40']),
+             ('baselines', ['--case', 'compensated',
+                            '--recognizer', 'pedicle_drilling/ForceDifferenceRecognizer',
+                            '--compensator', 'pedicle_drilling/TrackedMarkerCompensator'],
+              ['--recognizer-param', 'drop_confirm=4',
+               '--compensator-param', 'extrapolate=true'])]
+    for k, (name, design, settings) in enumerate(cases):
+        rows = {}
+        for label, engine, extra in (('default', 'core', []), ('core', 'core', settings),
+                                     ('ros', 'ros', settings)):
+            out = tmp_path / name / label
+            result = subprocess.run(
+                ['rosrun', 'pedicle_drilling', 'campaign'] + design +
+                ['--rpm', '12000', '--trials', '3', '--seed', '35', '--jobs', '1',
+                 '--engine', engine, '--out', str(out), '--base-port', str(14700 + 100 * k)] +
+                extra, capture_output=True, text=True, timeout=1800)
+            assert result.returncode == 0, result.stderr[-3000:]
+            rows[label] = {row['trial_id']: row
+                           for row in report.read_trials_csv(str(out / 'trials.csv'))}
+            assert all(not row.get('error') for row in rows[label].values()), rows[label]
+        assert len(rows['ros']) == 3 and set(rows['ros']) == set(rows['core'])
+        assert any(raw_stop(rows['default'][t]) != raw_stop(rows['core'][t])
+                   or rows['default'][t]['residual_mm'] != rows['core'][t]['residual_mm']
+                   for t in rows['core']), (name, 'the settings changed nothing')
+        for trial_id, a in rows['ros'].items():
+            b = rows['core'][trial_id]
+            assert not a.get('lockstep_timeouts'), (trial_id, a['lockstep_timeouts'])
+            assert agreement.outcome(a) == agreement.outcome(b), (name, trial_id)
+            assert raw_stop(a) == raw_stop(b), (name, trial_id, a['stop_reason'],
+                                                b['stop_reason'])
+            assert abs(a['residual_mm'] - b['residual_mm']) <= RESIDUAL_TOLERANCE_MM, \
+                (name, trial_id, a['residual_mm'], b['residual_mm'])

@@ -221,8 +221,10 @@ def test_the_campaign_passes_the_classes_parameters(tmp_path):
             capture_output=True, text=True, timeout=600)
         assert out.returncode == 2 and named in out.stderr, (bad, out.stderr[-2000:])
         assert not (tmp_path / 'bad').exists()
+    # --engine ros checks them the same way (test_engine_agreement runs them on it).
     ros = subprocess.run(
         ['rosrun', 'pedicle_drilling', 'campaign', '--engine', 'ros', '--case', 'compensated',
-         '--trials', '1', '--out', str(tmp_path / 'ros'), '--compensator-param', 'a=1'],
+         '--trials', '1', '--out', str(tmp_path / 'ros'), '--recognizer-param', 'window=0'],
         capture_output=True, text=True, timeout=600)
-    assert ros.returncode == 2 and '--engine core only' in ros.stderr, ros.stderr[-2000:]
+    assert ros.returncode == 2 and 'window' in ros.stderr, ros.stderr[-2000:]
+    assert not (tmp_path / 'ros').exists()
