@@ -9,6 +9,7 @@ import argparse
 import json
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -608,6 +609,34 @@ def plugin_config(kind, class_name, settings, package_root, out_path):
     return out_path
 
 
+class PipelineDown(RuntimeError):
+    """The worker's master or pipeline did not come up: no trial can run."""
+
+
+def wait_for_pipeline(rospy, service, launch, log_path, bound_s=60.0):
+    """Waits for the launched pipeline's `service`, at most `bound_s` of wall time. A launch
+    that exited (a launch file that is not there or does not parse, an argument it does not
+    take) is PipelineDown at once, with the end of its log, not a timeout a minute later; a
+    service not up in time is PipelineDown too (the worker then names the launch's processes
+    that died: died_processes)."""
+    deadline = time.monotonic() + bound_s
+    while True:
+        if launch.poll() is not None:
+            with open(log_path, errors='replace') as handle:
+                text = re.sub(r'\x1b\[[0-9;]*[A-Za-z]|\x1b\][^\x07]*\x07', '', handle.read())
+            tail = [line.strip() for line in text.splitlines() if line.strip()]
+            raise PipelineDown('the pipeline\'s roslaunch exited (%s) before %s was up; its log '
+                               '%s ends: %s' % (launch.returncode, service, log_path,
+                                                ' | '.join(tail[-6:])))
+        try:
+            rospy.wait_for_service(service, timeout=max(0.05, min(1.0, deadline - time.monotonic())))
+            return
+        except rospy.ROSException:
+            if time.monotonic() >= deadline:
+                raise PipelineDown('%s not up %.0f s after the pipeline\'s launch; its log: %s'
+                                   % (service, bound_s, log_path)) from None
+
+
 def batch_scheduling():
     """This worker and everything it starts (inherited) under SCHED_BATCH: a thread woken by
     another (a message queued, a condition notified) does not preempt it. Under the lockstep the
@@ -716,6 +745,7 @@ def main(argv=None):
 
     signal.signal(signal.SIGTERM, terminate)
     devnull = open(os.path.join(log_dir, 'children.log'), 'w')  # not atomic: a live log
+    down = False
     try:
         children.append(subprocess.Popen(['roscore', '-p', str(args.port)], stdout=devnull,
                                          stderr=subprocess.STDOUT, start_new_session=True))
@@ -725,7 +755,7 @@ def main(argv=None):
                 break
             time.sleep(0.1)
         else:
-            raise RuntimeError('roscore on port %d did not start' % args.port)
+            raise PipelineDown('roscore on port %d did not start' % args.port)
         import rospy  # after ROS_MASTER_URI is set
         from pedicle_drilling.msg import (DrillingState, GroundTruth, RetareCheck, StopCommand,
                                           TrialStatus)
@@ -754,7 +784,7 @@ def main(argv=None):
                  'resume': Trigger}
         srv = {}
         for key, name in PIPELINE_SERVICES.items():
-            rospy.wait_for_service(name, timeout=60.0)
+            wait_for_pipeline(rospy, name, children[-1], devnull.name)
             srv[key] = rospy.ServiceProxy(name, types[key])
         # The scenario's simulator section: set after the launch loaded config/simulator.yaml,
         # read by the simulator at every reset. One reset checks it before any trial.
@@ -795,6 +825,9 @@ def main(argv=None):
             sys.stdout.write(json.dumps(row) + '\n')
             sys.stdout.flush()
             signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGTERM})
+    except PipelineDown as error:  # no trial ran: said once, not a traceback per worker
+        sys.stderr.write('campaign worker: %s\n' % error)
+        down = True
     finally:
         shutdown()
         devnull.close()
@@ -802,6 +835,8 @@ def main(argv=None):
         # call with a transport error) is named on stderr, which the campaign shows.
         for line in died_processes(os.path.join(log_dir, 'children.log')):
             sys.stderr.write('campaign worker: %s\n' % line)
+    if down:
+        sys.exit(1)
 
 
 def died_processes(log_path):

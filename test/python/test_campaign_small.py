@@ -407,3 +407,22 @@ def test_a_failing_reader_stops_its_worker_and_the_campaign_exits_1(tmp_path, mo
     run.join(timeout=300)
     assert not run.is_alive(), 'the campaign hangs on a worker whose reader failed'
     assert result['status'] == 1
+
+
+def test_a_pipeline_that_does_not_come_up_is_named_at_once(tmp_path):
+    """A worker whose launch exits (here a launch file that does not exist; as well one that does
+    not parse or is given an argument it does not take) says so with the
+    end of roslaunch's log and exits 1; before, it waited a minute for /simulator/reset and
+    ended with rospy's timeout traceback."""
+    trials = tmp_path / 'trials.json'
+    trials.write_text(json.dumps([{'trial_id': 'stationary-12000-000', 'case': 'stationary',
+                                   'rpm': 12000.0, 'seed': 3, 'design_position': 0}]))
+    result = subprocess.run(
+        ['/usr/bin/python3', '-m', 'pd_campaign.worker', '--port', '12790', '--trials',
+         str(trials), '--out', str(tmp_path / 'out'), '--default-model',
+         os.path.join(ROOT, 'config', 'patient_default.yaml'), '--launch', 'no_such.launch'],
+        capture_output=True, text=True, timeout=600)
+    assert result.returncode == 1, result.stderr[-3000:]
+    assert "the pipeline's roslaunch exited" in result.stderr, result.stderr[-3000:]
+    assert 'no_such.launch' in result.stderr, result.stderr[-3000:]
+    assert 'Traceback' not in result.stderr, result.stderr[-3000:]
