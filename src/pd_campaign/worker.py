@@ -629,7 +629,8 @@ def wait_for_pipeline(rospy, service, launch, log_path, bound_s=60.0):
                                '%s ends: %s' % (launch.returncode, service, log_path,
                                                 ' | '.join(tail[-6:])))
         try:
-            rospy.wait_for_service(service, timeout=max(0.05, min(1.0, deadline - time.monotonic())))
+            left = deadline - time.monotonic()
+            rospy.wait_for_service(service, timeout=max(0.05, min(1.0, left)))
             return
         except rospy.ROSException:
             if time.monotonic() >= deadline:
