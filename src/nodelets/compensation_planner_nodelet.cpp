@@ -68,6 +68,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
          {&pose_timer_, &registration_timer_, &segment_timer_, &keepalive_timer_}) {
       timer->stop();
     }
+    if (lockstep_) lockstep_->drain();  // a callback already running on the shared queue ends
   }
 
  private:

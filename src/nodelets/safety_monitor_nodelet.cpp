@@ -86,6 +86,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     reset_srv_.shutdown();
     check_timer_.stop();
     diagnostic_timer_.stop();
+    diagnostics_pub_.shutdown();        // its connection callback (onSubscriber)
+    if (lockstep_) lockstep_->drain();  // a ~reset call or connection callback running ends
   }
 
  private:

@@ -41,6 +41,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     wrench_sub_.shutdown();
     tare_sub_.shutdown();
     reset_srv_.shutdown();
+    if (lockstep_) lockstep_->drain();  // a ~reset call already running ends first
   }
 
  private:

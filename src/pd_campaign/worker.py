@@ -586,24 +586,52 @@ PAPER_CLASSES = {'recognizer': 'pedicle_drilling/PaperRecognizer',
 NODE_CONFIGS = {'recognizer': 'recognizer.yaml', 'compensator': 'compensation_planner.yaml'}
 
 
+def typed_setting(name, text, like):
+    """A paper recognizer's setting `text` as the core engine reads it (ParamTable::set), typed
+    like `like`, the package file's value: a bool from true/false/1/0, an int from a whole
+    number (010 is ten, 40.0 forty), a float from any number strtod reads in decimal. Not YAML's
+    reading (010 octal, 1e-3 a string). ValueError naming the setting when the text is not one."""
+    if isinstance(like, bool):
+        if text not in ('true', 'false', '1', '0'):
+            raise ValueError('%s = %r is not true or false' % (name, text))
+        return text in ('true', '1')
+    try:
+        number = float(text)
+    except ValueError:
+        raise ValueError('%s = %r is not a number' % (name, text)) from None
+    if isinstance(like, int):
+        if not number.is_integer():
+            raise ValueError('%s = %r is not a whole number' % (name, text))
+        return int(number)
+    return number
+
+
 def plugin_config(kind, class_name, settings, package_root, out_path):
     """The nodelet's parameter file with a class's NAME=VALUE settings (campaign
     --recognizer-param / --compensator-param, as the core engine takes them), written to
     `out_path`; None when there are none (the launch then loads the package's file). The paper
-    recognizer's parameters are the StateRecognizer's own (~window, ~f_th, ...), typed as YAML
-    reads the text; another class gets them as text in ~recognizer_params / ~compensator_params
-    and parses them itself, as in the core engine."""
+    recognizer's parameters are the StateRecognizer's own (~window, ~f_th, ...), typed as the
+    core engine reads the text (typed_setting); another class gets them as text in
+    ~recognizer_params / ~compensator_params and parses them itself, as in the core engine.
+    ValueError naming a setting the nodelet would not take (the paper compensator has none)."""
     if not settings:
         return None
     import yaml
     with open(os.path.join(package_root, 'config', NODE_CONFIGS[kind])) as handle:
         config = yaml.safe_load(handle) or {}
+    pairs = []
+    for item in settings:
+        name, sep, value = item.partition('=')
+        if not sep or not name:
+            raise ValueError('--%s-param %r is not NAME=VALUE' % (kind, item))
+        pairs.append((name, value))
     if class_name == PAPER_CLASSES[kind]:
-        for item in settings:
-            name, value = item.split('=', 1)
-            config[name] = yaml.safe_load(value)
+        for name, value in pairs:
+            if kind != 'recognizer' or name not in config or name in ('axis', 'queue_size'):
+                raise ValueError('--%s-param %s: not a parameter of %s' % (kind, name, class_name))
+            config[name] = typed_setting(name, value, config[name])
     else:
-        config[kind + '_params'] = dict(item.split('=', 1) for item in settings)
+        config[kind + '_params'] = dict(pairs)
     with atomic_write(out_path) as handle:
         yaml.safe_dump(config, handle, default_flow_style=False)
     return out_path
@@ -768,8 +796,12 @@ def main(argv=None):
         configs = []
         for kind, launch_arg in (('recognizer', 'recognizer_config'),
                                  ('compensator', 'planner_config')):
-            path = plugin_config(kind, getattr(args, kind), getattr(args, kind + '_param'),
-                                 tools.package_dir(), os.path.join(log_dir, NODE_CONFIGS[kind]))
+            try:
+                path = plugin_config(kind, getattr(args, kind), getattr(args, kind + '_param'),
+                                     tools.package_dir(),
+                                     os.path.join(log_dir, NODE_CONFIGS[kind]))
+            except ValueError as error:
+                raise PipelineDown(str(error)) from None
             if path:
                 configs.append('%s:=%s' % (launch_arg, path))
         children.append(subprocess.Popen(

@@ -4,7 +4,12 @@
  */
 #include "pedicle_drilling/ros/lockstep.hpp"
 
+#include <boost/make_shared.hpp>
+
 #include <algorithm>
+#include <chrono>
+#include <future>
+#include <memory>
 #include <stdexcept>
 #include <thread>
 #include <utility>
@@ -38,11 +43,40 @@ LockstepParticipant::~LockstepParticipant() { stop(); }
 
 void LockstepParticipant::stop() {
   // roscpp's unsubscription waits for a callback of this subscription that another thread is
-  // running (its callback queue's per-subscription lock) and drops the queued ones. Before
-  // ack_pub_ goes: an unloaded recognizer's step answered on the participants' thread while
-  // its publisher was destroyed aborted the nodelet manager (boost assertion `px != 0` in
-  // roscpp's TopicManager::publish).
+  // running (SubscriptionQueue::clear takes the lock its call holds) and drops the queued ones.
+  // Before ack_pub_ goes: an unloaded recognizer's step answered on the participants' thread
+  // while its publisher was destroyed aborted the nodelet manager (boost assertion `px != 0`
+  // in roscpp's TopicManager::publish).
   step_sub_.shutdown();
+}
+
+namespace {
+
+/** @brief A callback that says it ran (drain()). */
+class RanCallback : public ros::CallbackInterface {
+ public:
+  explicit RanCallback(std::shared_ptr<std::promise<void>> ran) : ran_(std::move(ran)) {}
+  CallResult call() override {
+    ran_->set_value();
+    return Success;
+  }
+
+ private:
+  std::shared_ptr<std::promise<void>> ran_;
+};
+
+}  // namespace
+
+void LockstepParticipant::drain() {
+  if (!shared_) return;
+  auto ran = std::make_shared<std::promise<void>>();
+  std::future<void> done = ran->get_future();
+  // One thread serves the queue, in order: when this runs, whatever was queued before it (or
+  // was running) has ended.
+  sharedQueue()->addCallback(boost::make_shared<RanCallback>(ran));
+  while (done.wait_for(std::chrono::milliseconds(100)) != std::future_status::ready) {
+    if (ros::isShuttingDown()) return;  // the thread stops serving the queue
+  }
 }
 
 void LockstepParticipant::start() {
@@ -57,6 +91,7 @@ void LockstepParticipant::shareQueue(std::initializer_list<ros::NodeHandle*> han
   if (started_) throw std::logic_error("LockstepParticipant::shareQueue: after start()");
   if (!enabled_) return;
   ros::CallbackQueue* queue = sharedQueue();
+  shared_ = true;
   nh_.setCallbackQueue(queue);
   for (ros::NodeHandle* nh : handles) nh->setCallbackQueue(queue);
 }

@@ -149,7 +149,9 @@ TEST(LockstepParticipant, DestroyedDuringAStepTheStepEndsAndAnswers) {
   step_pub.publish(msg);
   {
     std::unique_lock<std::mutex> lock(mutex);
-    ASSERT_TRUE(cv.wait_for(lock, std::chrono::seconds(60), [&] { return entered; }));
+    const bool in_step = cv.wait_for(lock, std::chrono::seconds(60), [&] { return entered; });
+    if (!in_step) destroying = destroyed = true;  // a step arriving later passes through
+    ASSERT_TRUE(in_step);
   }
   std::thread destroyer([&] {
     {
@@ -167,6 +169,61 @@ TEST(LockstepParticipant, DestroyedDuringAStepTheStepEndsAndAnswers) {
   EXPECT_TRUE(serveUntil(&pub_queue, [&] { return acks == 1; })) << acks << " answers";
   // Stopped: later steps are not heard.
   EXPECT_TRUE(serveUntil(&pub_queue, [&] { return step_pub.getNumSubscribers() == 0u; }));
+}
+
+// drain(): roscpp does not wait for a service or timer callback already running when it is shut
+// down, so a destructor waits for the participants' thread to get past it before the members
+// go. A callback blocked on the shared thread keeps drain() from returning until it ends.
+TEST(LockstepParticipant, DrainWaitsForWhatTheSharedThreadIsRunning) {
+  ros::NodeHandle nh("draining");
+  ros::NodeHandle inputs_nh("draining");
+  ros::CallbackQueue unserved;
+  nh.setCallbackQueue(&unserved);
+  inputs_nh.setCallbackQueue(&unserved);
+  std::mutex mutex;
+  std::condition_variable cv;
+  bool entered = false, released = false, finished = false, drained = false;
+  LockstepParticipant participant(nh, "draining", nullptr);
+  participant.shareQueue({&inputs_nh});
+  ros::Subscriber input_sub = inputs_nh.subscribe<rosgraph_msgs::Clock>(
+      "input", 10, [&](const rosgraph_msgs::Clock::ConstPtr&) {
+        std::unique_lock<std::mutex> lock(mutex);
+        entered = true;
+        cv.notify_all();
+        cv.wait(lock, [&] { return released; });
+        finished = true;
+      });
+  participant.start();
+  ros::NodeHandle pub_nh("draining");
+  ros::CallbackQueue pub_queue;
+  pub_nh.setCallbackQueue(&pub_queue);
+  ros::Publisher input_pub = pub_nh.advertise<rosgraph_msgs::Clock>("input", 10);
+  ASSERT_TRUE(serveUntil(&pub_queue, [&] { return input_pub.getNumSubscribers() == 1u; }));
+  input_pub.publish(boost::make_shared<rosgraph_msgs::Clock>());
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    const bool in_callback = cv.wait_for(lock, std::chrono::seconds(60), [&] { return entered; });
+    if (!in_callback) released = true;  // never leave the shared thread blocked
+    ASSERT_TRUE(in_callback);
+  }
+  std::thread drainer([&] {
+    participant.drain();
+    std::lock_guard<std::mutex> lock(mutex);
+    drained = true;
+    cv.notify_all();
+  });
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    // A bound, not a pace: with a drain that waits, nothing below depends on it.
+    cv.wait_for(lock, std::chrono::milliseconds(300), [&] { return drained; });
+    EXPECT_FALSE(drained) << "drain() returned while the shared thread ran a callback";
+    released = true;
+    cv.notify_all();
+  }
+  drainer.join();
+  std::lock_guard<std::mutex> lock(mutex);
+  EXPECT_TRUE(drained);
+  EXPECT_TRUE(finished);
 }
 
 }  // namespace

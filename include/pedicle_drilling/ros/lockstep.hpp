@@ -75,11 +75,23 @@ class LockstepParticipant {
   /**
    * @brief Stops hearing the steps. Waits for a step being handled on another thread (the
    *        participants' thread, when a nodelet is unloaded from a running manager) to end,
-   *        answer included; no step callback, deferred message or answer runs after it. A
-   *        nodelet whose step callback uses its own members calls it first in its destructor.
-   *        Idempotent.
+   *        answer included (roscpp's unsubscription waits for the subscription's callback); no
+   *        step callback, deferred message or answer runs after it. A nodelet whose step
+   *        callback uses its own members calls it first in its destructor. Idempotent. Once ROS
+   *        is shutting down, roscpp no longer waits.
    */
   void stop();
+
+  /**
+   * @brief After shareQueue(): waits until the participants' thread has run (or dropped)
+   *        everything queued before this call. roscpp does not wait for a service or timer
+   *        callback that is already running when the service is shut down or the timer stopped
+   *        (since 1.15.10 it only marks them), and the nodelet manager does not hold a nodelet
+   *        for callbacks on this queue: a destructor shuts its services, timers and connection
+   *        callbacks, then calls this, then lets its members go. Returns at once without
+   *        shareQueue() and when ROS is shutting down (the thread then stops).
+   */
+  void drain();
 
   /**
    * @brief Subscribes `simulator/step` on the constructor's node handle's queue (the nodelet's:
@@ -156,6 +168,7 @@ class LockstepParticipant {
   ros::NodeHandle nh_;
   bool started_ = false;
   bool enabled_ = false;
+  bool shared_ = false;  ///< shareQueue() put the callbacks on the participants' queue
   bool deferred_first_ = false;
   std::string node_;
   StepFn on_step_;

@@ -1,0 +1,67 @@
+"""The --engine ros worker's class parameters (pd_campaign.worker.plugin_config): the paper
+recognizer's settings typed as the core engine reads their text (ParamTable::set: 010 is ten,
+1e-3 a number, 40.0 a whole number), not as YAML would (010 octal, 1e-3 a string); another
+class's as text; what the nodelet would not take is a ValueError naming it."""
+import os
+
+import pytest
+import yaml
+
+from pd_campaign import worker
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+PAPER = 'pedicle_drilling/PaperRecognizer'
+
+
+def written(tmp_path, kind, class_name, settings):
+    path = worker.plugin_config(kind, class_name, settings, ROOT, str(tmp_path / 'node.yaml'))
+    with open(path) as handle:
+        return yaml.safe_load(handle)
+
+
+def test_the_paper_recognizers_settings_are_typed_as_the_core_reads_them(tmp_path):
+    config = written(tmp_path, 'recognizer', PAPER,
+                     ['pre_average=010', 'f_th=1e-3', 'window=12.0', 'normalize_feature=1',
+                      'gain=2'])
+    assert config['pre_average'] == 10 and isinstance(config['pre_average'], int)
+    assert config['f_th'] == pytest.approx(1e-3) and isinstance(config['f_th'], float)
+    assert config['window'] == 12 and isinstance(config['window'], int)
+    assert config['normalize_feature'] is True
+    assert config['gain'] == 2.0 and isinstance(config['gain'], float)
+    # The rest of the package's file is kept.
+    with open(os.path.join(ROOT, 'config', 'recognizer.yaml')) as handle:
+        package = yaml.safe_load(handle)
+    assert {k: v for k, v in config.items()
+            if k not in ('pre_average', 'f_th', 'window', 'normalize_feature', 'gain')} == \
+        {k: v for k, v in package.items()
+         if k not in ('pre_average', 'f_th', 'window', 'normalize_feature', 'gain')}
+
+
+def test_another_class_gets_its_settings_as_text(tmp_path):
+    config = written(tmp_path, 'recognizer', 'pedicle_drilling/ForceDifferenceRecognizer',
+                     ['drop_confirm=010', 'stop_at_breakthrough=yes', 'model=a=b'])
+    assert config['recognizer_params'] == {'drop_confirm': '010',
+                                           'stop_at_breakthrough': 'yes', 'model': 'a=b'}
+    config = written(tmp_path, 'compensator', 'pedicle_drilling/TrackedMarkerCompensator',
+                     ['extrapolate=true'])
+    assert config['compensator_params'] == {'extrapolate': 'true'}
+
+
+def test_no_settings_no_file(tmp_path):
+    assert worker.plugin_config('recognizer', PAPER, [], ROOT, str(tmp_path / 'x.yaml')) is None
+    assert not (tmp_path / 'x.yaml').exists()
+
+
+@pytest.mark.parametrize('kind,class_name,setting,named', [
+    ('recognizer', PAPER, 'window=4.5', 'window'),
+    ('recognizer', PAPER, 'normalize_feature=yes', 'normalize_feature'),
+    ('recognizer', PAPER, 'f_th=0x10', 'f_th'),
+    ('recognizer', PAPER, 'nonsense=1', 'nonsense'),
+    ('recognizer', PAPER, 'queue_size=10', 'queue_size'),  # the node's, not the recognizer's
+    ('recognizer', PAPER, 'window', 'window'),
+    ('compensator', 'pedicle_drilling/PaperCompensator', 'latency_s=1', 'latency_s'),
+])
+def test_what_the_nodelet_would_not_take_is_named(tmp_path, kind, class_name, setting, named):
+    with pytest.raises(ValueError, match=named):
+        worker.plugin_config(kind, class_name, [setting], ROOT, str(tmp_path / 'x.yaml'))
+    assert not (tmp_path / 'x.yaml').exists()
