@@ -835,16 +835,27 @@ def main(argv=None):
                                  'command delay was refused: %s\n' % reply.message)
                 sys.exit(2)
         recorder = TrialRecorder()
-        rospy.Subscriber('/drilling_state', DrillingState, recorder.on_state, queue_size=10000)
-        rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,
-                         queue_size=10000)
-        rospy.Subscriber('/drill/stop', StopCommand, recorder.on_stop, queue_size=100)
-        rospy.Subscriber('/safety_monitor/retare_check', RetareCheck, recorder.on_retare,
-                         queue_size=10)
-        rospy.Subscriber('/compensation/status', TrialStatus, recorder.on_status, queue_size=100)
         from diagnostic_msgs.msg import DiagnosticArray
-        rospy.Subscriber('/diagnostics', DiagnosticArray, recorder.on_diagnostics,
-                         queue_size=100)
+        subscribers = [
+            rospy.Subscriber('/drilling_state', DrillingState, recorder.on_state,
+                             queue_size=10000),
+            rospy.Subscriber('/simulator/ground_truth', GroundTruth, recorder.on_truth,
+                             queue_size=10000),
+            rospy.Subscriber('/drill/stop', StopCommand, recorder.on_stop, queue_size=100),
+            rospy.Subscriber('/safety_monitor/retare_check', RetareCheck, recorder.on_retare,
+                             queue_size=10),
+            rospy.Subscriber('/compensation/status', TrialStatus, recorder.on_status,
+                             queue_size=100),
+            rospy.Subscriber('/diagnostics', DiagnosticArray, recorder.on_diagnostics,
+                             queue_size=100)]
+        # Every recorded topic connected before the first trial: a connection made during it
+        # cut the trial's record (a worker's first trial once lost its ground truth up to the
+        # inner layer: no F_in, no stop depth; test_engine_agreement).
+        for sub in subscribers:
+            if not _wait_until(lambda: sub.get_num_connections() > 0, 60.0,
+                               what='a publisher of %s' % sub.name):
+                raise PipelineDown('nothing publishes %s 60 s after the pipeline came up'
+                                   % sub.name)
         for trial in trials:
             try:
                 row = run_trial(rospy, srv, None, recorder, trial, args, trace_dir)
