@@ -9,11 +9,12 @@ import sys
 import tempfile
 import threading
 import time
+import types
 
 import yaml
 
-from . import engine_core, profile, report, reuse, tools
-from .atomic import atomic_path, atomic_write
+from . import engine_core, profile, report, resume, reuse, tools
+from .atomic import atomic_path, atomic_write, remove_temporaries
 from .design import CASES, FAULTS, SEED_SPACES, build_design, parse_shard, shard
 
 # The package's config/ and urdf/: its source folder (devel space) or its share folder (install
@@ -85,7 +86,14 @@ FAULT_PARAMS = {
     'rate_change_bpm': '--fault-rate-change-bpm',
     'command_delay_s': '--fault-command-delay-s',
     'command_fault_count': '--fault-command-count',
+    'saturation_n': '--fault-saturation-n',
+    'saturation_noise_sd_n': '--fault-saturation-noise-sd-n',
+    'nan_axis': '--fault-nan-axis',
+    'occlusion_samples': '--fault-occlusion-samples',
+    'occlusion_period_samples': '--fault-occlusion-period-samples',
 }
+INTEGER_FAULT_PARAMS = ('command_fault_count', 'nan_axis', 'occlusion_samples',
+                        'occlusion_period_samples')
 ENGINES = ('core', 'ros')
 PROTOCOLS = ('recognition', 'peak_forces')
 # compensation_profile: the planner's segment profile (its ~segment_profile): the paper's 125 ms
@@ -93,6 +101,12 @@ PROTOCOLS = ('recognition', 'peak_forces')
 COMPENSATION_PROFILES = {'paper': 'rest_to_rest', 'exact': 'exact'}
 # bone_motion: what the SPMS plays in the moving cases.
 BONE_MOTIONS = ('model', 'virtual_patient')
+# Options that change a campaign's outputs besides its design and scenario: --resume refuses a
+# folder whose campaign had others (resume.check). The others may differ: --jobs, --base-port,
+# --pin-workers and --reuse-trials change no trial; --identification is the folder's own once
+# it is complete, and the Table II models are compared by content (the engine key); --profile is
+# refused with --resume.
+RESUME_OPTIONS = ('bags', 'samples', 'real_time_factor', 'lockstep_every_step', 'no_figures')
 
 
 class UsageError(Exception):
@@ -305,6 +319,13 @@ def parse_args(argv):
                         'again (a trial\'s record depends on these and its seed only; '
                         'doc/experiments.md, "Reusing trials"). make run gives its results '
                         'folder')
+    parser.add_argument('--resume', action='store_true',
+                        help='continue the campaign stopped in --out (Ctrl-C, a kill, a full '
+                        'disk): keep the trials it finished, run the others; the same '
+                        'trials.csv as an uninterrupted run. Refused, naming what differs, '
+                        'when that campaign was started with other arguments, scenario or '
+                        'build (OUT/%s). Without it, a campaign starts over in a folder of an '
+                        'earlier one' % resume.ARGS_FILE)
     parser.add_argument('--lockstep-every-step', action='store_true',
                         help='--engine ros: the simulator waits for the participants at every '
                         'step (~lockstep_every_step), not only where one of them needs it; the '
@@ -327,6 +348,8 @@ def parse_args(argv):
         if args.lockstep_every_step:
             raise UsageError('--lockstep-every-step is the ROS pipeline\'s: use it with '
                              '--engine ros')
+        if args.resume and args.profile:
+            raise UsageError('--resume keeps trials timed by an earlier run: not with --profile')
         if args.reuse_trials is not None and (args.samples or args.profile):
             raise UsageError('--reuse-trials takes trials without their samples or profile: '
                              'not with --samples or --profile')
@@ -552,66 +575,55 @@ def class_params(given, from_scenario, option):
     return out
 
 
-def run_campaign(argv=None):
-    try:
-        args, scenario, cases, rpms, trials, seed, shard_spec = parse_args(argv)
-    except UsageError as error:
-        sys.stderr.write('campaign: %s\n' % error)
-        return 2
-    faults = scenario.get('faults')
-    recognizer = args.recognizer or scenario.get('recognizer') or DEFAULT_RECOGNIZER
-    compensator = args.compensator or scenario.get('compensator') or DEFAULT_COMPENSATOR
-    try:
-        params = {'recognizer': class_params(args.recognizer_param,
-                                             scenario.get('recognizer_params'), '--recognizer-param'),
-                  'compensator': class_params(args.compensator_param,
-                                              scenario.get('compensator_params'),
-                                              '--compensator-param')}
-    except UsageError as error:
-        sys.stderr.write('campaign: %s\n' % error)
-        return 2
+def _check_with_trial_engine(args, scenario, recognizer, compensator, params):
+    """Raises UsageError with trial_engine's message when it refuses a class or its parameters
+    (both engines load them through the same loader), the simulator section (the Simulator's own
+    declaration, on either engine: the ROS pipeline's Simulator reads the same names and ranges
+    at every reset) or the planner parameters: before anything is written."""
+    checks = []
     for kind, name, default in (('recognizer', recognizer, DEFAULT_RECOGNIZER),
                                 ('compensator', compensator, DEFAULT_COMPENSATOR)):
-        if name == default and not params[kind]:
-            continue
-        # A class that does not load, or refuses its parameters, is exit 2 before anything is
-        # written (both engines load it through the same loader).
-        check = subprocess.run(engine_core.tool('trial_engine') + ['--check-' + kind, name]
-                               + ['%s=%s' % kv for kv in sorted(params[kind].items())],
-                               capture_output=True, text=True)
-        if check.returncode != 0:
-            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
-                                                 ['--%s %s does not load' % (kind, name)])[-1])
-            return 2
+        if name != default or params[kind]:
+            checks.append((['--check-' + kind, name] +
+                           ['%s=%s' % kv for kv in sorted(params[kind].items())],
+                           '--%s %s does not load' % (kind, name)))
     if scenario.get('simulator') or scenario.get('simulator_params'):
-        # The simulator section, checked by the Simulator's own declaration before anything is
-        # written, on either engine (the ROS pipeline's Simulator re-reads its parameters at every
-        # reset, so the same names and ranges; it checks them again at its first reset).
-        check = subprocess.run(
-            engine_core.tool('trial_engine') + ['--check-simulator'] +
-            engine_core.simulator_params(scenario.get('simulator'),
-                                         scenario.get('simulator_params')),
-            capture_output=True, text=True)
-        if check.returncode != 0:
-            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
-                                                 ['the simulator section was refused'])[-1])
-            return 2
+        checks.append((['--check-simulator'] + engine_core.simulator_params(
+            scenario.get('simulator'), scenario.get('simulator_params')),
+            'the simulator section was refused'))
     if args.engine == 'core' and scenario.get('planner_params'):
-        check = subprocess.run(
-            engine_core.tool('trial_engine') + ['--check-planner'] +
-            engine_core.settings_list(scenario['planner_params']), capture_output=True, text=True)
+        checks.append((['--check-planner'] + engine_core.settings_list(scenario['planner_params']),
+                       'the planner_params were refused'))
+    for options, otherwise in checks:
+        check = subprocess.run(engine_core.tool('trial_engine') + options, capture_output=True,
+                               text=True)
         if check.returncode != 0:
-            sys.stderr.write('campaign: %s\n' % (check.stderr.strip().splitlines() or
-                                                 ['the planner_params were refused'])[-1])
-            return 2
-    design = build_design(cases, rpms, trials, seed, faults, args.seed_space)
-    selected = shard(design, *shard_spec) if shard_spec else design
-    out_dir = os.path.abspath(args.out)
-    os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
-    reuse.unmark(out_dir)  # not a source of trials until this campaign has finished
-    # The report's meta data describe the design only, so that merged shards report the same.
-    meta = {'cases': cases, 'rpms': rpms, 'trials': trials, 'seed': seed,
-            'seed_space': args.seed_space,
+            raise UsageError((check.stderr.strip().splitlines() or [otherwise])[-1])
+
+
+def _prepare(argv):
+    """The campaign's settings (parse_args', its classes and their parameters), checked before
+    anything is written; raises UsageError."""
+    args, scenario, cases, rpms, trials, seed, shard_spec = parse_args(argv)
+    recognizer = args.recognizer or scenario.get('recognizer') or DEFAULT_RECOGNIZER
+    compensator = args.compensator or scenario.get('compensator') or DEFAULT_COMPENSATOR
+    params = {'recognizer': class_params(args.recognizer_param,
+                                         scenario.get('recognizer_params'), '--recognizer-param'),
+              'compensator': class_params(args.compensator_param,
+                                          scenario.get('compensator_params'),
+                                          '--compensator-param')}
+    _check_with_trial_engine(args, scenario, recognizer, compensator, params)
+    return types.SimpleNamespace(args=args, scenario=scenario, cases=cases, rpms=rpms,
+                                 trials=trials, seed=seed, shard_spec=shard_spec,
+                                 faults=scenario.get('faults'), recognizer=recognizer,
+                                 compensator=compensator, params=params)
+
+
+def _meta(setup, design):
+    """The report's meta data: the design only, so that merged shards report the same."""
+    scenario = setup.scenario
+    meta = {'cases': setup.cases, 'rpms': setup.rpms, 'trials': setup.trials, 'seed': setup.seed,
+            'seed_space': setup.args.seed_space,
             'design_size': len(design), 'simulator': scenario.get('simulator') or {},
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
@@ -620,210 +632,292 @@ def run_campaign(argv=None):
             'simulator_params': scenario.get('simulator_params') or {},
             'planner_params': scenario.get('planner_params') or {},
             'engine_delays': scenario.get('engine_delays') or {},
-            'recognizer': recognizer,
-            'compensator': compensator,
-            'engine': args.engine}
+            'recognizer': setup.recognizer,
+            'compensator': setup.compensator,
+            'engine': setup.args.engine}
     for kind in ('recognizer', 'compensator'):
-        if params[kind]:
-            meta[kind + '_params'] = params[kind]
-    if faults:
-        meta['faults'] = list(faults)
+        if setup.params[kind]:
+            meta[kind + '_params'] = setup.params[kind]
+    if setup.faults:
+        meta['faults'] = list(setup.faults)
         meta['fault_params'] = {k: float(v) for k, v in
                                 sorted((scenario.get('fault_params') or {}).items())}
-    with atomic_write(os.path.join(out_dir, 'design.json')) as handle:
-        json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
-                   'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
-    models_dir = ''
-    if scenario.get('identification', 'volunteers') == 'volunteers':
-        # Table II: identify the five virtual volunteers from their own 30 s recordings; the
-        # simulator's patients are these volunteers, and the trials use these models.
-        ident_dir = os.path.join(out_dir, 'identification')
-        if args.identification:
-            # Identified already (the same for every scenario: it reads no setting of it),
-            # copied into OUT/identification/ (the campaign's output keeps the models it used).
-            os.makedirs(os.path.join(ident_dir, 'models'), exist_ok=True)
-            for name in identification_files():
-                with atomic_path(os.path.join(ident_dir, name)) as tmp:
-                    shutil.copyfile(os.path.join(args.identification, name), tmp)
-        else:
-            sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
-            result = subprocess.run(tools.tool('table2.py') + [
-                '--out', ident_dir, '--jobs', str(args.jobs), '--no-figure'],
-                capture_output=True, text=True)
-            if result.returncode != 0:
-                sys.stderr.write('campaign: Table II identification failed:\n%s\n'
-                                 % (result.stderr or result.stdout))
-                return 1
-        for name in TABLE2_FILES:
-            with atomic_path(os.path.join(out_dir, name)) as tmp:
-                shutil.copyfile(os.path.join(ident_dir, name), tmp)
-        models_dir = os.path.join(ident_dir, 'models')
-    pose = engine_core.drilling_pose(PACKAGE_ROOT) if args.engine == 'core' else None
+    return meta
 
-    def core_command(samples_dir=None, profile_path=None):
+
+def _identify(args, scenario, out_dir, own=False):
+    """The folder of the Table II models the trials use ('' without: identification online);
+    None when the identification failed (said on stderr). `own`: a resumed campaign keeps its
+    folder's identification when it is complete (its trials used it)."""
+    if scenario.get('identification', 'volunteers') != 'volunteers':
+        return ''
+    # Table II: identify the five virtual volunteers from their own 30 s recordings; the
+    # simulator's patients are these volunteers, and the trials use these models.
+    ident_dir = os.path.join(out_dir, 'identification')
+    own = own and check_identification(ident_dir) is None
+    if own:
+        pass  # nothing written: a resume refused after this (another build) changed nothing
+    elif args.identification:
+        # Identified already (the same for every scenario: it reads no setting of it),
+        # copied into OUT/identification/ (the campaign's output keeps the models it used).
+        os.makedirs(os.path.join(ident_dir, 'models'), exist_ok=True)
+        for name in identification_files():
+            with atomic_path(os.path.join(ident_dir, name)) as tmp:
+                shutil.copyfile(os.path.join(args.identification, name), tmp)
+    else:
+        sys.stderr.write('campaign: identifying the five virtual volunteers (Table II)\n')
+        result = subprocess.run(tools.tool('table2.py') + [
+            '--out', ident_dir, '--jobs', str(args.jobs), '--no-figure'],
+            capture_output=True, text=True)
+        if result.returncode != 0:
+            sys.stderr.write('campaign: Table II identification failed:\n%s\n'
+                             % (result.stderr or result.stdout))
+            return None
+    for name in TABLE2_FILES:
+        if own and os.path.isfile(os.path.join(out_dir, name)):
+            continue
+        with atomic_path(os.path.join(out_dir, name)) as tmp:
+            shutil.copyfile(os.path.join(ident_dir, name), tmp)
+    return os.path.join(ident_dir, 'models')
+
+
+def _core_command(setup, models_dir):
+    """command(samples_dir=None, profile_path=None): the trial_engine command of the campaign's
+    core-engine workers."""
+    scenario, params = setup.scenario, setup.params
+    pose = engine_core.drilling_pose(PACKAGE_ROOT)
+
+    def command(samples_dir=None, profile_path=None):
         return engine_core.trial_engine_command(
             '-', pose, models_dir,
             scenario.get('model', 'linear'), scenario.get('bone_motion', 'virtual_patient'),
             float(scenario.get('feed_rate_mm_s', 0.5)),
             float(scenario.get('max_duration_s', 60.0)), DEFAULT_MODEL,
             COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
-            [(FAULT_PARAMS[k], int(v) if k == 'command_fault_count' else float(v))
+            [(FAULT_PARAMS[k], int(v) if k in INTEGER_FAULT_PARAMS else float(v))
              for k, v in sorted((scenario.get('fault_params') or {}).items())],
-            recognizer, compensator, params['recognizer'], params['compensator'],
+            setup.recognizer, setup.compensator, params['recognizer'], params['compensator'],
             scenario.get('simulator'), scenario.get('protocol', 'recognition'),
             scenario.get('simulator_params'), scenario.get('planner_params'),
             scenario.get('engine_delays'), samples_dir, profile_path)
+    return command
 
-    engine_key = reuse.engine_key(core_command(), PACKAGE_ROOT) if args.engine == 'core' else None
+
+def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
+    """The k-th --engine ros worker, started on its trials `part`."""
+    args, scenario, params = setup.args, setup.scenario, setup.params
+    trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
+    with atomic_write(trial_file) as handle:
+        json.dump(part, handle)
+    command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
+               '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
+               '--trials', trial_file, '--out', out_dir,
+               '--feed-rate', str(scenario.get('feed_rate_mm_s', 0.5)),
+               '--max-duration', str(scenario.get('max_duration_s', 60.0)),
+               '--identification-window-s',
+               str(scenario.get('identification_window_s', 30.0)),
+               '--default-model', DEFAULT_MODEL,
+               '--real-time-factor', str(args.real_time_factor),
+               '--models-dir', models_dir,
+               '--model', scenario.get('model', 'linear'),
+               '--bone-motion', scenario.get('bone_motion', 'virtual_patient'),
+               '--segment-profile',
+               COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
+               '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
+               '--recognizer', setup.recognizer,
+               '--compensator', setup.compensator]
+    # The classes' parameters as the core engine takes them (NAME=VALUE text); the worker
+    # puts them in the nodelets' parameter files (worker.plugin_config).
+    for kind in ('recognizer', 'compensator'):
+        for name, value in sorted(params[kind].items()):
+            command += ['--%s-param' % kind, '%s=%s' % (name, value)]
+    for name, value in sorted((scenario.get('engine_delays') or {}).items()):
+        command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
+    for name, value in sorted((scenario.get('simulator_params') or {}).items()):
+        command += ['--simulator-param', '%s=%s' % (name, json.dumps(value))]
+    if args.lockstep_every_step:
+        command += ['--simulator-param', 'lockstep_every_step=true']
+    if args.bags:
+        command.append('--bags')
+    if cpu is not None:
+        command += ['--cpu', str(cpu)]
+    # The worker imports pd_campaign as this process did: catkin's devel space has it.
+    return subprocess.Popen(command, stdout=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def _start_workers(setup, out_dir, slices, design, core_command, models_dir, profiles):
+    """One worker per slice of the pending trials: a trial_engine process (its trials through
+    stdin, the next to the process that finished one: engine_core.TrialFeed; a trial depends on
+    its seed only, not on the process that runs it) or an --engine ros worker. The ones started
+    are stopped when one cannot be."""
+    args = setup.args
+    samples_dir = os.path.join(out_dir, 'samples') if args.samples else None
+    if samples_dir:
+        os.makedirs(samples_dir, exist_ok=True)
+    position = {trial['trial_id']: k for k, trial in enumerate(design)}
+    cpus = worker_cpus(len(slices), args.pin_workers, os.sched_getaffinity(0))
+    workers = []
+    try:
+        for k, part in enumerate(slices):
+            if args.engine == 'core':
+                workers.append(engine_core.start(core_command(samples_dir, profiles[k])))
+                continue
+            # Each trial's stamps from its place in the design, not from when its worker got to
+            # it: the same trial on any run, job count or shard (worker.time_zero).
+            part = [dict(trial, design_position=position[trial['trial_id']]) for trial in part]
+            workers.append(_ros_worker(setup, out_dir, k, part, models_dir, cpus[k]))
+    except BaseException:
+        _stop(workers)
+        raise
+    return workers
+
+
+def _stop(workers, number=signal.SIGTERM):
+    for worker in workers:
+        try:
+            os.killpg(worker.pid, number)
+        except ProcessLookupError:
+            pass
+
+
+class _Collector:
+    """The campaign's finished rows: `first` (kept by --resume or taken by --reuse-trials, in
+    design order) in the live trials.csv from its start, then each worker's trials as they
+    arrive, appended to it. A reader that fails stops its worker (a trial_engine would otherwise
+    wait for its next trial for ever; the campaign then ends with exit 1, naming it); an output
+    that cannot be written (a trace, trials.csv: a full disk) stops every worker, the others'
+    outputs would fail as well."""
+
+    def __init__(self, total, first, out_dir, engine, feed):
+        self.out_dir, self.engine, self.feed = out_dir, engine, feed
+        self.lock = threading.Lock()
+        self.appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'), first)
+        self.rows = list(first)
+        self.progress = Progress(total)
+        for row in first:
+            self.progress.update(row)
+        self.errors = []
+        self.write_error = None
+        self.workers = []
+
+    def _collect(self, worker):
+        try:
+            if self.feed:
+                self.feed.start(worker)
+            for line in worker.stdout:
+                line = line.strip()
+                if not line.startswith('{'):
+                    continue
+                if self.feed:
+                    self.feed.next(worker)  # before the analysis: the engine is not kept waiting
+                raw = (engine_core.row_from_line(line, os.path.join(self.out_dir, 'traces'))
+                       if self.engine == 'core' else json.loads(line))
+                row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
+                with self.lock:
+                    self.appender.append(row)
+                    self.rows.append(row)
+                    self.progress.update(row)
+        except OSError as error:
+            with self.lock:
+                self.write_error = self.write_error or error
+            _stop(self.workers)
+        except Exception as error:
+            with self.lock:
+                self.errors.append('%s: %s' % (type(error).__name__, error))
+            _stop([worker])
+        finally:
+            if self.feed:
+                self.feed.close(worker)
+
+    def run(self, workers):
+        """Reads the workers' trials until they end; True when Ctrl-C stopped them."""
+        self.workers = workers
+        readers = [threading.Thread(target=self._collect, args=(w,), daemon=True)
+                   for w in workers]
+        for reader in readers:
+            reader.start()
+        interrupted = False
+        try:
+            for worker in workers:
+                worker.wait()
+        except KeyboardInterrupt:
+            interrupted = True
+            sys.stderr.write('\ncampaign: interrupted; stopping workers, keeping finished '
+                             'trials\n')
+            _stop(workers)
+            for worker in workers:
+                try:
+                    worker.wait(timeout=30)
+                except subprocess.TimeoutExpired:
+                    _stop([worker], signal.SIGKILL)
+        for reader in readers:
+            reader.join(timeout=5)
+        return interrupted
+
+    def close(self):
+        """The finished rows."""
+        with self.lock:
+            self.appender.close()
+            return list(self.rows)
+
+
+def _first_rows(args, selected, kept, engine_key, core_command, out_dir):
+    """The rows a campaign has before it runs a trial, in design order: the `kept` ones
+    (--resume) and the ones it takes from finished campaigns (--reuse-trials; their traces
+    copied into `out_dir`)."""
     taken = {}
+    wanted = [trial for trial in selected if trial['trial_id'] not in kept]
     if args.reuse_trials and engine_key:
         unreadable = []
-        taken = reuse.find(args.reuse_trials, engine_key, selected, exclude=out_dir,
+        taken = reuse.find(args.reuse_trials, engine_key, wanted, exclude=out_dir,
                            unreadable=unreadable)
         for why in unreadable:
             sys.stderr.write('campaign: --reuse-trials: left out, unreadable: %s\n' % why)
     elif args.reuse_trials:
         sys.stderr.write('campaign: --reuse-trials: every trial runs: %s\n' % reuse.unkeyable(
             core_command(), tools.build_id()))
-    pending = [trial for trial in selected if trial['trial_id'] not in taken]
+    rows = []
+    for trial in selected:
+        trial_id = trial['trial_id']
+        if trial_id in kept:
+            rows.append(kept[trial_id])
+        elif trial_id in taken:
+            rows.append(reuse.take(trial_id, *taken[trial_id], out_dir))
+    return rows, len(taken)
+
+
+def _run_trials(setup, out_dir, design, selected, meta, core_command, models_dir, engine_key,
+                kept):
+    """Runs the trials the campaign does not have yet; writes the outputs; its exit status."""
+    args = setup.args
+    first, taken = _first_rows(args, selected, kept, engine_key, core_command, out_dir)
+    have = {row['trial_id'] for row in first}
+    pending = [trial for trial in selected if trial['trial_id'] not in have]
     jobs = min(args.jobs, len(pending))
     slices = [pending[i::jobs] for i in range(jobs)]
-    sys.stderr.write('campaign: %d trials (%s), %s%d worker(s), output %s\n'
-                     % (len(selected), 'shard ' + args.shard if args.shard else 'full design',
-                        '%d taken from finished campaigns (--reuse-trials), ' % len(taken)
-                        if args.reuse_trials else '', jobs, out_dir))
-    rows = []
-    lock = threading.Lock()
-    progress = Progress(len(selected))
-    workers = []
-    samples_dir = os.path.join(out_dir, 'samples') if args.samples else None
+    sys.stderr.write('campaign: %d trials (%s), %s%s%d worker(s), output %s\n' % (
+        len(selected), 'shard ' + args.shard if args.shard else 'full design',
+        '%d kept from the stopped campaign (--resume), ' % len(kept) if args.resume else '',
+        '%d taken from finished campaigns (--reuse-trials), ' % taken
+        if args.reuse_trials else '', jobs, out_dir))
     profiles = [os.path.join(out_dir, 'profile-worker-%d.json' % k) if args.profile else None
                 for k in range(len(slices))]
     started = time.monotonic()
-    if samples_dir:
-        os.makedirs(samples_dir, exist_ok=True)
-    position = {trial['trial_id']: k for k, trial in enumerate(design)}
-    cpus = worker_cpus(len(slices), args.pin_workers, os.sched_getaffinity(0))
-    for k, part in enumerate(slices):
-        if args.engine == 'core':
-            # The trials through stdin, the next to the process that finished one (feed below;
-            # a trial depends on its seed only, not on the process that runs it).
-            workers.append(engine_core.start(core_command(samples_dir, profiles[k])))
-            continue
-        # Each trial's stamps from its place in the design, not from when its worker got to it:
-        # the same trial on any run, job count or shard (worker.time_zero).
-        part = [dict(trial, design_position=position[trial['trial_id']]) for trial in part]
-        trial_file = os.path.join(out_dir, 'worker-%d-trials.json' % k)
-        with atomic_write(trial_file) as handle:
-            json.dump(part, handle)
-        command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
-                   '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
-                   '--trials', trial_file, '--out', out_dir,
-                   '--feed-rate', str(scenario.get('feed_rate_mm_s', 0.5)),
-                   '--max-duration', str(scenario.get('max_duration_s', 60.0)),
-                   '--identification-window-s',
-                   str(scenario.get('identification_window_s', 30.0)),
-                   '--default-model', DEFAULT_MODEL,
-                   '--real-time-factor', str(args.real_time_factor),
-                   '--models-dir', models_dir,
-                   '--model', scenario.get('model', 'linear'),
-                   '--bone-motion', scenario.get('bone_motion', 'virtual_patient'),
-                   '--segment-profile',
-                   COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
-                   '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
-                   '--recognizer', recognizer,
-                   '--compensator', compensator]
-        # The classes' parameters as the core engine takes them (NAME=VALUE text); the worker
-        # puts them in the nodelets' parameter files (worker.plugin_config).
-        for kind in ('recognizer', 'compensator'):
-            for name, value in sorted(params[kind].items()):
-                command += ['--%s-param' % kind, '%s=%s' % (name, value)]
-        for name, value in sorted((scenario.get('engine_delays') or {}).items()):
-            command += ['--simulator-param', '%s=%r' % (ROS_DELAYS[name], float(value))]
-        for name, value in sorted((scenario.get('simulator_params') or {}).items()):
-            command += ['--simulator-param', '%s=%s' % (name, json.dumps(value))]
-        if args.lockstep_every_step:
-            command += ['--simulator-param', 'lockstep_every_step=true']
-        if args.bags:
-            command.append('--bags')
-        if cpus[k] is not None:
-            command += ['--cpu', str(cpus[k])]
-        # The worker imports pd_campaign as this process did: catkin's devel space has it.
-        workers.append(subprocess.Popen(command, stdout=subprocess.PIPE, text=True,
-                                        start_new_session=True))
-
-    feed = engine_core.TrialFeed(pending) if args.engine == 'core' else None
-    reader_errors = []
-
-    def collect(worker):
-        try:
-            if feed:
-                feed.start(worker)
-            for line in worker.stdout:
-                line = line.strip()
-                if not line.startswith('{'):
-                    continue
-                if feed:
-                    feed.next(worker)  # before the analysis: the engine is not kept waiting
-                raw = (engine_core.row_from_line(line, os.path.join(out_dir, 'traces'))
-                       if args.engine == 'core' else json.loads(line))
-                row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
-                with lock:
-                    rows.append(row)
-                    progress.update(row)
-                    appender.append(row)
-        except Exception as error:
-            # A reader that fails stops its worker (a trial_engine would otherwise wait for its
-            # next trial for ever); the campaign then ends with exit 1, naming it.
-            with lock:
-                reader_errors.append('%s: %s' % (type(error).__name__, error))
-            try:
-                os.killpg(worker.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        finally:
-            if feed:
-                feed.close(worker)
-
-    appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'))
-    for trial in selected:  # in design order, before the engines' trials
-        if trial['trial_id'] in taken:
-            row = reuse.take(trial['trial_id'], *taken[trial['trial_id']], out_dir)
-            rows.append(row)
-            progress.update(row)
-            appender.append(row)
-    readers = [threading.Thread(target=collect, args=(w,), daemon=True) for w in workers]
-    for reader in readers:
-        reader.start()
-    interrupted = False
-    try:
-        for worker in workers:
-            worker.wait()
-    except KeyboardInterrupt:
-        interrupted = True
-        sys.stderr.write('\ncampaign: interrupted; stopping workers, keeping finished trials\n')
-        for worker in workers:
-            try:
-                os.killpg(worker.pid, signal.SIGTERM)
-            except ProcessLookupError:
-                pass
-        for worker in workers:
-            try:
-                worker.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(worker.pid, signal.SIGKILL)
-    for reader in readers:
-        reader.join(timeout=5)
+    collector = _Collector(len(selected), first, out_dir, args.engine,
+                           engine_core.TrialFeed(pending) if args.engine == 'core' else None)
+    workers = _start_workers(setup, out_dir, slices, design, core_command, models_dir, profiles)
+    interrupted = collector.run(workers)
     if any(worker.returncode == 2 for worker in workers):
+        collector.close()
         sys.stderr.write('campaign: a worker refused the scenario (see its message above)\n')
         return 2
-    for error in reader_errors:
+    finished = collector.close()
+    if collector.write_error is not None:
+        raise collector.write_error
+    for error in collector.errors:
         sys.stderr.write('campaign: reading a worker\'s trials failed (its worker was stopped): '
                          '%s\n' % error)
     sys.stderr.write('\n')
-    with lock:
-        finished = list(rows)
-        appender.close()
     write_outputs(finished, meta, out_dir, figures=not args.no_figures)
     if args.profile and all(os.path.exists(p) for p in profiles):
         profile.write(profiles, out_dir, time.monotonic() - started, len(workers))
@@ -833,10 +927,80 @@ def run_campaign(argv=None):
                      % (len(finished), len(selected), os.path.join(out_dir, 'report.md')))
     if interrupted:
         return 130
-    complete = len(finished) == len(selected) and not reader_errors
+    complete = len(finished) == len(selected) and not collector.errors
     if complete and engine_key:
         reuse.mark(out_dir, engine_key)  # its trials may now be taken (--reuse-trials)
     return 0 if complete else 1
+
+
+def _run(setup, out_dir):
+    """The campaign in `out_dir`, whose lock it holds; its exit status. Raises resume.Refused
+    before it writes anything when --resume cannot continue the folder's campaign."""
+    args = setup.args
+    design = build_design(setup.cases, setup.rpms, setup.trials, setup.seed, setup.faults,
+                          args.seed_space)
+    selected = shard(design, *setup.shard_spec) if setup.shard_spec else design
+    meta = _meta(setup, design)
+    identity = {'design': {'meta': meta, 'shard': args.shard or '1/1'},
+                'scenario': setup.scenario,
+                'options': {name: getattr(args, name) for name in RESUME_OPTIONS}}
+    resuming = args.resume and resume.check(out_dir, identity, ('design', 'scenario', 'options'))
+    if args.resume and not resuming:
+        sys.stderr.write('campaign: --resume: %s holds no record of a campaign (%s): nothing is '
+                         'kept, every trial runs\n' % (out_dir, resume.ARGS_FILE))
+    if not resuming:
+        resume.forget(out_dir)  # no longer the campaign it described
+        reuse.unmark(out_dir)  # not a source of trials until this campaign has finished
+    models_dir = _identify(args, setup.scenario, out_dir, own=resuming)
+    if models_dir is None:
+        return 1
+    core_command = _core_command(setup, models_dir) if args.engine == 'core' else None
+    engine_key = reuse.engine_key(core_command(), PACKAGE_ROOT) if core_command else None
+    identity['engine_key'] = engine_key
+    kept = {}
+    if resuming:  # checked to the last: the folder has not changed so far
+        resume.check(out_dir, identity, ('engine_key',))
+        reuse.unmark(out_dir)
+        for name in ('', 'traces', 'samples'):  # a write the stop cut (SIGKILL) left them
+            if os.path.isdir(os.path.join(out_dir, name)):
+                remove_temporaries(os.path.join(out_dir, name))
+        kept = resume.kept(out_dir, selected, args.samples)
+    with atomic_write(os.path.join(out_dir, 'design.json')) as handle:
+        json.dump({'meta': meta, 'scenario': os.path.abspath(args.scenario),
+                   'shard': args.shard or '1/1', 'trials': selected}, handle, indent=1)
+    resume.record(out_dir, identity)
+    return _run_trials(setup, out_dir, design, selected, meta, core_command, models_dir,
+                       engine_key, kept)
+
+
+def _os_error_text(error):
+    """'FILE: reason' of an OSError (its text when it names no file)."""
+    if error.filename and error.strerror:
+        return '%s: %s' % (error.filename, error.strerror)
+    return str(error) or type(error).__name__
+
+
+def run_campaign(argv=None):
+    try:
+        setup = _prepare(argv)
+    except UsageError as error:
+        sys.stderr.write('campaign: %s\n' % error)
+        return 2
+    out_dir = os.path.abspath(setup.args.out)
+    try:
+        os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)
+        with resume.FolderLock(out_dir):
+            return _run(setup, out_dir)
+    except resume.Refused as error:
+        sys.stderr.write('campaign: %s\n' % error)
+        return 2
+    except OSError as error:
+        # A full disk, a quota, an I/O error: one line naming the file. Every output is written
+        # whole or not at all, so what was written before it stays (trials.csv keeps the
+        # finished trials, line by line: --resume runs the others).
+        sys.stderr.write('campaign: stopped: %s (the files written before it are kept; '
+                         '--resume continues)\n' % _os_error_text(error))
+        return 1
 
 
 def run_merge(argv=None):

@@ -3,11 +3,13 @@
 Everything here is computed from the trial rows (and per-trial traces) alone, so a merge of
 shard directories produces the same report as a single run with the same design."""
 import csv
+import io
 import json
 import math
+import os
 
 from . import stats
-from .atomic import atomic_path, atomic_write
+from .atomic import atomic_write, named
 from .design import CASES, FAULTS
 
 TRIAL_COLUMNS = [
@@ -87,46 +89,74 @@ def _format(value):
     return '' if value is None else str(value)
 
 
+def _csv_text(rows, header=False):
+    """`rows` as trials.csv lines (csv's \\r\\n endings), with the header first if `header`."""
+    text = io.StringIO(newline='')
+    writer = csv.DictWriter(text, fieldnames=TRIAL_COLUMNS, extrasaction='ignore')
+    if header:
+        writer.writeheader()
+    for row in rows:
+        writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
+    return text.getvalue()
+
+
 def write_trials_csv(rows, path):
     """trials.csv of `rows`, sorted, written to a temporary file and renamed."""
-    with atomic_path(path) as tmp:
-        appender = TrialsAppender(tmp)
-        try:
-            for row in sorted(rows, key=sort_key):
-                appender.append(row)
-        finally:
-            appender.close()
+    with atomic_write(path, newline='') as handle:
+        handle.write(_csv_text(sorted(rows, key=sort_key), header=True))
 
 
 class TrialsAppender:
-    """trials.csv while a campaign runs: the header, then one complete line per finished trial,
-    appended and flushed as it arrives (nothing finished is lost if the campaign is killed).
-    Appending keeps the cost per trial constant; write_trials_csv rewrites the file sorted,
-    atomically, when the campaign ends."""
+    """trials.csv while a campaign runs: the header and `rows` (the trials it has before it runs
+    any: taken, or kept by --resume) written atomically, then one complete line per finished
+    trial, appended with one write as it arrives (nothing finished is lost if the campaign is
+    killed). Appending keeps the cost per trial constant; write_trials_csv rewrites the file
+    sorted, atomically, when the campaign ends. A line that cannot be written whole (a full
+    disk) is cut off again, and the OSError raised names the file: the lines before it stay."""
 
-    def __init__(self, path):
-        self._handle = open(path, 'w', newline='')  # not atomic: appended while running
-        self._writer = csv.DictWriter(self._handle, fieldnames=TRIAL_COLUMNS,
-                                      extrasaction='ignore')
-        self._writer.writeheader()
-        self._handle.flush()
+    def __init__(self, path, rows=()):
+        self.path = path
+        self._fd = -1
+        with atomic_write(path, newline='') as handle:
+            handle.write(_csv_text(rows, header=True))
+            self._encoding = handle.encoding
+        flags = os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC
+        self._fd = os.open(path, flags)  # not atomic: the live file, appended while running
 
     def append(self, row):
-        self._writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
-        self._handle.flush()
+        data = _csv_text([row]).encode(self._encoding)
+        size = os.fstat(self._fd).st_size
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+        except OSError as error:
+            try:
+                os.ftruncate(self._fd, size)  # no half line after the whole ones
+            except OSError:
+                pass
+            raise named(error, self.path)
 
     def close(self):
-        self._handle.close()
+        if self._fd >= 0:
+            os.close(self._fd)
+            self._fd = -1
 
 
-def read_trials_csv(path):
+def read_trials_csv(path, whole_lines=False):
+    """The rows of trials.csv at `path`. `whole_lines`: a campaign's live file, which a campaign
+    killed while appending (or a full disk) can leave with its last line cut: a line without
+    its line ending, or without every column, is left out."""
     with open(path, newline='') as handle:
-        reader = csv.DictReader(handle)
-        missing = [c for c in ('trial_id', 'case', 'rpm', 'index', 'seed', 'success')
-                   if c not in (reader.fieldnames or [])]
-        if missing:
-            raise ValueError('%s: missing columns %s' % (path, ', '.join(missing)))
-        return [normalise_row(r) for r in reader]
+        text = handle.read()
+    if whole_lines:
+        text = text[:text.rfind('\n') + 1]
+    reader = csv.DictReader(io.StringIO(text, newline=''))
+    missing = [c for c in ('trial_id', 'case', 'rpm', 'index', 'seed', 'success')
+               if c not in (reader.fieldnames or [])]
+    if missing:
+        raise ValueError('%s: missing columns %s' % (path, ', '.join(missing)))
+    return [normalise_row(r) for r in reader
+            if not whole_lines or (None not in r and None not in r.values())]
 
 
 def _quartile_values(values):

@@ -143,18 +143,30 @@ def _mark_of(folder):
     return status.st_ino, status.st_mtime_ns
 
 
+def entries(trials):
+    """{trial_id: entry text} of design entries, as finished() compares them."""
+    return {t['trial_id']: _trial_text(t) for t in trials}
+
+
+def finished(folder, wanted, rows):
+    """The `rows` (of `folder`'s trials.csv) of the `wanted` trials (entries()) that the campaign
+    in `folder` ran, with the same entry in its design.json, without an error and with its trace:
+    the trials a campaign takes (--reuse-trials) or keeps (--resume) instead of running them."""
+    with open(os.path.join(folder, 'design.json')) as handle:
+        ran = entries(json.load(handle)['trials'])
+    return [row for row in rows
+            if wanted.get(row['trial_id']) is not None
+            and ran.get(row['trial_id']) == wanted[row['trial_id']] and not row.get('error')
+            and os.path.isfile(os.path.join(folder, 'traces', row['trial_id'] + '.json'))]
+
+
 def _read_source(folder, wanted):
     """{trial_id: (row, trace bytes)} of the `wanted` trials {trial_id: entry text} that the
     campaign in `folder` ran without an error and with its trace."""
-    with open(os.path.join(folder, 'design.json')) as handle:
-        ran = {t['trial_id']: _trial_text(t) for t in json.load(handle)['trials']}
     found = {}
-    for row in report.read_trials_csv(os.path.join(folder, 'trials.csv')):
+    rows = report.read_trials_csv(os.path.join(folder, 'trials.csv'))
+    for row in finished(folder, wanted, rows):
         trial_id = row['trial_id']
-        if wanted.get(trial_id) is None or ran.get(trial_id) != wanted[trial_id]:
-            continue
-        if row.get('error'):
-            continue
         try:
             with open(os.path.join(folder, 'traces', trial_id + '.json'), 'rb') as handle:
                 found[trial_id] = (row, handle.read())
@@ -169,7 +181,7 @@ def find(root, key, trials, exclude=None, unreadable=None):
     campaign starts while it is read (its SOURCE_FILE removed or replaced) gives nothing; one
     that stays marked but cannot be read gives nothing either, and is appended to `unreadable`
     (a list) as "folder: why"."""
-    wanted = {t['trial_id']: _trial_text(t) for t in trials}
+    wanted = entries(trials)
     taken = {}
     for folder in sources(root, key, exclude):
         before = _mark_of(folder)

@@ -107,6 +107,46 @@ def test_a_figure_is_saved_whole_or_not_at_all(tmp_path):
     assert _listing(tmp_path) == ['fig15_success_vs_speed.png']
 
 
+def test_a_write_that_fails_names_the_output_not_its_temporary_file(tmp_path):
+    """A full disk (an OSError of the writer that names no file), a rename that fails (here onto
+    a folder) and a missing folder name the output; an error of another file (a copy's missing
+    source) keeps its own name. The old file stays, no temporary file."""
+    import errno
+    import shutil
+    path = tmp_path / 'summary.json'
+    path.write_text('old\n')
+    with pytest.raises(OSError) as full:
+        with atomic_write(str(path)) as handle:
+            handle.write('new')
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+    assert (full.value.errno, full.value.filename) == (errno.ENOSPC, str(path))
+    (tmp_path / 'report.md').mkdir()
+    with pytest.raises(IsADirectoryError) as onto_folder:
+        with atomic_write(str(tmp_path / 'report.md')) as handle:
+            handle.write('new')
+    assert onto_folder.value.filename == str(tmp_path / 'report.md')
+    assert onto_folder.value.filename2 is None
+    with pytest.raises(FileNotFoundError) as nowhere:
+        with atomic_write(str(tmp_path / 'nowhere' / 'design.json')):
+            pass
+    assert nowhere.value.filename == str(tmp_path / 'nowhere' / 'design.json')
+    with pytest.raises(FileNotFoundError) as missing:
+        with atomic_path(str(path)) as tmp:
+            shutil.copyfile(str(tmp_path / 'absent.md'), tmp)
+    assert missing.value.filename == str(tmp_path / 'absent.md')
+    assert path.read_text() == 'old\n'
+    assert _listing(tmp_path) == ['report.md', 'summary.json']
+
+
+def test_the_temporary_files_a_kill_left_are_removed_and_nothing_else(tmp_path):
+    from pd_campaign.atomic import remove_temporaries
+    for name in ('.trials.csv.tmpab_d12x9', '.x.npy.tmpQ1w2E3', 'trials.csv', '.hidden',
+                 'a.tmp12345678', '.b.tmp'):
+        (tmp_path / name).write_text('x')
+    remove_temporaries(str(tmp_path))
+    assert _listing(tmp_path) == ['.b.tmp', '.hidden', 'a.tmp12345678', 'trials.csv']
+
+
 def test_an_output_in_a_missing_folder_fails_and_creates_nothing(tmp_path):
     with pytest.raises(FileNotFoundError):
         with atomic_write(str(tmp_path / 'nowhere' / 'design.json')):
@@ -333,12 +373,13 @@ def test_the_scripts_write_every_output_through_a_temporary_file(tmp_path, bin_d
     written['plot_tidal_volume.py'] = run_hooked(tmp_path, 'plot_tidal_volume.py',
                                                  str(tv_csv), str(out / 'tidal_volume.png'))
     # The live trials.csv of a running campaign is appended trial by trial on purpose, then
-    # rewritten atomically at the end; everything else goes through a temporary file.
-    live = os.path.realpath(os.path.join(camp, 'trials.csv'))
+    # rewritten atomically at the end, and its folder's lock file holds the lock (and a pid);
+    # everything else goes through a temporary file.
+    live = [os.path.realpath(os.path.join(camp, name)) for name in ('trials.csv', 'campaign.lock')]
     for script, paths in written.items():
         assert paths, '%s wrote nothing under the watched folder' % script
         direct = [p for p in paths if not TEMPORARY.match(os.path.basename(p))
-                  and not (script == 'campaign' and p == live)]
+                  and not (script == 'campaign' and p in live)]
         assert not direct, '%s opened outputs for writing directly: %s' % (script, direct)
     kept = []
     for folder, _, names in os.walk(str(out)):
