@@ -3,7 +3,8 @@
  * @brief pedicle_drilling/MotionIdentification: records the tidal volume and the tracked marker
  *        position over a sliding window and, on request (~identify), identifies the patient's
  *        displacement model with core::identifyPatient() (the identify CLI's pipeline),
- *        publishes it latched on `motion_model` and writes the per-patient YAML atomically.
+ *        publishes it latched on `motion_model` and writes the per-patient YAML atomically,
+ *        only inside ~model_folder (core::pathInsideFolder).
  *
  * Marker samples come either from tf2 (default) or from geometry_msgs/PoseStamped on
  * `tracker/marker_pose` (~use_pose_topic). With tf2 the pose of ~marker_frame in
@@ -26,6 +27,7 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <algorithm>
+#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -38,6 +40,7 @@
 #include "pedicle_drilling/core/breathing/identification_window.hpp"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
+#include "pedicle_drilling/core/common/output_folder.hpp"
 #include "pedicle_drilling/ros/identification_conversions.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/publish_in_order.hpp"
@@ -52,8 +55,10 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     ros::NodeHandle nh = getNodeHandle();
     ros::NodeHandle pnh = getPrivateNodeHandle();
     try {
-      p_ = loadMotionIdentificationParams(ParamLoader(pnh));
+      const ParamLoader loader(pnh);
+      p_ = loadMotionIdentificationParams(loader);
       mapping_ = p_.mapping();
+      openModelFolder(loader);
       window_.emplace(p_.window_s);
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
@@ -76,8 +81,23 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
     }
     identify_srv_ =
         pnh.advertiseService("identify", &MotionIdentificationNodelet::onIdentify, this);
-    NODELET_INFO("MotionIdentification: marker from %s, window %.1f s, output %s",
-                 markerSource().c_str(), p_.window_s, p_.output_path.c_str());
+    NODELET_INFO("MotionIdentification: marker from %s, window %.1f s, output %s in %s",
+                 markerSource().c_str(), p_.window_s, p_.output_path.c_str(),
+                 model_folder_.c_str());
+  }
+
+  /** @brief ~model_folder, made if missing; ~output_path must lie in it. */
+  void openModelFolder(const ParamLoader& loader) {
+    model_folder_ = p_.model_folder.empty() ? core::defaultModelFolder() : p_.model_folder;
+    if (model_folder_.empty())
+      loader.fail("model_folder", "is empty and neither ROS_HOME nor HOME is set");
+    std::error_code ec;
+    std::filesystem::create_directories(model_folder_, ec);
+    try {
+      core::pathInsideFolder(model_folder_, p_.output_path);
+    } catch (const std::exception& e) {
+      loader.fail(ec ? "model_folder" : "output_path", std::string(": ") + e.what());
+    }
   }
 
   std::string markerSource() const {
@@ -162,7 +182,12 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
       response.message = "unknown method '" + request.method + "' (expected ceres or pso)";
       return true;
     }
-    const std::string path = request.output_path.empty() ? p_.output_path : request.output_path;
+    std::string path = request.output_path.empty() ? p_.output_path : request.output_path;
+    try {
+      path = core::pathInsideFolder(model_folder_, path);  // before the window is taken
+    } catch (const std::exception& e) {
+      return refuse(response, std::string("output_path refused: ") + e.what());
+    }
     core::WindowRecording window;
     std::string marker_error;
     {
@@ -219,6 +244,7 @@ class MotionIdentificationNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   MotionIdentificationParams p_;
+  std::string model_folder_;   ///< ~model_folder, or its default
   core::AxisMapping mapping_;  ///< ~ap_axis, ~si_axis, ~lr_axis
   std::optional<core::IdentificationWindow> window_;
   std::string last_marker_error_;

@@ -4,7 +4,10 @@
  *        Sec. IV-C/D) on the thrust of `ft_sensor/wrench`; publishes `drilling_state` on every
  *        averaged sample (state `stopped` from the stop until `~reset`) and one `drill/stop`
  *        (retreat = false) when the inner cortical layer is reached. Thin wrapper of
- *        core::StateRecognizer (doc/state_machine.md).
+ *        core::StateRecognizer (doc/state_machine.md). An exception of the recognizer class is
+ *        such a stop too, naming the error (core::GuardedRecognizer). While the planner's trial
+ *        has the drill in bone (compensation/status), `~reset` is refused and a tare result does
+ *        not restart the recognizer.
  */
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
@@ -13,6 +16,7 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <cmath>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <sstream>
@@ -21,6 +25,7 @@
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TareResult.h"
+#include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
@@ -40,6 +45,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     if (lockstep_) lockstep_->stop();
     wrench_sub_.shutdown();
     tare_sub_.shutdown();
+    status_sub_.shutdown();
     reset_srv_.shutdown();
     if (lockstep_) lockstep_->drain();  // a ~reset call already running ends first
   }
@@ -54,15 +60,19 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       loader.load(StateRecognizerNodeParams::table(), &params);
       axis_index_ = params.axisIndex();
       axis_sign_ = params.axisSign();
+      std::unique_ptr<core::RecognizerInterface> recognizer;
       if (params.recognizer_class == "pedicle_drilling/PaperRecognizer") {
-        recognizer_ = std::make_unique<core::PaperRecognizer>(params.recognizer);
+        recognizer = std::make_unique<core::PaperRecognizer>(params.recognizer);
       } else {
         try {
-          recognizer_ = loader_.create(params.recognizer_class, params.recognizer_params);
+          recognizer = loader_.create(params.recognizer_class, params.recognizer_params);
         } catch (const std::exception& e) {
           loader.fail("recognizer", "= '" + params.recognizer_class + "': " + e.what());
         }
       }
+      // What the class throws while running is a stop naming it, never an escaped exception
+      // (which would end the manager and every nodelet in it).
+      recognizer_ = std::make_unique<core::GuardedRecognizer>(std::move(recognizer));
       // Under the simulator's lockstep it answers each step after the step's force samples.
       // No timers: it needs a step only after it published (its states and stops are handled
       // at the next step); the force samples' steps are stepped anyway.
@@ -75,10 +85,16 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     }
     NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
                  recognizer_ -> describe().c_str());
+    for (const std::string& off : params.disabledWatchdogs()) {
+      NODELET_WARN("StateRecognizer: UNSAFE (~unsafe_allow_disabled_watchdogs): %s", off.c_str());
+    }
     // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
     // 1.10.2): the publishers exist before the callbacks that use them are registered.
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    // The planner's phase (latched): no reset while its drill is in bone.
+    status_sub_ =
+        nh.subscribe("compensation/status", 10, &StateRecognizerNodelet::onTrialStatus, this);
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
     // A new tare: the samples before it were untared; the recognizer starts afresh.
     tare_sub_ = nh.subscribe("ft_sensor/tare_result", 10, &StateRecognizerNodelet::onTare, this);
@@ -138,9 +154,30 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     lockstep_->noteSent();
   }
 
+  void onTrialStatus(const TrialStatus::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    trial_phase_ = msg->phase;
+    trial_phase_name_ = msg->phase_name;
+  }
+
+  /** @brief "" while a restart is allowed, else why not: the planner's drill is in bone. */
+  std::string drillInBone() const {
+    if (trial_phase_ != TrialStatus::DRILLING && trial_phase_ != TrialStatus::STOPPED &&
+        trial_phase_ != TrialStatus::RETREATING) {
+      return "";
+    }
+    return "the planner's trial is " + trial_phase_name_ +
+           " (compensation/status): no restart while its drill may be in bone";
+  }
+
   void onTare(const TareResult::ConstPtr& msg) {
     if (!msg->success) return;
     std::lock_guard<std::mutex> lock(mutex_);
+    const std::string refused = drillInBone();
+    if (!refused.empty()) {
+      NODELET_WARN("StateRecognizer: ignored a tare result: %s", refused.c_str());
+      return;
+    }
     recognizer_->reset();
     publishState(msg->header.stamp, recognizer_->output());
     NODELET_INFO("StateRecognizer: restarted on the tared force (%s)", msg->message.c_str());
@@ -148,6 +185,13 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
+    response.message = drillInBone();
+    if (!response.message.empty()) {
+      response.success = false;
+      response.message = "reset refused: " + response.message;
+      NODELET_WARN("StateRecognizer: %s", response.message.c_str());
+      return true;
+    }
     recognizer_->reset();
     // Say at once that the latch is cleared (a planner refuses to feed while the latest state
     // reports a stop).
@@ -170,6 +214,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   ros::Subscriber wrench_sub_;
   ros::ServiceServer reset_srv_;
   ros::Subscriber tare_sub_;
+  ros::Subscriber status_sub_;
+  std::uint8_t trial_phase_ = TrialStatus::IDLE;  ///< the planner's, from compensation/status
+  std::string trial_phase_name_ = "idle";
 };
 
 }  // namespace pedicle_drilling

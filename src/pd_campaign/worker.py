@@ -285,7 +285,7 @@ def run_trial(rospy, srv, msgs, recorder, trial, args, trace_dir):
     row['arm_stiffness_scale'] = reply.arm_stiffness_scale
     # The recognizer and the safety monitor are reset by the planner's start_trial (the trial
     # sequence owns that); what the previous trial still had in transit is older than the reset.
-    model_path = os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id'])
+    model_path = os.path.abspath(os.path.join(args.out, 'models', '%s.yaml' % trial['trial_id']))
     if moving and args.models_dir:
         # The simulator's virtual patient is one of the five virtual volunteers (the reset
         # reports which): use the model identified beforehand from that volunteer's own
@@ -810,7 +810,9 @@ def main(argv=None):
              'real_time_factor:=%g' % args.real_time_factor,
              'clock_period_ms:=%d' % (10 if args.bags else 100),
              'segment_profile:=%s' % args.segment_profile,
-             'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator],
+             'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator,
+             # ~identify writes only there (the trials' models, model_path below)
+             'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))],
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         from std_srvs.srv import Trigger
         types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial,

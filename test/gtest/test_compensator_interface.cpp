@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -172,4 +173,43 @@ TEST(CompensationPlannerWithACompensator, FollowsWhatTheClassPredictsAndItsVeloc
   EXPECT_TRUE(knot);
   for (const pd::PlannedPoint& p : planner.segment(2).points) EXPECT_NE(p.t, 0.93);
   EXPECT_THROW(pd::CompensationPlanner(params, apModel(), nullptr), std::invalid_argument);
+}
+
+namespace {
+
+/// The tracker-feedback baseline with a bug: displacement() throws once `fail` is set.
+class FailingCompensator : public pd::TrackedMarkerCompensator {
+ public:
+  explicit FailingCompensator(const bool* fail) : fail_(fail) {}
+  Eigen::Vector3d displacement(double t) const override {
+    if (*fail_) throw std::logic_error("plugin bug");
+    return pd::TrackedMarkerCompensator::displacement(t);
+  }
+
+ private:
+  const bool* fail_;
+};
+
+}  // namespace
+
+// The TrialSequencer runs every class behind this guard: the first error is kept (the sequencer
+// stops on it) and from then on the guard answers by itself, the last displacement held.
+TEST(GuardedCompensator, KeepsTheFirstErrorAndHoldsTheLastDisplacement) {
+  bool fail = false;
+  pd::GuardedCompensator guard(std::make_unique<FailingCompensator>(&fail));
+  guard.configure({});
+  guard.observeMarker(1.0, Eigen::Vector3d(0.0, 0.0, 0.002));
+  ASSERT_TRUE(guard.ready());
+  EXPECT_TRUE(guard.displacement(1.1).isApprox(Eigen::Vector3d(0.0, 0.0, 0.002)));
+  fail = true;
+  EXPECT_TRUE(guard.displacement(1.2).isApprox(Eigen::Vector3d(0.0, 0.0, 0.002)));
+  EXPECT_EQ(guard.error(), "displacement: plugin bug");
+  EXPECT_FALSE(guard.ready());
+  EXPECT_TRUE(guard.velocitySteps(1.0, 2.0).empty());
+  EXPECT_NE(guard.describe().find("failed: displacement: plugin bug"), std::string::npos);
+  fail = false;  // not asked again: the first error stays
+  guard.observeMarker(1.3, Eigen::Vector3d(0.0, 0.0, 0.004));
+  EXPECT_TRUE(guard.displacement(1.4).isApprox(Eigen::Vector3d(0.0, 0.0, 0.002)));
+  EXPECT_EQ(guard.error(), "displacement: plugin bug");
+  EXPECT_THROW(pd::GuardedCompensator(nullptr), std::invalid_argument);
 }

@@ -3,8 +3,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 #include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pedicle_drilling/core/common/param_table.hpp"
@@ -192,6 +194,37 @@ TEST(NodeParams, ChecksBetweenFieldsNameTheParameter) {
   pd::TfPoseRelayNodeParams relay;
   relay.marker_frame = relay.tracker_frame;
   EXPECT_EQ(errorOf([&] { relay.validate(); }).rfind("marker_frame", 0), 0u);
+}
+
+// A parameter that switches a watchdog off is refused naming it, unless the node is told
+// ~unsafe_allow_disabled_watchdogs (then disabledWatchdogs() lists it, for the WARN at load).
+TEST(NodeParams, AParameterThatSwitchesAWatchdogOffIsRefusedUnlessAllowedExplicitly) {
+  pd::CompensationPlannerNodeParams planner;
+  EXPECT_TRUE(planner.disabledWatchdogs().empty());
+  const std::vector<std::pair<std::string, std::function<void(pd::core::TrialSequencerParams&)>>>
+      switches{{"recognizer_timeout_s", [](auto& s) { s.recognizer_timeout_s = 0.0; }},
+               {"monitor_timeout_s", [](auto& s) { s.monitor_timeout_s = 0.0; }},
+               {"controller_watch/enabled", [](auto& s) { s.controller_watch.enabled = false; }},
+               {"outer_cortical_max_mm", [](auto& s) { s.outer_cortical_max_mm = 0.0; }},
+               {"cancellous_max_mm", [](auto& s) { s.cancellous_max_mm = 0.0; }}};
+  for (const auto& [name, off] : switches) {
+    planner = pd::CompensationPlannerNodeParams();
+    off(planner.sequencer);
+    const std::string error = errorOf([&] { planner.validate(); });
+    EXPECT_EQ(error.rfind(name + " = ", 0), 0u) << error;
+    EXPECT_NE(error.find("unsafe_allow_disabled_watchdogs"), std::string::npos) << error;
+    planner.unsafe_allow_disabled_watchdogs = true;
+    EXPECT_NO_THROW(planner.validate());
+    ASSERT_EQ(planner.disabledWatchdogs().size(), 1u);
+    EXPECT_EQ(planner.disabledWatchdogs()[0].rfind(name, 0), 0u);
+  }
+  pd::StateRecognizerNodeParams recognizer;
+  EXPECT_TRUE(recognizer.disabledWatchdogs().empty());
+  recognizer.recognizer.cancellous_deadline = 0;
+  EXPECT_EQ(errorOf([&] { recognizer.validate(); }).rfind("cancellous_deadline = 0", 0), 0u);
+  recognizer.unsafe_allow_disabled_watchdogs = true;
+  EXPECT_NO_THROW(recognizer.validate());
+  EXPECT_EQ(recognizer.disabledWatchdogs().size(), 1u);
 }
 
 TEST(NodeParams, TheRecognizerTableServesPluginSettingsToo) {

@@ -9,8 +9,11 @@
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
+
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace pd = pedicle_drilling;
 
@@ -65,6 +68,13 @@ class BadKey(StopAfter):
 class NoPush:
     def configure(self, settings): pass
     def reset(self): pass
+
+class RaisesAt(StopAfter):
+    """A bug from `after_s` on: push raises."""
+    def push(self, t, f):
+        if t > self.after_s:
+            raise KeyError('layer_table')
+        return super().push(t, f)
 )";
     const char* old = std::getenv("PYTHONPATH");
     setenv("PYTHONPATH", (std::string(dir) + (old ? std::string(":") + old : "")).c_str(), 1);
@@ -149,4 +159,24 @@ TEST(PythonRecognizer, ErrorsNameTheClassTheParameterOrTheKey) {
   EXPECT_THROW(r.push(0.0, std::numeric_limits<double>::infinity()), std::invalid_argument);
   pd::PythonRecognizer bad("pd_test_recognizers.BadKey");
   EXPECT_NE(message([&bad] { bad.push(0.0, 1.0); }).find("stahp"), std::string::npos);
+}
+
+// What the StateRecognizer nodelet and the core engine run: the Python class behind the guard.
+// A Python exception mid-drill is a stop whose reason names the class and the error.
+TEST(PythonRecognizer, APythonExceptionBehindTheGuardIsAStopNamingIt) {
+  pd::core::GuardedRecognizer r(
+      std::make_unique<pd::PythonRecognizer>("pd_test_recognizers.RaisesAt"));
+  r.configure({{"after_s", "0.55"}});
+  for (int i = 0; i <= 5; ++i) EXPECT_FALSE(r.push(0.1 * i, 2.0).stop) << i;
+  const pd::core::RecognizerOutput& out = r.push(0.6, 2.0);
+  EXPECT_TRUE(out.stop);
+  EXPECT_TRUE(out.new_average);
+  EXPECT_EQ(out.state, pd::core::DrillingState::kStopped);
+  const std::string reason = r.stopReason();
+  EXPECT_EQ(reason.rfind("recognizer error, stopping: ", 0), 0u) << reason;
+  EXPECT_NE(reason.find("RaisesAt"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("layer_table"), std::string::npos) << reason;
+  EXPECT_TRUE(r.push(0.7, 2.0).stop);  // latched
+  r.reset();
+  EXPECT_FALSE(r.push(0.1, 2.0).stop);
 }

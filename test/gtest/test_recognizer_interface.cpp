@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -144,4 +145,52 @@ TEST(ForceDifferenceRecognizer, SettingsAreCheckedNamingThem) {
   }
   pd::ForceDifferenceRecognizer r;
   EXPECT_THROW(r.push(0.0, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+}
+
+namespace {
+
+/// A class whose push() throws from its `fail_at`-th sample on (a plugin's bug).
+class FailingRecognizer : public pd::ForceDifferenceRecognizer {
+ public:
+  explicit FailingRecognizer(int fail_at) : fail_at_(fail_at) {}
+  const pd::RecognizerOutput& push(double t, double raw_force) override {
+    if (++count_ >= fail_at_) throw std::out_of_range("vector::_M_range_check");
+    return pd::ForceDifferenceRecognizer::push(t, raw_force);
+  }
+  void reset() override {
+    count_ = 0;
+    pd::ForceDifferenceRecognizer::reset();
+  }
+
+ private:
+  int fail_at_;
+  int count_ = 0;
+};
+
+}  // namespace
+
+// The StateRecognizer nodelet and the core engine run every class behind this guard: an
+// exception is a latched stop naming it (published at once), never an escaped exception.
+TEST(GuardedRecognizer, AnExceptionOfTheClassIsALatchedStopNamingItUntilAReset) {
+  pd::GuardedRecognizer guard(std::make_unique<FailingRecognizer>(120));
+  guard.configure({});
+  for (int i = 0; i < 119; ++i) EXPECT_FALSE(guard.push(1e-3 * i, 2.0).stop);
+  const pd::RecognizerOutput& out = guard.push(0.119, 2.0);
+  EXPECT_TRUE(out.stop);
+  EXPECT_TRUE(out.new_average);  // published at once
+  EXPECT_EQ(out.state, pd::DrillingState::kStopped);
+  EXPECT_DOUBLE_EQ(out.stop_t, 0.119);
+  EXPECT_EQ(guard.stopReason(), "recognizer error, stopping: vector::_M_range_check");
+  EXPECT_EQ(guard.error(), "vector::_M_range_check");
+  // Latched: later samples report the same stop, not new.
+  const pd::RecognizerOutput& later = guard.push(0.2, 2.0);
+  EXPECT_TRUE(later.stop);
+  EXPECT_FALSE(later.new_average);
+  EXPECT_TRUE(guard.output().stop);
+  // A reset that succeeds clears it: the class runs again.
+  guard.reset();
+  EXPECT_EQ(guard.error(), "");
+  EXPECT_FALSE(guard.push(0.3, 2.0).stop);
+  EXPECT_FALSE(guard.output().stop);
+  EXPECT_THROW(pd::GuardedRecognizer(nullptr), std::invalid_argument);
 }

@@ -3,7 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -537,6 +539,100 @@ TEST(TrialSequencer, ACompensatorFactoryThatThrowsRefusesTheStart) {
       []() -> std::unique_ptr<pd::CompensatorInterface> { throw std::runtime_error("no class"); });
   EXPECT_EQ(seq.start(request("stationary"), apModel(), 0.0), "no class");
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+}
+
+// The drill's declared limits (max_spindle_rpm 20000: the paper's highest speed;
+// max_feed_rate_mm_s 3): a request above one is refused naming the field and the limit.
+TEST(TrialSequencer, ARequestBeyondTheDrillsDeclaredLimitsIsRefusedNamingFieldAndLimit) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  pd::TrialRequest fast_spindle = request("stationary");
+  fast_spindle.spindle_rpm = 30000.0;
+  std::string why = seq.check(fast_spindle);
+  EXPECT_EQ(why.rfind("spindle_rpm: 30000 rpm exceeds the drill's declared limit max_spindle_rpm = "
+                      "20000 rpm",
+                      0),
+            0u)
+      << why;
+  EXPECT_EQ(seq.start(fast_spindle, apModel(), 0.0), why);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  pd::TrialRequest fast_feed = request("stationary");
+  fast_feed.feed_rate_mm_s = 4.0;
+  why = seq.check(fast_feed);
+  EXPECT_EQ(why.rfind("feed_rate_mm_s: 4 mm/s exceeds the drill's declared limit "
+                      "max_feed_rate_mm_s = 3 mm/s",
+                      0),
+            0u)
+      << why;
+  pd::TrialRequest at_limits = request("stationary");
+  at_limits.spindle_rpm = 20000.0;
+  at_limits.feed_rate_mm_s = 3.0;
+  EXPECT_EQ(seq.check(at_limits), "");
+  // A drill declared faster takes it; a default above the limit is refused at construction.
+  pd::TrialSequencerParams p = params();
+  p.max_spindle_rpm = 30000.0;
+  EXPECT_EQ(pd::TrialSequencer(p, workcellArm()).check(fast_spindle), "");
+  p = params();
+  p.default_spindle_rpm = 25000.0;
+  try {
+    pd::TrialSequencer bad(p, workcellArm());
+    FAIL() << "accepted a default above max_spindle_rpm";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("spindle_rpm: must not exceed max_spindle_rpm", 0), 0u)
+        << e.what();
+  }
+}
+
+namespace {
+
+/// The tracker-feedback baseline with a bug: observeMarker throws once `fail` is set.
+class FailingCompensator : public pd::TrackedMarkerCompensator {
+ public:
+  explicit FailingCompensator(const bool* fail) : fail_(fail) {}
+  void observeMarker(double stamp, const Eigen::Vector3d& position) override {
+    if (*fail_) throw std::out_of_range("plugin bug");
+    pd::TrackedMarkerCompensator::observeMarker(stamp, position);
+  }
+
+ private:
+  const bool* fail_;
+};
+
+}  // namespace
+
+// An exception of the compensator class never leaves the sequencer: while drilling it is a stop
+// with retreat, announced, naming the error; later calls answer without the class.
+TEST(TrialSequencer, ACompensatorThatThrowsWhileDrillingIsAStopWithRetreatNamingIt) {
+  bool fail = false;
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setCompensatorFactory([&fail]() { return std::make_unique<FailingCompensator>(&fail); });
+  seq.setVentilator(pd::VentilatorSettings());
+  seq.setBreathStart(0.0);
+  ASSERT_EQ(seq.start(request("compensated"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  const Eigen::Vector3d marker(0.6, 0.0, 0.27);
+  for (int i = 1; i <= 4; ++i) {
+    const double t = 12.5 + 0.125 * i;
+    seq.onMarker(t, t, "world", marker, Eigen::Quaterniond::Identity(), kNoLookup);
+  }
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  seq.takeOutput();
+  fail = true;
+  EXPECT_NO_THROW(
+      seq.onMarker(13.2, 13.2, "world", marker, Eigen::Quaterniond::Identity(), kNoLookup));
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  const pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.stops.size(), 1u);
+  EXPECT_NE(out.stops[0].find("compensator error"), std::string::npos) << out.stops[0];
+  EXPECT_NE(out.stops[0].find("observeMarker: plugin bug"), std::string::npos) << out.stops[0];
+  ASSERT_FALSE(out.spindle_rpm.empty());
+  EXPECT_EQ(out.spindle_rpm.back(), 0.0);
+  // The retreat runs on (the class is not asked again), and the stop is announced once.
+  for (double t = 13.25; t < 40.0 && seq.phase() != pd::TrialPhase::kDone; t += 0.125) {
+    EXPECT_NO_THROW(seq.onSegmentTimer(t));
+    seq.onMarker(t, t, "world", marker, Eigen::Quaterniond::Identity(), kNoLookup);
+    EXPECT_TRUE(seq.takeOutput().stops.empty());
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDone);
 }
 
 TEST(TrialSequencer, ARequestMayNameTheSegmentProfileOfItsTrial) {

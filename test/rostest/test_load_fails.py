@@ -2,7 +2,8 @@
 """Generic scenario check: a nodelet given a bad parameter fails its load. Started by hand as
 `nodelet standalone` and as `nodelet load` into a running manager, each process exits non-zero
 (waits for the process to end, not for a time); the manager's latched /diagnostics names the
-parameter, and the manager is still there to load a good one."""
+parameter, and the manager is still there to load a good one. Optional ~good_parameters: a
+mapping of other private parameters the nodelet needs to get as far as the bad one."""
 import subprocess
 import sys
 import threading
@@ -19,6 +20,7 @@ def run_nodelet(command, node_name, *extra):
     value = rospy.get_param('~bad_value')
     args = ['rosrun', 'nodelet', 'nodelet', command, rospy.get_param('~nodelet_type')]
     args += list(extra) + ['__name:=' + node_name, '_%s:=%s' % (parameter, value)]
+    args += ['_%s:=%s' % item for item in sorted(rospy.get_param('~good_parameters', {}).items())]
     return subprocess.run(args, capture_output=True, text=True, timeout=60)
 
 

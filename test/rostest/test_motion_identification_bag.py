@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """A virtual volunteer's rosbag played (sim time) into MotionIdentification: ~identify refuses
-an empty window without writing, then recovers the volunteer's true AP/SI slopes within 5 % and
+a file outside its ~model_folder and an empty window without writing, then recovers the volunteer's true AP/SI slopes within 5 % and
 agrees with the identify CLI on the CSV of the same volunteer.
 
 Private parameters: volunteer_id (int), cli_rel_tolerance (relative slope agreement with the
@@ -32,6 +32,15 @@ def tool(name):
     return ['rosrun', 'pedicle_drilling', name]
 
 
+def model_folder():
+    """The nodelet's ~model_folder, or its default $ROS_HOME/pedicle_drilling/models."""
+    folder = rospy.get_param('/motion_identification/model_folder', '')
+    if folder:
+        return folder
+    ros_home = os.environ.get('ROS_HOME') or os.path.join(os.path.expanduser('~'), '.ros')
+    return os.path.join(ros_home, 'pedicle_drilling', 'models')
+
+
 def axes_of(model_yaml):
     with open(model_yaml) as f:
         return yaml.safe_load(f)['axes']
@@ -46,7 +55,8 @@ class MotionIdentificationFromBag(unittest.TestCase):
         cls.expect_all = bool(rospy.get_param('~expect_all_samples', False))
         cls.rate = str(rospy.get_param('~play_rate', 4.0))
         cls.denoise_tv = bool(rospy.get_param('~denoise_tv', True))
-        cls.tmp = tempfile.mkdtemp(prefix='motion_id_bag_')
+        os.makedirs(model_folder(), exist_ok=True)
+        cls.tmp = tempfile.mkdtemp(prefix='motion_id_bag_', dir=model_folder())  # written there
         out = subprocess.run(['/usr/bin/python3', os.path.join(
             os.path.dirname(os.path.realpath(__file__)), '..', '..', 'scripts',
             'volunteers_to_bag.py'), '--out', cls.tmp, '--ids', str(cls.vid)],
@@ -63,6 +73,18 @@ class MotionIdentificationFromBag(unittest.TestCase):
         shutil.rmtree(cls.tmp, ignore_errors=True)
 
     def test_bag_identification(self):
+        # 0. A file outside ~model_folder (absolute, or by '..'): refused naming it, not written.
+        outside = tempfile.mkdtemp(prefix='motion_id_outside_')
+        try:
+            for path in (os.path.join(outside, 'model.yaml'),
+                         os.path.join(self.tmp, '..', '..', 'escape_%d.yaml' % os.getpid())):
+                r = self.identify(model='', method='', output_path=path)
+                self.assertFalse(r.success)
+                self.assertIn('outside the model folder', r.message)
+                self.assertIn(path, r.message)
+                self.assertFalse(os.path.exists(path))
+        finally:
+            shutil.rmtree(outside, ignore_errors=True)
         # 1. Nothing recorded yet: refused with a message, nothing written, nothing published.
         early = os.path.join(self.tmp, 'early.yaml')
         r = self.identify(model='', method='', output_path=early)

@@ -117,6 +117,76 @@ std::vector<std::string> TrackedMarkerCompensator::parameterNames() const {
   return {"extrapolate", "max_horizon_s"};
 }
 
+// ----------------------------------------------------------------------------- guard
+
+GuardedCompensator::GuardedCompensator(std::unique_ptr<CompensatorInterface> inner)
+    : inner_(std::move(inner)) {
+  if (!inner_) throw std::invalid_argument("compensator: none given");
+}
+
+void GuardedCompensator::latch(const char* call, const std::exception* e) const {
+  if (!error_.empty()) return;  // the first error is the cause
+  const std::string what = e != nullptr ? e->what() : "unknown exception";
+  error_ = std::string(call) + ": " + (what.empty() ? "an exception without a message" : what);
+}
+
+bool GuardedCompensator::guard(const char* call, const std::function<void()>& body) const {
+  if (!error_.empty()) return false;
+  try {
+    body();
+    return true;
+  } catch (const std::exception& e) {
+    latch(call, &e);
+  } catch (...) {  // a plugin may throw anything
+    latch(call, nullptr);
+  }
+  return false;
+}
+
+void GuardedCompensator::setVentilator(const VentilatorSettings& settings) {
+  guard("setVentilator", [&] { inner_->setVentilator(settings); });
+}
+
+void GuardedCompensator::setBreathStart(double t) {
+  guard("setBreathStart", [&] { inner_->setBreathStart(t); });
+}
+
+void GuardedCompensator::observeMarker(double stamp, const Eigen::Vector3d& position_world) {
+  guard("observeMarker", [&] { inner_->observeMarker(stamp, position_world); });
+}
+
+bool GuardedCompensator::ready() const {
+  bool ready = false;
+  return guard("ready", [&] { ready = inner_->ready(); }) && ready;
+}
+
+Eigen::Vector3d GuardedCompensator::displacement(double t) const {
+  Eigen::Vector3d d = last_;
+  const bool ok = guard("displacement", [&] {
+    d = inner_->displacement(t);
+    if (!d.allFinite()) throw std::runtime_error("not finite at t = " + std::to_string(t) + " s");
+  });
+  if (ok) last_ = d;
+  return last_;
+}
+
+std::vector<double> GuardedCompensator::velocitySteps(double t0, double t1) const {
+  std::vector<double> steps;
+  return guard("velocitySteps", [&] { steps = inner_->velocitySteps(t0, t1); })
+             ? steps
+             : std::vector<double>();
+}
+
+std::string GuardedCompensator::describe() const {
+  std::string text;
+  try {
+    text = inner_->describe();
+  } catch (...) {
+    text = "a compensator whose describe() failed";
+  }
+  return error_.empty() ? text : text + "; failed: " + error_;
+}
+
 // ----------------------------------------------------------------------------- factory
 
 std::vector<std::string> builtinCompensatorNames() {

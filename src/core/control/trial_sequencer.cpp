@@ -47,6 +47,8 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
     ParamTable<P> d;
     d.number("feed_rate_mm_s", &P::default_feed_rate_mm_s, Range::aboveUpTo(0, 10), "mm/s")
         .number("spindle_rpm", &P::default_spindle_rpm, Range::aboveUpTo(0, 60000), "rpm")
+        .number("max_feed_rate_mm_s", &P::max_feed_rate_mm_s, Range::aboveUpTo(0, 10), "mm/s")
+        .number("max_spindle_rpm", &P::max_spindle_rpm, Range::aboveUpTo(0, 60000), "rpm")
         .number("spindle_keepalive_s", &P::spindle_keepalive_s, Range::closed(0, 10), "s")
         .number("max_duration_s", &P::default_max_duration_s, Range::aboveUpTo(0, 3600), "s")
         .include(CompensationParams::table(), &P::compensation)
@@ -74,6 +76,12 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
 void TrialSequencerParams::validate() const {
   table().validate(*this);
   compensation.validate();
+  require(default_feed_rate_mm_s <= max_feed_rate_mm_s, "feed_rate_mm_s",
+          "must not exceed max_feed_rate_mm_s (the drill's limit, " +
+              std::to_string(max_feed_rate_mm_s) + " mm/s)");
+  require(default_spindle_rpm <= max_spindle_rpm, "spindle_rpm",
+          "must not exceed max_spindle_rpm (the drill's limit, " + std::to_string(max_spindle_rpm) +
+              " rpm)");
   require(!arm_joints.empty(), "arm_joints", "must not be empty");
   require(!feed_joint.empty(), "feed_joint", "must not be empty");
   require(std::isfinite(feed_lower_m) && std::isfinite(feed_upper_m) && feed_lower_m < feed_upper_m,
@@ -132,7 +140,20 @@ void TrialSequencer::controllerFault(double now, const std::string& why) {
   handleStop(now, true, why);
 }
 
+bool TrialSequencer::compensatorFailed(double now) {
+  if (compensator_ == nullptr || compensator_->error().empty() || compensator_reported_) {
+    return false;
+  }
+  compensator_reported_ = true;
+  const std::string why = "compensator error (" + compensator_->describe() + ")";
+  log(SequencerLog::Level::kError, why + "; stopping and retracting");
+  if (isRunning(phase_)) out_.stops.push_back(why);
+  handleStop(now, true, why);
+  return true;
+}
+
 void TrialSequencer::setVentilator(const VentilatorSettings& settings) {
+  settings.validate();  // invalid settings are the caller's error, refused here
   settings_ = settings;
   have_settings_ = true;
   if (planner_) planner_->compensator().setVentilator(settings_);
@@ -193,20 +214,29 @@ std::string TrialSequencer::resolve(const TrialRequest& request, ResolvedRequest
            "' (use stationary, uncompensated or compensated)";
   }
   std::string why;
-  const auto pick = [&why](double requested, double fallback, double max, const char* name) {
-    if (requested == 0.0) return fallback;
+  // `limit`: the parameter declaring the bound ("" for a fixed one), named in the refusal.
+  const auto pick = [&why](double requested, double fallback, double max, const char* name,
+                           const char* limit, const char* unit) {
+    if (requested == 0.0 || !why.empty()) return fallback;
     if (!(std::isfinite(requested) && requested > 0.0 && requested <= max)) {
       std::ostringstream os;
-      os << name << ": must be 0 (default) or in (0, " << max << "]";
+      os << name << ": " << requested << " " << unit;
+      if (*limit != '\0' && requested > max) {
+        os << " exceeds the drill's declared limit " << limit << " = " << max << " " << unit;
+      }
+      os << " (must be 0 for the default or in (0, " << max << "])";
       why = os.str();
     }
     return requested;
   };
+  const TrialSequencerParams& p = params_;
   const double feed_mm_s =
-      pick(request.feed_rate_mm_s, params_.default_feed_rate_mm_s, 10.0, "feed_rate_mm_s");
-  const double rpm = pick(request.spindle_rpm, params_.default_spindle_rpm, 60000.0, "spindle_rpm");
+      pick(request.feed_rate_mm_s, p.default_feed_rate_mm_s, p.max_feed_rate_mm_s, "feed_rate_mm_s",
+           "max_feed_rate_mm_s", "mm/s");
+  const double rpm = pick(request.spindle_rpm, p.default_spindle_rpm, p.max_spindle_rpm,
+                          "spindle_rpm", "max_spindle_rpm", "rpm");
   const double max_duration =
-      pick(request.max_duration_s, params_.default_max_duration_s, 3600.0, "max_duration_s");
+      pick(request.max_duration_s, p.default_max_duration_s, 3600.0, "max_duration_s", "", "s");
   if (!why.empty()) return why;
   SegmentProfile profile = params_.compensation.segment_profile;
   if (!request.segment_profile.empty() && !parseSegmentProfile(request.segment_profile, &profile)) {
@@ -236,12 +266,17 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   cp.feed_rate_m_s = feed_mm_s * 1e-3;
   cp.segment_profile = r.profile;
   try {
-    auto planner = make_compensator_
-                       ? std::make_unique<CompensationPlanner>(cp, model, make_compensator_())
-                       : std::make_unique<CompensationPlanner>(cp, model);
+    // Behind a guard: what the class throws during the trial is a stop (compensatorFailed).
+    auto guarded = std::make_unique<GuardedCompensator>(
+        make_compensator_ ? make_compensator_() : std::make_unique<PaperCompensator>());
+    GuardedCompensator* guard = guarded.get();
+    auto planner = std::make_unique<CompensationPlanner>(cp, model, std::move(guarded));
     if (have_settings_) planner->compensator().setVentilator(settings_);
     if (have_phase_) planner->compensator().setBreathStart(breath_start_);
+    if (!guard->error().empty()) throw std::runtime_error("compensator " + guard->error());
     planner_ = std::move(planner);
+    compensator_ = guard;
+    compensator_reported_ = false;
   } catch (const std::exception& e) {
     watch_->stop();
     return e.what();
@@ -310,6 +345,7 @@ void TrialSequencer::onTareResult(double now, const TareResult& result) {
   log(SequencerLog::Level::kInfo, "F/T " + result.message);
   // The segment grid starts when both are done: the later of the two instants.
   if (registered_) startDrilling(now, std::max(t_registered_, result.t));
+  compensatorFailed(now);
 }
 
 void TrialSequencer::onRegistrationTimeout(double) {
@@ -337,6 +373,7 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
                               const RotationLookup& lookup) {
   if (phase_ == TrialPhase::kRegistering) {
     if (!registered_) registerSample(now, stamp, frame, p, orientation, lookup);  // else: the tare
+    compensatorFailed(now);
     return;
   }
   if (!registered_ || !planner_ ||
@@ -354,6 +391,7 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
   // Then the compensator hears the sample (a tracker-feedback one): the prediction above was
   // made without it, so that the monitor judges a prediction, not the measurement itself.
   if (p.allFinite()) planner_->compensator().observeMarker(stamp, rotation_.transpose() * p);
+  compensatorFailed(now);
 }
 
 void TrialSequencer::registerSample(double now, double stamp, const std::string& frame,
@@ -422,6 +460,7 @@ void TrialSequencer::onRecognizerState(double now, bool stop, const std::string&
                "drilling_state reports a recognizer stop (state " + state_name + ", key point " +
                    std::to_string(key_point) + ")");
   }
+  compensatorFailed(now);
 }
 
 void TrialSequencer::startDrilling(double now, double t_reg) {
@@ -510,6 +549,7 @@ bool TrialSequencer::checkLayer(double now, LayerWatch* w, double bound_mm, cons
 }
 
 void TrialSequencer::onSegmentTimer(double now) {
+  compensatorFailed(now);  // also an error of setVentilator or setBreathStart since the last tick
   if (phase_ == TrialPhase::kDrilling) {
     // A component that falls silent while the drill feeds: its nodelet was unloaded or died.
     const auto silent = [this, now](double last, double timeout) {
@@ -662,6 +702,7 @@ void TrialSequencer::resendFromNow(double now) {
 
 void TrialSequencer::onStop(double now, bool retreat, const std::string& reason) {
   handleStop(now, retreat, reason);
+  compensatorFailed(now);
 }
 
 void TrialSequencer::handleStop(double now, bool retreat, const std::string& reason) {

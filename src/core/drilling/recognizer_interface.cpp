@@ -242,6 +242,78 @@ std::vector<std::string> ForceDifferenceRecognizer::parameterNames() const {
           "rise_confirm",     "stop_at_entry"};
 }
 
+// ---------------------------------------------------------------------------- guard
+
+GuardedRecognizer::GuardedRecognizer(std::unique_ptr<RecognizerInterface> inner)
+    : inner_(std::move(inner)) {
+  if (!inner_) throw std::invalid_argument("recognizer: none given");
+}
+
+void GuardedRecognizer::reset() {
+  samples_ = 0;
+  try {
+    inner_->reset();
+    error_.clear();
+  } catch (const std::exception& e) {
+    latchError(failed_.stop_t, std::string("reset: ") + e.what());
+  } catch (...) {
+    latchError(failed_.stop_t, "reset: unknown exception");
+  }
+}
+
+const RecognizerOutput& GuardedRecognizer::push(double t, double raw_force) {
+  if (!error_.empty()) {
+    ++samples_;
+    failed_.new_average = false;
+    return failed_;
+  }
+  try {
+    const RecognizerOutput& out = inner_->push(t, raw_force);
+    ++samples_;
+    return out;
+  } catch (const std::exception& e) {
+    latchError(t, e.what());
+  } catch (...) {
+    latchError(t, "unknown exception");
+  }
+  ++samples_;
+  return failed_;
+}
+
+void GuardedRecognizer::latchError(double t, const std::string& what) {
+  error_ = what.empty() ? "an exception without a message" : what;
+  RecognizerOutput out;
+  try {
+    out = inner_->output();  // the layer it last reported
+  } catch (...) {
+  }
+  out.state = DrillingState::kStopped;
+  out.new_average = true;  // published at once
+  if (!out.stop) {
+    out.stop = true;
+    out.stop_t = t;
+    out.stop_index = samples_;
+  }
+  failed_ = out;
+}
+
+const RecognizerOutput& GuardedRecognizer::output() const {
+  return error_.empty() ? inner_->output() : failed_;
+}
+
+std::string GuardedRecognizer::stopReason() const {
+  if (error_.empty()) {
+    try {
+      return inner_->stopReason();
+    } catch (const std::exception& e) {
+      return std::string("recognizer stop (its reason failed: ") + e.what() + ")";
+    } catch (...) {
+      return "recognizer stop (its reason failed)";
+    }
+  }
+  return "recognizer error, stopping: " + error_;
+}
+
 // ---------------------------------------------------------------------------- factory
 
 std::vector<std::string> builtinRecognizerNames() {

@@ -11,6 +11,7 @@
 
 #include <Eigen/Core>
 
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -147,6 +148,44 @@ class TrackedMarkerCompensator : public CompensatorInterface {
   double last_t_ = 0.0;
   Eigen::Vector3d last_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d velocity_ = Eigen::Vector3d::Zero();
+};
+
+/**
+ * @brief Any compensator behind a guard: an exception one of its trial-time calls throws
+ *        (setVentilator, setBreathStart, observeMarker, ready, displacement, velocitySteps: a
+ *        plugin's bug, a Python error) never leaves the guard. The guard keeps the error, which
+ *        its owner (TrialSequencer) turns into a stop with retreat naming it, and from then on
+ *        answers by itself: not ready, the last displacement it gave (the drill holds its lateral
+ *        course while it backs out), no velocity steps. configure() and setPatient() pass their
+ *        exceptions on (a refusal before the trial).
+ */
+class GuardedCompensator : public CompensatorInterface {
+ public:
+  /** @throws std::invalid_argument if @p inner is null. */
+  explicit GuardedCompensator(std::unique_ptr<CompensatorInterface> inner);
+  void configure(const CompensatorSettings& settings) override { inner_->configure(settings); }
+  void setPatient(const MotionModel& model, const CompensationParams& params) override {
+    inner_->setPatient(model, params);
+  }
+  void setVentilator(const VentilatorSettings& settings) override;
+  void setBreathStart(double t) override;
+  void observeMarker(double stamp, const Eigen::Vector3d& position_world) override;
+  bool ready() const override;
+  Eigen::Vector3d displacement(double t) const override;
+  std::vector<double> velocitySteps(double t0, double t1) const override;
+  std::string describe() const override;
+  std::vector<std::string> parameterNames() const override { return inner_->parameterNames(); }
+  /** @brief The first error a call threw ("" while none did). */
+  const std::string& error() const { return error_; }
+
+ private:
+  void latch(const char* call, const std::exception* e) const;
+  /// Runs @p body unless an error came before; true if it returned, false if it threw.
+  bool guard(const char* call, const std::function<void()>& body) const;
+
+  std::unique_ptr<CompensatorInterface> inner_;
+  mutable std::string error_;
+  mutable Eigen::Vector3d last_ = Eigen::Vector3d::Zero();  // the last displacement given
 };
 
 /** @brief The built-in compensators' names, as pluginlib declares them. */

@@ -47,8 +47,21 @@ struct TrialSequencerParams {
   /** @brief Segmentation and prediction; feed_rate_m_s is set per trial. drill_axis is set from
    *         the arm by the constructor. */
   CompensationParams compensation;
-  double default_feed_rate_mm_s = 0.5;   ///< StartTrial 0 means this, (0, 10]
-  double default_spindle_rpm = 12000.0;  ///< (0, 60000]
+  double default_feed_rate_mm_s = 0.5;   ///< StartTrial 0 means this, (0, max_feed_rate_mm_s]
+  double default_spindle_rpm = 12000.0;  ///< (0, max_spindle_rpm]
+  /**
+   * @brief The drill's declared spindle limit [rpm], (0, 60000]: a StartTrial (or default)
+   *        speed above it is refused. 20000 rpm: the highest speed the paper drilled with its
+   *        device (Sec. V-C: 12000, 16000 and 20000 rpm); above it nothing was tried.
+   */
+  double max_spindle_rpm = 20000.0;
+  /**
+   * @brief The drill's declared feed limit [mm/s], (0, 10]: a StartTrial (or default) feed rate
+   *        above it is refused. 3 mm/s is an assumption: six times the paper's 0.5 mm/s (Sec.
+   *        V-A), the highest feed of the bone-drilling thrust study with the paper's 2.5 mm bit
+   *        that the simulator's force law draws on (0.5 to 3 mm/s, doc/bench_sources.md).
+   */
+  double max_feed_rate_mm_s = 3.0;
   /// While the spindle runs, its speed command is repeated every this many seconds, so that the
   /// driver's watchdog (a drive-side command timeout; the simulator's spindle_watchdog_s, 0.5 s)
   /// keeps it running and stops it when the planner dies. [0 (one command per change), 10] s.
@@ -268,7 +281,11 @@ class TrialSequencer {
    */
   void setCompensatorFactory(CompensatorFactory factory) { make_compensator_ = std::move(factory); }
 
-  /** @brief New ventilator settings (from the ventilator; applied to a running prediction). */
+  /**
+   * @brief New ventilator settings (from the ventilator; applied to a running prediction).
+   *        @throws std::invalid_argument for invalid settings (nothing changes). An error of the
+   *        compensator class here (or in setBreathStart) stops the trial at the next segment tick.
+   */
   void setVentilator(const VentilatorSettings& settings);
   /** @brief Start time of the current breath (tidal volume stamp - time in breath). */
   void setBreathStart(double t);
@@ -388,12 +405,19 @@ class TrialSequencer {
   RetreatPlanner retreat_planner_;
   CompensatorFactory make_compensator_;
   std::unique_ptr<CompensationPlanner> planner_;
+  GuardedCompensator* compensator_ = nullptr;  ///< planner_'s compensator, behind its guard
+  bool compensator_reported_ = false;          ///< its error was turned into a stop
   std::vector<ControllerSpec> controllers_;
   std::unique_ptr<ControllerWatch> watch_;
   /** @brief Queues a trajectory and tells the watch (every trajectory goes through here). */
   void send(JointTrajectoryCommand traj, double now);
   /** @brief A fault of the closed loop: a stop with retreat, announced. */
   void controllerFault(double now, const std::string& why);
+  /**
+   * @brief An error the compensator class threw (GuardedCompensator), first seen: a stop with
+   *        retreat naming it, announced (before the drilling: the trial fails). True if so.
+   */
+  bool compensatorFailed(double now);
   std::unique_ptr<RetreatMotion> retreat_;
   CompensationMode mode_ = CompensationMode::kStationary;
   TrialPhase phase_ = TrialPhase::kIdle;

@@ -145,6 +145,37 @@ class ForceDifferenceRecognizer : public RecognizerInterface {
   int entries_ = 0;  // cortex entries: the contact, then each re-arm
 };
 
+/**
+ * @brief Any recognizer behind a guard: an exception its push(), reset() or stopReason() throws
+ *        (a plugin's bug, a Python error) never leaves the guard. It latches a stop instead
+ *        (state `stopped`, new_average set, so that the stop is published) whose stopReason()
+ *        names the class's error; every later push() reports that stop until a reset() that
+ *        succeeds. Samples are not checked here (the wrapped class refuses non-finite ones, and
+ *        that refusal is a stop too).
+ */
+class GuardedRecognizer : public RecognizerInterface {
+ public:
+  /** @throws std::invalid_argument if @p inner is null. */
+  explicit GuardedRecognizer(std::unique_ptr<RecognizerInterface> inner);
+  void configure(const RecognizerSettings& settings) override { inner_->configure(settings); }
+  void reset() override;
+  const RecognizerOutput& push(double t, double raw_force) override;
+  const RecognizerOutput& output() const override;
+  std::string stopReason() const override;
+  std::string describe() const override { return inner_->describe(); }
+  std::vector<std::string> parameterNames() const override { return inner_->parameterNames(); }
+  /** @brief The class's error that latched the stop ("" while it has not failed). */
+  const std::string& error() const { return error_; }
+
+ private:
+  void latchError(double t, const std::string& what);
+
+  std::unique_ptr<RecognizerInterface> inner_;
+  std::string error_;
+  RecognizerOutput failed_;  // the output while error_ is set
+  std::size_t samples_ = 0;  // raw samples pushed since the reset
+};
+
 /** @brief The built-in recognizers' names, as pluginlib declares them. */
 std::vector<std::string> builtinRecognizerNames();
 
