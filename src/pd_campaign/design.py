@@ -15,7 +15,9 @@ CASES = ('stationary', 'uncompensated', 'compensated')
 # Faults the core engine injects (core::FaultKind, `trial_engine --list-faults`), in its order.
 FAULTS = ('none', 'force_silent', 'force_nan', 'force_inf', 'force_spike', 'force_stuck',
           'force_drift', 'tracker_silent', 'tracker_jump', 'tracker_stale', 'breathing_amplitude',
-          'breathing_rate_up', 'breathing_rate_down', 'command_lost', 'command_delayed')
+          'breathing_rate_up', 'breathing_rate_down', 'command_lost', 'command_delayed',
+          'force_saturated', 'force_axis_nan', 'force_neg_inf', 'tracker_occlusion', 'stop_lost',
+          'planner_killed', 'monitor_killed')
 
 
 SEED_SPACES = ('calibration', 'evaluation')

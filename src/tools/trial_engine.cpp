@@ -325,6 +325,17 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->check(tools::finiteNumber());
   app->add_option("--fault-command-count", faults.command_fault_count,
                   "consecutive commands a command fault hits (1: the next one)");
+  app->add_option("--fault-saturation-n", faults.saturation_n,
+                  "force_saturated: the thrust's range, N")
+      ->check(tools::finiteNumber());
+  app->add_option("--fault-saturation-noise-sd-n", faults.saturation_noise_sd_n,
+                  "force_saturated: noise SD of a clipped sample, N")
+      ->check(tools::finiteNumber());
+  app->add_option("--fault-nan-axis", faults.nan_axis, "force_axis_nan: 0 x, 1 y, 2 z");
+  app->add_option("--fault-occlusion-samples", faults.occlusion_samples,
+                  "tracker_occlusion: tracker samples lost per burst");
+  app->add_option("--fault-occlusion-period-samples", faults.occlusion_period_samples,
+                  "tracker_occlusion: tracker samples from one burst's start to the next");
   app->add_option("--recognizer", o->recognizer_class,
                   "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
                   "own recognizer or compensator\")");

@@ -189,3 +189,99 @@ TEST(FaultInjector, ACommandFaultHitsCommandFaultCountCommandsInARow) {
   p.command_fault_count = 0;
   EXPECT_THROW(pd::FaultInjector{p}, std::invalid_argument);
 }
+
+TEST(FaultInjector, NewForceFaultsNegInfOneAxisNaNAndSaturation) {
+  pd::FaultInjector injector;
+  const ForceRun neg = runForce(pd::FaultKind::kForceNegInf, &injector);
+  EXPECT_TRUE(std::isinf(neg.last.z()) && neg.last.z() < 0.0);
+  EXPECT_EQ(neg.last.x(), sample(1.0).x());
+  EXPECT_EQ(injector.counts().force_altered, 501);
+
+  // One axis NaN (default x: the lateral axis the recognizer does not read), the others kept.
+  const ForceRun nan = runForce(pd::FaultKind::kForceAxisNaN, &injector);
+  EXPECT_TRUE(std::isnan(nan.last.x()));
+  EXPECT_EQ(nan.last.y(), sample(1.0).y());
+  EXPECT_EQ(nan.last.z(), sample(1.0).z());
+  pd::FaultParams p;
+  p.nan_axis = 2;
+  pd::FaultInjector thrust_nan(p);
+  EXPECT_TRUE(std::isnan(runForce(pd::FaultKind::kForceAxisNaN, &thrust_nan).last.z()));
+  p.nan_axis = 3;
+  EXPECT_THROW(pd::FaultInjector{p}, std::invalid_argument);
+}
+
+TEST(FaultInjector, SaturationClipsTheThrustAtTheRangeWithTheSensorsNoise) {
+  pd::FaultParams p;
+  p.saturation_n = 2.03;  // the thrust of sample() passes it at t = 0.3 s
+  pd::FaultInjector injector(p, 7);
+  injector.arm(pd::FaultKind::kForceSaturated);
+  injector.inject(0.0);
+  double sum = 0.0, sum2 = 0.0;
+  int clipped = 0;
+  for (int i = 0; i <= 1000; ++i) {
+    const double t = i * 1e-3;
+    Eigen::Vector3d f = sample(t);
+    ASSERT_TRUE(injector.force(t, &f));
+    EXPECT_EQ(f.x(), sample(t).x());  // the other axes as they are
+    if (sample(t).z() <= 2.03) {
+      EXPECT_EQ(f.z(), sample(t).z()) << "within the range: unchanged";
+      continue;
+    }
+    ++clipped;
+    sum += f.z() - 2.03;
+    sum2 += (f.z() - 2.03) * (f.z() - 2.03);
+  }
+  EXPECT_EQ(injector.counts().force_altered, clipped);
+  ASSERT_GT(clipped, 600);
+  const double mean = sum / clipped;
+  const double sd = std::sqrt(sum2 / clipped - mean * mean);
+  EXPECT_NEAR(mean, 0.0, 0.005);  // 0.03 / sqrt(700) = 0.0011: 4.5 SE
+  EXPECT_NEAR(sd, 0.03, 0.004);   // the declared noise, 0.03 N
+  // Negative thrust clips at -range; a zero range is refused.
+  Eigen::Vector3d f(0.0, 0.0, -5.0);
+  ASSERT_TRUE(injector.force(1.1, &f));
+  EXPECT_NEAR(f.z(), -2.03, 0.2);
+  p.saturation_n = 0.0;
+  EXPECT_THROW(pd::FaultInjector{p}, std::invalid_argument);
+}
+
+TEST(FaultInjector, OcclusionBurstsDropOcclusionSamplesOfEveryPeriodAndRecover) {
+  pd::FaultInjector injector;  // 2 of every 8 samples
+  injector.arm(pd::FaultKind::kTrackerOcclusion);
+  Eigen::Quaterniond q = Eigen::Quaterniond::Identity();
+  std::string delivered;
+  for (int i = 0; i < 24; ++i) {
+    if (i == 4) injector.inject(0.5);
+    Eigen::Vector3d p(0.6, 0.02, 0.3);
+    double stamp = i * 0.125;
+    const bool ok = injector.trackedPose(&p, &q, &stamp);
+    delivered += ok ? '+' : '.';
+    if (ok) {
+      EXPECT_EQ(stamp, i * 0.125);  // delivered samples as they are
+    }
+  }
+  EXPECT_EQ(delivered, "++++..++++++..++++++..++");
+  EXPECT_EQ(injector.counts().tracker_dropped, 6);
+  EXPECT_EQ(injector.counts().tracker_altered, 0);
+  pd::FaultParams p;
+  p.occlusion_samples = 8;  // a burst as long as its period never recovers
+  EXPECT_THROW(pd::FaultInjector{p}, std::invalid_argument);
+}
+
+TEST(FaultInjector, StopLostDropsEveryStopFromTheInjectionOnAndCountsThem) {
+  pd::FaultInjector injector;
+  injector.arm(pd::FaultKind::kStopLost);
+  EXPECT_TRUE(injector.stop());  // armed, not injected
+  injector.inject(1.0);
+  EXPECT_TRUE(pd::isStopFault(injector.kind()));
+  EXPECT_FALSE(injector.stop());
+  EXPECT_FALSE(injector.stop());
+  EXPECT_EQ(injector.counts().stops_lost, 2);
+  // Other faults leave the stops alone; arm() clears the counts.
+  injector.arm(pd::FaultKind::kCommandLost);
+  EXPECT_EQ(injector.counts().stops_lost, 0);
+  injector.inject(2.0);
+  EXPECT_TRUE(injector.stop());
+  EXPECT_LT(injector.command(2.1), 0.0);
+  EXPECT_EQ(injector.counts().commands_lost, 1);
+}

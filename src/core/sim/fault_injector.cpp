@@ -30,6 +30,13 @@ constexpr FaultName kFaultNames[] = {
     {FaultKind::kBreathingRateDown, "breathing_rate_down"},
     {FaultKind::kCommandLost, "command_lost"},
     {FaultKind::kCommandDelayed, "command_delayed"},
+    {FaultKind::kForceSaturated, "force_saturated"},
+    {FaultKind::kForceAxisNaN, "force_axis_nan"},
+    {FaultKind::kForceNegInf, "force_neg_inf"},
+    {FaultKind::kTrackerOcclusion, "tracker_occlusion"},
+    {FaultKind::kStopLost, "stop_lost"},
+    {FaultKind::kPlannerKilled, "planner_killed"},
+    {FaultKind::kMonitorKilled, "monitor_killed"},
 };
 
 }  // namespace
@@ -64,7 +71,14 @@ const ParamTable<FaultParams>& FaultParams::table() {
         .number("tracker_jump_m", &FaultParams::tracker_jump_m, Range::closed(-0.1, 0.1), "m")
         .number("command_delay_s", &FaultParams::command_delay_s, Range::closed(0, 10), "s")
         .integer("command_fault_count", &FaultParams::command_fault_count,
-                 Range::closed(1, 1000000));
+                 Range::closed(1, 1000000))
+        .number("saturation_n", &FaultParams::saturation_n, Range::aboveUpTo(0, 1e4), "N")
+        .number("saturation_noise_sd_n", &FaultParams::saturation_noise_sd_n, Range::closed(0, 10),
+                "N")
+        .integer("nan_axis", &FaultParams::nan_axis, Range::closed(0, 2))
+        .integer("occlusion_samples", &FaultParams::occlusion_samples, Range::closed(1, 1000))
+        .integer("occlusion_period_samples", &FaultParams::occlusion_period_samples,
+                 Range::closed(2, 100000));
     return d;
   }();
   return t;
@@ -82,16 +96,22 @@ void FaultParams::validate() const {
   // The breathing faults act in the closed-loop engine only (no ROS parameter).
   check(amplitude_factor, 0.0, 10.0, "amplitude_factor");
   check(rate_change_bpm, 0.0, 30.0, "rate_change_bpm");
+  if (occlusion_samples >= occlusion_period_samples) {
+    throw std::invalid_argument(
+        "occlusion_samples: must be below occlusion_period_samples (a burst that recovers)");
+  }
 }
 
 bool isForceFault(FaultKind k) {
   return k == FaultKind::kForceSilent || k == FaultKind::kForceNaN || k == FaultKind::kForceInf ||
-         k == FaultKind::kForceSpike || k == FaultKind::kForceStuck || k == FaultKind::kForceDrift;
+         k == FaultKind::kForceSpike || k == FaultKind::kForceStuck ||
+         k == FaultKind::kForceDrift || k == FaultKind::kForceSaturated ||
+         k == FaultKind::kForceAxisNaN || k == FaultKind::kForceNegInf;
 }
 
 bool isTrackerFault(FaultKind k) {
   return k == FaultKind::kTrackerSilent || k == FaultKind::kTrackerJump ||
-         k == FaultKind::kTrackerStale;
+         k == FaultKind::kTrackerStale || k == FaultKind::kTrackerOcclusion;
 }
 
 bool isBreathingFault(FaultKind k) {
@@ -103,7 +123,16 @@ bool isCommandFault(FaultKind k) {
   return k == FaultKind::kCommandLost || k == FaultKind::kCommandDelayed;
 }
 
-FaultInjector::FaultInjector(FaultParams params) : params_(params) { params_.validate(); }
+bool isStopFault(FaultKind k) { return k == FaultKind::kStopLost; }
+
+bool isProcessFault(FaultKind k) {
+  return k == FaultKind::kPlannerKilled || k == FaultKind::kMonitorKilled;
+}
+
+FaultInjector::FaultInjector(FaultParams params, std::uint64_t noise_seed)
+    : params_(params), noise_(noise_seed) {
+  params_.validate();
+}
 
 void FaultInjector::arm(FaultKind kind) {
   kind_ = kind;
@@ -111,6 +140,8 @@ void FaultInjector::arm(FaultKind kind) {
   injected_ = false;
   spent_ = false;
   t_injected_ = 0.0;
+  counts_ = FaultCounts();
+  tracker_samples_ = 0;
 }
 
 void FaultInjector::inject(double t) {
@@ -126,8 +157,11 @@ void FaultInjector::inject(double t) {
 
 bool FaultInjector::force(double t, Eigen::Vector3d* force) {
   if (!injected_ || !isForceFault(kind_)) return true;
+  ++counts_.force_altered;  // undone below for the samples a fault leaves as they are
   switch (kind_) {
     case FaultKind::kForceSilent:
+      --counts_.force_altered;
+      ++counts_.force_dropped;
       return false;
     case FaultKind::kForceNaN:
       force->setConstant(std::numeric_limits<double>::quiet_NaN());
@@ -135,7 +169,16 @@ bool FaultInjector::force(double t, Eigen::Vector3d* force) {
     case FaultKind::kForceInf:
       force->z() = std::numeric_limits<double>::infinity();
       return true;
+    case FaultKind::kForceNegInf:
+      force->z() = -std::numeric_limits<double>::infinity();
+      return true;
+    case FaultKind::kForceAxisNaN:
+      (*force)[params_.nan_axis] = std::numeric_limits<double>::quiet_NaN();
+      return true;
+    case FaultKind::kForceSaturated:
+      return saturate(force);
     case FaultKind::kForceSpike:
+      if (spent_) --counts_.force_altered;
       if (!spent_) force->z() = params_.spike_n;
       spent_ = true;
       return true;
@@ -152,15 +195,40 @@ bool FaultInjector::force(double t, Eigen::Vector3d* force) {
   }
 }
 
+bool FaultInjector::saturate(Eigen::Vector3d* force) {
+  const double range = params_.saturation_n;
+  if (std::abs(force->z()) <= range) {  // within the range: the sample as it is
+    --counts_.force_altered;
+    return true;
+  }
+  force->z() = std::copysign(range, force->z()) + params_.saturation_noise_sd_n * noise_.normal();
+  return true;
+}
+
+bool FaultInjector::occluded() {
+  // A burst of occlusion_samples lost samples at the start of every occlusion_period_samples,
+  // the first at the injection.
+  return tracker_samples_++ % params_.occlusion_period_samples < params_.occlusion_samples;
+}
+
 bool FaultInjector::trackedPose(Eigen::Vector3d* position, Eigen::Quaterniond* orientation,
                                 double* stamp) {
   const bool active = injected_ && isTrackerFault(kind_);
-  if (active && kind_ == FaultKind::kTrackerSilent) return false;
-  if (active && kind_ == FaultKind::kTrackerJump) position->x() += params_.tracker_jump_m;
+  const bool lost = active && (kind_ == FaultKind::kTrackerSilent ||
+                               (kind_ == FaultKind::kTrackerOcclusion && occluded()));
+  if (lost) {
+    ++counts_.tracker_dropped;
+    return false;
+  }
+  if (active && kind_ == FaultKind::kTrackerJump) {
+    position->x() += params_.tracker_jump_m;
+    ++counts_.tracker_altered;
+  }
   if (active && kind_ == FaultKind::kTrackerStale && have_pose_) {
     *stamp = last_stamp_;  // the last pose again, with its old stamp
     *position = last_position_;
     *orientation = last_orientation_;
+    ++counts_.tracker_altered;
   }
   have_pose_ = true;
   last_stamp_ = *stamp;
@@ -177,7 +245,18 @@ double FaultInjector::command(double t) {
     pending_ = false;
     spent_ = true;
   }
-  return kind_ == FaultKind::kCommandLost ? -1.0 : params_.command_delay_s;
+  if (kind_ == FaultKind::kCommandLost) {
+    ++counts_.commands_lost;
+    return -1.0;
+  }
+  ++counts_.commands_delayed;
+  return params_.command_delay_s;
+}
+
+bool FaultInjector::stop() {
+  if (!injected_ || kind_ != FaultKind::kStopLost) return true;
+  ++counts_.stops_lost;
+  return false;
 }
 
 }  // namespace pedicle_drilling::core

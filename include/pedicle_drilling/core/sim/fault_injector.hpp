@@ -1,4 +1,4 @@
-// Fault injection (issue 15): the faults a drilling trial can suffer, their sizes, and the
+// Fault injection: the faults a drilling trial can suffer, their sizes, and the
 // FaultInjector that applies the sensor, tracker and command faults to the streams. The core
 // engine (ClosedLoopEngine) and the FaultInjector nodelet run the same class, so a fault means
 // the same thing in the fault campaign and on a ROS pipeline (simulated or real hardware).
@@ -8,10 +8,12 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
 #include "pedicle_drilling/core/common/param_table.hpp"
+#include "pedicle_drilling/core/sim/normal_source.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -37,6 +39,13 @@ enum class FaultKind {
   kBreathingRateDown,   ///< the ventilator rate - rate_change_bpm
   kCommandLost,         ///< the next trajectory command to the arm is lost
   kCommandDelayed,      ///< the next trajectory command reaches the arm command_delay_s late
+  kForceSaturated,      ///< the thrust clipped at +-FaultParams::saturation_n, with its noise
+  kForceAxisNaN,        ///< one axis (FaultParams::nan_axis) of every force sample NaN
+  kForceNegInf,         ///< the thrust -inf from then on
+  kTrackerOcclusion,    ///< repeated short silences of the tracker, each recovering
+  kStopLost,            ///< every drill/stop command lost (the planner's own stops are not)
+  kPlannerKilled,       ///< the planner's process (planner, recognizer) killed (core engine)
+  kMonitorKilled,       ///< the monitor's process (monitor, drill guard) killed (core engine)
 };
 
 /** @brief The fault's name in scenario files and trials.csv ("none", "force_silent", ...). */
@@ -67,6 +76,28 @@ struct FaultParams {
   /** @brief How many consecutive trajectory commands a command fault hits (1: the next one
    *         only; more: a command path that stays slow, or a link that stays down). */
   int command_fault_count = 1;
+  /** @brief The thrust's range [N] (force_saturated): the sensor clips the thrust to
+   *         [-saturation_n, +saturation_n]. 2.5 N: a sensor set up for a smaller range than the
+   *         drilling needs (a wrong calibration matrix or DAQ gain; the Nano17 SI-12-0.12's own
+   *         Fz range is 17 N, never reached below H2 = 10 N). Assumption: chosen below the
+   *         outer cortical peaks (median 3.1 N) and above the cancellous thrust, where the clip
+   *         hides the layers' contrast from the recognizer. */
+  double saturation_n = 2.5;
+  /** @brief White noise SD [N] of a clipped sample (force_saturated): the sensor's own noise,
+   *         config/simulator.yaml force_noise_sd_n (0.03 N), so that the clipped thrust is not
+   *         bit-identical (the frozen-sensor check does not see it). */
+  double saturation_noise_sd_n = 0.03;
+  /** @brief The force axis that turns NaN (force_axis_nan): 0 x, 1 y, 2 z. 0: a lateral axis,
+   *         which the recognizer (thrust: z) does not read; only the monitor sees it. */
+  int nan_axis = 0;
+  /** @brief Tracker samples lost per occlusion burst (tracker_occlusion): 2 at 8 Hz, a gap of
+   *         3 periods (0.375 s) between delivered samples, below the monitor's 0.5 s
+   *         tracker_timeout_s (4 periods). Assumption: a hand or an instrument crossing the
+   *         camera's line of sight. 3 samples make a 0.5 s gap, the timeout itself. */
+  int occlusion_samples = 2;
+  /** @brief Tracker samples from one burst's start to the next (tracker_occlusion): 8, one
+   *         burst a second at 8 Hz, repeated until the trial ends. Assumption. */
+  int occlusion_period_samples = 8;
   /** @brief Check every field. @throws std::invalid_argument naming it. */
   void validate() const;
 
@@ -82,6 +113,22 @@ bool isTrackerFault(FaultKind kind);
 bool isBreathingFault(FaultKind kind);
 /** @brief True for the faults on the arm's trajectory commands (command_*). */
 bool isCommandFault(FaultKind kind);
+/** @brief True for the faults on the drill/stop commands (stop_*). */
+bool isStopFault(FaultKind kind);
+/** @brief True for the process kills (planner_killed, monitor_killed): the core engine's own;
+ *         on the ROS pipeline a process is killed by a signal (rostests fault_*_killed). */
+bool isProcessFault(FaultKind kind);
+
+/** @brief What an injected fault did to the streams, since arm(): the proof that it acted. */
+struct FaultCounts {
+  long force_dropped = 0;     ///< force samples not delivered
+  long force_altered = 0;     ///< force samples delivered changed
+  long tracker_dropped = 0;   ///< tracker samples not delivered
+  long tracker_altered = 0;   ///< tracker samples delivered changed
+  long commands_lost = 0;     ///< trajectory commands lost
+  long commands_delayed = 0;  ///< trajectory commands delayed
+  long stops_lost = 0;        ///< drill/stop commands lost
+};
 
 /**
  * @brief Applies one fault to the force, tracker and command streams of a trial.
@@ -95,8 +142,12 @@ bool isCommandFault(FaultKind kind);
  */
 class FaultInjector {
  public:
-  /** @throws std::invalid_argument if params are invalid (FaultParams::validate). */
-  explicit FaultInjector(FaultParams params = FaultParams());
+  /**
+   * @param noise_seed seed of the noise the faults add (force_saturated): the engine gives each
+   *        trial its own, from the trial's seed.
+   * @throws std::invalid_argument if params are invalid (FaultParams::validate).
+   */
+  explicit FaultInjector(FaultParams params = FaultParams(), std::uint64_t noise_seed = 0);
 
   /** @brief Chooses the fault of the coming injection and forgets any earlier one. */
   void arm(FaultKind kind);
@@ -137,7 +188,16 @@ class FaultInjector {
    */
   double command(double t);
 
+  /** @brief The fate of one drill/stop command: false if it is lost (stop_lost, injected). */
+  bool stop();
+
+  /** @brief What the fault did since arm(). */
+  const FaultCounts& counts() const { return counts_; }
+
  private:
+  bool saturate(Eigen::Vector3d* force);
+  bool occluded();
+
   FaultParams params_;
   FaultKind kind_ = FaultKind::kNone;
   bool pending_ = false;
@@ -150,6 +210,9 @@ class FaultInjector {
   double last_stamp_ = 0.0;
   Eigen::Vector3d last_position_ = Eigen::Vector3d::Zero();
   Eigen::Quaterniond last_orientation_ = Eigen::Quaterniond::Identity();
+  FaultCounts counts_;
+  NormalSource noise_;
+  long tracker_samples_ = 0;  // tracker samples since the injection
 };
 
 }  // namespace pedicle_drilling::core
