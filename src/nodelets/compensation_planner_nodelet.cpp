@@ -15,6 +15,7 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <std_msgs/Float64.h>
+#include <std_msgs/Header.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_listener.h>
@@ -68,6 +69,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
          {&pose_timer_, &registration_timer_, &segment_timer_, &keepalive_timer_}) {
       timer->stop();
     }
+    heartbeat_timer_.stop();
+    steady_heartbeat_timer_.stop();
     if (lockstep_) lockstep_->drain();  // a callback already running on the shared queue ends
   }
 
@@ -111,6 +114,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // The F/T tare before contact (~tare_samples > 0): the sensor driver's protocol.
     tare_request_pub_ = nh.advertise<TareRequest>("ft_sensor/tare_request", 10);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    // The safety monitor's drill guard watches it while a trial runs (a lost planner: the
+    // drives stop). On hardware a steady timer: a wall-clock step does not pause it.
+    heartbeat_pub_ = nh.advertise<std_msgs::Header>("compensation/heartbeat", 10);
+    if (!lockstep_->enabled()) createHeartbeatTimer(nh);
     for (const std::string& name : params_.trial_start_services) {
       trial_start_clients_.push_back(nh.serviceClient<std_srvs::Trigger>(name));
     }
@@ -121,6 +128,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         "compensator %s",
         patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
         p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str());
+    for (const std::string& off : params_.disabledWatchdogs()) {
+      NODELET_WARN("CompensationPlanner: UNSAFE (~unsafe_allow_disabled_watchdogs): %s",
+                   off.c_str());
+    }
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
     // The closed loop on what the arm does (core::ControllerWatch): the controllers' states.
     for (const core::ControllerSpec& c : controllers_) {
@@ -273,16 +284,55 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     });
   }
 
-  /** @brief The safety monitor's /diagnostics status: it is alive. */
+  /**
+   * @brief The safety monitor's /diagnostics status: it is alive; an ERROR published during
+   *        this trial is a stop and retreat as its drill/stop is (a stop that cannot be lost).
+   */
   void onDiagnostics(const diagnostic_msgs::DiagnosticArray::ConstPtr& msg) {
     for (const diagnostic_msgs::DiagnosticStatus& status : msg->status) {
       if (status.name != params_.monitor_status_name) continue;
-      lockstep_->deliver(msg->header.stamp, 3, [this] {
+      const bool error = status.level == diagnostic_msgs::DiagnosticStatus::ERROR;
+      const ros::Time stamp = msg->header.stamp;
+      const std::string message = status.message;
+      lockstep_->deliver(stamp, 3, [this, error, stamp, message] {
         std::lock_guard<std::mutex> lock(mutex_);
         sequencer_->onMonitorAlive(now());
+        if (!error || stamp < trial_start_stamp_) return;
+        sequencer_->onStop(now(), true, "safety monitor ERROR: " + message);
+        carryOut();
       });
       return;
     }
+  }
+
+  /** @brief The heartbeat's timer without the lockstep (sim time: ROS; hardware: steady). */
+  void createHeartbeatTimer(ros::NodeHandle& nh) {
+    if (ros::Time::isSimTime()) {
+      heartbeat_timer_ =
+          nh.createTimer(ros::Duration(params_.heartbeat_period_s),
+                         [this](const ros::TimerEvent&) { beatIfRunning(now(), true); });
+      return;
+    }
+    steady_heartbeat_timer_ =
+        nh.createSteadyTimer(ros::WallDuration(params_.heartbeat_period_s),
+                             [this](const ros::SteadyTimerEvent&) { beatIfRunning(now(), true); });
+  }
+
+  /**
+   * @brief compensation/heartbeat while a trial runs: every heartbeat_period_s under the
+   *        lockstep (its steps), at each timer event else. Takes mutex_: a planner stuck in a
+   *        callback stops beating.
+   */
+  void beatIfRunning(double t, bool take_lock) {
+    std::unique_lock<std::mutex> lock(mutex_, std::defer_lock);
+    if (take_lock) lock.lock();
+    if (!running_ || (lockstep_->enabled() && t < next_heartbeat_)) return;
+    next_heartbeat_ = t + params_.heartbeat_period_s;
+    std_msgs::Header msg;
+    msg.stamp = lockstep_->now();
+    // No noteSent(): the monitor takes it at its next step, in stamp order, whenever that is
+    // (its guard's deadline is a step it asks for).
+    publishInOrder(heartbeat_pub_, msg);
   }
 
   void onDrillingState(const DrillingState::ConstPtr& msg) {
@@ -323,6 +373,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // is held while calling: the components' answers may need this nodelet's callbacks.
     lock.unlock();
     const bool started =
+        guardListens(&res.message) &&
         callTriggerChain(&trial_start_clients_, params_.trial_start_timeout_s, &res.message);
     lock.lock();
     if (!started) return true;
@@ -335,6 +386,28 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
                     std::to_string(sequencer_->spindleRpm()) + " rpm";
     }
     carryOut();
+    return true;
+  }
+
+  /**
+   * @brief Waits up to ~trial_start_timeout_s of wall time for the drill guard (the safety
+   *        monitor) to listen to compensation/heartbeat: a heartbeat nobody hears protects
+   *        nothing, so no trial starts before one does. A planner that watches no monitor
+   *        (monitor_timeout_s 0, an unsafe bench) does not wait.
+   */
+  bool guardListens(std::string* why) const {
+    if (params_.sequencer.monitor_timeout_s == 0.0) return true;
+    const ros::WallTime deadline =
+        ros::WallTime::now() + ros::WallDuration(params_.trial_start_timeout_s);
+    while (heartbeat_pub_.getNumSubscribers() == 0) {
+      if (ros::WallTime::now() > deadline || !ros::ok()) {
+        *why = "trial refused: no drill guard listens to compensation/heartbeat within " +
+               std::to_string(params_.trial_start_timeout_s) +
+               " s (is the SafetyMonitor running?); nothing was started";
+        return false;
+      }
+      ros::WallDuration(0.01).sleep();
+    }
     return true;
   }
 
@@ -447,18 +520,23 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       sequencer_->onTimer(*kind, t.toSec());
       carryOut();
     }
+    beatIfRunning(t.toSec(), false);
   }
 
   /** @brief Under the lockstep: the step the next timer fires at (LockstepParticipant::stepFor:
    *         the timers' rounding is 1 ns). */
   std::optional<ros::Time> nextStep() {
     std::lock_guard<std::mutex> lock(mutex_);
-    const std::optional<double> due = timers_.nextDue();
+    std::optional<double> due = timers_.nextDue();
+    if (running_ && (!due || next_heartbeat_ < *due)) due = next_heartbeat_;
     if (!due) return std::nullopt;
     return LockstepParticipant::stepFor(*due);
   }
 
   void publishStatus(core::TrialPhase p) {
+    const bool was_running = running_;
+    running_ = core::isRunning(p);
+    if (running_ && !was_running) next_heartbeat_ = now();  // beat from the trial's first step
     TrialStatus msg = toMsg(p, lockstep_->now());
     msg.stops = stops_heard_;
     publishInOrder(status_pub_, msg);
@@ -497,6 +575,11 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Timer registration_timer_;
   ros::Timer segment_timer_;
   ros::Timer keepalive_timer_;
+  ros::Timer heartbeat_timer_;
+  ros::SteadyTimer steady_heartbeat_timer_;
+  ros::Publisher heartbeat_pub_;
+  bool running_ = false;         ///< the latest phase published is a running trial's
+  double next_heartbeat_ = 0.0;  ///< under the lockstep: the next heartbeat's step
   ros::CallbackQueue start_queue_;
   std::unique_ptr<ros::AsyncSpinner> start_spinner_;
   ros::ServiceServer start_srv_;

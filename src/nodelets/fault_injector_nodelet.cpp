@@ -6,10 +6,15 @@
  *        a real or simulated sensor and the pipeline to prove that the pipeline fails safe.
  *        Relays: ft_sensor/wrench_raw -> ft_sensor/wrench, tracker/marker_pose_raw ->
  *        tracker/marker_pose, and for each of ~controllers (arm_controller, feed_controller)
- *        <name>/command -> <name>/command_delivered. The parts of one planner command (the
- *        messages with one header stamp, one per controller) share one fault decision, as the
- *        core engine applies a fault to the planner's whole command.
+ *        <name>/command -> <name>/command_delivered, and drill/stop -> drill/stop_delivered (the
+ *        stop_lost fault; the planner hears the relayed stops when its drill/stop subscription is
+ *        remapped to drill/stop_delivered). The parts of one planner command (the messages with
+ *        one header stamp, one per controller) share one fault decision, as the core engine
+ *        applies a fault to the planner's whole command. What the fault did (core::FaultCounts)
+ *        is published latched on ~status (diagnostic_msgs/DiagnosticStatus, key-values).
  */
+#include <diagnostic_msgs/DiagnosticStatus.h>
+#include <diagnostic_msgs/KeyValue.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
@@ -24,6 +29,7 @@
 #include <string>
 
 #include "pedicle_drilling/InjectFault.h"
+#include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/core/sim/fault_injector.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
@@ -63,6 +69,12 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
           [this, i](const trajectory_msgs::JointTrajectory::ConstPtr& msg) { onCommand(i, msg); },
           ros::VoidConstPtr(), hints));
     }
+    stop_pub_ = nh.advertise<StopCommand>("drill/stop_delivered", 10);
+    stop_sub_ = nh.subscribe("drill/stop", 10, &FaultInjectorNodelet::onStop, this, hints);
+    status_pub_ = pnh.advertise<diagnostic_msgs::DiagnosticStatus>("status", 1, true);
+    publishStatus();
+    status_timer_ = nh.createWallTimer(ros::WallDuration(0.2),
+                                       [this](const ros::WallTimerEvent&) { publishStatus(); });
     inject_srv_ = pnh.advertiseService("inject", &FaultInjectorNodelet::onInject, this);
     NODELET_INFO(
         "FaultInjector: relaying ft_sensor/wrench_raw, tracker/marker_pose_raw and the "
@@ -79,7 +91,8 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       out.wrench.force.x = f.x();
       out.wrench.force.y = f.y();
       out.wrench.force.z = f.z();
-      if (!std::isfinite(f.x())) {  // a NaN sensor gives NaN on every axis
+      if (injector_->kind() == core::FaultKind::kForceNaN && injector_->injected()) {
+        // a NaN sensor gives NaN on every axis
         out.wrench.torque.x = out.wrench.torque.y = out.wrench.torque.z = f.x();
       }
     }
@@ -139,6 +152,57 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
         true));
   }
 
+  void onStop(const StopCommand::ConstPtr& msg) {
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      if (!injector_->stop()) {
+        NODELET_WARN("FaultInjector: stop_lost: a drill/stop from %s was dropped",
+                     msg->source.c_str());
+        return;
+      }
+    }
+    stop_pub_.publish(msg);
+  }
+
+  /** @brief ~status: the armed fault, whether it acted and what it did (when it changed). */
+  void publishStatus() {
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = getName();
+    status.hardware_id = "fault_injector";
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const core::FaultCounts& c = injector_->counts();
+      const auto add = [&status](const std::string& key, const std::string& value) {
+        diagnostic_msgs::KeyValue kv;
+        kv.key = key;
+        kv.value = value;
+        status.values.push_back(kv);
+      };
+      add("fault", core::toString(injector_->kind()));
+      add("injected", injector_->injected() ? "true" : "false");
+      add("injection_time", std::to_string(injector_->injectionTime()));
+      add("force_dropped", std::to_string(c.force_dropped));
+      add("force_altered", std::to_string(c.force_altered));
+      add("tracker_dropped", std::to_string(c.tracker_dropped));
+      add("tracker_altered", std::to_string(c.tracker_altered));
+      add("commands_lost", std::to_string(c.commands_lost));
+      add("commands_delayed", std::to_string(c.commands_delayed));
+      add("stops_lost", std::to_string(c.stops_lost));
+    }
+    const bool active = injected(status);
+    status.level =
+        active ? diagnostic_msgs::DiagnosticStatus::WARN : diagnostic_msgs::DiagnosticStatus::OK;
+    status.message = active ? "fault injected" : "relaying";
+    if (have_status_ && status.values == last_status_.values) return;
+    last_status_ = status;
+    have_status_ = true;
+    status_pub_.publish(status);
+  }
+
+  static bool injected(const diagnostic_msgs::DiagnosticStatus& s) {
+    return s.values.size() > 1 && s.values[1].value == "true";
+  }
+
   bool onInject(InjectFault::Request& req, InjectFault::Response& res) {
     std::lock_guard<std::mutex> lock(mutex_);
     core::FaultKind kind = core::FaultKind::kNone;
@@ -147,6 +211,23 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     } catch (const std::exception& e) {
       res.success = false;
       res.message = e.what();
+      return true;
+    }
+    if (!ros::Time::isSimTime()) {
+      // On hardware (no /use_sim_time) a fault injected into the real sensor streams would
+      // act on a patient: refused, whatever the caller.
+      res.success = false;
+      res.message =
+          "refused: the FaultInjector injects on the simulator only (/use_sim_time is "
+          "not true)";
+      NODELET_ERROR("FaultInjector: inject '%s' %s", req.fault.c_str(), res.message.c_str());
+      return true;
+    }
+    if (core::isProcessFault(kind)) {
+      res.success = false;
+      res.message = "fault '" + req.fault +
+                    "' kills a process: the core engine's; on the ROS pipeline kill the "
+                    "process with a signal (rostests fault_planner_killed, fault_monitor_killed)";
       return true;
     }
     if (core::isBreathingFault(kind)) {
@@ -182,6 +263,12 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
   double decided_extra_ = 0.0;  ///< and the decision (injector_->command())
   ros::ServiceServer inject_srv_;
   std::list<ros::Timer> delayed_;
+  ros::Publisher stop_pub_;    ///< drill/stop_delivered
+  ros::Subscriber stop_sub_;   ///< drill/stop
+  ros::Publisher status_pub_;  ///< ~status
+  ros::WallTimer status_timer_;
+  bool have_status_ = false;
+  diagnostic_msgs::DiagnosticStatus last_status_;  ///< the last one published (timer thread)
 };
 
 }  // namespace pedicle_drilling

@@ -5,7 +5,11 @@
  *        positions differ by more than H1, the force exceeds H2, the force or tracker stream
  *        goes silent, or any input is NaN. Reports on /diagnostics (diagnostic_updater: its
  *        status, and the rate and stamps of the F/T and tracker streams); latched until `~reset`.
- *        Thin wrapper of core::SafetySupervisor (pairing, arming and the one stop report).
+ *        Thin wrapper of core::SafetySupervisor (pairing, arming and the one stop report) and
+ *        of core::DrillGuard: the drives' enable heartbeat `drill_guard/enable` (std_msgs/Bool),
+ *        false when the planner's heartbeat (`compensation/heartbeat`) is lost during its trial
+ *        or a stop goes unanswered. Runs in a process apart from the planner (the launch files'
+ *        guard manager). On hardware its timeouts run on the monotonic clock.
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <diagnostic_updater/diagnostic_updater.h>
@@ -14,6 +18,8 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <std_msgs/Bool.h>
+#include <std_msgs/Header.h>
 #include <std_srvs/Trigger.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -30,6 +36,7 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/common/stream_stats.hpp"
+#include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
@@ -80,12 +87,15 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     // Unloaded from a running manager: every callback ends before any member it may use goes
     // away (the lockstep's steps run on the participants' thread, the rest on the manager's).
     if (lockstep_) lockstep_->stop();
-    for (ros::Subscriber* sub : {&wrench_sub_, &tracker_sub_, &predicted_sub_, &status_sub_}) {
+    for (ros::Subscriber* sub :
+         {&wrench_sub_, &tracker_sub_, &predicted_sub_, &status_sub_, &heartbeat_sub_}) {
       sub->shutdown();
     }
     reset_srv_.shutdown();
     check_timer_.stop();
     diagnostic_timer_.stop();
+    steady_check_timer_.stop();
+    steady_diagnostic_timer_.stop();
     diagnostics_pub_.shutdown();        // its connection callback (onSubscriber)
     if (lockstep_) lockstep_->drain();  // a ~reset call or connection callback running ends
   }
@@ -97,7 +107,9 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     SafetyMonitorNodeParams params;
     try {
       ParamLoader(pnh).load(SafetyMonitorNodeParams::table(), &params);
+      if (params.unsafe_allow_disabled_watchdogs) warnDisabledWatchdogs(params);
       supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
+      guard_ = std::make_unique<core::DrillGuard>(params.guard);
       check_rate_hz_ = params.check_rate_hz;
       diagnostic_period_s_ = params.diagnostic_period_s;
       // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
@@ -114,7 +126,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
     // 1.10.2): everything a callback touches exists before the callback can be registered.
     setupDiagnostics(nh, params);
-    stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    // Latched: a planner that (re)connects during the trial still hears the stop (it ignores a
+    // stop stamped before its trial's start).
+    stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10, true);
+    enable_pub_ = nh.advertise<std_msgs::Bool>("drill_guard/enable", 10);
     retare_pub_ = pnh.advertise<RetareCheck>("retare_check", 10, true);
     reset_srv_ = pnh.advertiseService("reset", &SafetyMonitorNodelet::onReset, this);
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
@@ -126,12 +141,9 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                                   &SafetyMonitorNodelet::onPredicted, this, hints);
     status_sub_ =
         nh.subscribe("compensation/status", 10, &SafetyMonitorNodelet::onPlannerStatus, this);
-    if (!lockstep_->enabled()) {
-      check_timer_ = nh.createTimer(ros::Duration(1.0 / params.check_rate_hz),
-                                    &SafetyMonitorNodelet::onCheck, this);
-      diagnostic_timer_ = nh.createTimer(ros::Duration(params.diagnostic_period_s),
-                                         &SafetyMonitorNodelet::onDiagnosticTimer, this);
-    }
+    heartbeat_sub_ = nh.subscribe("compensation/heartbeat", 10,
+                                  &SafetyMonitorNodelet::onPlannerHeartbeat, this, hints);
+    if (!lockstep_->enabled()) createTimers(nh, params);
     const core::SafetyParams& p = supervisor_->params().safety;
     NODELET_INFO(
         "SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
@@ -184,8 +196,69 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     if (updater_) publishDiagnostics();
   }
 
-  /** @brief The monitor's time: the lockstep's step, else ros::Time::now(). */
-  double now() const { return lockstep_->now().toSec(); }
+  /**
+   * @brief The monitor's time: the lockstep's step; on sim time (/clock) ros::Time::now(); on
+   *        hardware the monotonic clock, so that a step of the wall clock (NTP) neither
+   *        silences nor fires a timeout. Stamps of what it publishes stay ROS time.
+   */
+  double now() const {
+    if (lockstep_->enabled() || ros::Time::isSimTime()) return lockstep_->now().toSec();
+    return ros::SteadyTime::now().toSec();
+  }
+
+  /** @brief The checks (with the guard's heartbeat) and the diagnostics without the lockstep:
+   *         on sim time ROS timers, on hardware steady (monotonic) timers. */
+  void createTimers(ros::NodeHandle& nh, const SafetyMonitorNodeParams& params) {
+    const double check_period =
+        std::min(1.0 / params.check_rate_hz, params.guard.heartbeat_period_s);
+    if (ros::Time::isSimTime()) {
+      check_timer_ =
+          nh.createTimer(ros::Duration(check_period), &SafetyMonitorNodelet::onCheck, this);
+      diagnostic_timer_ = nh.createTimer(ros::Duration(params.diagnostic_period_s),
+                                         &SafetyMonitorNodelet::onDiagnosticTimer, this);
+      return;
+    }
+    steady_check_timer_ =
+        nh.createSteadyTimer(ros::WallDuration(check_period),
+                             [this](const ros::SteadyTimerEvent&) { onCheck(ros::TimerEvent()); });
+    steady_diagnostic_timer_ = nh.createSteadyTimer(
+        ros::WallDuration(params.diagnostic_period_s),
+        [this](const ros::SteadyTimerEvent&) { onDiagnosticTimer(ros::TimerEvent()); });
+  }
+
+  /** @brief The WARN at load of each watchdog the parameters disable (unsafe_ set). */
+  void warnDisabledWatchdogs(const SafetyMonitorNodeParams& params) const {
+    for (const std::string& off : params.disabledWatchdogs()) {
+      NODELET_WARN("SafetyMonitor: UNSAFE: %s (unsafe_allow_disabled_watchdogs)", off.c_str());
+    }
+  }
+
+  /** @brief compensation/heartbeat: the planner's process is alive (core::DrillGuard). */
+  void onPlannerHeartbeat(const std_msgs::Header::ConstPtr& msg) {
+    lockstep_->deliver(msg->stamp, 2, [this] {
+      std::lock_guard<std::mutex> lock(mutex_);
+      guard_->onPlannerHeartbeat(now());
+    });
+  }
+
+  /**
+   * @brief The drives' enable, every guard_heartbeat_period_s and at once when it turns false
+   *        (mutex_ held). The drivers stop feed and spindle when it is false or silent.
+   */
+  void beat() {
+    const double t = now();
+    const bool enable = guard_->enabled(t);
+    if (enable == last_enable_ && t < next_beat_) return;
+    if (!enable && last_enable_) {
+      NODELET_ERROR("SafetyMonitor: drill guard: drives disabled: %s", guard_->reason().c_str());
+    }
+    last_enable_ = enable;
+    next_beat_ = t + guard_->params().heartbeat_period_s;
+    std_msgs::Bool msg;
+    msg.data = enable;
+    // No noteSent(): the simulator takes it when it arrives, at the step it was sent in.
+    publishInOrder(enable_pub_, msg);
+  }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
@@ -247,6 +320,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void handlePlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->setTrialRunning(msg->running);
+    const bool drilling = msg->phase == TrialStatus::DRILLING || msg->phase == TrialStatus::STOPPED;
+    supervisor_->setDrilling(now(), drilling);
+    guard_->onPlannerPhase(now(), msg->running, drilling);
+    beat();
     const bool trial_ended = msg->phase == TrialStatus::DONE && last_phase_ != TrialStatus::DONE;
     const bool retreat_ended = trial_ended && last_phase_ == TrialStatus::RETREATING;
     last_phase_ = msg->phase;
@@ -296,6 +373,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       supervisor_->check(now());
       evaluate();
     }
+    beat();
     if (next_diagnostics_.isZero() || t >= next_diagnostics_) {
       next_diagnostics_ = t + ros::Duration(diagnostic_period_s_);
       publishDiagnostics();
@@ -319,6 +397,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
         core::nextUsefulCheckTick(t.toSec(), check_rate_hz_, supervisor_->quietUntil());
     std::optional<ros::Time> next;
     if (std::isfinite(tick)) next = LockstepParticipant::stepFor(tick / check_rate_hz_);
+    // The guard's next heartbeat, and its next deadline (the enable turns false there).
+    const double guard_due = std::min(next_beat_, guard_->quietUntil() + 1e-3);
+    const ros::Time beat_step = LockstepParticipant::stepFor(guard_due);
+    if (!next || beat_step < *next) next = beat_step;
     if (!next_diagnostics_.isZero() && (!next || next_diagnostics_ < *next)) {
       next = next_diagnostics_;
     }
@@ -337,6 +419,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     supervisor_->check(now());
     evaluate();
+    beat();
   }
 
   /** @brief Publish the stop and the ERROR diagnostic once, when the verdict turns to stop. */
@@ -350,6 +433,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     stop.reason = core::describe(*v);
     publishInOrder(stop_pub_, stop);
     lockstep_->noteSent();
+    guard_->onMonitorStop(now());
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
     publishDiagnostics();
   }
@@ -380,6 +464,8 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
                      supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker");
     }
     status.add("reason", core::toString(v.reason));
+    status.add("drives_enabled", last_enable_ ? "true" : "false");
+    if (!guard_->reason().empty()) status.add("drill_guard", guard_->reason());
     // The planner's trial as this monitor last heard it: the status published when it heard
     // the trial end is the first "false" after a "true" (a campaign's record of its inputs).
     status.add("trial_running", supervisor_->trialRunning() ? "true" : "false");
@@ -397,6 +483,16 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
+    if (guard_->plannerDrilling() && guard_->enabled(now())) {
+      // The drill may be in bone and its drives are enabled: a reset would clear a stop or the
+      // streams' watch mid-drill. Refused; the planner's next trial start resets it.
+      response.success = false;
+      response.message =
+          "refused: the planner's trial is drilling; the monitor resets at the next trial's "
+          "start";
+      NODELET_WARN("SafetyMonitor: ~reset %s", response.message.c_str());
+      return true;
+    }
     const std::string previous = core::toString(supervisor_->verdict().reason);
     resetLocked();
     response.success = true;
@@ -407,6 +503,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   /** @brief ~reset's work (mutex_ held): verdict, retare check and stream statistics. */
   void resetLocked() {
     supervisor_->reset();
+    guard_->reset();
     last_retare_.reset();
     force_stats_.reset();
     tracker_stats_.reset();
@@ -420,6 +517,9 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   std::mutex mutex_;
   std::unique_ptr<core::SafetySupervisor> supervisor_;
+  std::unique_ptr<core::DrillGuard> guard_;
+  bool last_enable_ = true;  ///< the latest drill_guard/enable sent
+  double next_beat_ = 0.0;   ///< the next heartbeat's time (now())
   // Declared before what calls them (the lockstep, the subscribers, the timers): destroyed after.
   std::unique_ptr<InOrderUpdater> updater_;
   double force_rate_hz_ = 1000.0 / 3.0;  ///< the F/T stream's check reads it (a pointer)
@@ -436,6 +536,10 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   core::StreamStats tracker_stats_;         ///< the tracker stream since ~reset
   std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset
   ros::Publisher stop_pub_;
+  ros::Publisher enable_pub_;
+  ros::Subscriber heartbeat_sub_;
+  ros::SteadyTimer steady_check_timer_;
+  ros::SteadyTimer steady_diagnostic_timer_;
   ros::Publisher diagnostics_pub_;  ///< latched /diagnostics, see setupDiagnostics()
   ros::Subscriber wrench_sub_;
   ros::Subscriber tracker_sub_;

@@ -15,6 +15,7 @@
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
 #include <rosgraph_msgs/Clock.h>
+#include <std_msgs/Bool.h>
 #include <std_msgs/Float64.h>
 #include <std_srvs/Trigger.h>
 #include <tf2_eigen/tf2_eigen.h>
@@ -192,6 +193,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
           }));
     }
     spindle_sub_ = command_nh.subscribe("spindle/command", 10, &SimulatorNodelet::onSpindle, this);
+    // The drivers' drill guard (~drive_guard_timeout_s > 0): the safety monitor's enable.
+    enable_sub_ =
+        command_nh.subscribe("drill_guard/enable", 10, &SimulatorNodelet::onDriveEnable, this);
     tare_sub_ =
         command_nh.subscribe("ft_sensor/tare_request", 10, &SimulatorNodelet::onTareRequest, this);
     resume_srv_ =
@@ -611,6 +615,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
           "Simulator: the spindle driver heard no spindle/command for %.3f s: spindle stopped",
           sim_->params().spindle_watchdog_s);
     }
+    if (sim_->driveGuardTrips() > drive_guard_trips_) {
+      drive_guard_trips_ = sim_->driveGuardTrips();
+      NODELET_ERROR(
+          "Simulator: no enable from the drill guard (drill_guard/enable false, or none for "
+          "%.3f s): the drivers hold and the spindle stops",
+          sim_->params().drive_guard_timeout_s);
+    }
     publishInOrder(ground_truth_pub_, msg);
   }
 
@@ -792,6 +803,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
   }
 
+  /**
+   * @brief drill_guard/enable: the drivers' input of the drill guard, taken at the current
+   *        step (under the lockstep the monitor publishes it before it answers the step, so
+   *        the step it is taken at is the one it was sent in).
+   */
+  void onDriveEnable(const std_msgs::Bool::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    sim_->onDriveEnable(msg->data);
+  }
+
   /** @brief spindle/command: rad/s (REP 103); every message feeds the driver's watchdog. */
   void onSpindle(const std_msgs::Float64::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
@@ -891,6 +912,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
           "trial starts at %.1f s instead",
           req.time_zero.toSec(), present_ns * 1e-9, next_ns * 1e-9);
     }
+    // The drivers are the same across specimens: an enable they hold carries over.
+    if (!sim_->drivesHalted()) fresh->onDriveEnable(true);
     sim_ = std::move(fresh);
     time_offset_ = static_cast<double>(zero_ns) * 1e-9;
     restart_pacing_ = true;
@@ -901,6 +924,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     command_transport_ = core::CommandTransport(distribution.command_delay_s,
                                                 distribution.command_jitter_s, req.seed);
     spindle_watchdog_trips_ = 0;
+    drive_guard_trips_ = 0;
     tracker_delay_s_ = distribution.tracker_delay_s;
     lockstep_every_step_ = distribution.lockstep_every_step;
     delayed_markers_.clear();
@@ -982,6 +1006,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::string tracker_tf_frame_;           ///< ~tracker_tf_frame ("" = tracker/marker_pose only)
   std::set<std::string> floating_frames_;  ///< ~publish_joint_frames false: the only ones sent
   int spindle_watchdog_trips_ = 0;         ///< the driver watchdog's stops reported so far
+  int drive_guard_trips_ = 0;              ///< the drill guard's halts reported so far
   int clock_period_steps_ = 1;
   std::uint64_t joint_state_period_ = 10;
   std::uint64_t tf_period_ = 10;
@@ -1006,6 +1031,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
   std::vector<ros::Subscriber> trajectory_subs_;  ///< one per controller
   ros::Subscriber spindle_sub_;
+  ros::Subscriber enable_sub_;
   ros::Subscriber tare_sub_;
   ros::Publisher tare_result_pub_;
   ros::Subscriber status_sub_;

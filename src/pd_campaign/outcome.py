@@ -11,7 +11,9 @@ Failure kinds, one per trial, the first that applies:
                            duration)
   safety_h1                the first stop was the monitor's position error (> 1.2 mm)
   safety_h2                ... the monitor's force limit (> 10 N)
-  safety_watchdog          ... a silent, stale, stuck or non-finite stream (monitor or planner)
+  safety_watchdog          ... a silent, stale, stuck or non-finite stream (monitor or planner),
+                           a lost prediction, or the drill guard (a lost process: the drives
+                           hold)
   safety_plausibility      ... an implausible force (recognizer or planner plausibility bound)
   safety_other             ... any other stop with retreat (the peak-force protocol included)
   stopped_before_inner     the recognizer stopped the drill before it reached the inner layer
@@ -38,7 +40,8 @@ KINDS = ('success', 'breakthrough_before_stop', 'breakthrough_after_stop', 'no_s
 SAFETY_KINDS = tuple(k for k in KINDS if k.startswith('safety_'))
 # The paper's success band: residual thickness of the inner cortex in (0, 2 mm] (Sec. V-C/E).
 MAX_RESIDUAL_M = 2.0e-3
-_WATCHDOG = ('force_timeout', 'tracker_timeout', 'nan_input', 'force_stuck', 'silent')
+_WATCHDOG = ('force_timeout', 'tracker_timeout', 'nan_input', 'force_stuck', 'silent',
+             'prediction_lost', 'planner_lost', 'stop_unanswered', 'drive_guard')
 _H1_ERROR = re.compile(r'position error ([0-9.]+) mm')
 
 

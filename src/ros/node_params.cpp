@@ -116,6 +116,7 @@ const ParamTable<MotionIdentificationParams>& MotionIdentificationParams::table(
     }
     d.include(core::PipelineOptions::table(), &P::defaults)
         .text("output_path", &P::output_path)
+        .text("model_folder", &P::model_folder, true)
         .text("patient_id", &P::patient_id);
     return d;
   }();
@@ -149,7 +150,8 @@ const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() 
         .include(core::RecognizerParams::table(), &P::recognizer)
         .integer("queue_size", &P::queue_size, Range::closed(1, 100000))
         .text("recognizer", &P::recognizer_class)
-        .pairs("recognizer_params", &P::recognizer_params);
+        .pairs("recognizer_params", &P::recognizer_params)
+        .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();
   return t;
@@ -159,8 +161,17 @@ int StateRecognizerNodeParams::axisIndex() const { return axis.back() - 'x'; }
 
 double StateRecognizerNodeParams::axisSign() const { return axis.front() == '-' ? -1.0 : 1.0; }
 
+std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
+  std::vector<std::string> off;
+  if (recognizer.cancellous_deadline == 0) {
+    off.push_back("cancellous_deadline = 0 (no bound on the cancellous layer's confirmation)");
+  }
+  return off;
+}
+
 void StateRecognizerNodeParams::validate() const {
   table().validate(*this);
+  refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
   recognizer.validate();
   if (recognizer_class == "pedicle_drilling/PaperRecognizer" && !recognizer_params.empty()) {
     throw std::invalid_argument(
@@ -186,15 +197,33 @@ const ParamTable<SafetyMonitorNodeParams>& SafetyMonitorNodeParams::table() {
                 "Hz")
         .number("expected_tracker_rate_hz", &P::expected_tracker_rate_hz,
                 Range::aboveUpTo(0, 10000), "Hz")
-        .number("rate_tolerance", &P::rate_tolerance, Range::fromBelow(0, 1));
+        .number("rate_tolerance", &P::rate_tolerance, Range::fromBelow(0, 1))
+        .include(core::DrillGuardParams::table(), &P::guard)
+        .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();
   return t;
 }
 
+std::vector<std::string> SafetyMonitorNodeParams::disabledWatchdogs() const {
+  const core::SafetyParams& s = supervisor.safety;
+  std::vector<std::string> off;
+  const auto inf = [&off](double value, const char* name, const char* what) {
+    if (std::isinf(value)) off.push_back(std::string(name) + " = inf (" + what + ")");
+  };
+  inf(s.force_timeout_s, "force_timeout_s", "a silent F/T sensor goes unnoticed");
+  inf(s.tracker_timeout_s, "tracker_timeout_s", "a silent tracker goes unnoticed");
+  inf(s.prediction_timeout_s, "prediction_timeout_s",
+      "a missing prediction skips the position check H1");
+  inf(s.force_stuck_s, "force_stuck_s", "a frozen F/T sensor goes unnoticed");
+  return off;
+}
+
 void SafetyMonitorNodeParams::validate() const {
   table().validate(*this);
+  refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
   supervisor.validate();
+  guard.validate();
   if (1.0 / check_rate_hz > 0.5 * supervisor.safety.force_timeout_s) {
     throw std::invalid_argument(
         "check_rate_hz is too low to check force_timeout_s (needs at least 2 checks per "
@@ -219,16 +248,43 @@ const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::
         .number("trial_start_timeout_s", &P::trial_start_timeout_s, Range::aboveUpTo(0, 60), "s")
         .text("monitor_status_name", &P::monitor_status_name)
         .text("compensator", &P::compensator_class)
-        .pairs("compensator_params", &P::compensator_params);
+        .pairs("compensator_params", &P::compensator_params)
+        .number("heartbeat_period_s", &P::heartbeat_period_s, Range::closed(0.001, 0.1), "s")
+        .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();
   return t;
+}
+
+std::vector<std::string> CompensationPlannerNodeParams::disabledWatchdogs() const {
+  const core::TrialSequencerParams& s = sequencer;
+  std::vector<std::string> off;
+  const auto zero = [&off](double value, const char* name, const char* what) {
+    if (value == 0.0) off.push_back(std::string(name) + " = 0 (" + what + ")");
+  };
+  zero(s.recognizer_timeout_s, "recognizer_timeout_s", "a silent recognizer goes unnoticed");
+  zero(s.monitor_timeout_s, "monitor_timeout_s", "a silent safety monitor goes unnoticed");
+  if (!s.controller_watch.enabled) {
+    off.push_back("controller_watch/enabled = false (no closed loop on the controllers)");
+  }
+  zero(s.outer_cortical_max_mm, "outer_cortical_max_mm", "no bound on the outer layer");
+  zero(s.cancellous_max_mm, "cancellous_max_mm", "no bound on the cancellous layer");
+  return off;
 }
 
 void CompensationPlannerNodeParams::validate() const {
   // Every sequencer field a parameter sets is in the table (included); the sequencer's other
   // checks need the URDF (joints, feed limits, drill axis) and run when makeSequencer makes it.
   table().validate(*this);
+  refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
+}
+
+void refuseDisabledWatchdogs(const std::vector<std::string>& disabled, bool allowed) {
+  if (allowed || disabled.empty()) return;
+  throw std::invalid_argument(disabled.front() +
+                              ": switches a watchdog off; refused unless "
+                              "unsafe_allow_disabled_watchdogs is true (never where a patient is "
+                              "drilled)");
 }
 
 // ---------------------------------------------------------------------------------------------

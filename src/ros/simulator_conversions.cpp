@@ -142,6 +142,10 @@ GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) 
   m.bone_displacement_m.z = g.bone_displacement_m.z();
   m.tidal_volume_ml = g.tidal_volume_ml;
   m.relative_ap_m = g.relative_ap_m;
+  m.spindle_rpm = g.spindle_rpm;
+  m.feed_joint_m = g.feed_joint_m;
+  m.drives_halted = g.drives_halted;
+  m.drive_guard_trips = g.drive_guard_trips;
   return m;
 }
 

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <cmath>
 #include <iostream>
+#include <memory>
 #include <numeric>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -364,4 +366,131 @@ TEST(ClosedLoopEngine, TheTareBeforeContactTakesTheToolsWeightOffTheRecognizersI
       without.last_truth.max_depth_cut_m > without.last_truth.inner_cortical_start_m &&
       !without.stops.empty() && without.stops[0].source == "/state_recognizer";
   EXPECT_FALSE(inside) << "the untared trial should not have stopped inside the inner layer";
+}
+
+namespace {
+
+/// The paper's recognizer with a bug: it throws once the force shows the cancellous layer (in
+/// bone, before the inner layer where the paper's stops).
+class ThrowingRecognizer : public pd::PaperRecognizer {
+ public:
+  const pd::RecognizerOutput& push(double t, double raw_force) override {
+    const pd::RecognizerOutput& out = pd::PaperRecognizer::push(t, raw_force);
+    if (out.layer_state == pd::DrillingState::kCancellous) {
+      throw std::runtime_error("plugin bug: index 7 out of range");
+    }
+    return out;
+  }
+};
+
+/// The paper's compensator with a bug: displacement() throws from 8 s after the first tracker
+/// sample on (the registration is 0.5 s: the drill is feeding then).
+class ThrowingCompensator : public pd::PaperCompensator {
+ public:
+  void observeMarker(double stamp, const Eigen::Vector3d& position) override {
+    if (first_ < 0.0) first_ = stamp;
+    pd::PaperCompensator::observeMarker(stamp, position);
+  }
+  Eigen::Vector3d displacement(double t) const override {
+    if (first_ >= 0.0 && t > first_ + 8.0) throw std::runtime_error("plugin bug: model diverged");
+    return pd::PaperCompensator::displacement(t);
+  }
+
+ private:
+  double first_ = -1.0;
+};
+
+}  // namespace
+
+// A recognizer class that throws mid-drill: the exception never leaves the engine; it is the
+// recognizer's stop, naming the error, and the drill retreats before the inner layer.
+TEST(ClosedLoopEngine, ARecognizerThatThrowsMidDrillStopsTheTrialNamingTheError) {
+  pd::EngineConfig c = config();
+  c.make_recognizer = [] { return std::make_unique<ThrowingRecognizer>(); };
+  pd::ClosedLoopEngine engine(c);
+  const pd::EngineTrialRecord r = engine.run(spec("stationary", 5));
+  EXPECT_EQ(statuses(r), "moving_to_pose registering drilling retreating done");
+  ASSERT_FALSE(r.stops.empty());
+  EXPECT_EQ(r.stops[0].source, "/state_recognizer");
+  EXPECT_NE(r.stops[0].reason.find("recognizer error"), std::string::npos) << r.stops[0].reason;
+  EXPECT_NE(r.stops[0].reason.find("plugin bug: index 7 out of range"), std::string::npos);
+  EXPECT_FALSE(r.last_truth.breakthrough);
+  EXPECT_LT(r.last_truth.max_depth_cut_m, r.last_truth.inner_cortical_start_m);
+}
+
+// A compensator class that throws mid-drill: the planner stops with retreat naming the error.
+TEST(ClosedLoopEngine, ACompensatorThatThrowsMidDrillStopsAndRetreatsNamingTheError) {
+  pd::EngineConfig c = config();
+  c.make_compensator = [] { return std::make_unique<ThrowingCompensator>(); };
+  pd::ClosedLoopEngine engine(c);
+  const pd::EngineTrialRecord r = engine.run(spec("compensated", 5));
+  EXPECT_EQ(statuses(r), "moving_to_pose registering drilling retreating done");
+  ASSERT_FALSE(r.stops.empty());
+  EXPECT_EQ(r.stops[0].source, "/compensation_planner");
+  EXPECT_TRUE(r.stops[0].retreat);
+  EXPECT_NE(r.stops[0].reason.find("compensator error"), std::string::npos) << r.stops[0].reason;
+  EXPECT_NE(r.stops[0].reason.find("displacement: plugin bug: model diverged"), std::string::npos)
+      << r.stops[0].reason;
+  EXPECT_FALSE(r.last_truth.breakthrough);
+}
+
+// The faults that must not stop a trial by themselves: the trial ends as without them (the
+// recognizer's stop, the retreat, no breakthrough), and the fault is seen to act (its counts).
+TEST(ClosedLoopEngine, StopLostAndTrackerOcclusionEndTheTrialAsTheRecognizersStopWould) {
+  pd::ClosedLoopEngine engine(config());
+  const pd::EngineTrialRecord plain = engine.run(spec("compensated", 5));
+  ASSERT_FALSE(plain.stops.empty());
+  const std::string retreat = "retreating";
+  const auto retreatStart = [&retreat](const pd::EngineTrialRecord& r) {
+    for (const auto& p : r.status) {
+      if (p.second == retreat) return p.first;
+    }
+    return -1.0;
+  };
+  for (pd::FaultKind kind : {pd::FaultKind::kStopLost, pd::FaultKind::kTrackerOcclusion}) {
+    pd::EngineTrialSpec s = spec("compensated", 5);
+    s.fault = kind;
+    const pd::EngineTrialRecord r = engine.run(s);
+    SCOPED_TRACE(pd::toString(kind));
+    ASSERT_TRUE(r.fault.injected);
+    ASSERT_FALSE(r.stops.empty());
+    EXPECT_EQ(r.stops.front().source, "/state_recognizer");  // no stop of the fault's own
+    EXPECT_EQ(r.stops.front().t, plain.stops.front().t);
+    // stop_lost: the stop never reached the planner, drilling_state's stop flag did, as soon.
+    EXPECT_NEAR(retreatStart(r), retreatStart(plain), 1e-9);
+    EXPECT_FALSE(r.last_truth.breakthrough);
+    EXPECT_EQ(r.status.back().second, "done");
+    if (kind == pd::FaultKind::kStopLost) {
+      EXPECT_EQ(r.fault.counts.stops_lost, 1);
+    } else {
+      EXPECT_GE(r.fault.counts.tracker_dropped, 2);
+    }
+  }
+}
+
+TEST(ClosedLoopEngine, AKilledProcessHaltsTheDrivesWithinTheGuardsBoundsWithoutABreakthrough) {
+  // The processes of the pipeline: a dead planner (and recognizer) is heard by the drill guard
+  // 0.06 s after its last heartbeat; a dead monitor's enable is 0.08 s old for the drivers.
+  pd::ClosedLoopEngine engine(config());
+  const double bounds[] = {pd::DrillGuardParams().planner_timeout_s, pd::kDriveGuardTimeoutS};
+  const pd::FaultKind kinds[] = {pd::FaultKind::kPlannerKilled, pd::FaultKind::kMonitorKilled};
+  const char* sources[] = {"/drill_guard", "/drive_guard"};
+  for (int i = 0; i < 2; ++i) {
+    pd::EngineTrialSpec s = spec("compensated", 5);
+    s.fault = kinds[i];
+    const pd::EngineTrialRecord r = engine.run(s);
+    SCOPED_TRACE(pd::toString(kinds[i]));
+    ASSERT_TRUE(r.fault.injected);
+    ASSERT_FALSE(r.stops.empty());
+    EXPECT_EQ(r.stops.front().source, sources[i]) << r.stops.front().reason;
+    const double delay = r.stops.front().t - r.fault.t;
+    EXPECT_GT(delay, 0.0);
+    EXPECT_LE(delay, bounds[i] + 1.5e-3);
+    EXPECT_TRUE(r.last_truth.drives_halted);
+    EXPECT_EQ(r.last_truth.spindle_rpm, 0.0);
+    EXPECT_FALSE(r.last_truth.breakthrough);
+    // The trial ran on kProcessKillWatchS after the kill, the bone breathing into the drill.
+    ASSERT_FALSE(r.truth.empty());
+    EXPECT_GE(r.truth.back().t - r.fault.t, pd::kProcessKillWatchS - 1e-9);
+  }
 }

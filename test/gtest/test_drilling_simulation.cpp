@@ -1316,6 +1316,60 @@ TEST(DrillingSimulation, TheSpindleDriversWatchdogStopsASpindleThatHearsNoComman
   EXPECT_EQ(sim.spindleWatchdogTrips(), 0);
 }
 
+TEST(DrillingSimulation, WithoutTheDrillGuardsEnableTheDrivesHoldAndTheSpindleStops) {
+  DrillingSimulationParams p = unwatched();
+  p.drive_guard_timeout_s = 0.05;
+  DrillingSimulation sim(workcell(), p, 1);
+  sim.reset(1, false);
+  sim.step(0.01);
+  // Fails closed: before any enable, nothing moves.
+  EXPECT_TRUE(sim.drivesHalted());
+  EXPECT_EQ(sim.commandSpindle(12000.0).status, TargetStatus::kRejected);
+  EXPECT_EQ(sim.commandSpindle(0.0).status, TargetStatus::kAccepted);  // a stop is always taken
+  double last_enable = 0.0;
+  const auto beat = [&sim, &last_enable](double seconds) {  // the guard's 50 Hz heartbeat
+    for (int i = 0; i < static_cast<int>(std::lround(seconds / 0.02)); ++i) {
+      sim.onDriveEnable(true);
+      last_enable = sim.time();
+      sim.step(0.02);
+    }
+  };
+  beat(0.02);
+  EXPECT_FALSE(sim.drivesHalted());
+  ASSERT_EQ(sim.commandSpindle(12000.0).status, TargetStatus::kAccepted);
+  // The feed advances at 1 mm/s for 4 s while the guard beats.
+  TrajectoryCommand c;
+  c.joint_names = {"feed_joint"};
+  c.points.push_back({sim.time() + 4.0, {4e-3}, {}});
+  ASSERT_EQ(sim.commandTrajectory(c).status, TargetStatus::kAccepted);
+  beat(1.0);
+  EXPECT_NEAR(sim.spindleRpm(), 12000.0, 1e-9);
+  const double feed_at_silence = sim.groundTruth().feed_joint_m;
+  EXPECT_GT(feed_at_silence, 0.5e-3);
+  // The guard falls silent (its process died): halted at the first step past 0.05 s.
+  const double silent_from = sim.time();
+  while (!sim.drivesHalted() && sim.time() < silent_from + 1.0) sim.step(0.001);
+  EXPECT_GT(sim.time() - last_enable, 0.05);  // the latest enable is older than the timeout
+  EXPECT_LE(sim.time() - last_enable, 0.0515);
+  EXPECT_EQ(sim.driveGuardTrips(), 1);  // the hold before the first enable is not a trip
+  const double feed_at_halt = sim.groundTruth().feed_joint_m;
+  sim.step(0.5);
+  // The feed held (within the drive's lag), the spindle ran down at its rate (0.3 s from 12000).
+  EXPECT_NEAR(sim.groundTruth().feed_joint_m, feed_at_halt, 0.02e-3);
+  EXPECT_LT(sim.groundTruth().feed_joint_m, feed_at_silence + 0.08e-3);
+  EXPECT_EQ(sim.spindleRpm(), 0.0);
+  EXPECT_TRUE(sim.groundTruth().drives_halted);
+  EXPECT_EQ(sim.commandTrajectory(c).status, TargetStatus::kRejected);
+  // A false is a halt at once; the enable back takes commands again (no trajectory resumes).
+  beat(0.1);
+  EXPECT_FALSE(sim.drivesHalted());
+  EXPECT_NEAR(sim.groundTruth().feed_joint_m, feed_at_halt, 0.02e-3);
+  sim.onDriveEnable(false);
+  sim.step(0.001);
+  EXPECT_TRUE(sim.drivesHalted());
+  EXPECT_EQ(sim.driveGuardTrips(), 2);
+}
+
 TEST(DrillingSimulation, AnUntaredSensorReadsTheToolsWeightUntilTheDriversTare) {
   DrillingSimulationParams p = unwatched();
   p.sensor_tared_at_reset = false;

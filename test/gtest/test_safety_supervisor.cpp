@@ -59,12 +59,101 @@ TEST(SafetySupervisorTest, SamplesFurtherApartThanTheToleranceAreNotCompared) {
   EXPECT_FALSE(s.verdict().stop);
 }
 
-TEST(SafetySupervisorTest, DifferentFramesAreReportedNotCompared) {
+TEST(SafetySupervisorTest, DifferentFramesOutsideDrillingAreReportedNotCompared) {
   SafetySupervisor s;
   s.onTracked(1.0, at(1.0, kBone, "camera"));
   EXPECT_EQ(s.onPredicted(1.0, at(1.0, kBone + Eigen::Vector3d(0, 0, 5e-3), "world")),
             PairResult::kFrameMismatch);
   EXPECT_FALSE(s.verdict().stop);
+}
+
+TEST(SafetySupervisorTest, DifferentFramesWhileDrillingStopAtOnce) {
+  SafetySupervisor s;
+  s.setTrialRunning(true);
+  s.setDrilling(0.9, true);
+  s.onTracked(1.0, at(1.0, kBone, "camera"));
+  // The same position: only the frames differ. H1 cannot be checked, so it fails closed.
+  EXPECT_EQ(s.onPredicted(1.0, at(1.0, kBone, "world")), PairResult::kFrameMismatch);
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kPredictionLost);
+  EXPECT_DOUBLE_EQ(s.verdict().t, 1.0);
+}
+
+/** @brief A live force sensor and an 8 Hz tracker from t0 to t1 (1 ms checks); the planner's
+ *         prediction for each tracker sample while `predict(t)` (at the sample's own stamp). */
+template <typename Predict>
+void runStreams(SafetySupervisor* s, double t0, double t1, Predict predict) {
+  for (int k = 0; t0 + 1e-3 * k <= t1; ++k) {
+    const double t = t0 + 1e-3 * k;
+    s->onForce(t, Eigen::Vector3d(0, 0, 1.0 + 1e-3 * k));  // live: never bit-identical
+    if (k % 125 == 0) {
+      s->onTracked(t, at(t, kBone));
+      if (predict(t)) s->onPredicted(t + 2e-3, at(t, kBone));
+    }
+    s->check(t);
+    if (s->verdict().stop) return;
+  }
+}
+
+TEST(SafetySupervisorTest, PredictionsThatStopWhileDrillingStopWithinTheTimeout) {
+  SupervisorParams p;  // prediction_timeout_s 0.5, tracker_timeout_s 0.5
+  SafetySupervisor s(p);
+  s.setTrialRunning(true);
+  s.setDrilling(0.0, true);
+  // Predictions until t = 2 s, then none: the tracker goes on, so only the H1 watch can see it.
+  runStreams(&s, 0.0, 5.0, [](double t) { return t < 2.0; });
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kPredictionLost);
+  // The last pair was compared at 1.875 s + 2 ms (the prediction's arrival): the stop comes
+  // prediction_timeout_s after it, at the next 1 ms check.
+  EXPECT_GT(s.verdict().t, 1.877 + p.safety.prediction_timeout_s);
+  EXPECT_LE(s.verdict().t, 1.877 + p.safety.prediction_timeout_s + 1.5e-3);
+}
+
+TEST(SafetySupervisorTest, StalePredictionsThatNeverPairStopWhileDrilling) {
+  SafetySupervisor s;
+  s.setTrialRunning(true);
+  s.setDrilling(0.0, true);
+  // Predictions stamped 50 ms before the tracker sample (beyond the 20 ms pairing tolerance).
+  for (int k = 0; k <= 5000 && !s.verdict().stop; ++k) {
+    const double t = 1e-3 * k;
+    s.onForce(t, Eigen::Vector3d(0, 0, 1.0 + t));
+    if (k % 125 == 0) {
+      s.onTracked(t, at(t, kBone));
+      s.onPredicted(t + 2e-3, at(t - 0.05, kBone));
+    }
+    s.check(t);
+  }
+  ASSERT_TRUE(s.verdict().stop);
+  EXPECT_EQ(s.verdict().reason, SafetyVerdict::kPredictionLost);
+  EXPECT_NEAR(s.verdict().t, 0.5, 2e-3);  // from setDrilling(0.0): no pair ever
+}
+
+TEST(SafetySupervisorTest, MissingPredictionsOutsideDrillingAreNoStop) {
+  SafetySupervisor s;
+  s.setTrialRunning(true);  // moving to the pose, registering: no prediction yet
+  runStreams(&s, 0.0, 3.0, [](double) { return false; });
+  EXPECT_FALSE(s.verdict().stop);
+  // The drilling starts at 3 s, predictions come: no stop; the retreat ends the watch.
+  s.setDrilling(3.0, true);
+  runStreams(&s, 3.0, 6.0, [](double) { return true; });
+  EXPECT_FALSE(s.verdict().stop);
+  s.setDrilling(6.0, false);
+  runStreams(&s, 6.0, 9.0, [](double) { return false; });
+  EXPECT_FALSE(s.verdict().stop);
+}
+
+TEST(SafetySupervisorTest, QuietUntilIncludesThePredictionDeadline) {
+  SafetySupervisor s;
+  s.setTrialRunning(true);
+  s.onForce(0.0, Eigen::Vector3d(0, 0, 1.0));
+  s.onTracked(0.0, at(0.0, kBone));
+  s.setDrilling(0.0, true);
+  s.onForce(0.45, Eigen::Vector3d(0, 0, 1.1));
+  s.onTracked(0.45, at(0.45, kBone));     // the streams are fresh until 0.55 and 0.95
+  EXPECT_DOUBLE_EQ(s.quietUntil(), 0.5);  // the prediction's: nothing compared since 0.0
+  s.onPredicted(0.46, at(0.45, kBone));
+  EXPECT_DOUBLE_EQ(s.quietUntil(), 0.55);  // compared at 0.46: the force's deadline is first
 }
 
 TEST(SafetySupervisorTest, NonFinitePredictionStops) {

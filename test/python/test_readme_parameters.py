@@ -131,6 +131,9 @@ SHIPPED_DIFFERENCES = {
     ('pedicle_drilling/CompensationPlanner', 'retreat_distance_m'):
         'the workcell pipeline retreats 25 mm (its feed travel allows it); the core default of '
         '10 mm is the closed-loop engine\'s',
+    ('pedicle_drilling/Simulator', 'drive_guard_timeout_s'):
+        'the pipeline\'s simulated drivers watch the drill guard (0.08 s, what a lab\'s drivers '
+        'must do); the core default 0 is for a DrillingSimulation without a guard on the graph',
 }
 
 

@@ -15,6 +15,7 @@
 #include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/core/common/param_table.hpp"
+#include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
@@ -94,8 +95,10 @@ struct MotionIdentificationParams {
   std::string si_axis = "+y";                      ///< tracker axis of SI
   std::string lr_axis = "+x";                      ///< tracker axis of LR
   core::PipelineOptions defaults;                  ///< model, method, de-noising (per request)
-  std::string output_path = "patient_model.yaml";  ///< where the model is written
-  std::string patient_id = "patient";              ///< written into the model
+  std::string output_path = "patient_model.yaml";  ///< where the model is written (in the folder)
+  /// The only folder model files are written in ("" = core::defaultModelFolder()).
+  std::string model_folder;
+  std::string patient_id = "patient";  ///< written into the model
   /** @brief The three axis parameters as the mapping. @throws std::invalid_argument. */
   core::AxisMapping mapping() const;
   /** @brief "ap,si,lr" axis specs for the model file. */
@@ -123,6 +126,10 @@ struct StateRecognizerNodeParams {
   int queue_size = 1000;              ///< ft_sensor/wrench subscriber queue
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";  ///< plugin class
   core::TextPairs recognizer_params;  ///< another class's own parameters
+  /// Allows the parameters that switch a watchdog off (disabledWatchdogs()); else refused.
+  bool unsafe_allow_disabled_watchdogs = false;
+  /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
+  std::vector<std::string> disabledWatchdogs() const;
   /** @brief Component index (0..2) of axis. */
   int axisIndex() const;
   /** @brief Sign (+1 or -1) of axis. */
@@ -142,8 +149,14 @@ struct SafetyMonitorNodeParams {
   double expected_force_rate_hz = 1000.0 / 3.0;
   double expected_tracker_rate_hz = 8.0;  ///< rate the tracker publishes at (rate check)
   double rate_tolerance = 0.1;            ///< a measured rate off by more than this fraction: WARN
-  /** @brief Checks the declared ranges and that the checks are fast enough for the timeout. */
+  core::DrillGuardParams guard;           ///< the drives' enable heartbeat (core::DrillGuard)
+  /** @brief true: a timeout set to +inf (a disabled watchdog) is taken, with a WARN at load. */
+  bool unsafe_allow_disabled_watchdogs = false;
+  /** @brief Checks the declared ranges, that the checks are fast enough for the timeouts, and
+   *         that no watchdog is disabled (unless unsafe_allow_disabled_watchdogs). */
   void validate() const;
+  /** @brief The watchdogs these parameters disable, each with why it matters. */
+  std::vector<std::string> disabledWatchdogs() const;
   /** @brief The declaration of every parameter. */
   static const core::ParamTable<SafetyMonitorNodeParams>& table();
 };
@@ -163,6 +176,16 @@ struct CompensationPlannerNodeParams {
   std::string monitor_status_name = "/safety_monitor: monitor";           ///< its DiagnosticStatus
   std::string compensator_class = "pedicle_drilling/PaperCompensator";    ///< plugin class
   core::TextPairs compensator_params;  ///< the class's own parameters
+  /// Allows the parameters that switch a watchdog off (disabledWatchdogs()); else refused.
+  bool unsafe_allow_disabled_watchdogs = false;
+  /**
+   * @brief Period [s] of compensation/heartbeat while a trial runs, which the safety monitor's
+   * drill guard watches (guard_planner_timeout_s, default 0.06 s). Default 0.01 s: 6 beats per
+   * guard timeout, so a late beat does not stop a healthy trial.
+   */
+  double heartbeat_period_s = core::kPlannerHeartbeatPeriodS;
+  /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
+  std::vector<std::string> disabledWatchdogs() const;
   /** @brief Checks the declared ranges (the URDF-dependent checks come with the sequencer). */
   void validate() const;
   /** @brief The declaration of every parameter. */
@@ -179,6 +202,12 @@ struct FaultInjectorNodeParams {
   /** @brief The declaration of every parameter. */
   static const core::ParamTable<FaultInjectorNodeParams>& table();
 };
+
+/**
+ * @brief Refuses the first of @p disabled (a disabledWatchdogs() list) unless @p allowed.
+ * @throws std::invalid_argument starting with the parameter's name.
+ */
+void refuseDisabledWatchdogs(const std::vector<std::string>& disabled, bool allowed);
 
 /** @brief Every nodelet's declared parameters with their defaults, by nodelet class name. */
 std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterDocs();

@@ -36,6 +36,8 @@ const ParamTable<SafetyParams>& SafetyParams::table() {
         .number("force_timeout_s", &SafetyParams::force_timeout_s, Range::aboveUpTo(0, inf), "s")
         .number("tracker_timeout_s", &SafetyParams::tracker_timeout_s, Range::aboveUpTo(0, inf),
                 "s")
+        .number("prediction_timeout_s", &SafetyParams::prediction_timeout_s,
+                Range::aboveUpTo(0, inf), "s")
         .number("force_stuck_s", &SafetyParams::force_stuck_s, Range::aboveUpTo(0, inf), "s")
         .number("retare_max_offset_n", &SafetyParams::retare_max_offset_n, Range::closed(0, 100),
                 "N")
@@ -67,6 +69,8 @@ const char* toString(SafetyVerdict::Reason r) {
       return "nan_input";
     case SafetyVerdict::kForceStuck:
       return "force_stuck";
+    case SafetyVerdict::kPredictionLost:
+      return "prediction_lost";
   }
   return "unknown";
 }
@@ -78,7 +82,19 @@ void SafetyMonitor::reset() {
   armed_ = false;
   have_force_ = false;
   have_tracker_ = false;
+  expect_predictions_ = false;
   recent_forces_.clear();
+}
+
+void SafetyMonitor::expectPredictions(double t, bool expected) {
+  if (expected && !expect_predictions_) last_compared_t_ = t;
+  expect_predictions_ = expected;
+}
+
+bool SafetyMonitor::rejectPair(double t, const std::string& why) {
+  if (!expect_predictions_) return false;
+  trigger(SafetyVerdict::kPredictionLost, t, why);
+  return true;
 }
 
 void SafetyMonitor::arm(double t) {
@@ -151,21 +167,34 @@ RetareCheck SafetyMonitor::retareCheck(double t) const {
   return c;
 }
 
+bool SafetyMonitor::finiteOrStop(double t, const Eigen::Vector3d& predicted_bone_pos,
+                                 const Eigen::Vector3d& tracked_bone_pos) {
+  if (std::isfinite(t) && predicted_bone_pos.allFinite() && tracked_bone_pos.allFinite()) {
+    return true;
+  }
+  trigger(SafetyVerdict::kNaNInput, t, "non-finite tracker sample, prediction or time stamp");
+  return false;
+}
+
 void SafetyMonitor::onTracked(double t, const Eigen::Vector3d& predicted_bone_pos,
                               const Eigen::Vector3d& tracked_bone_pos) {
-  comparePositions(t, predicted_bone_pos, tracked_bone_pos);
-  if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) return;
+  if (!finiteOrStop(t, predicted_bone_pos, tracked_bone_pos)) return;
+  arm(t);
+  const double e = (predicted_bone_pos - tracked_bone_pos).norm();
+  if (e > params_.position_threshold_m) {
+    trigger(SafetyVerdict::kPositionError, t,
+            fmt("bone position error %.3f mm > %.3f mm at t=%.3f s", e * 1e3,
+                params_.position_threshold_m * 1e3, t));
+  }
   have_tracker_ = true;
   last_tracker_t_ = t;
 }
 
 void SafetyMonitor::comparePositions(double t, const Eigen::Vector3d& predicted_bone_pos,
                                      const Eigen::Vector3d& tracked_bone_pos) {
-  if (!std::isfinite(t) || !predicted_bone_pos.allFinite() || !tracked_bone_pos.allFinite()) {
-    trigger(SafetyVerdict::kNaNInput, t, "non-finite tracker sample, prediction or time stamp");
-    return;
-  }
+  if (!finiteOrStop(t, predicted_bone_pos, tracked_bone_pos)) return;
   arm(t);
+  last_compared_t_ = t;  // H1 was checked (the prediction watch)
   const double e = (predicted_bone_pos - tracked_bone_pos).norm();
   if (e > params_.position_threshold_m) {
     trigger(SafetyVerdict::kPositionError, t,
@@ -191,6 +220,11 @@ const SafetyVerdict& SafetyMonitor::check(double t) {
     trigger(SafetyVerdict::kTrackerTimeout, t,
             fmt("no fresh tracker sample for %.3f s > %.3f s at t=%.3f s", tracker_age,
                 params_.tracker_timeout_s, t));
+  } else if (expect_predictions_ && t - last_compared_t_ > params_.prediction_timeout_s) {
+    trigger(SafetyVerdict::kPredictionLost, t,
+            fmt("no predicted / tracked pair compared for %.3f s > %.3f s at t=%.3f s while "
+                "drilling (prediction missing, stale or in another frame)",
+                t - last_compared_t_, params_.prediction_timeout_s, t));
   }
   return verdict_;
 }
@@ -200,8 +234,11 @@ double SafetyMonitor::quietUntil() const {
   if (!armed_) return -std::numeric_limits<double>::infinity();
   // check(t) triggers when t - ref > timeout: not at t <= ref + timeout, up to the rounding of
   // the two sums (a caller keeps a margin: the monitor's nodelet asks for one check early).
-  return std::min((have_force_ ? last_force_t_ : armed_t_) + params_.force_timeout_s,
-                  (have_tracker_ ? last_tracker_t_ : armed_t_) + params_.tracker_timeout_s);
+  const double streams =
+      std::min((have_force_ ? last_force_t_ : armed_t_) + params_.force_timeout_s,
+               (have_tracker_ ? last_tracker_t_ : armed_t_) + params_.tracker_timeout_s);
+  return expect_predictions_ ? std::min(streams, last_compared_t_ + params_.prediction_timeout_s)
+                             : streams;
 }
 
 const ParamTable<RetreatParams>& RetreatParams::table() {

@@ -79,7 +79,14 @@ PairResult SafetySupervisor::onPredicted(double now, const StampedPosition& pred
 PairResult SafetySupervisor::compare(double now, const StampedPosition& sample,
                                      const StampedPosition* best, bool sample_is_predicted) {
   if (best == nullptr) return PairResult::kUnpaired;
-  if (best->frame != sample.frame) return PairResult::kFrameMismatch;
+  if (best->frame != sample.frame) {
+    monitor_.rejectPair(now,
+                        "the predicted and the tracked marker pose are in different frames ('" +
+                            (sample_is_predicted ? sample.frame : best->frame) + "' and '" +
+                            (sample_is_predicted ? best->frame : sample.frame) +
+                            "') while drilling: H1 cannot be checked");
+    return PairResult::kFrameMismatch;
+  }
   const StampedPosition& predicted = sample_is_predicted ? sample : *best;
   const StampedPosition& tracked = sample_is_predicted ? *best : sample;
   monitor_.comparePositions(now, predicted.position, tracked.position);

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
+#include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
@@ -125,6 +126,19 @@ struct ClosedLoopEngine::Impl {
   long fault_breath_index = -1;
   FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
 
+  // The drill guard in the monitor's process and the heartbeats between the processes (the
+  // pipeline's layout: planner + recognizer, monitor + guard, the drivers); a process-kill fault
+  // silences one of the two processes of ours.
+  DrillGuard guard;
+  bool planner_alive = true;
+  bool monitor_alive = true;
+  double killed_at = -1.0;         // when a process was killed (-1: none)
+  bool planner_running = false;    // the planner's latest phase is a running trial
+  double next_planner_beat = 0.0;  // the planner's heartbeat (its ~heartbeat_period_s)
+  double next_guard_beat = 0.0;    // the guard's drill_guard/enable
+  bool last_enable = true;
+  bool drives_halted = false;  // as of the last step (a halt is recorded as a stop)
+
   // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
   // the tracker samples in transit.
   CommandTransport command_transport;
@@ -173,6 +187,8 @@ struct ClosedLoopEngine::Impl {
     record.fault.injected = true;
     record.fault.t = now;
     fault_pending = false;
+    if (record.fault.kind == FaultKind::kPlannerKilled) killProcess(true);
+    if (record.fault.kind == FaultKind::kMonitorKilled) killProcess(false);
   }
 
   /** @brief Watches the trigger and applies the pending faults (once per step). */
@@ -236,7 +252,44 @@ struct ClosedLoopEngine::Impl {
     }
   }
 
+  /**
+   * @brief The heartbeats at `now`: the planner's to the guard (while its trial runs), the
+   *        guard's enable to the drivers (every period, at once when it turns false), and a
+   *        halt of the drivers recorded as a stop of the drives (the pipeline's 1 ms transport
+   *        is below the 20 ms periods and is not modelled).
+   */
+  void beatGuard() {
+    if (planner_alive && planner_running && now + 1e-9 >= next_planner_beat) {
+      guard.onPlannerHeartbeat(now);
+      next_planner_beat = now + kPlannerHeartbeatPeriodS;
+    }
+    if (monitor_alive) {
+      const bool enable = guard.enabled(now);
+      if (enable != last_enable || now + 1e-9 >= next_guard_beat) {
+        if (!enable && last_enable)
+          record.stops.push_back({now, "/drill_guard", guard.reason(), false});
+        sim->onDriveEnable(enable);
+        last_enable = enable;
+        next_guard_beat = now + guard.params().heartbeat_period_s;
+      }
+    }
+    if (sim->drivesHalted() && !drives_halted && monitor_alive == false) {
+      record.stops.push_back({now, "/drive_guard",
+                              "drive_guard: no drill_guard/enable for the drivers' timeout: the "
+                              "drives hold, the spindle stops",
+                              false});
+    }
+    drives_halted = sim->drivesHalted();
+  }
+
+  /** @brief A process-kill fault: the planner's (planner and recognizer) or the monitor's. */
+  void killProcess(bool planner) {
+    (planner ? planner_alive : monitor_alive) = false;
+    killed_at = now;
+  }
+
   void fireTimers() {
+    if (!planner_alive) return;  // its timers died with it
     while (const std::optional<TimerRequest::Kind> kind = timers.popDue(now)) {
       sequencer->onTimer(*kind, now);
       carryOut();
@@ -246,6 +299,7 @@ struct ClosedLoopEngine::Impl {
   /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
   void carryOut() {
     SequencerOutput out = sequencer->takeOutput();
+    if (!planner_alive) return;  // a dead process publishes nothing
     for (const SequencerLog& line : out.log) {
       if (line.level == SequencerLog::Level::kError) planner_error = line.text;
     }
@@ -276,6 +330,11 @@ struct ClosedLoopEngine::Impl {
       if (p == TrialPhase::kDrilling) fault_armed = true;
       record.status.emplace_back(now, toString(p));
       monitor->setTrialRunning(isRunning(p));  // the status the monitor subscribes to
+      monitor->setDrilling(now, p == TrialPhase::kDrilling || p == TrialPhase::kStopped);
+      guard.onPlannerPhase(now, isRunning(p),
+                           p == TrialPhase::kDrilling || p == TrialPhase::kStopped);
+      if (isRunning(p) && !planner_running) next_planner_beat = now;
+      planner_running = isRunning(p);
       // The retreat ended: the drill is out, the spindle off; the sensor should read its tare.
       if (p == TrialPhase::kDone && last_phase == TrialPhase::kRetreating) {
         record.retare = monitor->retareCheck(now);
@@ -286,12 +345,22 @@ struct ClosedLoopEngine::Impl {
   }
 
   void evaluateMonitor() {
+    if (!monitor_alive) return;  // a dead monitor says nothing
     const std::optional<SafetyVerdict> v = monitor->takeNewStop();
     if (!v) return;
     const std::string reason = describe(*v);
     record.stops.push_back({now, "/safety_monitor", reason, true});
+    guard.onMonitorStop(now);
+    if (injector.stop()) {  // stop_lost: published, never heard by the planner
+      send(config.delays.stop_to_planner_s, [this, reason]() {
+        sequencer->onStop(now, true, reason);
+        carryOut();
+      });
+    }
+    // Its ERROR on /diagnostics, published right after the stop: the planner stops on it too
+    // (the nodelet's rule), so a lost stop is still heard; after the stop itself, a no-op.
     send(config.delays.stop_to_planner_s, [this, reason]() {
-      sequencer->onStop(now, true, reason);
+      sequencer->onStop(now, true, "safety monitor ERROR: stop and retreat: " + reason);
       carryOut();
     });
   }
@@ -320,6 +389,7 @@ struct ClosedLoopEngine::Impl {
     if (out.stop && !was_stopped && deliver) {
       const std::string text = recognizer->stopReason();
       record.stops.push_back({t, "/state_recognizer", text, false});
+      if (!injector.stop()) return;  // stop_lost: drilling_state's stop flag still reaches it
       send(config.delays.stop_to_planner_s, [this, text]() {
         sequencer->onStop(now, false, text);
         carryOut();
@@ -470,7 +540,7 @@ struct ClosedLoopEngine::Impl {
     updateTruthPeaks(s.force.thrust_N);
     updateProtocol();
     Eigen::Vector3d force = s.measured_wrench.head<3>();
-    sequencer->onMonitorAlive(now);  // the monitor runs in this process, every step
+    if (monitor_alive) sequencer->onMonitorAlive(now);  // its /diagnostics, every step
     updateFault();
     if (s.force_sampled && faultyForce(&force)) {
       const double thrust = force.z();  // config/recognizer.yaml axis: z
@@ -484,8 +554,10 @@ struct ClosedLoopEngine::Impl {
         onRecognizerSample(t, thrust);
       }
       ComponentLaps laps(config.profile);
-      monitor->onForce(now, force);
-      evaluateMonitor();
+      if (monitor_alive) {
+        monitor->onForce(now, force);
+        evaluateMonitor();
+      }
       laps.mark(Component::kMonitor);
       if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
@@ -495,12 +567,13 @@ struct ClosedLoopEngine::Impl {
     deliverDelayedMarkers();
     if (n % tidal_period == 0) onTidalVolume();
     if (n % controller_state_period == 0) onControllerStates();
-    if (n % check_period == 0) {
+    if (n % check_period == 0 && monitor_alive) {
       ComponentLaps laps(config.profile);
       monitor->check(now);
       evaluateMonitor();
       laps.mark(Component::kMonitor);
     }
+    beatGuard();
     fireTimers();
     deliverDue();
     // The ground truth at the first stop command (a breakthrough before it from one after it,
@@ -518,6 +591,7 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   config.delays.validate();
   config.recognizer.validate();
   config.safety.validate();
+  config.guard.validate();
   config.faults.validate();
   s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
   s.controller_state_period =
@@ -554,7 +628,10 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   Impl& s = *impl_;
   const bool moving = spec.mode != "stationary";
   // Everything new for every trial: its record depends on its seed and nothing else.
-  s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, s.config.simulation, spec.seed);
+  // The drivers watch the drill guard as the pipeline's simulated drivers do (a lab's too).
+  DrillingSimulationParams sim_params = s.config.simulation;
+  sim_params.drive_guard_timeout_s = kDriveGuardTimeoutS;
+  s.sim = std::make_unique<DrillingSimulation>(s.config.urdf_xml, sim_params, spec.seed);
   s.sim->setProfile(s.config.profile);
   s.sim->setBoneMotionModel(moving ? spec.bone_motion : std::nullopt);
   s.sim->reset(spec.seed, moving);
@@ -570,6 +647,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
                                           : std::make_unique<PaperRecognizer>(s.config.recognizer);
   if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
+  // What the class throws while running is its stop, naming the error (as on the nodelet).
+  s.recognizer = std::make_unique<GuardedRecognizer>(std::move(s.recognizer));
   s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;
@@ -584,11 +663,20 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.last_phase = TrialPhase::kIdle;
   s.fault_pending = false;
   s.fault_breath_index = -1;
-  s.injector = FaultInjector(s.config.faults);
+  s.injector = FaultInjector(s.config.faults, spec.seed ^ 0x6661756c74ULL);  // its own stream
   s.command_transport = CommandTransport(s.config.delays.command_to_arm_s,
                                          s.config.delays.command_jitter_s, spec.seed);
   s.delayed_markers.clear();
   s.injector.arm(spec.fault);
+  s.guard = DrillGuard(s.config.guard);
+  s.planner_alive = true;
+  s.monitor_alive = true;
+  s.killed_at = -1.0;
+  s.planner_running = false;
+  s.next_planner_beat = 0.0;
+  s.next_guard_beat = 0.0;
+  s.last_enable = true;
+  s.drives_halted = false;
   s.protocol = spec.protocol;
   s.protocol_stopped = false;
   s.truth_block_sum = 0.0;
@@ -629,7 +717,11 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.carryOut();
   const double deadline = s.now + s.config.trial_timeout_s;
   while (s.sequencer->phase() != TrialPhase::kDone) {
-    if (s.sequencer->phase() == TrialPhase::kFailed) {
+    // A killed process: the trial ends kProcessKillWatchS after it (the bone breathing into
+    // the held drill meanwhile), whatever the planner's phase (a retreat the held drives
+    // refused may fail it).
+    if (s.killed_at >= 0.0 && s.now >= s.killed_at + kProcessKillWatchS) break;
+    if (s.sequencer->phase() == TrialPhase::kFailed && s.killed_at < 0.0) {
       std::string statuses;
       for (const auto& st : s.record.status) statuses += (statuses.empty() ? "" : " ") + st.second;
       throw std::runtime_error("the planner failed the trial (statuses: " + statuses + ")" +
@@ -646,6 +738,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.recordTruth();
   s.record.watch_desired_ratio = s.sequencer->controllerWatch().worstDesiredRatio();
   s.record.watch_following_ratio = s.sequencer->controllerWatch().worstFollowingRatio();
+  s.record.fault.counts = s.injector.counts();
   if (s.config.profile) s.config.profile->addTrial(s.now - sim_start);
   return s.record;
 }

@@ -16,6 +16,7 @@
 
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 #include "pedicle_drilling/core/common/portable_random.hpp"
+#include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/robot/stage_axis.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
 #include "pedicle_drilling/core/robot/urdf_model.hpp"
@@ -197,6 +198,7 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .number("bench_period_s", &P::bench_period_s, Range::closed(0.01, 1), "s")
         .number("spindle_accel_rpm_s", &P::spindle_accel_rpm_s, Range::aboveUpTo(0, 1e6), "rpm/s")
         .number("spindle_watchdog_s", &P::spindle_watchdog_s, Range::closed(0, 10), "s")
+        .number("drive_guard_timeout_s", &P::drive_guard_timeout_s, Range::closed(0, 1), "s")
         .number("tracker_noise_rms_mm", &P::tracker_noise_rms_mm, Range::closed(0, 10), "mm")
         .number("registration_error_mm", &P::registration_error_mm, Range::closed(0, 10), "mm")
         .number("registration_error_deg", &P::registration_error_deg, Range::closed(0, 5), "deg")
@@ -443,6 +445,28 @@ struct DrillingSimulation::Impl {
   double spindle_cmd_t = 0.0;      // sim time of the latest accepted speed command
   ForceTare tare;                  // the sensor driver's tare (requestTare)
   int spindle_watchdog_trips = 0;  // the driver's watchdog stopped the spindle
+  // The drivers' drill-guard watch (drive_guard_timeout_s > 0), never reset with the specimen:
+  // the guard's heartbeat runs across trials.
+  std::optional<DriveGuardWatch> drive_guard;
+  bool drives_halted = false;
+  int drive_guard_trips = 0;
+
+  /** @brief The drill guard's verdict at the physics rate: hold every controller where its
+   *         reference is now and stop the spindle once; commands are refused while held. */
+  void watchDriveGuard() {
+    if (!drive_guard) return;
+    const bool allowed = drive_guard->allows(time);
+    if (allowed == !drives_halted) return;
+    drives_halted = !allowed;
+    if (allowed) return;  // commands are taken again; the joints hold until one comes
+    ++drive_guard_trips;
+    for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
+      TrajectoryState& st = samples[c];
+      controller_trajectories[c]->sample(time, &st);
+      controller_trajectories[c]->hold(st.position);
+    }
+    spindle_cmd_rpm = 0.0;
+  }
 
   // SPMS state.
   Eigen::Isometry3d spms_base_world = Eigen::Isometry3d::Identity();
@@ -507,7 +531,12 @@ struct DrillingSimulation::Impl {
       : params(p),
         spms(p.spms),
         ventilator(p.ventilator, 0.0),
-        lagged_ventilator(p.ventilator, 0.0) {}
+        lagged_ventilator(p.ventilator, 0.0) {
+    if (p.drive_guard_timeout_s > 0.0) {
+      drive_guard.emplace(p.drive_guard_timeout_s);
+      drives_halted = true;  // fails closed: held until the first enable (not a trip)
+    }
+  }
 
   static Eigen::Isometry3d fixedChainPose(const urdf::ModelInterface& m, const std::string& root,
                                           const std::string& link) {
@@ -1086,6 +1115,7 @@ void DrillingSimulation::reset(std::uint64_t seed, bool moving_bone) {
 
 SimulationStep DrillingSimulation::stepOnce() {
   Impl& s = *impl_;
+  s.watchDriveGuard();
   // The spindle's driver (its watchdog and its rate-limited run-up) at the physics rate, whatever
   // the arm's block: the speed the drilling physics and the sensor's spindle-synchronous
   // vibration integrate every step.
@@ -1171,7 +1201,17 @@ int DrillingSimulation::step(double dt) {
   return n;
 }
 
+namespace {
+
+TargetResult heldByTheGuard() {
+  return {TargetStatus::kRejected,
+          "the drives hold: no enable from the drill guard (drill_guard/enable)"};
+}
+
+}  // namespace
+
 TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& command) {
+  if (impl_->drives_halted) return heldByTheGuard();
   for (const std::string& name : command.joint_names) {
     if (name == "spindle_joint") {
       return {TargetStatus::kRejected,
@@ -1198,6 +1238,7 @@ TargetResult DrillingSimulation::commandTrajectory(const TrajectoryCommand& comm
 
 TargetResult DrillingSimulation::commandTrajectory(const std::string& controller,
                                                    const TrajectoryCommand& command) {
+  if (impl_->drives_halted) return heldByTheGuard();
   const std::vector<ControllerSpec>& specs = impl_->controller_specs;
   for (std::size_t c = 0; c < specs.size(); ++c) {
     if (specs[c].name == controller) return impl_->commandController(c, command);
@@ -1254,6 +1295,7 @@ double DrillingSimulation::armTrajectoryEnd() const {
 TargetResult DrillingSimulation::commandSpindle(double rpm) {
   if (!std::isfinite(rpm)) return {TargetStatus::kRejected, "spindle speed is NaN/inf"};
   if (rpm < 0.0) return {TargetStatus::kRejected, "spindle speed must be >= 0 rpm"};
+  if (rpm > 0.0 && impl_->drives_halted) return heldByTheGuard();
   TargetResult r;
   if (rpm > impl_->params.spindle_max_rpm) {
     r.status = TargetStatus::kClamped;
@@ -1271,6 +1313,14 @@ void DrillingSimulation::requestTare(const TareRequest& request) { impl_->tare.r
 std::optional<TareResult> DrillingSimulation::takeTareResult() { return impl_->tare.takeResult(); }
 
 int DrillingSimulation::spindleWatchdogTrips() const { return impl_->spindle_watchdog_trips; }
+
+void DrillingSimulation::onDriveEnable(bool enable) {
+  if (impl_->drive_guard) impl_->drive_guard->onEnable(impl_->time, enable);
+}
+
+bool DrillingSimulation::drivesHalted() const { return impl_->drives_halted; }
+
+int DrillingSimulation::driveGuardTrips() const { return impl_->drive_guard_trips; }
 
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
   impl_->ventilator.requestSettings(settings);
@@ -1432,6 +1482,10 @@ SimulationGroundTruth DrillingSimulation::groundTruth() const {
   g.bone_displacement_m = Eigen::Vector3d(d.y(), d.x(), d.z());  // LR = y, SI = x, AP = z
   g.tidal_volume_ml = s.vent_now.volume_ml;
   g.relative_ap_m = (s.physics_tip.z() - s.bone_world.translation().z()) - s.relative_ap0;
+  g.spindle_rpm = s.spindle_rpm;
+  g.feed_joint_m = s.feed_index >= 0 ? s.feed_drive.position() : 0.0;
+  g.drives_halted = s.drives_halted;
+  g.drive_guard_trips = static_cast<std::uint32_t>(s.drive_guard_trips);
   return g;
 }
 

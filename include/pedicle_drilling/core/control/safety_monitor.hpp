@@ -5,6 +5,8 @@
 //   * force           ||F_rec|| > H2 = 10 N
 //   * force timeout   no force sample for more than force_timeout_s
 //   * tracker timeout no tracker sample for more than tracker_timeout_s
+//   * prediction lost while the drill may be in bone (expectPredictions): no predicted / tracked
+//                     pair compared for more than prediction_timeout_s, or a pair in two frames
 //   * force stuck     the same force vector, bit for bit, for longer than force_stuck_s
 //   * NaN / inf in any input (including its time stamp)
 // Timeouts are measured from the last sample of that stream or, if none has arrived since
@@ -41,6 +43,14 @@ struct SafetyParams {
    * paper's breathing amplitude, so losing the tracker longer is not acceptable.
    */
   double tracker_timeout_s = 0.5;
+  /**
+   * @brief Max time [s] without an H1 comparison while the drill may be in bone (the planner's
+   * drilling and stopped phases). Default 0.5 s, the tracker's timeout: the planner predicts
+   * the marker at every tracker sample (8 Hz), so a live pipeline compares every 0.125 s; a
+   * prediction that is missing, stale (no tracked sample within the pairing tolerance) or in
+   * another frame stops the drill as a silent tracker does, within this plus one check period.
+   */
+  double prediction_timeout_s = 0.5;
   /**
    * @brief Max time [s] the force vector may stay bit-identical. Default 0.05 s: a live sensor's
    * noise (0.03 N, about 10 counts of the Nano17's 1/320 N per axis) changes at least one axis in
@@ -81,6 +91,7 @@ struct SafetyVerdict {
     kTrackerTimeout,
     kNaNInput,
     kForceStuck,
+    kPredictionLost,
   };
   bool stop = false;      ///< True: stop drilling and retreat.
   Reason reason = kNone;  ///< First cause (latched).
@@ -130,6 +141,21 @@ class SafetyMonitor {
   void comparePositions(double t, const Eigen::Vector3d& predicted_bone_pos,
                         const Eigen::Vector3d& tracked_bone_pos);
 
+  /**
+   * @brief From time t on, a predicted / tracked pair must be compared at least every
+   *        prediction_timeout_s (true), or not (false): H1 fails closed while the drill may be
+   *        in bone. Turning it on starts the wait at t.
+   */
+  void expectPredictions(double t, bool expected);
+  /** @brief Whether expectPredictions(true) is in force. */
+  bool predictionsExpected() const { return expect_predictions_; }
+  /**
+   * @brief A pair that cannot be compared (its samples in two frames) at time t: a stop while
+   *        predictions are expected, nothing otherwise.
+   * @return true when it stopped.
+   */
+  bool rejectPair(double t, const std::string& why);
+
   /** @brief Evaluate timeouts at time t and return the (latched) verdict. */
   const SafetyVerdict& check(double t);
 
@@ -161,6 +187,9 @@ class SafetyMonitor {
 
  private:
   void arm(double t);
+  /** @brief false (and a kNaNInput stop) when any of them is not finite. */
+  bool finiteOrStop(double t, const Eigen::Vector3d& predicted_bone_pos,
+                    const Eigen::Vector3d& tracked_bone_pos);
   void trigger(SafetyVerdict::Reason r, double t, const std::string& msg);
 
   SafetyParams params_;
@@ -174,6 +203,8 @@ class SafetyMonitor {
   std::deque<std::pair<double, Eigen::Vector3d>> recent_forces_;  ///< the re-tare window
   bool have_tracker_ = false;
   double last_tracker_t_ = 0.0;
+  bool expect_predictions_ = false;
+  double last_compared_t_ = 0.0;  ///< the latest H1 comparison, or when the wait started
 };
 
 /** @brief Parameters of the retreat motion. */

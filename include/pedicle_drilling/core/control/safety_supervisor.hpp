@@ -71,7 +71,8 @@ class StampPairer {
 enum class PairResult {
   kUnpaired,       ///< No sample of the other stream within the tolerance (yet).
   kCompared,       ///< Compared with H1.
-  kFrameMismatch,  ///< The partner is in another frame: not compared (a configuration error).
+  kFrameMismatch,  ///< The partner is in another frame: not compared (a configuration error;
+                   ///< a stop while drilling, see setDrilling()).
   kStale,          ///< A tracked sample whose stamp is not newer than the last: ignored.
 };
 
@@ -107,6 +108,16 @@ class SafetySupervisor {
   void setTrialRunning(bool running) { trial_running_ = running; }
   /** @brief What setTrialRunning() last said (false before any). */
   bool trialRunning() const { return trial_running_; }
+
+  /**
+   * @brief The drill may be in bone (the planner's drilling and stopped phases) from `now` on:
+   *        H1 fails closed. A pair must then be compared at least every prediction_timeout_s
+   *        (a missing, stale or unpaired prediction is a stop, SafetyVerdict::kPredictionLost)
+   *        and a pair in two frames is a stop at once.
+   */
+  void setDrilling(double now, bool drilling) { monitor_.expectPredictions(now, drilling); }
+  /** @brief What setDrilling() last said (false before any and after reset()). */
+  bool drilling() const { return monitor_.predictionsExpected(); }
 
   /** @brief Evaluates the timeouts at `now` if armed (both streams heard, or a trial runs). */
   void check(double now);

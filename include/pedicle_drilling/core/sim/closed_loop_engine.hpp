@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/breathing/motion_model.hpp"
+#include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
@@ -119,6 +120,7 @@ struct EngineConfig {
    */
   CompensatorFactory make_compensator;
   SupervisorParams safety;              ///< config/safety_monitor.yaml
+  DrillGuardParams guard;               ///< config/safety_monitor.yaml guard_* (the drill guard)
   double safety_check_rate_hz = 200.0;  ///< the monitor's watchdog timer
   TrialSequencerParams sequencer;       ///< config/compensation_planner.yaml; joints from URDF
   std::vector<double> drilling_pose;    ///< config/drilling_pose.yaml, arm joint order
@@ -196,6 +198,7 @@ struct EngineFaultRecord {
   double trigger_depth_m = 0.0;  ///< depth of the deepest cut that triggers it
   bool injected = false;         ///< false: the trial ended before the trigger
   double t = 0.0;                ///< sim time it took effect [s] (if injected)
+  FaultCounts counts;            ///< what it did to the streams (FaultInjector::counts)
 };
 
 /** @brief A recognizer state as the ROS pipeline publishes it (DrillingState). */

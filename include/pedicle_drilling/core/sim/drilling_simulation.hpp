@@ -192,6 +192,13 @@ struct DrillingSimulationParams {
   /// ros_controllers' diff_drive_controller `cmd_vel_timeout` default, a drive-side command
   /// timeout as ROS drivers set it.
   double spindle_watchdog_s = 0.5;
+  /// The drivers' drill-guard timeout [s] (core::DriveGuardWatch), 0 = the drivers take no
+  /// guard input. With it, every controller holds where its reference is and the spindle stops
+  /// (commanded to 0) as soon as the latest onDriveEnable() is false or older than this, and
+  /// commands are refused until an enable comes again (counted in driveGuardTrips()); before
+  /// the first enable the drives are held (fails closed). The pipeline's simulator sets 0.05 s
+  /// (config/simulator.yaml), the rule a lab's drivers follow (README, hardware bring-up).
+  double drive_guard_timeout_s = 0.0;
   double bone_half_x_m = 0.02;    ///< bone footprint half size along the bone frame x [m]
   double bone_half_y_m = 0.015;   ///< bone footprint half size along the bone frame y [m]
   bool moving_bone = true;        ///< initial trial: bone follows the patient (reset() sets)
@@ -305,6 +312,10 @@ struct SimulationGroundTruth {
   double tidal_volume_ml = 0.0;  ///< patient tidal volume (unlagged) [ml]
   double relative_ap_m =
       0.0;  ///< AP motion of tip relative to bone since reset() or startTrial() [m]
+  double spindle_rpm = 0.0;             ///< spindle speed actually running [rpm]
+  double feed_joint_m = 0.0;            ///< the feed joint's position [m]
+  bool drives_halted = false;           ///< the drivers hold: no drill-guard enable (see params)
+  std::uint32_t drive_guard_trips = 0;  ///< halts by the drill guard since construction
 };
 
 /** @brief A parent -> child transform of the URDF tree. */
@@ -409,6 +420,15 @@ class DrillingSimulation {
   TargetResult commandSpindle(double rpm);
   /** @brief How often the spindle driver's watchdog stopped the spindle since the last reset. */
   int spindleWatchdogTrips() const;
+  /**
+   * @brief The drill guard's enable (drill_guard/enable) received now: the drivers' input of
+   *        DrillingSimulationParams::drive_guard_timeout_s (ignored when that is 0).
+   */
+  void onDriveEnable(bool enable);
+  /** @brief Whether the drivers hold for want of the drill guard's enable (as of the last step). */
+  bool drivesHalted() const;
+  /** @brief Halts by the drill guard since construction. */
+  int driveGuardTrips() const;
   /**
    * @brief The sensor driver's tare (ForceTare): the next request.samples output samples are
    *        averaged into the bias subtracted from then on. @throws std::invalid_argument for a
