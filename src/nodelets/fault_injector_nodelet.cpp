@@ -230,6 +230,12 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
                     "process with a signal (rostests fault_planner_killed, fault_monitor_killed)";
       return true;
     }
+    if (kind == core::FaultKind::kControllerAborted) {
+      res.success = false;
+      res.message =
+          "fault '" + req.fault + "' is a controller's: the simulator's simulator/abort_controller";
+      return true;
+    }
     if (core::isBreathingFault(kind)) {
       res.success = false;
       res.message = "fault '" + req.fault +

@@ -40,6 +40,7 @@
 #include <thread>
 #include <vector>
 
+#include "pedicle_drilling/AbortController.h"
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
@@ -221,6 +222,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                              &SimulatorNodelet::onSetPatientAmplitude, this);
     stall_joint_srv_ =
         nh.advertiseService("simulator/stall_joint", &SimulatorNodelet::onStallJoint, this);
+    abort_controller_srv_ = nh.advertiseService("simulator/abort_controller",
+                                                &SimulatorNodelet::onAbortController, this);
   }
 
   ros::Time stampOf(double sim_time) const { return ros::Time(sim_time + time_offset_); }
@@ -749,6 +752,24 @@ class SimulatorNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  /** @brief simulator/abort_controller: the controller drops its trajectory and holds
+   *         (core::DrillingSimulation::abortController), at the current step. */
+  bool onAbortController(AbortController::Request& request, AbortController::Response& response) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    try {
+      sim_->abortController(request.controller);
+    } catch (const std::invalid_argument& e) {
+      response.success = false;
+      response.message = e.what();
+      return true;
+    }
+    NODELET_WARN("Simulator: %s aborted its trajectory: it holds where its reference is",
+                 request.controller.c_str());
+    response.success = true;
+    response.message = request.controller + " aborted";
+    return true;
+  }
+
   bool onStallJoint(StallJoint::Request& request, StallJoint::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
     try {
@@ -1020,6 +1041,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::optional<double> pending_amplitude_;  // set_patient_amplitude, from the next breath
   long amplitude_breath_ = 0;
   ros::ServiceServer set_ventilator_srv_, set_amplitude_srv_, stall_joint_srv_;
+  ros::ServiceServer abort_controller_srv_;
   ros::Publisher tidal_volume_pub_;
   ros::Publisher ventilator_settings_pub_;
   ros::Publisher clock_pub_;

@@ -17,7 +17,7 @@ FAULTS = ('none', 'force_silent', 'force_nan', 'force_inf', 'force_spike', 'forc
           'force_drift', 'tracker_silent', 'tracker_jump', 'tracker_stale', 'breathing_amplitude',
           'breathing_rate_up', 'breathing_rate_down', 'command_lost', 'command_delayed',
           'force_saturated', 'force_axis_nan', 'force_neg_inf', 'tracker_occlusion', 'stop_lost',
-          'planner_killed', 'monitor_killed')
+          'planner_killed', 'monitor_killed', 'controller_aborted')
 
 
 SEED_SPACES = ('calibration', 'evaluation')

@@ -415,6 +415,8 @@ def stop_category(row):
         return 'planner: ' + reason.split(':', 1)[0]
     if source == 'protocol':
         return 'protocol'
+    if source in ('drill_guard', 'drive_guard'):  # a lost process: the drives hold
+        return source.replace('_', ' ') + ': ' + reason.split(':', 1)[0]
     return 'no stop (%s)' % (reason or 'max_duration')
 
 

@@ -500,7 +500,9 @@ def analyse_trial(recorder, row, trial, trace_dir):
     row['breakthrough'] = bool(truth.breakthrough) if truth else False
     row['residual_mm'] = truth.residual_inner_cortical_m * 1e3 if truth else None
     row['max_depth_mm'] = truth.max_depth_cut_m * 1e3 if truth else None
-    recognizer_stop = stop is not None and not stop[3]
+    # A stop without retreat is the recognizer's, but for the drives' hold when a process died.
+    recognizer_stop = (stop is not None and not stop[3]
+                       and not stop[1].endswith(('drill_guard', 'drive_guard')))
     row['inner_start_mm'] = truth.inner_cortical_start_m * 1e3 if truth else None
     # Paper Sec. V-C/E: stopped by the recognizer inside the inner cortical layer (entered, not
     # passed) with a residual thickness in (0, 2 mm].

@@ -146,6 +146,7 @@ GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) 
   m.feed_joint_m = g.feed_joint_m;
   m.drives_halted = g.drives_halted;
   m.drive_guard_trips = g.drive_guard_trips;
+  m.controller_aborts = g.controller_aborts;
   return m;
 }
 

@@ -1370,6 +1370,35 @@ TEST(DrillingSimulation, WithoutTheDrillGuardsEnableTheDrivesHoldAndTheSpindleSt
   EXPECT_EQ(sim.driveGuardTrips(), 2);
 }
 
+TEST(DrillingSimulation, AnAbortedControllerHoldsUntilItsNextCommand) {
+  DrillingSimulation sim(workcell(), unwatched(), 1);
+  sim.reset(1, false);
+  std::string feed_controller;
+  for (const ControllerSpec& c : sim.controllers()) {
+    if (std::count(c.joints.begin(), c.joints.end(), "feed_joint") > 0) feed_controller = c.name;
+  }
+  ASSERT_FALSE(feed_controller.empty());
+  TrajectoryCommand c;
+  c.joint_names = {"feed_joint"};
+  c.points.push_back({sim.time() + 4.0, {4e-3}, {}});
+  ASSERT_EQ(sim.commandTrajectory(c).status, TargetStatus::kAccepted);
+  sim.step(1.0);
+  const double before = sim.groundTruth().feed_joint_m;
+  EXPECT_GT(before, 0.5e-3);
+  sim.abortController(feed_controller);
+  EXPECT_EQ(sim.controllerAborts(), 1);
+  EXPECT_EQ(sim.groundTruth().controller_aborts, 1u);
+  sim.step(0.5);
+  const double held = sim.groundTruth().feed_joint_m;
+  EXPECT_NEAR(held, before, 0.02e-3);  // it held (the drive's lag only), not 0.5 mm further
+  // The next command is taken as usual.
+  c.points = {{sim.time() + 1.0, {held + 1e-3}, {}}};
+  ASSERT_EQ(sim.commandTrajectory(c).status, TargetStatus::kAccepted);
+  sim.step(1.5);
+  EXPECT_NEAR(sim.groundTruth().feed_joint_m, held + 1e-3, 0.02e-3);
+  EXPECT_THROW(sim.abortController("no_such_controller"), std::invalid_argument);
+}
+
 TEST(DrillingSimulation, AnUntaredSensorReadsTheToolsWeightUntilTheDriversTare) {
   DrillingSimulationParams p = unwatched();
   p.sensor_tared_at_reset = false;

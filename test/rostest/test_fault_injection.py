@@ -6,7 +6,9 @@ campaign does. The trial must end safely: a stop after the fault, a retreat, the
 and no breakthrough of the inner cortical layer. With ~unload instead of ~fault, the fault is
 that nodelet unloaded from the manager (~manager) mid-trial. The breathing faults
 (breathing_amplitude, breathing_rate_up / _down) go through the simulator's
-set_patient_amplitude and set_ventilator_settings services and take effect at the next breath.
+set_patient_amplitude and set_ventilator_settings services and take effect at the next breath;
+controller_aborted through its abort_controller service (feed_controller, which carries the
+feed and the compensation), at once.
 
 Every scenario declares what its fault must cause, so that it fails when the fault is not
 injected (~inject: none runs the scenario without it, the check of that):
@@ -19,7 +21,8 @@ injected (~inject: none runs the scenario without it, the check of that):
                       (force_altered, tracker_dropped, commands_lost, ...) that must be > 0;
                       ventilator_rate (the settings the ventilator publishes change);
                       ap_amplitude (a position_error stop, or the bone's AP range over a
-                      breath grows by more than half the factor's excess)
+                      breath grows by more than half the factor's excess); controller_aborts
+                      (the simulator's ground truth counts the abort)
   ~expect_drift       the monitor's re-tare check after the retreat finds a drift
 Reports the time from the fault to the stop and the residual at the stop, to stdout and the
 test artifacts directory."""
@@ -37,8 +40,8 @@ from nodelet.srv import NodeletUnload
 
 from pedicle_drilling.msg import (GroundTruth, RetareCheck, StopCommand, TrialStatus,
                                   VentilatorSettings)
-from pedicle_drilling.srv import (InjectFault, SetPatientAmplitude, SetVentilatorSettings,
-                                  StartTrial)
+from pedicle_drilling.srv import (AbortController, InjectFault, SetPatientAmplitude,
+                                  SetVentilatorSettings, StartTrial)
 from simulator_events import start_trial
 
 # The breathing faults are the patient's: the simulator's services, with the core engine's sizes
@@ -80,8 +83,13 @@ class FaultInjectionTest(unittest.TestCase):
     def injection(self, fault, inject):
         """The call that injects `inject` (a fault name, 'none' or an unload), ready to call."""
         unload = rospy.get_param('~unload', '')
-        if inject == 'none' and (unload or fault.startswith('breathing_')):
+        if inject == 'none' and (unload or fault.startswith('breathing_') or
+                                 fault == 'controller_aborted'):
             return lambda: None
+        if fault == 'controller_aborted':
+            rospy.wait_for_service('/simulator/abort_controller', 60.0)
+            abort = rospy.ServiceProxy('/simulator/abort_controller', AbortController)
+            return lambda: self.succeeds(abort(controller='feed_controller'))
         if unload:
             manager = rospy.get_param('~manager', '/pedicle_drilling_manager')
             rospy.wait_for_service(manager + '/unload_nodelet', 60.0)
@@ -198,6 +206,11 @@ class FaultInjectionTest(unittest.TestCase):
     def check_effect(self, effect, t_fault, first, report):
         """The fault was observed to act (~effect), so that a scenario without it fails."""
         if not effect:
+            return
+        if effect == 'controller_aborts':
+            with self.lock:
+                aborts = self.truth[-1][1].controller_aborts if self.truth else 0
+            self.assertGreater(aborts, 0, 'the simulator counts no controller abort ' + report)
             return
         if effect == 'ventilator_rate':
             with self.lock:

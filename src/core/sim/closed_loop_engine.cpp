@@ -189,6 +189,15 @@ struct ClosedLoopEngine::Impl {
     fault_pending = false;
     if (record.fault.kind == FaultKind::kPlannerKilled) killProcess(true);
     if (record.fault.kind == FaultKind::kMonitorKilled) killProcess(false);
+    // The controller that carries the feed and the compensation (it owns feed_joint) drops
+    // its trajectory and holds.
+    if (record.fault.kind == FaultKind::kControllerAborted) {
+      for (const ControllerSpec& c : sim->controllers()) {
+        if (std::count(c.joints.begin(), c.joints.end(), "feed_joint") > 0) {
+          sim->abortController(c.name);
+        }
+      }
+    }
   }
 
   /** @brief Watches the trigger and applies the pending faults (once per step). */
@@ -366,6 +375,7 @@ struct ClosedLoopEngine::Impl {
   }
 
   void onRecognizerSample(double t, double thrust) {
+    if (!planner_alive) return;  // the recognizer runs in the planner's process
     const bool was_stopped = recognizer->output().stop;
     ComponentLaps laps(config.profile);
     const RecognizerOutput& out = recognizer->push(t, thrust);

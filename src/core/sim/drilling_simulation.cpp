@@ -460,13 +460,17 @@ struct DrillingSimulation::Impl {
     drives_halted = !allowed;
     if (allowed) return;  // commands are taken again; the joints hold until one comes
     ++drive_guard_trips;
-    for (std::size_t c = 0; c < controller_trajectories.size(); ++c) {
-      TrajectoryState& st = samples[c];
-      controller_trajectories[c]->sample(time, &st);
-      controller_trajectories[c]->hold(st.position);
-    }
+    for (std::size_t c = 0; c < controller_trajectories.size(); ++c) holdController(c);
     spindle_cmd_rpm = 0.0;
   }
+
+  /** @brief Controller @p c drops its trajectory and holds where its reference is now. */
+  void holdController(std::size_t c) {
+    TrajectoryState& st = samples[c];
+    controller_trajectories[c]->sample(time, &st);
+    controller_trajectories[c]->hold(st.position);
+  }
+  int controller_aborts = 0;  // abortController() calls
 
   // SPMS state.
   Eigen::Isometry3d spms_base_world = Eigen::Isometry3d::Identity();
@@ -1322,6 +1326,19 @@ bool DrillingSimulation::drivesHalted() const { return impl_->drives_halted; }
 
 int DrillingSimulation::driveGuardTrips() const { return impl_->drive_guard_trips; }
 
+void DrillingSimulation::abortController(const std::string& controller) {
+  const std::vector<ControllerSpec>& specs = impl_->controller_specs;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    if (specs[c].name != controller) continue;
+    impl_->holdController(c);
+    ++impl_->controller_aborts;
+    return;
+  }
+  throw std::invalid_argument("abortController: no controller named '" + controller + "'");
+}
+
+int DrillingSimulation::controllerAborts() const { return impl_->controller_aborts; }
+
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
   impl_->ventilator.requestSettings(settings);
   impl_->lagged_ventilator.requestSettings(settings);
@@ -1486,6 +1503,7 @@ SimulationGroundTruth DrillingSimulation::groundTruth() const {
   g.feed_joint_m = s.feed_index >= 0 ? s.feed_drive.position() : 0.0;
   g.drives_halted = s.drives_halted;
   g.drive_guard_trips = static_cast<std::uint32_t>(s.drive_guard_trips);
+  g.controller_aborts = static_cast<std::uint32_t>(s.controller_aborts);
   return g;
 }
 

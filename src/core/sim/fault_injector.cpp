@@ -37,6 +37,7 @@ constexpr FaultName kFaultNames[] = {
     {FaultKind::kStopLost, "stop_lost"},
     {FaultKind::kPlannerKilled, "planner_killed"},
     {FaultKind::kMonitorKilled, "monitor_killed"},
+    {FaultKind::kControllerAborted, "controller_aborted"},
 };
 
 }  // namespace

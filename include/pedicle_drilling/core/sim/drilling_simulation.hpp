@@ -316,6 +316,7 @@ struct SimulationGroundTruth {
   double feed_joint_m = 0.0;            ///< the feed joint's position [m]
   bool drives_halted = false;           ///< the drivers hold: no drill-guard enable (see params)
   std::uint32_t drive_guard_trips = 0;  ///< halts by the drill guard since construction
+  std::uint32_t controller_aborts = 0;  ///< abortController() calls since construction
 };
 
 /** @brief A parent -> child transform of the URDF tree. */
@@ -402,6 +403,15 @@ class DrillingSimulation {
    * @throws std::invalid_argument for a joint that is not commandable.
    */
   void setJointStalled(const std::string& joint, bool stalled);
+  /**
+   * @brief Controller @p controller aborts its trajectory (ros_control's
+   *        JointTrajectoryController on a path or goal tolerance violation): it drops it and
+   *        holds its joints where its reference is now; the next command is taken as usual.
+   *        Counted in controllerAborts(). @throws std::invalid_argument for an unknown name.
+   */
+  void abortController(const std::string& controller);
+  /** @brief Controller aborts (abortController()) since construction. */
+  int controllerAborts() const;
   /** @brief The controllers (names and joints, the order of controllerState()'s index). */
   const std::vector<ControllerSpec>& controllers() const;
   /**

@@ -46,6 +46,7 @@ enum class FaultKind {
   kStopLost,            ///< every drill/stop command lost (the planner's own stops are not)
   kPlannerKilled,       ///< the planner's process (planner, recognizer) killed (core engine)
   kMonitorKilled,       ///< the monitor's process (monitor, drill guard) killed (core engine)
+  kControllerAborted,   ///< the feed joint's controller aborts its trajectory (the simulator's)
 };
 
 /** @brief The fault's name in scenario files and trials.csv ("none", "force_silent", ...). */
