@@ -92,8 +92,8 @@ TEST(DefaultModelFolder, IsUnderRosHome) {
   setenv("ROS_HOME", "/var/ros_home", 1);
   EXPECT_EQ(pd::defaultModelFolder(), "/var/ros_home/pedicle_drilling/models");
   unsetenv("ROS_HOME");
-  setenv("HOME", "/home/someone", 1);
-  EXPECT_EQ(pd::defaultModelFolder(), "/home/someone/.ros/pedicle_drilling/models");
+  setenv("HOME", "/var/user_home", 1);
+  EXPECT_EQ(pd::defaultModelFolder(), "/var/user_home/.ros/pedicle_drilling/models");
   if (ros_home != nullptr) setenv("ROS_HOME", kept_ros_home.c_str(), 1);
   if (home != nullptr) setenv("HOME", kept_home.c_str(), 1);
 }
