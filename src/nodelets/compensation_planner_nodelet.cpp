@@ -14,6 +14,7 @@
 #include <nodelet/nodelet.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
+#include <std_msgs/Bool.h>
 #include <std_msgs/Float64.h>
 #include <std_msgs/Header.h>
 #include <std_srvs/Trigger.h>
@@ -22,6 +23,7 @@
 #include <trajectory_msgs/JointTrajectory.h>
 #include <pluginlib/class_list_macros.hpp>
 
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -61,7 +63,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     if (start_spinner_) start_spinner_->stop();
     if (lockstep_) lockstep_->stop();
     for (ros::Subscriber* sub : {&tidal_sub_, &settings_sub_, &marker_sub_, &stop_sub_, &state_sub_,
-                                 &diagnostics_sub_, &tare_result_sub_}) {
+                                 &diagnostics_sub_, &tare_result_sub_, &enable_sub_}) {
       sub->shutdown();
     }
     for (ros::Subscriber& sub : controller_state_subs_) sub.shutdown();
@@ -156,6 +158,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
                               this, hints);
     diagnostics_sub_ =
         nh.subscribe("/diagnostics", 50, &CompensationPlannerNodelet::onDiagnostics, this);
+    // The drill guard's enable: a trial starts only once a guard has said true (guardListens).
+    enable_sub_ = nh.subscribe<std_msgs::Bool>(
+        "drill_guard/enable", 10,
+        [this](const std_msgs::Bool::ConstPtr& msg) { guard_enabled_ = msg->data; });
     // ~start_trial calls other nodelets' services and waits for them: it gets a callback queue
     // and a thread of its own, so that it never blocks the manager's worker threads.
     ros::NodeHandle start_nh(pnh);
@@ -391,19 +397,22 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
 
   /**
    * @brief Waits up to ~trial_start_timeout_s of wall time for the drill guard (the safety
-   *        monitor) to listen to compensation/heartbeat: a heartbeat nobody hears protects
-   *        nothing, so no trial starts before one does. A planner that watches no monitor
-   *        (monitor_timeout_s 0, an unsafe bench) does not wait.
+   *        monitor): its drill_guard/enable said true and it listens to compensation/heartbeat.
+   *        A heartbeat nobody hears protects nothing (a recorder or `rostopic echo` that
+   *        subscribes is no guard), so no trial starts before. A planner that watches no
+   *        monitor (monitor_timeout_s 0, an unsafe bench) does not wait.
    */
   bool guardListens(std::string* why) const {
     if (params_.sequencer.monitor_timeout_s == 0.0) return true;
     const ros::WallTime deadline =
         ros::WallTime::now() + ros::WallDuration(params_.trial_start_timeout_s);
-    while (heartbeat_pub_.getNumSubscribers() == 0) {
+    while (heartbeat_pub_.getNumSubscribers() == 0 || !guard_enabled_) {
       if (ros::WallTime::now() > deadline || !ros::ok()) {
-        *why = "trial refused: no drill guard listens to compensation/heartbeat within " +
-               std::to_string(params_.trial_start_timeout_s) +
-               " s (is the SafetyMonitor running?); nothing was started";
+        *why =
+            "trial refused: no drill guard (drill_guard/enable true, listening to "
+            "compensation/heartbeat) within " +
+            std::to_string(params_.trial_start_timeout_s) +
+            " s (is the SafetyMonitor running?); nothing was started";
         return false;
       }
       ros::WallDuration(0.01).sleep();
@@ -578,8 +587,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Timer heartbeat_timer_;
   ros::SteadyTimer steady_heartbeat_timer_;
   ros::Publisher heartbeat_pub_;
-  bool running_ = false;         ///< the latest phase published is a running trial's
-  double next_heartbeat_ = 0.0;  ///< under the lockstep: the next heartbeat's step
+  ros::Subscriber enable_sub_;
+  std::atomic<bool> guard_enabled_{false};  ///< the latest drill_guard/enable
+  bool running_ = false;                    ///< the latest phase published is a running trial's
+  double next_heartbeat_ = 0.0;             ///< under the lockstep: the next heartbeat's step
   ros::CallbackQueue start_queue_;
   std::unique_ptr<ros::AsyncSpinner> start_spinner_;
   ros::ServiceServer start_srv_;

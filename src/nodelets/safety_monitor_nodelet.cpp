@@ -264,7 +264,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     force_stream_->tick(msg->header.stamp);
-    force_stats_.observe(msg->header.stamp.toSec(), now());
+    force_stats_.observe(msg->header.stamp.toSec(), lockstep_->now().toSec());  // ROS time
     const auto& f = msg->wrench.force;
     supervisor_->onForce(now(), Eigen::Vector3d(f.x, f.y, f.z));
     evaluate();
@@ -279,7 +279,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     tracker_stream_->tick(msg->header.stamp);
-    tracker_stats_.observe(msg->header.stamp.toSec(), now());
+    tracker_stats_.observe(msg->header.stamp.toSec(), lockstep_->now().toSec());  // ROS time
     warnIfMismatch(supervisor_->onTracked(now(), toPosition(*msg)));
     evaluate();
   }
@@ -483,12 +483,13 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (guard_->plannerDrilling() && guard_->enabled(now())) {
-      // The drill may be in bone and its drives are enabled: a reset would clear a stop or the
-      // streams' watch mid-drill. Refused; the planner's next trial start resets it.
+    if (guard_->plannerRunning()) {
+      // A trial runs (the drill may be in bone, or about to be): a reset would clear a stop,
+      // the guard's latch or the streams' watch mid-trial. Refused; the planner's next trial
+      // start resets it (a restarted planner says IDLE first).
       response.success = false;
       response.message =
-          "refused: the planner's trial is drilling; the monitor resets at the next trial's "
+          "refused: the planner's trial is running; the monitor resets at the next trial's "
           "start";
       NODELET_WARN("SafetyMonitor: ~reset %s", response.message.c_str());
       return true;
@@ -503,6 +504,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   /** @brief ~reset's work (mutex_ held): verdict, retare check and stream statistics. */
   void resetLocked() {
     supervisor_->reset();
+    supervisor_->setDrilling(now(), guard_->plannerDrilling());  // the planner's phase stays
     guard_->reset();
     last_retare_.reset();
     force_stats_.reset();

@@ -86,6 +86,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
       const ParamLoader loader(pnh);
       const SimulatorNodeParams params = loadSimulatorParams(pnh);
       sim_ = makeSimulation(params, loader);
+      if (params.sim.drive_guard_timeout_s == 0.0) {
+        NODELET_WARN(
+            "Simulator: ~drive_guard_timeout_s 0: the simulated drivers take no drill guard "
+            "input (drill_guard/enable); only for a simulator with no SafetyMonitor on the graph");
+      }
       urdf_xml_ = loader.readFile("urdf_path", params.urdf_path);  // a reset builds a new one
       lockstep_ = useSimLockstep();
       lockstep_timeout_s_ = params.lockstep_timeout_s;

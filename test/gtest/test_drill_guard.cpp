@@ -17,7 +17,7 @@ TEST(DrillGuardTest, AnIdlePlannerNeedsNoHeartbeat) {
 }
 
 TEST(DrillGuardTest, APlannerThatFallsSilentDuringItsTrialDisablesWithinItsTimeout) {
-  DrillGuardParams p;  // planner_timeout_s 0.05
+  DrillGuardParams p;  // planner_timeout_s 0.06
   DrillGuard g(p);
   g.onPlannerPhase(1.0, true, false);
   double t = 1.0;
@@ -65,6 +65,29 @@ TEST(DrillGuardTest, AStopThePlannerAnswersKeepsTheDrivesForTheRetreat) {
   }
   g.onPlannerPhase(3.0, false, false);  // done: the heartbeat is no longer watched
   EXPECT_TRUE(g.enabled(10.0));
+}
+
+TEST(DrillGuardTest, AStopBeforeTheDrillingMustEndTheDrillingToo) {
+  DrillGuard g;                        // stop_ack_timeout_s 0.1
+  g.onPlannerPhase(0.0, true, false);  // registering
+  g.onPlannerHeartbeat(0.5);
+  g.onMonitorStop(0.5);  // the planner ignores it and starts drilling at 0.52
+  g.onPlannerPhase(0.52, true, true);
+  g.onPlannerHeartbeat(0.6);
+  EXPECT_TRUE(g.enabled(0.62));
+  EXPECT_FALSE(g.enabled(0.621));
+  EXPECT_NE(g.reason().find("stop_unanswered"), std::string::npos) << g.reason();
+}
+
+TEST(DrillGuardTest, AResetKeepsARunningPlannerWatched) {
+  DrillGuard g;
+  g.onPlannerPhase(0.0, true, true);
+  g.onPlannerHeartbeat(0.5);
+  g.reset();  // the monitor's reset: the planner's trial still runs, its heartbeat still counts
+  EXPECT_TRUE(g.plannerRunning());
+  EXPECT_TRUE(g.enabled(0.55));
+  EXPECT_FALSE(g.enabled(0.5 + g.params().planner_timeout_s + 1e-3));
+  EXPECT_NE(g.reason().find("planner_lost"), std::string::npos) << g.reason();
 }
 
 TEST(DrillGuardTest, ParametersAreChecked) {

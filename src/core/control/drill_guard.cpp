@@ -52,10 +52,18 @@ void DrillGuard::onPlannerPhase(double now, bool running, bool drilling) {
   if (running && !running_) last_planner_t_ = now;  // the heartbeat is watched from now on
   running_ = running;
   drilling_ = drilling;
-  if (!drilling) stop_pending_ = false;  // the planner answered the stop (or has none)
+  if (!drilling) {
+    stop_pending_ = false;  // the planner answered the stop (or has none)
+  } else if (stopped_ && !stop_pending_) {
+    // Drilling after the monitor's stop (a stop that came before the drilling, or one the
+    // planner left the drilling for and came back): it must end within the same bound.
+    stop_pending_ = true;
+    stop_t_ = now;
+  }
 }
 
 void DrillGuard::onMonitorStop(double now) {
+  stopped_ = true;
   if (!drilling_ || stop_pending_) return;
   stop_pending_ = true;
   stop_t_ = now;
@@ -94,8 +102,8 @@ double DrillGuard::quietUntil() const {
 }
 
 void DrillGuard::reset() {
-  running_ = false;
-  drilling_ = false;
+  // The planner's phase and heartbeat are its own, not the monitor's: they stay watched.
+  stopped_ = false;
   stop_pending_ = false;
   disabled_ = false;
   reason_.clear();

@@ -75,7 +75,10 @@ class DrillGuard {
    *        it within stop_ack_timeout_s).
    */
   void onPlannerPhase(double now, bool running, bool drilling);
-  /** @brief The monitor stopped the trial at `now`. */
+  /**
+   * @brief The monitor stopped the trial at `now`: the planner must not be drilling
+   *        stop_ack_timeout_s later (nor from any later drilling phase, until reset()).
+   */
   void onMonitorStop(double now);
   /** @brief Evaluates the timeouts at `now`; false once disabled (latched until reset()). */
   bool enabled(double now);
@@ -90,7 +93,10 @@ class DrillGuard {
    *        (+infinity when nothing is watched or already disabled).
    */
   double quietUntil() const;
-  /** @brief Enabled again; forgets the planner's phase and the stop. */
+  /**
+   * @brief Enabled again and the stop forgotten (the next trial's start); the planner's phase
+   *        and heartbeat stay watched (a reset does not blind the guard to a running trial).
+   */
   void reset();
   /** @brief Parameters in use. */
   const DrillGuardParams& params() const { return params_; }
@@ -102,6 +108,7 @@ class DrillGuard {
   bool running_ = false;
   bool drilling_ = false;
   double last_planner_t_ = 0.0;  ///< latest heartbeat, or when the trial began to run
+  bool stopped_ = false;         ///< the monitor stopped (until reset())
   bool stop_pending_ = false;    ///< the monitor stopped, the planner still drills
   double stop_t_ = 0.0;
   bool disabled_ = false;

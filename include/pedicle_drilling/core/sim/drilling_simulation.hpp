@@ -196,7 +196,7 @@ struct DrillingSimulationParams {
   /// guard input. With it, every controller holds where its reference is and the spindle stops
   /// (commanded to 0) as soon as the latest onDriveEnable() is false or older than this, and
   /// commands are refused until an enable comes again (counted in driveGuardTrips()); before
-  /// the first enable the drives are held (fails closed). The pipeline's simulator sets 0.05 s
+  /// the first enable the drives are held (fails closed). The pipeline's simulator sets 0.08 s
   /// (config/simulator.yaml), the rule a lab's drivers follow (README, hardware bring-up).
   double drive_guard_timeout_s = 0.0;
   double bone_half_x_m = 0.02;    ///< bone footprint half size along the bone frame x [m]
