@@ -8,15 +8,15 @@ the bone (the simulator's ground truth) the test does ~scenario:
                    launch gives each its own process);
   prediction_lost  stop relaying the planner's predicted marker pose to the monitor (the launch
                    remaps the monitor's input to /test_relay/predicted_marker_pose);
-  reset_refused    call the recognizer's and the monitor's ~reset.
+  reset_refused    call the recognizer's and the monitor's ~reset, and again after the trial.
 
 The kills: the simulated drivers must hold the feed within ~feed_bound_s and stop the spindle
 within ~spindle_bound_s of the kill (sim time, from the last ground truth heard before it, so
 the measured delay is an upper bound), and the bone must breathe into the stopped drill for
 ~watch_s without a breakthrough. prediction_lost: the monitor stops the drill (reason
 prediction_lost) within ~stop_bound_s of the last relayed prediction; the trial retreats, no
-breakthrough. reset_refused: both resets answer success false; the trial ends in a recognizer
-stop without a breakthrough (the resets changed nothing)."""
+breakthrough. reset_refused: both resets answer success false, saying why; the trial ends in a
+recognizer stop without a breakthrough (the resets changed nothing); after it both resets work."""
 import os
 import signal
 import sys
@@ -212,10 +212,19 @@ class DrillGuardTest(unittest.TestCase):
         for name, answer in answers.items():
             self.assertFalse(answer.success, name + ': ' + text)
             self.assertIn('refused', answer.message, text)
+        self.assertIn('drilling', answers['/state_recognizer/reset'].message, text)
         self.assertTrue(stops, text)
         self.assertIn('state_recognizer', stops[0][1].source, text)
         self.assertEqual(names[-1], 'done', text)
         self.assertFalse(any(g.breakthrough for g in truth), text)
+        for name in answers:  # the trial is over: once the node has heard so, it resets
+            call = rospy.ServiceProxy(name, Trigger)
+            end = time.monotonic() + 10.0  # wall time: bounds a broken run only
+            answer = call()
+            while not answer.success and time.monotonic() < end:
+                time.sleep(0.05)
+                answer = call()
+            self.assertTrue(answer.success, name + ': ' + answer.message)
 
 
 if __name__ == '__main__':
