@@ -11,6 +11,18 @@ import sys
 import xml.etree.ElementTree as ET
 
 
+def why(problem):
+    """The failure's last line that says something (an assertion's message), shortened: so that
+    a CI log that keeps only its tail still says why a test failed."""
+    text = '\n'.join(t for t in (problem.get('message'), problem.text) if t)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    said = [line for line in lines if 'Error' in line or 'assert' in line.lower()] or lines
+    if not said:
+        return ''
+    line = said[-1]
+    return '\n    ' + (line if len(line) <= 400 else line[:400] + '...')
+
+
 def main(directory):
     passed = 0
     failed = 0
@@ -35,9 +47,12 @@ def main(directory):
                 continue
             for case in cases:
                 label = '%s: %s.%s' % (name, case.get('classname'), case.get('name'))
-                if case.find('failure') is not None or case.find('error') is not None:
+                problem = case.find('failure')
+                if problem is None:
+                    problem = case.find('error')
+                if problem is not None:
                     failed += 1
-                    failures.append(label)
+                    failures.append(label + why(problem))
                 elif case.find('skipped') is not None:
                     skipped += 1
                 else:

@@ -31,6 +31,7 @@
 #include "pedicle_drilling/InjectFault.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/core/sim/fault_injector.hpp"
+#include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/publish_in_order.hpp"
@@ -40,6 +41,24 @@ namespace pedicle_drilling {
 
 /** @brief Nodelet wrapper of core::FaultInjector on three ROS streams. */
 class FaultInjectorNodelet : public nodelet::Nodelet {
+ public:
+  /** @brief No relay callback runs once the members go (an unload from a running manager). */
+  ~FaultInjectorNodelet() override {
+    wrench_sub_.shutdown();
+    marker_sub_.shutdown();
+    for (ros::Subscriber& sub : command_subs_) sub.shutdown();
+    stop_sub_.shutdown();
+    inject_srv_.shutdown();
+    status_timer_.stop();
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      for (ros::Timer& t : delayed_) t.stop();
+    }
+    // roscpp does not wait for a callback already queued on a queue the nodelet manager does
+    // not own: let the participants' thread run past whatever it holds of ours.
+    if (shared_queue_) LockstepParticipant::drainSharedQueue();
+  }
+
  private:
   void onInit() override {
     ros::NodeHandle nh = getNodeHandle();
@@ -49,6 +68,7 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       ParamLoader(pnh).load(FaultInjectorNodeParams::table(), &params);
       injector_ = std::make_unique<core::FaultInjector>(params.faults);
       controllers_ = params.controllers;
+      shared_queue_ = useSimLockstep();
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -58,6 +78,16 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
       command_pubs_.push_back(
           nh.advertise<trajectory_msgs::JointTrajectory>(c + "/command_delivered", 10));
     }
+    // Under the simulator's lockstep the relays run on the participants' thread, in the order
+    // the simulator's messages arrived, before its next step: a relayed sample reaches the
+    // safety monitor before the monitor's next check, whatever the load of the machine. On the
+    // nodelet manager's worker threads a 50 ms scheduling gap at real_time_factor 2 was a
+    // force timeout (0.1 s sim time) before any fault was injected.
+    if (shared_queue_) {
+      nh.setCallbackQueue(LockstepParticipant::sharedQueue());
+      pnh.setCallbackQueue(LockstepParticipant::sharedQueue());
+    }
+    relay_nh_ = nh;
     const ros::TransportHints hints = ros::TransportHints().tcpNoDelay();
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench_raw", 2000, &FaultInjectorNodelet::onWrench, this, hints);
@@ -144,7 +174,7 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     // Delivered late with its own stamp: the controller treats its points as a late message's.
     NODELET_WARN("FaultInjector: command_delayed: a trajectory command held %.3f s", extra);
     std::lock_guard<std::mutex> lock(mutex_);
-    delayed_.push_back(getNodeHandle().createTimer(
+    delayed_.push_back(relay_nh_.createTimer(
         ros::Duration(extra),
         [this, controller, msg](const ros::TimerEvent&) {
           command_pubs_[controller].publish(msg);  // a ConstPtr: shared, in order
@@ -257,6 +287,8 @@ class FaultInjectorNodelet : public nodelet::Nodelet {
     return true;
   }
 
+  bool shared_queue_ = false;  ///< the relays run on LockstepParticipant::sharedQueue()
+  ros::NodeHandle relay_nh_;   ///< the relays' node handle (its queue)
   std::mutex mutex_;
   std::unique_ptr<core::FaultInjector> injector_;
   ros::Publisher wrench_pub_, marker_pub_;

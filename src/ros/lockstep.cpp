@@ -68,7 +68,10 @@ class RanCallback : public ros::CallbackInterface {
 }  // namespace
 
 void LockstepParticipant::drain() {
-  if (!shared_) return;
+  if (shared_) drainSharedQueue();
+}
+
+void LockstepParticipant::drainSharedQueue() {
   auto ran = std::make_shared<std::promise<void>>();
   std::future<void> done = ran->get_future();
   // One thread serves the queue, in order: when this runs, whatever was queued before it (or

@@ -94,6 +94,14 @@ class LockstepParticipant {
   void drain();
 
   /**
+   * @brief Waits until the participants' thread has run (or dropped) everything queued on
+   *        sharedQueue() before this call; drain() of a participant that shares it. For a nodelet
+   *        that puts callbacks on sharedQueue() without being a participant (the FaultInjector's
+   *        relays). Returns at once when ROS is shutting down.
+   */
+  static void drainSharedQueue();
+
+  /**
    * @brief Subscribes `simulator/step` on the constructor's node handle's queue (the nodelet's:
    *        FIFO with its other subscriptions), when the lockstep is on. Called last in onInit,
    *        once everything @p on_step and @p next_step touch exists: the nodelet manager
