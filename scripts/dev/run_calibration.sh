@@ -16,7 +16,11 @@
 #      fault-free trials of both benches and the command faults come to each tolerance (the
 #      worst |desired - commanded| and |error| per trial as a fraction of it), 100 calibration
 #      seeds per case (scripts/dev/calibration_watch.py writes watch.md)
-# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|watch|all]   (default all)
+#   5. the plan's depth margin (simulator plan/margin_mm): the plan's far-side error and the depth
+#      limit's estimate error on the paper design (3 cases, 12000 rpm), the virtual patient, and
+#      the tracked-marker compensator with the amplitude fault, 100 calibration seeds each
+#      (scripts/dev/calibration_depth_margin.py writes depth_margin.md; outcomes are not read)
+# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|watch|depth|all]   (default all)
 set -eu
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # shellcheck source=scripts/dev/workspace_env.sh
@@ -87,5 +91,25 @@ if [ "${WHAT}" = watch ] || [ "${WHAT}" = all ]; then
   python3 "${ROOT}/scripts/dev/calibration_watch.py" "${OUT}/watch_paper" \
     "${OUT}/watch_realistic" "${OUT}/watch_command_faults" > "${OUT}/watch.md"
   cat "${OUT}/watch.md"
+fi
+if [ "${WHAT}" = depth ] || [ "${WHAT}" = all ]; then
+  # The shipped scenarios run the paper's system (depth_limit false): here with the limit on.
+  for name in paper virtual_patient; do
+    sed -e '/^seed_space/d' -e '/^depth_limit/d' "${ROOT}/config/scenario_${name}.yaml" \
+      > "${OUT}/depth_${name}.yaml"
+    echo 'depth_limit: true' >> "${OUT}/depth_${name}.yaml"
+  done
+  campaign --scenario "${OUT}/depth_paper.yaml" --rpm 12000 --trials 100 \
+    --out "${OUT}/depth_paper"
+  campaign --scenario "${OUT}/depth_virtual_patient.yaml" --trials 100 \
+    --out "${OUT}/depth_virtual_patient"
+  scenario="${OUT}/depth_tracked_marker.yaml"
+  sed -e '/^seed_space/d' -e '/^seed:/d' "${ROOT}/config/scenario_depth_limit_amplitude.yaml" \
+    > "${scenario}"
+  campaign --scenario "${scenario}" --trials 100 \
+    --compensator pedicle_drilling/TrackedMarkerCompensator --out "${OUT}/depth_tracked_marker"
+  python3 "${ROOT}/scripts/dev/calibration_depth_margin.py" "${OUT}/depth_paper" \
+    "${OUT}/depth_virtual_patient" "${OUT}/depth_tracked_marker" > "${OUT}/depth_margin.md"
+  cat "${OUT}/depth_margin.md"
 fi
 echo "calibration: done; outputs in ${OUT}"

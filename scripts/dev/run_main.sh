@@ -7,7 +7,8 @@
 #      and the bone moving as the virtual patient (lag, drift, small movements), compensated
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
-#      the fault campaign (200 trials per fault); Fig. 16's protocol at the calibrated sensor
+#      the fault campaign (200 trials per fault); the plan's depth limit (the paper's design
+#      with it, every shipped class through every fault with it: depth_limit.md); Fig. 16's protocol at the calibrated sensor
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
@@ -48,6 +49,29 @@ done
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_faults"
+# 2b'. The plan's depth limit (scenario_depth_limit*.yaml): the paper's design at 12000 rpm with
+#      the limit on; every shipped compensator and recognizer class through every fault (20
+#      trials each) and through the fault-free and x1.3 amplitude trials (100 each).
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit.yaml" \
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_depth_limit"
+for classes in PaperCompensator:PaperRecognizer TrackedMarkerCompensator:PaperRecognizer \
+               PaperCompensator:ForceDifferenceRecognizer \
+               TrackedMarkerCompensator:ForceDifferenceRecognizer; do
+  compensator="${classes%%:*}"; recognizer="${classes##*:}"
+  for scenario in faults amplitude; do
+    rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit_${scenario}.yaml" \
+      --compensator "pedicle_drilling/${compensator}" --recognizer "pedicle_drilling/${recognizer}" \
+      --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --no-figures \
+      --out "${OUT}/depth_limit_${scenario}/${compensator}_${recognizer}"
+  done
+done
+# The control: the tracked-marker compensator on the same seeds without the plan.
+sed 's/^depth_limit: true/depth_limit: false/' "${ROOT}/config/scenario_depth_limit_amplitude.yaml" \
+  > "${OUT}/depth_limit_amplitude_without_plan.yaml"
+rosrun pedicle_drilling campaign --scenario "${OUT}/depth_limit_amplitude_without_plan.yaml" \
+  --compensator pedicle_drilling/TrackedMarkerCompensator --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/depth_limit_amplitude_without_plan"
+python3 "${ROOT}/scripts/dev/depth_limit_tables.py" "${OUT}" > "${OUT}/depth_limit.md"
 # 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes
 #     through the inner layer; the force sensor at the DAQ rate calibrated against Fig. 16
 #     (doc/simulator_physics.md, "Measurement chain").

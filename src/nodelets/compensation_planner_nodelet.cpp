@@ -6,11 +6,14 @@
  *        (+ predicted displacement in compensated mode) as a JointTrajectory on
  *        each controller's `<name>/command` (by default arm_controller: the 6 arm joints;
  *        feed_controller: feed_joint); stops on `drill/stop` (hold, or retreat along the drill
- * axis). Thin ROS adapter of core::TrialSequencer (the trial logic, shared with the closed-loop
- *        engine): parameters, message conversion, timers and the component resets.
+ * axis); holds the feed at the depth of the drilling plan (`drilling_plan`), from the contact the
+ *        thrust on `ft_sensor/wrench` shows. Thin ROS adapter of core::TrialSequencer (the trial
+ *        logic, shared with the closed-loop engine): parameters, message conversion, timers and
+ *        the component resets.
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseStamped.h>
+#include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/callback_queue.h>
 #include <ros/ros.h>
@@ -32,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/DrillingPlan.h"
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StartTrial.h"
 #include "pedicle_drilling/StopCommand.h"
@@ -62,8 +66,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // start thread, the lockstep's steps (the participants' thread), then the rest.
     if (start_spinner_) start_spinner_->stop();
     if (lockstep_) lockstep_->stop();
-    for (ros::Subscriber* sub : {&tidal_sub_, &settings_sub_, &marker_sub_, &stop_sub_, &state_sub_,
-                                 &diagnostics_sub_, &tare_result_sub_, &enable_sub_}) {
+    for (ros::Subscriber* sub :
+         {&tidal_sub_, &settings_sub_, &marker_sub_, &stop_sub_, &state_sub_, &diagnostics_sub_,
+          &tare_result_sub_, &enable_sub_, &plan_sub_, &wrench_sub_}) {
       sub->shutdown();
     }
     for (ros::Subscriber& sub : controller_state_subs_) sub.shutdown();
@@ -85,6 +90,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       loader.load(CompensationPlannerNodeParams::table(), &params_);
       patient_ = loadPatient();
       sequencer_ = makeSequencer(params_, loader, nh);
+      thrust_index_ = params_.thrustAxisIndex();
+      thrust_sign_ = params_.thrustAxisSign();
       controllers_ = sequencer_->controllers();
       loadCompensator(loader);
       // Under the simulator's lockstep, the sequencer's timers run on its steps (the engine's
@@ -127,9 +134,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     const core::TrialSequencerParams& p = sequencer_->params();
     NODELET_INFO(
         "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
-        "compensator %s",
+        "compensator %s, depth limit from the drill tip '%s' and the thrust on %s",
         patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
-        p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str());
+        p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str(),
+        params_.tip_link.c_str(), params_.thrust_axis.c_str());
     for (const std::string& off : params_.disabledWatchdogs()) {
       NODELET_WARN("CompensationPlanner: UNSAFE (~unsafe_allow_disabled_watchdogs): %s",
                    off.c_str());
@@ -151,6 +159,11 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         nh.subscribe("ventilator/settings", 1, &CompensationPlannerNodelet::onSettings, this);
     marker_sub_ =
         nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker, this, hints);
+    // The depth limit's inputs: the plan (latched by its publisher), and the thrust that shows
+    // the contact (the F/T stream the safety monitor reads).
+    plan_sub_ = nh.subscribe("drilling_plan", 1, &CompensationPlannerNodelet::onPlan, this);
+    wrench_sub_ =
+        nh.subscribe("ft_sensor/wrench", 1000, &CompensationPlannerNodelet::onWrench, this, hints);
     stop_sub_ = nh.subscribe("drill/stop", 10, &CompensationPlannerNodelet::onStop, this, hints);
     tare_result_sub_ =
         nh.subscribe("ft_sensor/tare_result", 10, &CompensationPlannerNodelet::onTareResult, this);
@@ -256,16 +269,49 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     const auto& p = msg->pose.position;
     const auto& o = msg->pose.orientation;
-    const core::RotationLookup lookup = [this](const std::string& frame, Eigen::Matrix3d* r) {
+    const core::FrameLookup lookup = [this](const std::string& frame, Eigen::Isometry3d* x) {
       if (!tf_buffer_->canTransform(frame, params_.world_frame, ros::Time(0))) return false;
-      const auto& q =
-          tf_buffer_->lookupTransform(frame, params_.world_frame, ros::Time(0)).transform.rotation;
-      *r = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+      const geometry_msgs::Transform& tr =
+          tf_buffer_->lookupTransform(frame, params_.world_frame, ros::Time(0)).transform;
+      const auto& q = tr.rotation;
+      x->linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+      x->translation() = Eigen::Vector3d(tr.translation.x, tr.translation.y, tr.translation.z);
       return true;
     };
     sequencer_->onMarker(now(), msg->header.stamp.toSec(), msg->header.frame_id,
                          Eigen::Vector3d(p.x, p.y, p.z), Eigen::Quaterniond(o.w, o.x, o.y, o.z),
                          lookup);
+    carryOut();
+  }
+
+  /**
+   * @brief drilling_plan: the plan of the next trials (the latest at a trial's registration is
+   *        its plan). One that is not usable is no plan: the next trial is refused (fail closed).
+   */
+  void onPlan(const DrillingPlan::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    std::string why;
+    std::optional<core::DrillingPlan> plan = fromMsg(*msg, &why);
+    if (!plan) {
+      NODELET_ERROR(
+          "CompensationPlanner: drilling plan refused: %s; the planner has no plan now (fail "
+          "closed): the next trials are refused until a usable plan comes",
+          why.c_str());
+      sequencer_->setPlan(std::nullopt);
+      return;
+    }
+    NODELET_INFO("CompensationPlanner: drilling plan: %s", describe(*plan).c_str());
+    sequencer_->setPlan(std::move(plan));
+  }
+
+  /** @brief ft_sensor/wrench: the thrust (~thrust_axis) that shows the contact with the bone,
+   *         as the safety monitor hears the stream (a simulator stream under the lockstep). */
+  void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
+    lockstep_->observe(msg->header.stamp);
+    std::lock_guard<std::mutex> lock(mutex_);
+    const auto& f = msg->wrench.force;
+    const double component = thrust_index_ == 0 ? f.x : (thrust_index_ == 1 ? f.y : f.z);
+    sequencer_->onForce(now(), msg->header.stamp.toSec(), thrust_sign_ * component);
     carryOut();
   }
 
@@ -561,6 +607,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   std::unique_ptr<core::TrialSequencer> sequencer_;
   std::unique_ptr<LockstepParticipant> lockstep_;
   core::SequencerTimers timers_;  ///< under the lockstep
+  int thrust_index_ = 2;          ///< ~thrust_axis's component of ft_sensor/wrench
+  double thrust_sign_ = 1.0;      ///< ~thrust_axis's sign
 
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
@@ -576,6 +624,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Subscriber stop_sub_;
   ros::Subscriber state_sub_;
   ros::Subscriber diagnostics_sub_;
+  ros::Subscriber plan_sub_;
+  ros::Subscriber wrench_sub_;
   ros::Publisher stop_pub_;
   ros::Publisher tare_request_pub_;
   ros::Subscriber tare_result_sub_;

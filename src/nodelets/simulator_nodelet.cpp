@@ -6,7 +6,8 @@
  *
  * Interfaces (see README "pedicle_drilling/Simulator"): publishes /clock, joint_states,
  * ft_sensor/wrench (at ~force_sensor_rate_hz, 1000/3 Hz), tf + tf_static, tracker/marker_pose (8
- * Hz), simulator/ground_truth; subscribes each controller's <name>/command
+ * Hz), simulator/ground_truth, drilling_plan (latched: the specimen's plan, at start and at every
+ * reset or start_trial); subscribes each controller's <name>/command
  * (trajectory_msgs/JointTrajectory; arm_controller and feed_controller by default, ros_control's
  * rules), spindle/command (std_msgs/Float64, rpm); service simulator/reset (ResetSimulation).
  */
@@ -155,6 +156,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
     tare_result_pub_ = nh.advertise<TareResult>("ft_sensor/tare_result", 10, true);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
     ground_truth_pub_ = nh.advertise<GroundTruth>("simulator/ground_truth", 200);
+    // The bench's planning tool: the plan of the mounted specimen, latched.
+    plan_pub_ = nh.advertise<DrillingPlan>("drilling_plan", 1, true);
+    publishPlan(sim_->time());
     if (tidal_volume_period_ > 0) {
       tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 200);
       ventilator_settings_pub_ = nh.advertise<VentilatorSettings>("ventilator/settings", 1, true);
@@ -633,6 +637,15 @@ class SimulatorNodelet : public nodelet::Nodelet {
     publishInOrder(ground_truth_pub_, msg);
   }
 
+  /**
+   * @brief drilling_plan: the mounted specimen's plan (core::DrillingSimulation::imagingPlan, in
+   *        the tracked marker's frame), stamped @p t. After every reset and start_trial, whether
+   *        or not the specimen changed (cheap, and latched: the latest is always the specimen's).
+   */
+  void publishPlan(double t) {
+    publishInOrder(plan_pub_, toMsg(sim_->imagingPlan().plan, stampOf(t)));
+  }
+
   void clearTransportCounters() {
     late_commands_ = 0;
     rejected_commands_ = 0;
@@ -726,6 +739,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       NODELET_INFO("Simulator: %s", response.message.c_str());
     }
     publishGroundTruth(sim_->time());
+    publishPlan(sim_->time());
     return true;
   }
 
@@ -978,6 +992,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     res.message = resetSummary(*sim_, req, bone_motion);
     fillResetResponse(*sim_, &res);
     publishGroundTruth(sim_->time());
+    publishPlan(sim_->time());
     return true;
   }
 
@@ -1054,6 +1069,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   ros::Publisher wrench_pub_;
   ros::Publisher marker_pub_;
   ros::Publisher ground_truth_pub_;
+  ros::Publisher plan_pub_;  ///< drilling_plan, latched
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
   std::vector<ros::Subscriber> trajectory_subs_;  ///< one per controller

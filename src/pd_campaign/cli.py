@@ -44,6 +44,10 @@ SCENARIO_KEYS = {
     'model': (str, None, None),
     'bone_motion': (str, None, None),
     'compensation_profile': (str, None, None),
+    # the plan's depth limit (default true: the bench's planning step makes a plan and the
+    # planner enforces it); false: the paper's system as published, which had no plan (the
+    # planner's depth_limit/require_plan false). Both engines.
+    'depth_limit': (bool, None, None),
     # recognition (the recognizer stops the drill) or peak_forces (paper Sec. V-D: it observes,
     # the drill goes through the inner layer; F_out / F_in of Fig. 16). Core engine only.
     'protocol': (str, None, None),
@@ -76,6 +80,7 @@ ROS_DELAYS = {'command_to_arm_s': 'command_delay_s', 'command_jitter_s': 'comman
 PLANNER_PARAMS_SET_ELSEWHERE = {'feed_rate_mm_s': 'feed_rate_mm_s', 'spindle_rpm': 'rpms',
                                 'max_duration_s': 'max_duration_s',
                                 'segment_profile': 'compensation_profile',
+                                'depth_limit/require_plan': 'depth_limit',
                                 'feed_joint': '(the workcell URDF)'}
 # fault_params: the sizes of the injected faults (core::FaultParams) -> trial_engine option.
 FAULT_PARAMS = {
@@ -166,7 +171,7 @@ def load_scenario(path):
         if kind is float and isinstance(value, int):
             value = float(value)
             data[key] = value
-        if not isinstance(value, kind) or isinstance(value, bool):
+        if not isinstance(value, kind) or (isinstance(value, bool) and kind is not bool):
             raise UsageError('--scenario %s: %r must be a %s' % (
                 path, key, ' or '.join(k.__name__ for k in (kind if isinstance(kind, tuple)
                                                            else (kind,)))))
@@ -628,6 +633,7 @@ def _meta(setup, design):
             'model': scenario.get('model', 'linear'),
             'bone_motion': scenario.get('bone_motion', 'virtual_patient'),
             'compensation_profile': scenario.get('compensation_profile', 'paper'),
+            'depth_limit': scenario.get('depth_limit', True),
             'protocol': scenario.get('protocol', 'recognition'),
             'simulator_params': scenario.get('simulator_params') or {},
             'planner_params': scenario.get('planner_params') or {},
@@ -698,9 +704,18 @@ def _core_command(setup, models_dir):
              for k, v in sorted((scenario.get('fault_params') or {}).items())],
             setup.recognizer, setup.compensator, params['recognizer'], params['compensator'],
             scenario.get('simulator'), scenario.get('protocol', 'recognition'),
-            scenario.get('simulator_params'), scenario.get('planner_params'),
+            scenario.get('simulator_params'), planner_settings(scenario),
             scenario.get('engine_delays'), samples_dir, profile_path)
     return command
+
+
+def planner_settings(scenario):
+    """The core engine's planner settings: the scenario's planner_params, and
+    depth_limit/require_plan false for a scenario without the depth limit (key depth_limit)."""
+    settings = dict(scenario.get('planner_params') or {})
+    if not scenario.get('depth_limit', True):
+        settings['depth_limit/require_plan'] = False
+    return settings
 
 
 def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
@@ -725,7 +740,8 @@ def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
                COMPENSATION_PROFILES[scenario.get('compensation_profile', 'paper')],
                '--simulator-overrides', json.dumps(scenario.get('simulator') or {}),
                '--recognizer', setup.recognizer,
-               '--compensator', setup.compensator]
+               '--compensator', setup.compensator,
+               '--depth-limit', 'true' if scenario.get('depth_limit', True) else 'false']
     # The classes' parameters as the core engine takes them (NAME=VALUE text); the worker
     # puts them in the nodelets' parameter files (worker.plugin_config).
     for kind in ('recognizer', 'compensator'):

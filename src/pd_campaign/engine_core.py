@@ -139,6 +139,13 @@ def row_from_line(line, trace_dir):
     watch = record.get('controller_watch') or {}
     row['watch_desired_ratio'] = watch.get('desired_ratio')
     row['watch_following_ratio'] = watch.get('following_ratio')
+    limit = record.get('depth_limit') or {}
+    error = limit.get('estimate_error_max_m')
+    row['depth_estimate_error_mm'] = error * 1e3 if error is not None else None
+    row['plan_far_side_error_mm'] = limit.get('plan_far_side_error_m', 0.0) * 1e3
+    # The estimate error's maxima over 0.25 s windows (what the margin's choice pools).
+    row['depth_window_errors_mm'] = ';'.join(
+        '%.4f' % (e * 1e3) for e in limit.get('window_errors_m') or []) or None
     try:
         row = worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
         return fault_columns(row, record)

@@ -15,6 +15,7 @@ Failure kinds, one per trial, the first that applies:
                            a lost prediction, or the drill guard (a lost process: the drives
                            hold)
   safety_plausibility      ... an implausible force (recognizer or planner plausibility bound)
+  safety_depth_limit       ... the planner's depth limit (the plan's depth reached)
   safety_other             ... any other stop with retreat (the peak-force protocol included)
   stopped_before_inner     the recognizer stopped the drill before it reached the inner layer
   stopped_shallow          ... inside the inner layer with more than 2 mm of it left
@@ -35,7 +36,8 @@ Metrics (mm below the bone surface along the drill, ms of sim time):
 import re
 
 KINDS = ('success', 'breakthrough_before_stop', 'breakthrough_after_stop', 'no_stop',
-         'safety_h1', 'safety_h2', 'safety_watchdog', 'safety_plausibility', 'safety_other',
+         'safety_h1', 'safety_h2', 'safety_watchdog', 'safety_plausibility',
+         'safety_depth_limit', 'safety_other',
          'stopped_before_inner', 'stopped_shallow')
 SAFETY_KINDS = tuple(k for k in KINDS if k.startswith('safety_'))
 # The paper's success band: residual thickness of the inner cortex in (0, 2 mm] (Sec. V-C/E).
@@ -49,6 +51,8 @@ def stop_kind(stop):
     """The safety kind of a stop (t, source, reason, retreat), or None for the recognizer's own
     inner-layer stop."""
     _, source, reason, retreat = stop[:4]
+    if reason.startswith('depth_limit'):
+        return 'safety_depth_limit'
     if 'implausible' in reason:
         return 'safety_plausibility'
     if source.endswith('safety_monitor'):

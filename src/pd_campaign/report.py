@@ -25,7 +25,8 @@ TRIAL_COLUMNS = [
     'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
     'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-    'watch_desired_ratio', 'watch_following_ratio', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
+    'watch_desired_ratio', 'watch_following_ratio', 'depth_estimate_error_mm',
+    'plan_far_side_error_mm', 'depth_window_errors_mm', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
     'drift_detected', 'bag_lost', 'error',
 ]
 
@@ -67,7 +68,9 @@ def normalise_row(row):
                 'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'late_commands',
                 'max_command_lateness_ms', 'command_waits', 'command_wait_wall_s',
                 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-                'watch_desired_ratio', 'watch_following_ratio', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms',
+                'watch_desired_ratio', 'watch_following_ratio', 'depth_estimate_error_mm',
+                'plan_far_side_error_mm', 'force_delay_max_ms', 'force_samples_missing',
+                'tracker_delay_max_ms',
                 'tracker_samples_missing', 'retare_offset_n'):
         out[key] = _number(row.get(key))
     out['failure_kind'] = row.get('failure_kind') or None
@@ -420,6 +423,46 @@ def stop_category(row):
     return 'no stop (%s)' % (reason or 'max_duration')
 
 
+STOP_LINES = ('recognizer', 'plausibility bound', 'depth limit', 'safety monitor', 'other',
+              'no stop')
+
+
+def stop_line(row):
+    """Which line of defence made the trial's first stop: the recognizer (the primary stop), the
+    planner's plausibility bound on the recognizer's layers, the plan's depth limit, the safety
+    monitor (its checks and its drill guard), another stop (a silent component, the protocol),
+    or none."""
+    source = (row.get('stop_source') or '').rsplit('/', 1)[-1]
+    reason = row.get('stop_reason') or ''
+    if source == 'state_recognizer':
+        return 'recognizer'
+    if reason.startswith('depth_limit'):
+        return 'depth limit'
+    if 'implausible' in reason:
+        return 'plausibility bound'
+    if source in ('safety_monitor', 'drill_guard', 'drive_guard'):
+        return 'safety monitor'
+    if source in ('', 'none'):
+        return 'no stop'
+    return 'other'
+
+
+def stop_line_table(rows):
+    """Per case and speed, how many trials each line of defence stopped first (stop_line)."""
+    groups = {}
+    for row in rows:
+        if row.get('error'):
+            continue
+        key = (row.get('case'), float(row.get('rpm') or 0.0))
+        groups.setdefault(key, {line: 0 for line in STOP_LINES})[stop_line(row)] += 1
+    lines = ['| case | rpm | ' + ' | '.join(STOP_LINES) + ' |',
+             '|---|---|' + '---|' * len(STOP_LINES)]
+    for (case, rpm), counts in sorted(groups.items(), key=lambda kv: (str(kv[0][0]), kv[0][1])):
+        lines.append('| %s | %.0f | %s |' % (case, rpm,
+                                             ' | '.join(str(counts[l]) for l in STOP_LINES)))
+    return '\n'.join(lines)
+
+
 def outcome(row):
     """Where the drill ended relative to the inner cortical layer (simulator ground truth)."""
     if row['success']:
@@ -657,9 +700,9 @@ FAILURE_KINDS_TEXT = (
     'breakthrough_after_stop (the inner layer perforated before the first stop command, or with '
     'none, or after it: run-down, or the bone moving into the held drill), no_stop (never '
     'stopped, not perforated), safety_h1 / '
-    'safety_h2 / safety_watchdog / safety_plausibility / safety_other (the first stop was the '
-    'monitor\'s position error, its force limit, a silent or broken stream, an implausible force, '
-    'another stop with retreat), stopped_before_inner, stopped_shallow (the recognizer stopped '
+    'safety_h2 / safety_watchdog / safety_plausibility / safety_depth_limit / safety_other (the '
+    'first stop was the monitor\'s position error, its force limit, a silent or broken stream, an '
+    'implausible force, the plan\'s depth limit, another stop with retreat), stopped_before_inner, stopped_shallow (the recognizer stopped '
     'before the inner layer, or inside it with more than 2 mm left). Correct stops are the '
     'paper\'s successes; no penetration counts the trials without a breakthrough (Xia et al. 2024 '
     'report both). Quartiles (first / median / third): the stop\'s distance from the inner '
@@ -728,6 +771,12 @@ def write_report_md(summary, meta, figures, path, notes='', faults=None, rows=No
               failure_table(summary), '',
               '## Failure kinds and the field\'s metrics', '',
               FAILURE_KINDS_TEXT, '', metrics_table(summary), '']
+    if rows:
+        lines += ['## Which line stopped the drill', '',
+                  'The first stop of each trial: the recognizer (the primary stop), the planner\'s '
+                  'plausibility bound on the recognizer\'s layers, the plan\'s depth limit, the '
+                  'safety monitor, another stop (a silent component, the protocol) or none.', '',
+                  stop_line_table(rows), '']
     lines += h1_section(rows)
     findings = analysis(summary)
     if findings:

@@ -712,6 +712,10 @@ def main(argv=None):
                         metavar='NAME=VALUE', help='a compensator parameter (campaign\'s)')
     parser.add_argument('--segment-profile', default='rest_to_rest',
                         help="the planner's ~segment_profile (scenario key compensation_profile)")
+    parser.add_argument('--depth-limit', default='true', choices=('true', 'false'),
+                        help="the plan's depth limit (scenario key depth_limit): false runs the "
+                             "paper's system without a plan (drilling_pipeline.launch "
+                             "depth_limit:=false)")
     parser.add_argument('--bone-motion', default='virtual_patient',
                         choices=('model', 'virtual_patient'),
                         help='model: the SPMS plays the trial\'s identified model (the paper\'s '
@@ -812,6 +816,7 @@ def main(argv=None):
              'real_time_factor:=%g' % args.real_time_factor,
              'clock_period_ms:=%d' % (10 if args.bags else 100),
              'segment_profile:=%s' % args.segment_profile,
+             'depth_limit:=%s' % args.depth_limit,
              'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator,
              # ~identify writes only there (the trials' models, model_path below)
              'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))],

@@ -140,12 +140,21 @@ void MotionIdentificationParams::validate() const {
 
 // ---------------------------------------------------------------------------------------------
 
+const std::vector<std::string>& forceAxes() {
+  static const std::vector<std::string> axes{"x", "y", "z", "-x", "-y", "-z"};
+  return axes;
+}
+
+int forceAxisIndex(const std::string& axis) { return axis.back() - 'x'; }
+
+double forceAxisSign(const std::string& axis) { return axis.front() == '-' ? -1.0 : 1.0; }
+
 const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() {
   static const ParamTable<StateRecognizerNodeParams> t = [] {
     using P = StateRecognizerNodeParams;
     ParamTable<P> d;
     d.parsed(
-         "axis", {"x", "y", "z", "-x", "-y", "-z"}, "", [](const P& v) { return v.axis; },
+         "axis", forceAxes(), "", [](const P& v) { return v.axis; },
          [](P& v, const std::string& x) { v.axis = x; })
         .include(core::RecognizerParams::table(), &P::recognizer)
         .integer("queue_size", &P::queue_size, Range::closed(1, 100000))
@@ -157,9 +166,9 @@ const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() 
   return t;
 }
 
-int StateRecognizerNodeParams::axisIndex() const { return axis.back() - 'x'; }
+int StateRecognizerNodeParams::axisIndex() const { return forceAxisIndex(axis); }
 
-double StateRecognizerNodeParams::axisSign() const { return axis.front() == '-' ? -1.0 : 1.0; }
+double StateRecognizerNodeParams::axisSign() const { return forceAxisSign(axis); }
 
 std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
   std::vector<std::string> off;
@@ -244,6 +253,10 @@ const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::
         .include(core::TrialSequencerParams::table(), &P::sequencer)
         .number("feed_home_m", &P::feed_home_m, Range::closed(0, 0.5), "m")
         .text("world_frame", &P::world_frame)
+        .text("tip_link", &P::tip_link)
+        .parsed(
+            "thrust_axis", forceAxes(), "", [](const P& v) { return v.thrust_axis; },
+            [](P& v, const std::string& x) { v.thrust_axis = x; })
         .names("trial_start_services", &P::trial_start_services)
         .number("trial_start_timeout_s", &P::trial_start_timeout_s, Range::aboveUpTo(0, 60), "s")
         .text("monitor_status_name", &P::monitor_status_name)
@@ -269,6 +282,10 @@ std::vector<std::string> CompensationPlannerNodeParams::disabledWatchdogs() cons
   }
   zero(s.outer_cortical_max_mm, "outer_cortical_max_mm", "no bound on the outer layer");
   zero(s.cancellous_max_mm, "cancellous_max_mm", "no bound on the cancellous layer");
+  if (!s.depth_limit.require_plan) {
+    off.push_back(
+        "depth_limit/require_plan = false (a trial without a drilling plan has no depth limit)");
+  }
   return off;
 }
 

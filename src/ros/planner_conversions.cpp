@@ -6,6 +6,7 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <cmath>
+#include <optional>
 #include <sstream>
 
 namespace pedicle_drilling {
@@ -54,15 +55,52 @@ std::unique_ptr<core::TrialSequencer> makeSequencer(const CompensationPlannerNod
     if (!loader.has(key)) loader.fail(key, "is missing (load config/drilling_pose.yaml)");
     q[i] = loader.getDouble(key, 0.0, -2.0 * M_PI, 2.0 * M_PI);
   }
+  // The drill tip at the drilling pose (the depth limit's origin): the chain to ~tip_link must
+  // run through the arm's joints.
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   try {
-    return std::make_unique<core::TrialSequencer>(
-        sp, core::ArmCompensation(arm, q, params.feed_home_m), params.world_frame);
+    tip = core::ArmCompensation::tipAt(urdf_xml, params.arm_base_link, params.tip_link,
+                                       sp.arm_joints, q);
+  } catch (const std::exception& e) {
+    loader.fail("tip_link", "= '" + params.tip_link +
+                                "' (the drill tip's link, below ~arm_base_link '" +
+                                params.arm_base_link + "' in the URDF): " + e.what());
+  }
+  try {
+    core::ArmCompensation arm_compensation(arm, q, params.feed_home_m);
+    arm_compensation.setTipAtPose(tip);
+    return std::make_unique<core::TrialSequencer>(sp, arm_compensation, params.world_frame);
   } catch (const std::invalid_argument& e) {
     // The core names the field first ("feed_joint limits must ..."): report it as the parameter.
     const std::string what = e.what();
     loader.fail(what.substr(0, what.find_first_of(" :")), what);
   }
   return nullptr;  // not reached: fail() throws
+}
+
+std::optional<core::DrillingPlan> fromMsg(const DrillingPlan& msg, std::string* why) {
+  core::DrillingPlan plan;
+  plan.frame = msg.header.frame_id;
+  plan.entry = Eigen::Vector3d(msg.entry.x, msg.entry.y, msg.entry.z);
+  plan.direction = Eigen::Vector3d(msg.direction.x, msg.direction.y, msg.direction.z);
+  plan.depth_m = msg.depth_m;
+  plan.entry_tolerance_m = msg.entry_tolerance_m;
+  *why = plan.frame.empty()
+             ? "drilling plan: header.frame_id is empty (the tracked marker's frame the plan is in)"
+             : plan.check();
+  if (!why->empty()) return std::nullopt;
+  return plan;
+}
+
+std::string describe(const core::DrillingPlan& plan) {
+  std::ostringstream os;
+  os.precision(2);
+  os << std::fixed << "frame " << plan.frame << ", entry (" << plan.entry.x() * 1e3 << ", "
+     << plan.entry.y() * 1e3 << ", " << plan.entry.z() * 1e3 << ") mm, direction ("
+     << plan.direction.x() << ", " << plan.direction.y() << ", " << plan.direction.z()
+     << "), depth " << plan.depth_m * 1e3 << " mm, entry tolerance " << plan.entry_tolerance_m * 1e3
+     << " mm";
+  return os.str();
 }
 
 TrialStatus toMsg(core::TrialPhase phase, const ros::Time& stamp) {

@@ -120,6 +120,21 @@ void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Res
   response->arm_stiffness_scale = c.arm_stiffness_scale;
 }
 
+DrillingPlan toMsg(const core::DrillingPlan& plan, const ros::Time& stamp) {
+  DrillingPlan msg;
+  msg.header.stamp = stamp;
+  msg.header.frame_id = plan.frame;
+  msg.entry.x = plan.entry.x();
+  msg.entry.y = plan.entry.y();
+  msg.entry.z = plan.entry.z();
+  msg.direction.x = plan.direction.x();
+  msg.direction.y = plan.direction.y();
+  msg.direction.z = plan.direction.z();
+  msg.depth_m = plan.depth_m;
+  msg.entry_tolerance_m = plan.entry_tolerance_m;
+  return msg;
+}
+
 GroundTruth toMsg(const core::SimulationGroundTruth& g, const ros::Time& stamp) {
   GroundTruth m;
   m.header.stamp = stamp;

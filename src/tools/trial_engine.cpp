@@ -99,6 +99,12 @@ json recordToJson(const pd::EngineTrialRecord& r) {
       {"states", states},
       {"key_points", key_points},
       {"truth_peaks_n", {r.truth_peak_outer_n, r.truth_peak_inner_n}},
+      {"depth_limit",
+       {{"estimate_error_max_m", std::isnan(r.depth_estimate_error_max_m)
+                                     ? json(nullptr)
+                                     : json(r.depth_estimate_error_max_m)},
+        {"window_errors_m", r.depth_estimate_window_errors_m},
+        {"plan_far_side_error_m", r.plan_far_side_error_m}}},
       {"controller_watch",
        {{"desired_ratio", r.watch_desired_ratio}, {"following_ratio", r.watch_following_ratio}}},
       {"retare",

@@ -26,6 +26,8 @@ pd::EngineConfig config() {
   c.urdf_xml = pedicle_drilling::test::workcellUrdf();
   c.drilling_pose = {0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0};  // config/drilling_pose.yaml
   c.sequencer.retreat.distance_m = 0.025;  // config/compensation_planner.yaml
+  // The paper's system as published: no plan, no depth limit (its own tests turn it on).
+  c.sequencer.depth_limit.require_plan = false;
   return c;
 }
 
@@ -400,7 +402,80 @@ class ThrowingCompensator : public pd::PaperCompensator {
   double first_ = -1.0;
 };
 
+/// A recognizer that misses the inner layer: once it sees the cancellous layer it reports it
+/// for ever and never stops (the bench's worst recognizer, for the depth limit).
+class CancellousForever : public pd::PaperRecognizer {
+ public:
+  void reset() override {
+    pd::PaperRecognizer::reset();
+    out_ = pd::PaperRecognizer::output();
+    seen_ = false;
+  }
+  const pd::RecognizerOutput& push(double t, double raw_force) override {
+    out_ = pd::PaperRecognizer::push(t, raw_force);
+    seen_ = seen_ || out_.state == pd::DrillingState::kCancellous;
+    if (seen_) {
+      out_.state = pd::DrillingState::kCancellous;
+      out_.layer_state = pd::DrillingState::kCancellous;
+      out_.last_key_point = std::min(out_.last_key_point, 3);
+      out_.stop = false;
+    }
+    return out_;
+  }
+  const pd::RecognizerOutput& output() const override { return out_; }
+
+ private:
+  pd::RecognizerOutput out_;
+  bool seen_ = false;
+};
+
 }  // namespace
+
+// The plan's depth limit, whatever the recognizer: one that never leaves the cancellous layer,
+// with the planner's plausibility bound on that layer off, is stopped by the limit inside the
+// inner layer (the plan's margin before its far side), with retreat. (Uncompensated, seed 5's
+// bone breathes into the drill above the monitor's 10 N first.)
+TEST(ClosedLoopEngine, TheDepthLimitStopsADrillWhoseRecognizerMissesTheInnerLayer) {
+  pd::EngineConfig c = config();
+  c.sequencer.depth_limit.require_plan = true;  // the bench's plan
+  c.sequencer.cancellous_max_mm = 0.0;
+  c.make_recognizer = [] { return std::make_unique<CancellousForever>(); };
+  pd::ClosedLoopEngine engine(c);
+  for (const std::string mode : {"stationary", "compensated"}) {
+    const pd::EngineTrialRecord r = engine.run(spec(mode, 5));
+    std::cout << "[ trial ] " << mode << " seed 5, cancellous for ever: " << statuses(r)
+              << "; first stop " << (r.stops.empty() ? "none" : r.stops[0].reason) << "; max depth "
+              << r.last_truth.max_depth_cut_m * 1e3 << " mm, inner layer from "
+              << r.last_truth.inner_cortical_start_m * 1e3 << " mm, residual "
+              << r.last_truth.residual_inner_cortical_m * 1e3 << " mm; estimate error max "
+              << r.depth_estimate_error_max_m * 1e3 << " mm" << std::endl;
+    ASSERT_FALSE(r.stops.empty()) << mode;
+    EXPECT_EQ(r.stops[0].reason.rfind("depth_limit", 0), 0u) << mode << ": " << r.stops[0].reason;
+    EXPECT_EQ(r.stops[0].source, "/compensation_planner") << mode;
+    EXPECT_TRUE(r.stops[0].retreat) << mode;
+    EXPECT_FALSE(r.last_truth.breakthrough) << mode;
+    EXPECT_GT(r.last_truth.residual_inner_cortical_m, 0.0) << mode;
+    EXPECT_FALSE(r.depth_estimate_window_errors_m.empty()) << mode;
+    EXPECT_GT(r.last_truth.max_depth_cut_m, r.last_truth.inner_cortical_start_m) << mode;
+  }
+}
+
+// With the bench's plan (the shipped default) the paper's system still stops seed 5's trials
+// inside the inner layer, by the recognizer or the plan's depth limit, whichever comes first.
+TEST(ClosedLoopEngine, WithThePlanTheTrialsStillEndInsideTheInnerLayer) {
+  pd::EngineConfig c = config();
+  c.sequencer.depth_limit.require_plan = true;
+  pd::ClosedLoopEngine engine(c);
+  for (const std::string mode : {"stationary", "compensated"}) {
+    const pd::EngineTrialRecord r = engine.run(spec(mode, 5));
+    ASSERT_FALSE(r.stops.empty()) << mode;
+    const bool limit = r.stops[0].reason.rfind("depth_limit", 0) == 0;
+    EXPECT_TRUE(limit || r.stops[0].source == "/state_recognizer") << r.stops[0].reason;
+    EXPECT_FALSE(r.last_truth.breakthrough) << mode;
+    EXPECT_GT(r.last_truth.max_depth_cut_m, r.last_truth.inner_cortical_start_m) << mode;
+    EXPECT_GT(r.last_truth.residual_inner_cortical_m, 0.0) << mode;
+  }
+}
 
 // A recognizer class that throws mid-drill: the exception never leaves the engine; it is the
 // recognizer's stop, naming the error, and the drill retreats before the inner layer.

@@ -3,6 +3,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <stdexcept>
@@ -36,6 +39,7 @@ pd::TrialSequencerParams params() {
   p.recognizer_timeout_s = 0.0;
   p.monitor_timeout_s = 0.0;
   p.controller_watch.enabled = false;  // on in the ControllerWatch tests
+  p.depth_limit.require_plan = false;  // a plan in the DepthLimit tests
   return p;
 }
 
@@ -79,7 +83,7 @@ pd::TrialRequest request(const std::string& mode) {
   return r;
 }
 
-const pd::RotationLookup kNoLookup;
+const pd::FrameLookup kNoLookup;
 
 /** @brief Runs a stationary trial to the drilling phase; returns the time then. */
 double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
@@ -504,9 +508,9 @@ TEST(TrialSequencer, ACompensatorClassHearsTheTrackerAndDrivesTheReferenceAndThe
   // world positions.
   const Eigen::Matrix3d world_to_marker =
       Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-  const pd::RotationLookup lookup = [&](const std::string& frame, Eigen::Matrix3d* r) {
+  const pd::FrameLookup lookup = [&](const std::string& frame, Eigen::Isometry3d* x) {
     if (frame != "camera") return false;
-    *r = world_to_marker;
+    *x = Eigen::Isometry3d(world_to_marker);
     return true;
   };
   const Eigen::Vector3d marker(0.6, 0.0, 0.27);
@@ -1064,4 +1068,139 @@ TEST(TrialSequencer, NoTareResultFailsAtTheRegistrationTimeout) {
     named |= l.text.find("ft_sensor/tare_result") != std::string::npos;
   }
   EXPECT_TRUE(named);
+}
+
+namespace {
+
+/** @brief The workcell arm with its tip at the drilling pose set (the depth limit needs it). */
+pd::ArmCompensation armWithTip(const Eigen::Vector3d& tip) {
+  pd::ArmCompensation arm = workcellArm();
+  arm.setTipAtPose(tip);
+  return arm;
+}
+
+/** @brief A plan whose entry lies `gap` ahead of `tip` along `axis`, marker at kMarker. */
+pd::DrillingPlan planAhead(const Eigen::Vector3d& tip, const Eigen::Vector3d& axis, double gap,
+                           double depth, double tolerance) {
+  pd::DrillingPlan p;
+  p.frame = "tracker_marker";
+  p.entry = tip + gap * axis - Eigen::Vector3d(0.6, 0.0, 0.27);  // toDrilling's marker
+  p.direction = axis;
+  p.depth_m = depth;
+  p.entry_tolerance_m = tolerance;
+  return p;
+}
+
+struct FeedRun {
+  double max_feed = -1.0;  // deepest feed joint command [m]
+  double stop_t = -1.0;    // when the depth limit's stop came
+  std::string stop;        // its reason
+};
+
+/** @brief Segment ticks from t to t_end; `force` gives the thrust at a tick (NaN: none). */
+FeedRun runFeed(pd::TrialSequencer* seq, double t, double t_end,
+                const std::function<double(double)>& force = nullptr) {
+  FeedRun run;
+  for (; t <= t_end; t += 0.125) {
+    if (force && std::isfinite(force(t))) {
+      for (int i = 0; i < 3; ++i) seq->onForce(t, t, force(t));
+    }
+    seq->onSegmentTimer(t);
+    const pd::SequencerOutput out = seq->takeOutput();
+    for (const pd::JointTrajectoryCommand& c : out.trajectories) {
+      for (const auto& pt : c.points) run.max_feed = std::max(run.max_feed, pt.positions.back());
+    }
+    for (const std::string& s : out.stops) {
+      if (run.stop_t < 0.0 && s.find("depth_limit") != std::string::npos) {
+        run.stop_t = t;
+        run.stop = s;
+      }
+    }
+  }
+  return run;
+}
+
+}  // namespace
+
+TEST(TrialSequencerDepthLimit, ATrialWithoutAPlanIsRefusedWhenThePlanIsRequired) {
+  pd::TrialSequencerParams p = params();
+  p.depth_limit.require_plan = true;
+  pd::TrialSequencer seq(p, armWithTip(Eigen::Vector3d(0.6, 0.0, 0.3)));
+  const std::string why = seq.start(request("stationary"), apModel(), 10.0);
+  EXPECT_NE(why.find("no drilling plan"), std::string::npos) << why;
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  // And without the tip's position a plan cannot be placed.
+  pd::TrialSequencer no_tip(p, workcellArm());
+  no_tip.setPlan(planAhead(Eigen::Vector3d(0.6, 0, 0.3), Eigen::Vector3d(0, 0, -1), 2e-3, 3e-3, 0));
+  EXPECT_NE(no_tip.start(request("stationary"), apModel(), 10.0).find("tip"), std::string::npos);
+}
+
+TEST(TrialSequencerDepthLimit, TheFeedIsHeldAtThePlannedDepthThenStopsAndRetreats) {
+  const Eigen::Vector3d tip(0.6, 0.0, 0.3);
+  pd::ArmCompensation arm = armWithTip(tip);
+  pd::TrialSequencer seq(params(), arm);
+  // Entry 2 mm ahead, 3 mm deep, no tolerance: no feed past 5 mm.
+  seq.setPlan(planAhead(tip, arm.drillAxis(), 2e-3, 3e-3, 0.0));
+  const double t_reg = toDrilling(&seq);
+  EXPECT_TRUE(seq.depthLimit().active());
+  const FeedRun run = runFeed(&seq, t_reg + 0.125, t_reg + 14.0);
+  EXPECT_LE(run.max_feed, arm.feedHome() + 5e-3 + 1e-9);
+  EXPECT_GE(run.max_feed, arm.feedHome() + 5e-3 - 1e-6);  // it drilled to the limit
+  // 5 mm at 0.5 mm/s: 10 s after the registration, stopped at the next tick.
+  ASSERT_GE(run.stop_t, 0.0) << "no depth_limit stop";
+  EXPECT_NEAR(run.stop_t, t_reg + 10.0, 0.126);
+  EXPECT_NE(run.stop.find("no contact sensed"), std::string::npos) << run.stop;
+  EXPECT_TRUE(seq.phase() == pd::TrialPhase::kRetreating || seq.phase() == pd::TrialPhase::kDone);
+}
+
+TEST(TrialSequencerDepthLimit, TheSensedContactSetsTheSurfaceWithinTheTolerance) {
+  const Eigen::Vector3d tip(0.6, 0.0, 0.3);
+  pd::ArmCompensation arm = armWithTip(tip);
+  pd::TrialSequencer seq(params(), arm);
+  // Entry 2 mm ahead +- 1 mm; the thrust shows the bone from 2.5 mm of feed on (at 5 s).
+  seq.setPlan(planAhead(tip, arm.drillAxis(), 2e-3, 3e-3, 1e-3));
+  const double t_reg = toDrilling(&seq);
+  const FeedRun run = runFeed(&seq, t_reg + 0.125, t_reg + 14.0,
+                              [t_reg](double t) { return t - t_reg >= 5.0 ? 1.0 : 0.0; });
+  EXPECT_TRUE(seq.depthLimit().contact());
+  EXPECT_NEAR(seq.depthLimit().entry(), 2.5e-3, 0.07e-3);  // within one tick's feed
+  EXPECT_LE(run.max_feed, arm.feedHome() + seq.depthLimit().entry() + 3e-3 + 1e-9);
+  ASSERT_GE(run.stop_t, 0.0);
+  EXPECT_NEAR(run.stop_t, t_reg + 11.0, 0.26);
+  EXPECT_NE(run.stop.find("sensed contact"), std::string::npos) << run.stop;
+}
+
+TEST(TrialSequencerDepthLimit, APlanWithdrawnAfterTheStartFailsTheTrialAtTheRegistration) {
+  const Eigen::Vector3d tip(0.6, 0.0, 0.3);
+  pd::ArmCompensation arm = armWithTip(tip);
+  pd::TrialSequencerParams p = params();
+  p.depth_limit.require_plan = true;
+  pd::TrialSequencer seq(p, arm);
+  seq.setPlan(planAhead(tip, arm.drillAxis(), 2e-3, 3e-3, 0.0));
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.setPlan(std::nullopt);  // a refused plan arrived: the node clears it
+  seq.onPoseReached(12.5);
+  for (int i = 1; i <= 4; ++i) {
+    const double t = 12.5 + 0.125 * i;
+    seq.onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                 kNoLookup);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
+}
+
+TEST(TrialSequencerDepthLimit, APlanAtAnAngleToTheDrillFailsTheTrialBeforeTheFeed) {
+  const Eigen::Vector3d tip(0.6, 0.0, 0.3);
+  pd::ArmCompensation arm = armWithTip(tip);
+  pd::TrialSequencer seq(params(), arm);
+  pd::DrillingPlan p = planAhead(tip, arm.drillAxis(), 2e-3, 3e-3, 0.0);
+  p.direction = Eigen::Vector3d(1.0, 0.0, 0.0);
+  seq.setPlan(p);
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  seq.onPoseReached(12.5);
+  for (int i = 1; i <= 4; ++i) {
+    const double t = 12.5 + 0.125 * i;
+    seq.onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                 kNoLookup);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
 }

@@ -97,6 +97,9 @@ def test_early_and_shallow_stops():
      'safety_plausibility'),
     ((5.0, '/state_recognizer', 'implausible force: cancellous bone not confirmed', False),
      'safety_plausibility'),
+    ((5.0, '/compensation_planner', 'depth_limit: the tip reached the plan\'s depth (planned '
+      'depth 7.1 mm from the surface at 5.2 mm of advance (no contact sensed: the '
+      'registration\'s shallow end))', True), 'safety_depth_limit'),
 ])
 def test_safety_stops_by_source_and_reason(stop, kind):
     rows = truth((0.0, 'air', 0.0), (5.0, 'cancellous', 4.0))
@@ -107,3 +110,17 @@ def test_h1_error_is_read_from_the_reason():
     assert outcome.h1_error_mm('position_error: bone position error 1.304 mm > 1.200 mm') == \
         pytest.approx(1.304)
     assert outcome.h1_error_mm('force_exceeded: 11 N') is None
+
+
+@pytest.mark.parametrize('source, reason, line', [
+    ('/state_recognizer', 'inner cortical layer reached', 'recognizer'),
+    ('/compensation_planner', 'depth_limit: the tip reached the plan\'s depth', 'depth limit'),
+    ('/compensation_planner', 'implausible force: the recognizer still reports', 'plausibility bound'),
+    ('/safety_monitor', 'position_error: 1.3 mm', 'safety monitor'),
+    ('/drill_guard', 'planner_lost', 'safety monitor'),
+    ('/compensation_planner', 'recognizer silent', 'other'),
+    ('none', 'max_duration', 'no stop'),
+])
+def test_the_line_that_stopped_the_drill(source, reason, line):
+    from pd_campaign import report
+    assert report.stop_line({'stop_source': source, 'stop_reason': reason}) == line

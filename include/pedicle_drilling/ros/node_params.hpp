@@ -119,6 +119,15 @@ struct TfPoseRelayNodeParams {
   static const core::ParamTable<TfPoseRelayNodeParams>& table();
 };
 
+/** @brief The wrench components a node may read as the thrust: x, y or z, with an optional sign
+ *         ("-z": the thrust is -force.z). The StateRecognizer's `axis`, the planner's
+ *         `thrust_axis`. */
+const std::vector<std::string>& forceAxes();
+/** @brief The component (0..2) of a forceAxes() value. */
+int forceAxisIndex(const std::string& axis);
+/** @brief The sign (+1 or -1) of a forceAxes() value. */
+double forceAxisSign(const std::string& axis);
+
 /** @brief pedicle_drilling/StateRecognizer. */
 struct StateRecognizerNodeParams {
   std::string axis = "z";             ///< thrust component of the wrench, with sign
@@ -170,6 +179,12 @@ struct CompensationPlannerNodeParams {
   core::TrialSequencerParams sequencer;      ///< the trial (core)
   double feed_home_m = 0.01;                 ///< feed joint at the start
   std::string world_frame = "world";         ///< frame of the predicted marker pose
+  /// The drill tip's link (URDF): where the depth limit measures the tip from at the drilling
+  /// pose (core::ArmCompensation::tipAt).
+  std::string tip_link = "drill_tip";
+  /// The thrust component of ft_sensor/wrench (forceAxes(); the StateRecognizer's `axis`): the
+  /// contact the depth limit counts from.
+  std::string thrust_axis = "z";
   std::vector<std::string> trial_start_services{"state_recognizer/reset",
                                                 "safety_monitor/reset"};  ///< called at start
   double trial_start_timeout_s = 2.0;                                     ///< wait for each of them
@@ -186,6 +201,10 @@ struct CompensationPlannerNodeParams {
   double heartbeat_period_s = core::kPlannerHeartbeatPeriodS;
   /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
   std::vector<std::string> disabledWatchdogs() const;
+  /** @brief Component index (0..2) of thrust_axis. */
+  int thrustAxisIndex() const { return forceAxisIndex(thrust_axis); }
+  /** @brief Sign (+1 or -1) of thrust_axis. */
+  double thrustAxisSign() const { return forceAxisSign(thrust_axis); }
   /** @brief Checks the declared ranges (the URDF-dependent checks come with the sequencer). */
   void validate() const;
   /** @brief The declaration of every parameter. */

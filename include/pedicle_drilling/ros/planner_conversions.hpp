@@ -1,7 +1,7 @@
 /**
  * @file planner_conversions.hpp
- * @brief The CompensationPlanner's parameters into core::TrialSequencerParams, and the trial
- *        sequencer's outputs as ROS messages.
+ * @brief The CompensationPlanner's parameters into core::TrialSequencerParams, the trial
+ *        sequencer's outputs as ROS messages, and drilling_plan as the core's plan.
  */
 #pragma once
 
@@ -11,9 +11,11 @@
 #include <ros/service_client.h>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/DrillingPlan.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
@@ -23,13 +25,23 @@ namespace pedicle_drilling {
 
 /**
  * @brief The planner's trial sequencer from its parameters, the URDF (~urdf_path or
- *        ~robot_description: the arm chain and the feed joint's limits) and the drilling pose
- *        (~drilling_pose/<joint> for every arm joint of the URDF, required).
+ *        ~robot_description: the arm chain, the feed joint's limits and the drill tip of
+ *        ~tip_link) and the drilling pose (~drilling_pose/<joint> for every arm joint of the
+ *        URDF, required).
  * @throws ParameterError naming the parameter, or std::runtime_error.
  */
 std::unique_ptr<core::TrialSequencer> makeSequencer(const CompensationPlannerNodeParams& params,
                                                     const ParamLoader& loader,
                                                     const ros::NodeHandle& nh);
+
+/**
+ * @brief drilling_plan as the core's plan; nullopt with the reason in @p why when it is not
+ *        usable (an empty header.frame_id, or what core::DrillingPlan::check() refuses).
+ */
+std::optional<core::DrillingPlan> fromMsg(const DrillingPlan& msg, std::string* why);
+
+/** @brief One line on a plan for the log (frame, entry and depth in mm). */
+std::string describe(const core::DrillingPlan& plan);
 
 /** @brief A trial phase as the typed status message, stamped `stamp`. */
 TrialStatus toMsg(core::TrialPhase phase, const ros::Time& stamp);

@@ -1,7 +1,8 @@
 /**
  * @file simulator_conversions.hpp
  * @brief The Simulator's parameters into core::DrillingSimulationParams, its reset request into
- *        the trial distribution, and core::DrillingSimulation's state as ROS messages.
+ *        the trial distribution, and core::DrillingSimulation's state (and its specimen's
+ *        drilling plan) as ROS messages.
  */
 #pragma once
 
@@ -17,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/DrillingPlan.h"
 #include "pedicle_drilling/GroundTruth.h"
 #include "pedicle_drilling/JointTrajectoryControllerState.h"
 #include "pedicle_drilling/ResetSimulation.h"
@@ -82,6 +84,10 @@ std::string resetSummary(const core::DrillingSimulation& sim,
 
 /** @brief The drawn specimen and trial conditions into a reset response (success untouched). */
 void fillResetResponse(const core::DrillingSimulation& sim, ResetSimulation::Response* response);
+
+/** @brief A drilling plan (the simulated planning step's, core::DrillingSimulation::imagingPlan)
+ *         as drilling_plan, stamped @p stamp, header.frame_id = the plan's frame. */
+DrillingPlan toMsg(const core::DrillingPlan& plan, const ros::Time& stamp);
 
 /** @brief Ground truth at `stamp` (frame "bone"). */
 GroundTruth toMsg(const core::SimulationGroundTruth& truth, const ros::Time& stamp);

@@ -192,10 +192,13 @@ Eigen::Vector3d CompensationPlanner::boneDisplacementSinceStart(double t) const 
   return compensator_->displacement(t) - y_reg_;
 }
 
-Eigen::Vector3d CompensationPlanner::reference(double t) const {
+double CompensationPlanner::nominalFeed(double t) const {
   const double t_feed = feed_held_ ? std::min(t, t_hold_) : t;
-  const double elapsed = std::max(0.0, t_feed - t_reg_);
-  Eigen::Vector3d r = params_.feed_rate_m_s * elapsed * axis_;
+  return params_.feed_rate_m_s * std::max(0.0, t_feed - t_reg_);
+}
+
+Eigen::Vector3d CompensationPlanner::reference(double t) const {
+  Eigen::Vector3d r = nominalFeed(t) * axis_;
   if (mode_ != CompensationMode::kCompensated) return r;
   const Eigen::Vector3d y = compensator_->displacement(t + params_.latency_s) - y_reg_;
   const double along = y.dot(axis_);
@@ -321,6 +324,27 @@ ArmCompensation::ArmCompensation(const KinematicChain& arm, const Eigen::VectorX
                                 std::to_string(feed_home_m) + " m: " + ik.message);
   }
   home_q_ = ik.q;
+}
+
+void ArmCompensation::setTipAtPose(const Eigen::Vector3d& tip) {
+  require(tip.allFinite(), "tip_link", "the drill tip at the drilling pose must be finite");
+  tip_at_pose_ = tip;
+}
+
+Eigen::Vector3d ArmCompensation::tipAt(const std::string& urdf_xml, const std::string& base_link,
+                                       const std::string& tip_link,
+                                       const std::vector<std::string>& arm_joints,
+                                       const Eigen::VectorXd& arm_q) {
+  const KinematicChain chain = KinematicChain::fromUrdfString(urdf_xml, base_link, tip_link);
+  const std::vector<std::string>& names = chain.jointNames();
+  require(names.size() >= arm_joints.size() &&
+              std::equal(arm_joints.begin(), arm_joints.end(), names.begin()) &&
+              arm_q.size() == static_cast<int>(arm_joints.size()),
+          "tip_link",
+          "the chain " + base_link + " -> " + tip_link + " must start with the arm's joints");
+  Eigen::VectorXd q = Eigen::VectorXd::Zero(static_cast<int>(names.size()));
+  q.head(arm_q.size()) = arm_q;
+  return chain.forward(q).translation();
 }
 
 Eigen::VectorXd ArmCompensation::lateral(const Eigen::Vector3d& lateral,

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -67,7 +68,8 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
         .include(RetreatParams::table(), &P::retreat)
         .text("feed_joint", &P::feed_joint)
         .include(ControllerLayoutParams::table(), &P::controllers)
-        .include(ControllerWatchParams::table(), &P::controller_watch, "controller_watch/");
+        .include(ControllerWatchParams::table(), &P::controller_watch, "controller_watch/")
+        .include(DepthLimitParams::table(), &P::depth_limit, "depth_limit/");
     return d;
   }();
   return t;
@@ -166,6 +168,10 @@ void TrialSequencer::setBreathStart(double t) {
   if (planner_) planner_->compensator().setBreathStart(t);
 }
 
+double TrialSequencer::limitAdvance(double t) const {
+  return planner_ ? planner_->predictedAdvance(t) : 0.0;
+}
+
 SequencerOutput TrialSequencer::takeOutput() {
   SequencerOutput out = std::move(out_);
   out_ = SequencerOutput();
@@ -256,6 +262,13 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   ResolvedRequest r;
   const std::string why = resolve(request, &r);
   if (!why.empty()) return why;
+  if (plan_) {
+    const std::string bad = plan_->check();
+    if (!bad.empty()) return bad;
+    if (!arm_.tipAtPose()) return "drilling plan: the drill tip's position is unknown (tip_link)";
+  } else if (params_.depth_limit.require_plan) {
+    return "no drilling plan (drilling_plan): the depth limit needs the planned entry and depth";
+  }
   const std::string unwatched = watch_->start(now);
   if (!unwatched.empty()) return unwatched;
   const CompensationMode mode = r.mode;
@@ -370,7 +383,7 @@ Eigen::Vector3d TrialSequencer::boneDisplacementSinceMarker(double t) const {
 
 void TrialSequencer::onMarker(double now, double stamp, const std::string& frame,
                               const Eigen::Vector3d& p, const Eigen::Quaterniond& orientation,
-                              const RotationLookup& lookup) {
+                              const FrameLookup& lookup) {
   if (phase_ == TrialPhase::kRegistering) {
     if (!registered_) registerSample(now, stamp, frame, p, orientation, lookup);  // else: the tare
     compensatorFailed(now);
@@ -388,6 +401,11 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
   m.position = marker_reg_ + rotation_ * boneDisplacementSinceMarker(stamp);
   m.orientation = marker_orientation_;
   out_.predicted.push_back(m);
+  if (phase_ == TrialPhase::kDrilling && p.allFinite()) {
+    // The tracked bone against the predicted one along the drill axis: positive when the bone
+    // is nearer the drill than predicted (DepthLimit's correction).
+    depth_.onResidual(-(rotation_.transpose() * (p - m.position)).dot(planner_->axis()));
+  }
   // Then the compensator hears the sample (a tracker-feedback one): the prediction above was
   // made without it, so that the monitor judges a prediction, not the measurement itself.
   if (p.allFinite()) planner_->compensator().observeMarker(stamp, rotation_.transpose() * p);
@@ -397,7 +415,7 @@ void TrialSequencer::onMarker(double now, double stamp, const std::string& frame
 void TrialSequencer::registerSample(double now, double stamp, const std::string& frame,
                                     const Eigen::Vector3d& pos,
                                     const Eigen::Quaterniond& orientation,
-                                    const RotationLookup& lookup) {
+                                    const FrameLookup& lookup) {
   if (now > registration_deadline_) {
     fail("no usable tracker/marker_pose message for registration");
     return;
@@ -411,10 +429,13 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
     marker_frame_ = frame;
     if (marker_frame_.empty() || marker_frame_ == world_frame_) {
       rotation_ = Eigen::Matrix3d::Identity();
-    } else if (!lookup || !lookup(marker_frame_, &rotation_)) {
+      frame_from_world_ = Eigen::Isometry3d::Identity();
+    } else if (!lookup || !lookup(marker_frame_, &frame_from_world_)) {
       log(SequencerLog::Level::kWarn,
-          "waiting for the rotation " + world_frame_ + " -> " + marker_frame_);
+          "waiting for the transform " + world_frame_ + " -> " + marker_frame_);
       return;
+    } else {
+      rotation_ = frame_from_world_.linear();
     }
     planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
     if (mode_ != CompensationMode::kStationary && !planner_->compensator().ready()) {
@@ -475,6 +496,23 @@ void TrialSequencer::startDrilling(double now, double t_reg) {
   // handling time is the last /clock tick, which trails the stamp by a scheduling-dependent
   // amount and moved the 125 ms grid against the breath from run to run.
   planner_->start(mode_, t_reg);
+  depth_ = DepthLimit(params_.depth_limit);
+  depth_hold_t_ = -1.0;
+  if (plan_) {
+    const Eigen::Isometry3d world_from_marker =
+        frame_from_world_.inverse() * (Eigen::Translation3d(marker_reg_) * marker_orientation_);
+    const std::string bad =
+        depth_.begin(*plan_, world_from_marker, *arm_.tipAtPose(), planner_->axis());
+    if (!bad.empty()) {
+      fail(bad);
+      return;
+    }
+    log(SequencerLog::Level::kInfo, "depth limit: " + depth_.describe());
+  } else if (params_.depth_limit.require_plan) {
+    // The plan was withdrawn (or refused) after the start: no feed without one (fails closed).
+    fail("no drilling plan at the registration (drilling_plan): the depth limit needs one");
+    return;
+  }
   t_end_ = t_reg + max_duration_s_;
   next_k_ = 0;
   retreat_.reset();
@@ -548,6 +586,57 @@ bool TrialSequencer::checkLayer(double now, LayerWatch* w, double bound_mm, cons
   return true;
 }
 
+void TrialSequencer::onForce(double now, double stamp, double thrust_n) {
+  (void)now;
+  if (phase_ != TrialPhase::kDrilling || !depth_.active()) return;
+  depth_.onThrust(limitAdvance(stamp), thrust_n);
+}
+
+void TrialSequencer::limitDepth(int k) {
+  if (!depth_.active() || planner_->feedHeld()) return;
+  const CompensationParams& cp = planner_->params();
+  if (!(cp.feed_rate_m_s > 0.0)) return;
+  const double t0 = planner_->registrationTime() + k * cp.period_s;
+  const double t1 = t0 + cp.period_s;
+  // What the tip adds to the nominal feed (the compensation against the predicted bone), at
+  // the segment's points and, when the drill does not follow the bone (uncompensated), over
+  // the next breath as well: the bone breathes into a held drill.
+  double horizon = t1;
+  if (mode_ == CompensationMode::kUncompensated && have_settings_) {
+    horizon += 60.0 / settings_.rate_bpm;
+  }
+  const int n = std::max(cp.points_per_segment, 1);
+  const double step = std::min(cp.period_s / n, 0.02);
+  double intrusion = -std::numeric_limits<double>::infinity();
+  for (double t = t0; t <= horizon + 1e-12; t += step) {
+    intrusion = std::max(intrusion, limitAdvance(t) - planner_->nominalFeed(t));
+  }
+  const double feed_limit = depth_.limit() - intrusion;
+  if (planner_->nominalFeed(t1) <= feed_limit) return;
+  // The feed reaches the limit at t_hold (already passed: the feed goes back to it).
+  const double t_hold = planner_->registrationTime() + std::max(0.0, feed_limit) / cp.feed_rate_m_s;
+  planner_->holdFeed(t_hold);
+  depth_hold_t_ = t_hold;
+  std::ostringstream os;
+  os.precision(3);
+  os << std::fixed << "depth limit: feed held at " << std::max(0.0, feed_limit) * 1e3
+     << " mm from t = " << t_hold << " s (" << depth_.describe() << ")";
+  log(SequencerLog::Level::kWarn, os.str());
+}
+
+void TrialSequencer::checkDepthLimit(double now) {
+  if (depth_hold_t_ < 0.0 || now < depth_hold_t_ - 1e-9) return;
+  std::ostringstream os;
+  os.precision(3);
+  os << std::fixed << "depth_limit: the tip reached the plan's depth (" << depth_.describe()
+     << "); stopping and retracting";
+  const std::string why = os.str();
+  depth_hold_t_ = -1.0;
+  log(SequencerLog::Level::kError, why);
+  out_.stops.push_back(why);
+  handleStop(now, true, why);
+}
+
 void TrialSequencer::onSegmentTimer(double now) {
   compensatorFailed(now);  // also an error of setVentilator or setBreathStart since the last tick
   if (phase_ == TrialPhase::kDrilling) {
@@ -575,6 +664,7 @@ void TrialSequencer::onSegmentTimer(double now) {
     updateDeepest(now);
     checkLayers(now);
   }
+  if (phase_ == TrialPhase::kDrilling) checkDepthLimit(now);
   if (phase_ == TrialPhase::kDrilling && now >= t_end_) {
     log(SequencerLog::Level::kWarn, "max duration reached, retracting");
     startRetreat(now, "max duration");
@@ -607,6 +697,7 @@ void TrialSequencer::sendDueSegments(double now) {
   // last point for the transport delay (a 4 um stall at the bone's 4 mm/s) at every such
   // boundary.
   while (planner_->registrationTime() + next_k_ * period <= now + 1.5 * period) {
+    if (phase_ == TrialPhase::kDrilling) limitDepth(next_k_);
     const PlannedSegment seg = planner_->segment(next_k_);
     ++next_k_;
     if (seg.t1 <= now) continue;  // late timer: skip segments already over

@@ -436,10 +436,11 @@ struct ClosedLoopEngine::Impl {
     last_tracker = marker;
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
-    const Eigen::Matrix3d r_cam_world = sim->linkPose("tracker_camera").linear().transpose();
-    const RotationLookup lookup = [r_cam_world](const std::string& frame, Eigen::Matrix3d* r) {
+    // The registered camera pose (the URDF's), not the true one (registration_error_mm).
+    const Eigen::Isometry3d cam_from_world = sim->linkPose("tracker_camera").inverse();
+    const FrameLookup lookup = [cam_from_world](const std::string& frame, Eigen::Isometry3d* x) {
       if (frame != "tracker_camera") return false;
-      *r = r_cam_world;
+      *x = cam_from_world;
       return true;
     };
     sequencer->onMarker(now, stamp, "tracker_camera", marker, orientation, lookup);
@@ -484,6 +485,34 @@ struct ClosedLoopEngine::Impl {
     x.breath_phase = std::clamp((now - v.breathStart()) / breath_s, 0.0, 1.0);
     x.tidal_volume_ml = g.tidal_volume_ml;
     record.samples.push_back(x);
+  }
+
+  /** @brief The depth limit's estimate of the tip's depth against the hole's true depth, while
+   *         drilling, in contact, after the sensed contact (the hole's bottom is where the tip
+   *         cuts; EngineTrialRecord::depth_estimate_error_max_m). */
+  /// A hold at the depth limit lasts until the stop at the next segment tick (0.125 s) and the
+  /// retreat's start: two ticks bound it.
+  static constexpr double kDepthWindowS = 0.25;
+  double depth_window_start = 0.0;
+
+  void watchDepthEstimate(double cut_depth_m) {
+    const DepthLimit& limit = sequencer->depthLimit();
+    const CompensationPlanner* planner = sequencer->planner();
+    if (!planner || !limit.active() || !limit.contact() ||
+        sequencer->phase() != TrialPhase::kDrilling) {
+      return;
+    }
+    const double estimate = sequencer->limitAdvance(now) + limit.correction() - limit.entry();
+    const double error = cut_depth_m - estimate;
+    double& worst = record.depth_estimate_error_max_m;
+    if (std::isnan(worst) || error > worst) worst = error;
+    std::vector<double>& windows = record.depth_estimate_window_errors_m;
+    if (windows.empty() || now >= depth_window_start + kDepthWindowS) {
+      windows.push_back(error);
+      depth_window_start = now;
+    } else {
+      windows.back() = std::max(windows.back(), error);
+    }
   }
 
   void recordTruth() {
@@ -569,6 +598,9 @@ struct ClosedLoopEngine::Impl {
         evaluateMonitor();
       }
       laps.mark(Component::kMonitor);
+      // The planner hears ft_sensor/wrench too: the contact its depth limit counts from.
+      if (planner_alive) sequencer->onForce(now, t, thrust);
+      if (s.force.contact) watchDepthEstimate(sim->process().maxDepthCut());
       if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
     if (s.force_sampled) onTareResult();
@@ -624,6 +656,8 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   const Eigen::VectorXd q =
       Eigen::Map<const Eigen::VectorXd>(config.drilling_pose.data(), config.drilling_pose.size());
   s.arm = std::make_unique<ArmCompensation>(chain, q, config.feed_home_m);
+  s.arm->setTipAtPose(ArmCompensation::tipAt(config.urdf_xml, config.arm_base_link,
+                                             config.simulation.tip_link, chain.jointNames(), q));
   s.config.sequencer.arm_joints = chain.jointNames();
   // Checks the sequencer's parameters once, before any trial.
   TrialSequencer check(s.config.sequencer, *s.arm);
@@ -651,9 +685,13 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
     // the planner's plausibility bounds on the recognizer's layers do not apply.
     sequencer_params.outer_cortical_max_mm = 0.0;
     sequencer_params.cancellous_max_mm = 0.0;
+    sequencer_params.depth_limit.require_plan = false;  // nor the plan's depth limit
   }
   s.sequencer = std::make_unique<TrialSequencer>(sequencer_params, *s.arm);
   s.sequencer->setCompensatorFactory(s.config.make_compensator);
+  if (spec.protocol == TrialProtocol::kRecognition && sequencer_params.depth_limit.require_plan) {
+    s.sequencer->setPlan(s.sim->imagingPlan().plan);  // the planning step's, as the bench's
+  }
   s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
                                           : std::make_unique<PaperRecognizer>(s.config.recognizer);
   if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
@@ -697,6 +735,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   const double sim_start = s.now;
   const BoneSpecimen& specimen = s.sim->process().specimen();
   s.record.conditions = s.sim->trialConditions();
+  s.record.plan_far_side_error_m = s.sim->imagingPlan().far_side_error_m;
   s.record.outer_cortical_thickness_m = specimen.outerCorticalThickness();
   s.record.cancellous_thickness_m = specimen.cancellousThickness();
   s.record.inner_cortical_thickness_m = specimen.innerCorticalThickness();

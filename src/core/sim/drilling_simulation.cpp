@@ -268,6 +268,7 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .include(controllerRulesTable(), &P::controller_rules)
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
+        .include(PlanImagingParams::table(), &P::plan, "plan/")
         .include(TrialVariability::table(), &P::variability, "trial_distribution/");
     return d;
   }();
@@ -298,6 +299,7 @@ void DrillingSimulationParams::validate() const {
   ventilator.validate();
   specimen.validate();
   variability.validate();
+  plan.validate();
 }
 
 TrialConditions drawTrialConditions(std::uint64_t seed, const TrialVariability& variability,
@@ -530,6 +532,7 @@ struct DrillingSimulation::Impl {
   int trial_count = 0;
   VentilatorSample vent_now;
   TrialConditions conditions;
+  ImagingPlan imaging_plan;  // the current specimen's plan
 
   Impl(const DrillingSimulationParams& p)
       : params(p),
@@ -932,6 +935,9 @@ struct DrillingSimulation::Impl {
         new_seed, params.variability, params.ventilator, params.sensor.force_noise_sd_n);
     auto new_process =
         std::make_unique<DrillingProcess>(sample(new_seed, params.specimen), params.drill);
+    ImagingPlan new_plan =
+        makeImagingPlan(new_process->specimen(), marker_in_platform.inverse() * bone_in_platform,
+                        params.plan, new_seed);
     VentilatorSettings breathing = params.ventilator;
     breathing.rate_bpm = drawn.ventilator_rate_bpm;
     breathing.tv_max_ml = drawn.ventilator_tidal_volume_ml;
@@ -959,6 +965,7 @@ struct DrillingSimulation::Impl {
     }
     patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
     process = std::move(new_process);
+    imaging_plan = std::move(new_plan);
     sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, sensor_params);
     arm->setStiffnessScale(drawn.arm_stiffness_scale);
     // The trial's breathing takes effect at the next breath (a ventilator never cuts one).
@@ -1446,6 +1453,8 @@ int DrillingSimulation::armBlockSteps() const { return impl_->block_steps; }
 std::uint64_t DrillingSimulation::armBlocksInAir() const { return impl_->air_blocks; }
 bool DrillingSimulation::movingBone() const { return impl_->moving_bone; }
 std::uint64_t DrillingSimulation::seed() const { return impl_->seed; }
+
+const ImagingPlan& DrillingSimulation::imagingPlan() const { return impl_->imaging_plan; }
 const BulletArm& DrillingSimulation::arm() const { return *impl_->arm; }
 const DrillingSimulationParams& DrillingSimulation::params() const { return impl_->params; }
 

@@ -19,6 +19,7 @@
 
 #include <array>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -200,6 +201,10 @@ class CompensationPlanner {
   /** @brief Commanded tip offset [m, world] at t: feed + compensation (at t + latency). */
   Eigen::Vector3d reference(double t) const;
 
+  /** @brief The nominal feed at t [m]: feed rate x time since the registration, held by
+   *         holdFeed() (reference() without the compensation). */
+  double nominalFeed(double t) const;
+
   /** @brief Feed-axis part of reference(t) [m]. */
   double referenceFeed(double t) const { return reference(t).dot(axis_); }
 
@@ -275,6 +280,21 @@ class ArmCompensation {
   const Eigen::VectorXd& homeJoints() const { return home_q_; }
   /** @brief Feed-joint value at home [m]. */
   double feedHome() const { return feed_home_; }
+  /** @brief The drill tip at the drilling pose (feed home), world [m]: from the chain to the
+   *         tip link (setTipAtPose), for the depth limit. */
+  const std::optional<Eigen::Vector3d>& tipAtPose() const { return tip_at_pose_; }
+  /** @brief Sets tipAtPose(). @throws std::invalid_argument if not finite. */
+  void setTipAtPose(const Eigen::Vector3d& tip);
+  /**
+   * @brief The tip link's position [m, base frame] with the arm's joints at @p arm_q and every
+   *        joint after them (the feed, the spindle) at 0: the drilling pose's tip.
+   * @throws std::invalid_argument when the chain base -> tip_link does not start with the
+   *         arm's joints @p arm_joints.
+   */
+  static Eigen::Vector3d tipAt(const std::string& urdf_xml, const std::string& base_link,
+                               const std::string& tip_link,
+                               const std::vector<std::string>& arm_joints,
+                               const Eigen::VectorXd& arm_q);
 
   /**
    * @brief Arm joints moving the device base by `lateral` (world, m) from home; the IK is seeded
@@ -288,6 +308,7 @@ class ArmCompensation {
   Eigen::Vector3d axis_;
   Eigen::VectorXd home_q_;
   double feed_home_;
+  std::optional<Eigen::Vector3d> tip_at_pose_;
 };
 
 }  // namespace pedicle_drilling::core

@@ -19,6 +19,7 @@
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/controller_watch.hpp"
+#include "pedicle_drilling/core/control/depth_limit.hpp"
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
 
@@ -131,6 +132,9 @@ struct TrialSequencerParams {
    */
   double recognizer_delay_s = 1.5;
   RetreatParams retreat;  ///< retreat along the drill axis
+  /// The drilling plan's depth limit (depth_limit/..., DepthLimit): the last line against a
+  /// perforation, whichever recognizer or compensator runs.
+  DepthLimitParams depth_limit;
   /// The controllers the commands go to (arm_controller, feed_controller and their joints).
   ControllerLayoutParams controllers;
   /// The closed loop on them (controller_watch/..., ControllerWatch).
@@ -252,10 +256,12 @@ class SequencerTimers {
 using CompensatorFactory = std::function<std::unique_ptr<CompensatorInterface>()>;
 
 /**
- * @brief World -> marker-frame rotation lookup: true and *rotation when known (tf), false to
- *        wait (the sample is skipped). An empty frame or the world frame never calls it.
+ * @brief World -> tracker-frame lookup: true and *frame_from_world (the transform that takes
+ *        world coordinates into the frame's, tf's lookupTransform(frame, world)) when known,
+ *        false to wait (the sample is skipped). An empty frame or the world frame never calls it.
  */
-using RotationLookup = std::function<bool(const std::string& frame, Eigen::Matrix3d* rotation)>;
+using FrameLookup =
+    std::function<bool(const std::string& frame, Eigen::Isometry3d* frame_from_world)>;
 
 /**
  * @brief The trial sequence, driven by explicit time. Not thread-safe: one driver calls it.
@@ -301,7 +307,30 @@ class TrialSequencer {
 
   /** @brief A tracked marker sample (stamp = measurement time). */
   void onMarker(double now, double stamp, const std::string& frame, const Eigen::Vector3d& p,
-                const Eigen::Quaterniond& orientation, const RotationLookup& lookup);
+                const Eigen::Quaterniond& orientation, const FrameLookup& lookup);
+  /**
+   * @brief The drilling plan of the next trials (nullopt: none). start() refuses a trial without
+   *        one when depth_limit.require_plan, and one that DrillingPlan::check() refuses; the
+   *        registration places it (DepthLimit::begin).
+   */
+  void setPlan(std::optional<DrillingPlan> plan) { plan_ = std::move(plan); }
+  /** @brief The plan of the next trials. */
+  const std::optional<DrillingPlan>& plan() const { return plan_; }
+  /** @brief The current trial's depth limit (inactive without a plan). */
+  const DepthLimit& depthLimit() const { return depth_; }
+  /**
+   * @brief The tip's advance into the bone along the drill axis since the registration as the
+   *        depth limit measures it [m]: CompensationPlanner::predictedAdvance (the commanded
+   *        reference less the bone the compensator predicts; zero bone when stationary); its
+   *        tracker correction is DepthLimit::correction(). 0 before the drilling.
+   */
+  double limitAdvance(double t) const;
+  /**
+   * @brief A force sample: the thrust along the drill axis [N] measured at @p stamp (the F/T
+   *        sensor's tared z). While drilling it shows the contact with the bone (DepthLimit).
+   */
+  void onForce(double now, double stamp, double thrust_n);
+
   /** @brief A stop command (retreat = true from the safety monitor, false from the recognizer). */
   void onStop(double now, bool retreat, const std::string& reason);
   /**
@@ -376,7 +405,7 @@ class TrialSequencer {
   Eigen::Vector3d boneDisplacementSinceMarker(double t) const;
   void registerSample(double now, double stamp, const std::string& frame,
                       const Eigen::Vector3d& pos, const Eigen::Quaterniond& orientation,
-                      const RotationLookup& lookup);
+                      const FrameLookup& lookup);
   void startDrilling(double now, double t_reg);
   double feedCommandAt(double t, double segmented_feed) const;
   void sendMoveToPose(double now);
@@ -397,6 +426,10 @@ class TrialSequencer {
   /// checkLayers for one layer; true if it stopped the drill.
   bool checkLayer(double now, LayerWatch* watch, double bound_mm, const char* param);
   void handleStop(double now, bool retreat, const std::string& reason);
+  /// Holds the feed where segment k would take the tip past the depth limit (while drilling).
+  void limitDepth(int k);
+  /// The depth limit's stop, once the held feed is reached (while drilling).
+  void checkDepthLimit(double now);
   void startRetreat(double now, const std::string& why);
 
   TrialSequencerParams params_;
@@ -455,7 +488,12 @@ class TrialSequencer {
   double t_registered_ = 0.0;  // the registration's last sample stamp
   bool tare_pending_ = false;  // a tare was requested, no result yet
   std::string marker_frame_;
-  Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();
+  Eigen::Matrix3d rotation_ = Eigen::Matrix3d::Identity();  // frame_from_world_'s rotation
+  Eigen::Isometry3d frame_from_world_ = Eigen::Isometry3d::Identity();
+  std::optional<DrillingPlan> plan_;
+  DepthLimit depth_{DepthLimitParams{}};
+  double depth_hold_t_ = -1.0;  // when the held feed reaches the depth limit (< 0: no hold)
+
   Eigen::Vector3d y_marker_reg_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d marker_sum_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d marker_reg_ = Eigen::Vector3d::Zero();

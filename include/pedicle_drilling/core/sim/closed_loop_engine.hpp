@@ -284,6 +284,22 @@ struct EngineTrialRecord {
    *         and |error| of any joint, each as a fraction of its tolerance (1: the threshold). */
   double watch_desired_ratio = 0.0;
   double watch_following_ratio = 0.0;  ///< see watch_desired_ratio
+  /**
+   * @brief The depth limit's estimate against the truth (for the margin's choice): the largest
+   *        true depth of the hole's bottom below the bone's surface minus the limit's estimate
+   *        of the tip's depth (the tracked and predicted advance less the surface it took), at
+   *        the force samples in contact while drilling after the sensed contact [m]; positive:
+   *        deeper than the planner believed. NaN: no contact.
+   */
+  double depth_estimate_error_max_m = std::numeric_limits<double>::quiet_NaN();
+  /**
+   * @brief The same error's maximum in each kDepthWindowS of that drilling [m], in time order:
+   *        what the margin must cover when the limit acts at a random moment (the tip holds at
+   *        the limit from the hold until the stop's retreat, at most about one window).
+   */
+  std::vector<double> depth_estimate_window_errors_m;
+  /** @brief The plan's far-side error before its margin (ImagingPlan::far_side_error_m) [m]. */
+  double plan_far_side_error_m = 0.0;
 };
 
 /**

@@ -46,6 +46,7 @@
 #include "pedicle_drilling/core/robot/controller_layout.hpp"
 #include "pedicle_drilling/core/robot/spms_kinematics.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
+#include "pedicle_drilling/core/sim/imaging_plan.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -204,8 +205,10 @@ struct DrillingSimulationParams {
   bool moving_bone = true;        ///< initial trial: bone follows the patient (reset() sets)
   VentilatorSettings ventilator;  ///< internal ventilator driving the patient
   SpecimenDistribution specimen;  ///< specimen distribution for reset(seed)
-  TrialVariability variability;   ///< patient/ventilator/sensor/arm spread for reset(seed)
-  DrillParameters drill;          ///< drill and force-law constants
+  /// The planning step's errors and margin: the plan each reset makes (imagingPlan()).
+  PlanImagingParams plan;
+  TrialVariability variability;  ///< patient/ventilator/sensor/arm spread for reset(seed)
+  DrillParameters drill;         ///< drill and force-law constants
   /// Force/torque sensor model, at the DAQ rate calibrated against the paper's Fig. 16 and 18
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
@@ -370,6 +373,11 @@ class DrillingSimulation {
    *        identified model does not know). @throws std::invalid_argument outside [0, 10].
    */
   void setPatientAmplitudeFactor(double factor);
+  /**
+   * @brief The drilling plan of the current specimen, made at its reset (makeImagingPlan with
+   *        params().plan and the seed), in the tracker_marker frame.
+   */
+  const ImagingPlan& imagingPlan() const;
   /** @brief What the last reset (or the constructor) drew. */
   const TrialConditions& trialConditions() const;
 
