@@ -639,6 +639,20 @@ def plugin_config(kind, class_name, settings, package_root, out_path):
     return out_path
 
 
+def launch_arguments(args):
+    """The pipeline launch's NAME:=VALUE arguments of a worker (besides the nodelets' parameter
+    files). roslaunch takes an argument the launch file does not declare without a word:
+    test_worker_config checks each against campaign_pipeline.launch."""
+    return ['patient_model:=%s' % args.default_model,
+            'real_time_factor:=%g' % args.real_time_factor,
+            'clock_period_ms:=%d' % (10 if args.bags else 100),
+            'segment_profile:=%s' % args.segment_profile,
+            'depth_limit:=%s' % args.depth_limit,
+            'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator,
+            # ~identify writes only there (the trials' models, model_path below)
+            'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))]
+
+
 class PipelineDown(RuntimeError):
     """The worker's master or pipeline did not come up: no trial can run."""
 
@@ -811,15 +825,7 @@ def main(argv=None):
             if path:
                 configs.append('%s:=%s' % (launch_arg, path))
         children.append(subprocess.Popen(
-            ['roslaunch', 'pedicle_drilling', args.launch] + configs + [
-             'patient_model:=%s' % args.default_model,
-             'real_time_factor:=%g' % args.real_time_factor,
-             'clock_period_ms:=%d' % (10 if args.bags else 100),
-             'segment_profile:=%s' % args.segment_profile,
-             'depth_limit:=%s' % args.depth_limit,
-             'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator,
-             # ~identify writes only there (the trials' models, model_path below)
-             'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))],
+            ['roslaunch', 'pedicle_drilling', args.launch] + configs + launch_arguments(args),
             stdout=devnull, stderr=subprocess.STDOUT, start_new_session=True))
         from std_srvs.srv import Trigger
         types = {'reset': ResetSimulation, 'identify': IdentifyMotion, 'start_trial': StartTrial,

@@ -65,3 +65,20 @@ def test_what_the_nodelet_would_not_take_is_named(tmp_path, kind, class_name, se
     with pytest.raises(ValueError, match=named):
         worker.plugin_config(kind, class_name, [setting], ROOT, str(tmp_path / 'x.yaml'))
     assert not (tmp_path / 'x.yaml').exists()
+
+
+def test_every_launch_argument_of_a_worker_is_declared_by_its_launch_file():
+    import argparse
+    import xml.etree.ElementTree as ET
+    args = argparse.Namespace(default_model='m.yaml', real_time_factor=0.0, bags=False,
+                              segment_profile='rest_to_rest', depth_limit='false',
+                              recognizer='pedicle_drilling/PaperRecognizer',
+                              compensator='pedicle_drilling/PaperCompensator', out='out')
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    launch = ET.parse(os.path.join(root, 'launch_scripts', 'campaign_pipeline.launch')).getroot()
+    declared = {arg.get('name') for arg in launch.findall('arg')}
+    for item in worker.launch_arguments(args):
+        name = item.split(':=', 1)[0]
+        assert name in declared, '%s is not an argument of campaign_pipeline.launch' % name
+    for kind, launch_arg in (('recognizer', 'recognizer_config'), ('compensator', 'planner_config')):
+        assert launch_arg in declared, kind
