@@ -39,6 +39,15 @@ class HardwareLaunchTest(unittest.TestCase):
         rospy.Subscriber('/spindle/command', Float64, self.keep(self.spindle), queue_size=1000)
         self.tf_buffer = tf2_ros.Buffer()
         self.tf_listener = tf2_ros.TransformListener(self.tf_buffer)
+        # The lab's drivers hold until they hear our drill guard (another process, its own
+        # connection): a trial started before is refused by them, safely, but it is not this
+        # scenario. Set by the first ground truth whose drives are not halted.
+        self.drives_enabled = threading.Event()
+        rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_drives, queue_size=10)
+
+    def on_drives(self, msg):
+        if not msg.drives_halted:
+            self.drives_enabled.set()
 
     def keep(self, store):
         def callback(msg):
@@ -52,6 +61,8 @@ class HardwareLaunchTest(unittest.TestCase):
 
     def test_a_compensated_trial_tares_drills_and_stops_on_the_recognizer(self):
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
+        # 60 s of wall time bounds a broken run only.
+        self.assertTrue(self.drives_enabled.wait(60.0), 'the drivers never heard the drill guard')
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
         # The compensated mode needs the ventilator's settings and phase: retry until accepted.
         res = None
