@@ -24,7 +24,9 @@ def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
     path = trials_file(tmp_path, [
         {'trial_id': 'stationary-12000-000', 'seed': 5, 'case': 'stationary', 'rpm': 12000},
         {'trial_id': 'sideways-12000-000', 'seed': 5, 'case': 'sideways', 'rpm': 12000}])
-    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+    # The paper's system (no plan): the recognizer's stop.
+    paper = ('--planner-param', 'depth_limit/require_plan=false')
+    result = run(bin_dir, '--trials', path, '--drilling-pose', POSE, *paper)
     assert result.returncode == 0, result.stderr
     lines = [json.loads(line) for line in result.stdout.splitlines()]
     assert [line['trial']['trial_id'] for line in lines] == ['stationary-12000-000',
@@ -35,8 +37,15 @@ def test_one_line_per_trial_and_errors_recorded(bin_dir, tmp_path):
     assert not record['last_truth']['breakthrough']
     assert 'mode' in lines[1]['error']
     # The same seed gives the same record, bit for bit.
-    again = run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+    again = run(bin_dir, '--trials', path, '--drilling-pose', POSE, *paper)
     assert again.stdout == result.stdout
+    # With the bench's plan (the default) the same trial ends in the inner layer too, by the
+    # recognizer or the plan's depth limit.
+    planned = json.loads(run(bin_dir, '--trials', path, '--drilling-pose', POSE)
+                         .stdout.splitlines()[0])['record']
+    first = planned['stops'][0]
+    assert first[1] == '/state_recognizer' or first[2].startswith('depth_limit'), first
+    assert not planned['last_truth']['breakthrough']
 
 
 def test_trials_from_stdin_give_the_files_lines_and_a_bad_line_is_named(bin_dir, tmp_path):
@@ -121,7 +130,8 @@ def test_planner_params_reach_the_trial(bin_dir, tmp_path):
     phases, stops = {}, {}
     for hold in ('0', '1'):
         result = run(bin_dir, '--trials', path, '--drilling-pose', POSE,
-                     '--planner-param', 'stop_hold_s=' + hold)
+                     '--planner-param', 'stop_hold_s=' + hold,
+                     '--planner-param', 'depth_limit/require_plan=false')  # the recognizer's stop
         assert result.returncode == 0, result.stderr
         record = json.loads(result.stdout.splitlines()[0])['record']
         assert record['stops'] and record['stops'][0][3] is False, record['stops']  # recognizer
