@@ -85,11 +85,8 @@ pd::TrialRequest request(const std::string& mode) {
 
 const pd::FrameLookup kNoLookup;
 
-/** @brief Runs a stationary trial to the drilling phase; returns the time then. */
-double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
-  EXPECT_EQ(seq->start(request("stationary"), apModel(), t0), "");
-  seq->takeOutput();
-  const double t_pose = t0 + 2.5;
+/** @brief The pose is reached at t_pose, then four marker samples 0.125 s apart register it. */
+void registerAt(pd::TrialSequencer* seq, double t_pose) {
   seq->onPoseReached(t_pose);
   seq->takeOutput();
   for (int i = 1; i <= 4; ++i) {
@@ -97,6 +94,14 @@ double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
     seq->onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
                   kNoLookup);
   }
+}
+
+/** @brief Runs a stationary trial to the drilling phase; returns the time then. */
+double toDrilling(pd::TrialSequencer* seq, double t0 = 10.0) {
+  EXPECT_EQ(seq->start(request("stationary"), apModel(), t0), "");
+  seq->takeOutput();
+  const double t_pose = t0 + 2.5;
+  registerAt(seq, t_pose);
   EXPECT_EQ(seq->phase(), pd::TrialPhase::kDrilling);
   return t_pose + 0.5;
 }
@@ -1179,12 +1184,7 @@ TEST(TrialSequencerDepthLimit, APlanWithdrawnAfterTheStartFailsTheTrialAtTheRegi
   seq.setPlan(planAhead(tip, arm.drillAxis(), 2e-3, 3e-3, 0.0));
   ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
   seq.setPlan(std::nullopt);  // a refused plan arrived: the node clears it
-  seq.onPoseReached(12.5);
-  for (int i = 1; i <= 4; ++i) {
-    const double t = 12.5 + 0.125 * i;
-    seq.onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
-                 kNoLookup);
-  }
+  registerAt(&seq, 12.5);
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
 }
 
@@ -1196,11 +1196,6 @@ TEST(TrialSequencerDepthLimit, APlanAtAnAngleToTheDrillFailsTheTrialBeforeTheFee
   p.direction = Eigen::Vector3d(1.0, 0.0, 0.0);
   seq.setPlan(p);
   ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
-  seq.onPoseReached(12.5);
-  for (int i = 1; i <= 4; ++i) {
-    const double t = 12.5 + 0.125 * i;
-    seq.onMarker(t, t, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
-                 kNoLookup);
-  }
+  registerAt(&seq, 12.5);
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
 }
