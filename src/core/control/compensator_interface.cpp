@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <stdexcept>
 
+#include "pedicle_drilling/core/control/adaptive_compensator.hpp"
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
@@ -13,6 +14,7 @@ namespace {
 
 const char* const kPaperCompensator = "pedicle_drilling/PaperCompensator";
 const char* const kTrackedMarkerCompensator = "pedicle_drilling/TrackedMarkerCompensator";
+const char* const kAdaptiveModelCompensator = "pedicle_drilling/AdaptiveModelCompensator";
 
 }  // namespace
 
@@ -190,7 +192,7 @@ std::string GuardedCompensator::describe() const {
 // ----------------------------------------------------------------------------- factory
 
 std::vector<std::string> builtinCompensatorNames() {
-  return {kPaperCompensator, kTrackedMarkerCompensator};
+  return {kPaperCompensator, kTrackedMarkerCompensator, kAdaptiveModelCompensator};
 }
 
 std::unique_ptr<CompensatorInterface> makeBuiltinCompensator(const std::string& name,
@@ -200,6 +202,8 @@ std::unique_ptr<CompensatorInterface> makeBuiltinCompensator(const std::string& 
     c = std::make_unique<PaperCompensator>();
   } else if (name == kTrackedMarkerCompensator) {
     c = std::make_unique<TrackedMarkerCompensator>();
+  } else if (name == kAdaptiveModelCompensator) {
+    c = std::make_unique<AdaptiveModelCompensator>();
   } else {
     std::string known;
     for (const std::string& n : builtinCompensatorNames()) known += (known.empty() ? "" : ", ") + n;
