@@ -17,7 +17,7 @@ CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
 	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON \
 	-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -j$(JOBS)
 
-.PHONY: all deps build test run bench lint format format-check clean
+.PHONY: all deps build test run bench lint format format-check hooks clean
 
 all: build
 
@@ -50,6 +50,13 @@ format: deps
 # test_format.py inside the test run).
 format-check: deps
 	@bad=$$(for f in $$(git ls-files '*.cpp' '*.hpp' '*.h'); do 	  clang-format-14 --dry-run --Werror "$$f" >/dev/null 2>&1 || echo "$$f"; done); 	if [ -n "$$bad" ]; then echo "not formatted (make format): $$bad"; exit 1; fi; 	echo "format-check: every C++ file is formatted"
+
+# Installs scripts/dev/commit-msg as this clone's commit-msg hook, in the hooks folder git names
+# (shared by the clone's worktrees): a copy, so run it again after the hook changes.
+hooks:
+	@hooks=$$(git rev-parse --git-path hooks) && mkdir -p "$$hooks" && \
+	install -m 0755 scripts/dev/commit-msg "$$hooks/commit-msg" && \
+	echo "hooks: installed $$hooks/commit-msg"
 
 clean:
 	rm -rf $(WS)/build $(WS)/devel $(WS)/src/CMakeLists.txt

@@ -29,7 +29,7 @@ peak=$(seconds rosrun pedicle_drilling campaign --scenario "$(rospack find pedic
   --trials 100 --jobs 2 --seed 103 --out "${OUT}/peak")
 peak_trials=$(python3 -c "import csv; print(sum(1 for _ in csv.DictReader(open('${OUT}/peak/trials.csv'))))")
 python3 -c "print('BENCH campaign_peak_forces_trials_per_min %.0f trials/min (core engine, --jobs 2, %d trials in %.1f s)' % (${peak_trials} * 60.0 / ${peak}, ${peak_trials}, ${peak}))"
-# Where the engine's time goes (issue 31): the paper's three cases at 12000 rpm, 20 trials each,
+# Where the engine's time goes: the paper's three cases at 12000 rpm, 20 trials each,
 # profiled by component (campaign --profile; the trials are the unprofiled ones, bit for bit).
 rosrun pedicle_drilling campaign --rpm 12000 --trials 20 --jobs 2 --seed 104 --profile \
   --out "${OUT}/profile" > /dev/null 2>&1

@@ -1,5 +1,5 @@
 // Benchmark: cost of a compensator's prediction per call, the paper's (C++ PaperCompensator)
-// against one written in Python (issue 32: python:pd_campaign.compensators.
+// against one written in Python (python:pd_campaign.compensators.
 // PhaseTemplateCompensator through PythonCompensator, the interpreter embedded), each fed one
 // breath-modulated tracker sample per 0.125 s and asked for displacement() at 40 Hz (the
 // planner's 5 points per 125 ms segment), 10^6 and 10^5 calls.

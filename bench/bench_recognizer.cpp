@@ -1,5 +1,5 @@
 // Benchmark: cost of StateRecognizer::push per raw sample over 10^7 synthetic samples, and of a
-// recognizer written in Python (issue 32: python:pd_campaign.recognizers.ThresholdRecognizer
+// recognizer written in Python (python:pd_campaign.recognizers.ThresholdRecognizer
 // through PythonRecognizer, the interpreter embedded) over 10^6 of the same samples.
 #include <chrono>
 #include <cmath>

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
-"""How close the trials of campaign outputs come to the planner's controller-watch tolerances
-(issue 30): per case and fault, the largest and the 99th percentile of watch_desired_ratio and
+"""How close the trials of campaign outputs come to the planner's controller-watch tolerances:
+per case and fault, the largest and the 99th percentile of watch_desired_ratio and
 watch_following_ratio (|desired - commanded| and |error| over the trial, as fractions of their
 tolerances: 1 trips the watch), and how many trials the watch stopped. A markdown table on
 stdout. Usage: calibration_watch.py CAMPAIGN_DIR..."""

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes urdf/workcell_hardware.urdf from urdf/workcell.urdf (issue 30): the workcell as a lab's
+"""Writes urdf/workcell_hardware.urdf from urdf/workcell.urdf: the workcell as a lab's
 robot_state_publisher describes it, without the optical tracker's frames. On hardware the
 tracker's driver publishes the marker's frame (tracker_camera -> tracker_marker) and the lab's
 registration publishes the camera's (world -> tracker_camera, hardware.launch's static

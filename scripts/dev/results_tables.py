@@ -49,7 +49,7 @@ def metrics_table(summary):
         if g['rpm'] != 12000.0:
             continue
         if 'failure_kinds' not in g:
-            sys.exit('results_tables: %s has no failure kinds (a campaign before issue 27)'
+            sys.exit('results_tables: %s has no failure kinds (a campaign from before them)'
                      % g['case'])
         q = g['quartiles_stop_residual_mm'], g['quartiles_overshoot_mm']
         lat = g['quartiles_detection_latency_ms']

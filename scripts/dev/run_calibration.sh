@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Every calibration of a constant chosen by looking at simulated outcomes (issue 27), on
+# Every calibration of a constant chosen by looking at simulated outcomes, on
 # CALIBRATION seeds only (doc/experiments.md, "Seed spaces"). Published numbers come from
 # `make run`, on evaluation seeds. Outputs in results/calibration/ (or $PEDICLE_DRILLING_CAL_OUT);
 # what each part decided is in doc/campaign_results.md, "Constants chosen on simulated outcomes".
@@ -12,7 +12,7 @@
 #      amplitude fault, 400 calibration seeds, and the paper design at 12000 rpm, 200 per case,
 #      each with a 1 s hold and without (paired seeds); then the retreat's acceleration
 #      (retreat_accel_m_s2, 0.05 against 1 m/s^2) on the same trials
-#   4. the planner's controller watch (issue 30; controller_watch/*_tolerance_*): how close the
+#   4. the planner's controller watch (controller_watch/*_tolerance_*): how close the
 #      fault-free trials of both benches and the command faults come to each tolerance (the
 #      worst |desired - commanded| and |error| per trial as a fraction of it), 100 calibration
 #      seeds per case (scripts/dev/calibration_watch.py writes watch.md)

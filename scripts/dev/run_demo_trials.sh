@@ -2,7 +2,8 @@
 # The demo's trial, N times (default 10), as a user runs it: demo.launch with rviz drawing
 # (software rendering under Xvfb), the trial started from the DrillingPanel's Start button
 # (rostest demo_panel_trial). Prints each run's panel summary and the count of SUCCESS verdicts
-# (issue 28: "10 runs on a 2-core machine: 10 successes"). Results in ${OUT}/demo_trials.md.
+# (the demo's acceptance: "10 runs on a 2-core machine: 10 successes"). Results in
+# ${OUT}/demo_trials.md.
 set -eu
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # shellcheck source=scripts/dev/workspace_env.sh

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The latency budget (issue 28): compensated drilling on the paper's bench, 12000 rpm, with one
+# The latency budget: compensated drilling on the paper's bench, 12000 rpm, with one
 # transport delay of the core engine raised at a time (scenario key engine_delays): the command
 # to the arm controller, the stop to the planner, the force to the recognizer. EVALUATION seeds
 # (a measurement; no constant is chosen on it). Table: scripts/dev/latency_table.py; published

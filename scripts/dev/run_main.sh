@@ -12,7 +12,7 @@
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
-#      the labelled dataset and the recognizer leaderboard (issue 32)
+#      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md)
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
@@ -77,7 +77,7 @@ python3 "${ROOT}/scripts/dev/depth_limit_tables.py" "${OUT}" > "${OUT}/depth_lim
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_peak_forces"
-# 2d. The realistic bench (scenario_realistic.yaml, issue 29): the paper's design
+# 2d. The realistic bench (scenario_realistic.yaml): the paper's design
 #     on the same specimens with the imperfections the simulator can express at sourced values
 #     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
 #     --benches: McNemar per case and speed).
@@ -85,7 +85,7 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
-# 2e. Sensitivity of the conclusions (issue 29): every uncertain constant of
+# 2e. Sensitivity of the conclusions: every uncertain constant of
 #     config/sensitivity.yaml at each end of its documented range on the paper's bench, and the
 #     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, one
 #     at a time on the same seeds, 12000 rpm, SENSITIVITY_TRIALS per case (default 20: a screen,
@@ -103,7 +103,7 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
   --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" "${REUSE[@]}" \
   --out "${OUT}/sensitivity_speed" > /dev/null
-# 2g. The open benchmark (issue 32): a small labelled dataset (doc/dataset.md; `--large` for the
+# 2g. The open benchmark: a small labelled dataset (doc/dataset.md; `--large` for the
 #     full one) and the leaderboard of literature baselines tuned on its training split, run in
 #     closed loop on its test split's specimens on both benches (doc/leaderboard.md; 10 trials
 #     per case here, LEADERBOARD_TRIALS).
@@ -114,7 +114,7 @@ rosrun pedicle_drilling campaign_leaderboard --dataset "${OUT}/dataset" \
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
 #    The second run waits for the participants at every step (--lockstep-every-step): the
-#    same trials as the first, which waits only where a participant needs it (issue 31).
+#    same trials as the first, which waits only where a participant needs it (StepAck.next_step).
 for run in ros ros_repeat; do
   every=()
   [ "${run}" = ros_repeat ] && every=(--lockstep-every-step)

@@ -3,7 +3,8 @@
 # Xvfb, each time beside a node that connects as the demo test does (the DrillingPanel's latched
 # drilling_panel/summary and controls, presses on drilling_panel/press); counts the starts in
 # which rviz died and keeps their logs and core files in OUT (default a new temporary folder).
-# A diagnosis aid for the rviz startup abort seen twice in issue 28 (doc/campaign_results.md).
+# A diagnosis aid for the rviz startup abort seen twice in the demo's earlier runs
+# (doc/campaign_results.md).
 set -u
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 RUNS="${1:-100}"

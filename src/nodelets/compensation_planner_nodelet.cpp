@@ -99,7 +99,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       lockstep_ = std::make_unique<LockstepParticipant>(
           nh, getName(), [this](const ros::Time& t) { onStep(t); }, false,
           [this](const ros::Time&) { return nextStep(); });
-      // Under the lockstep: one thread for the participants' callbacks (issue 31); ~start_trial
+      // Under the lockstep: one thread for the participants' callbacks; ~start_trial
       // keeps its own queue and thread below (it waits for the other nodelets' services).
       lockstep_->shareQueue({&nh, &pnh});
     } catch (const std::exception& e) {
@@ -187,7 +187,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   }
 
   /**
-   * @brief ~compensator and ~compensator_params (issue 17): the class is loaded and configured
+   * @brief ~compensator and ~compensator_params: the class is loaded and configured
    *        once here (a bad one fails the load), then made afresh for every trial.
    */
   void loadCompensator(const ParamLoader& loader) {

@@ -1,6 +1,6 @@
 /**
  * @file force_tare_nodelet.cpp
- * @brief pedicle_drilling/ForceTare: the tare before contact (issue 30) for an F/T sensor whose
+ * @brief pedicle_drilling/ForceTare: the tare before contact for an F/T sensor whose
  *        driver has none of its own. Relays the driver's `wrench_in` to `ft_sensor/wrench` minus
  *        the bias it measured: on `ft_sensor/tare_request` it averages the next `samples` samples
  *        and subtracts their mean from then on, answering on `ft_sensor/tare_result` (latched) —

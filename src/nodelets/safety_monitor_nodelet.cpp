@@ -387,7 +387,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *        changes nothing (SafetySupervisor::quietUntil): the monitor asks for the grid step
    *        one period before it, and for every one after it until a sample comes. Its inputs
    *        only change at steps it sees (the streams' steps, the steps after a participant
-   *        sent), after which this is asked again. Issue 31: the steps waited at for the
+   *        sent), after which this is asked again. Without it the steps waited at for the
    *        200 Hz checks alone were a sixth of those the simulator waited at (51 % -> 43 % of
    *        the steps), with nothing to do at almost all of them.
    */

@@ -1,4 +1,4 @@
-"""Baseline drilling-state recognizers for the labelled force dataset (issue 32, doc/dataset.md),
+"""Baseline drilling-state recognizers for the labelled force dataset (doc/dataset.md),
 written against the Python recognizer contract of pd_campaign.recognizers, and the offline
 harness that scores any recognizer on the dataset with the very objects the closed loop runs.
 

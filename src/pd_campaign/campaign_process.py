@@ -1,6 +1,6 @@
 """A campaign run as a child process of a tool that runs many (campaign_sensitivity's benches,
 the leaderboard's closed-loop campaigns), forked from one server process that imported the
-campaign's modules once (multiprocessing's forkserver, issue 31).
+campaign's modules once (multiprocessing's forkserver).
 
 A campaign started as `campaign ...` spends about 0.4 s of CPU before and after its trials
 importing the interpreter's and the report's modules (scipy.stats alone 0.25 s): a hundred

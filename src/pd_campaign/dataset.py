@@ -1,4 +1,4 @@
-"""The labelled force dataset of issue 32 (doc/dataset.md).
+"""The labelled force dataset (doc/dataset.md).
 
     rosrun pedicle_drilling campaign_dataset --out DIR [--trials N] [--test-trials M] [--large]
 

@@ -4,7 +4,7 @@ Every trial is identified by (case, rpm, index). Its seed depends on (seed space
 index) but NOT on the case, so that the three cases at one speed drill the same specimens with the
 same virtual patients (a paired design: differences between cases are not specimen luck).
 
-Seed spaces (issue 27): every choice made by looking at simulated outcomes (a timeout, a rate, a
+Seed spaces: every choice made by looking at simulated outcomes (a timeout, a rate, a
 threshold) is made on `calibration` seeds; every published number comes from `evaluation` seeds.
 The two spaces are disjoint by construction: bit 62 of a trial seed is 1 in the evaluation space
 and 0 in the calibration space, whatever the base seed, so no base seed of one space can ever

@@ -1,4 +1,4 @@
-"""The recognizer leaderboard of issue 32 (doc/leaderboard.md).
+"""The recognizer leaderboard (doc/leaderboard.md).
 
     rosrun pedicle_drilling campaign_leaderboard --dataset DATASET_DIR --out DIR [--trials N]
 

@@ -1,4 +1,4 @@
-"""Why a trial ended as it did (issue 27): its failure kind and the field's metrics, from what
+"""Why a trial ended as it did: its failure kind and the field's metrics, from what
 both engines record (the ground-truth stream, the stop commands). Pure functions of the record.
 
 Failure kinds, one per trial, the first that applies:

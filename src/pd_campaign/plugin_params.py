@@ -1,4 +1,4 @@
-"""Declared parameters for the Python plugins (recognizers, compensators; issue 32): each class
+"""Declared parameters for the Python plugins (recognizers, compensators): each class
 declares PARAMETERS = {name: (type, default, check)} once; configure() takes the text values
 the C++ side passes (`--recognizer-param name=value`, a nodelet's `~recognizer_params` or
 `~compensator_params`) and raises ValueError whose message starts with the bad or unknown

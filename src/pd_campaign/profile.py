@@ -1,4 +1,4 @@
-"""Where a core-engine campaign's time goes (issue 31): `campaign --profile` has every
+"""Where a core-engine campaign's time goes: `campaign --profile` has every
 trial_engine worker time its trials by component (core::ComponentProfile) and merges the workers'
 files into OUT/profile.json and the table OUT/profile.md. make bench prints its shares."""
 import json

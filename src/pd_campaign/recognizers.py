@@ -1,4 +1,4 @@
-"""Drilling-state recognizers written in Python (issue 32), run in the closed loop wherever a
+"""Drilling-state recognizers written in Python, run in the closed loop wherever a
 recognizer class is named: `python:pd_campaign.recognizers.ThresholdRecognizer` as the
 StateRecognizer nodelet's `~recognizer`, `trial_engine --recognizer` or the campaign's
 `--recognizer`. The C++ side (pedicle_drilling/python/python_recognizer.hpp) imports the class

@@ -232,7 +232,7 @@ def summarise(rows):
 
 
 def field_metrics(valid):
-    """The field's metrics of a group of trials (issue 27; Xia et al. 2024 report correct stops
+    """The field's metrics of a group of trials (Xia et al. 2024 report correct stops
     and no penetration separately): correct-stop and no-penetration rates with Wilson 95 %
     intervals, the failure kinds, and the medians (with quartiles) of the stop's distance from
     the inner layer's end, the overshoot past the layer's entry and the detection latency

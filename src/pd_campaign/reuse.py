@@ -1,5 +1,5 @@
 """Trials a core-engine campaign takes from finished campaigns instead of running them again
-(`campaign --reuse-trials ROOT`, issue 31).
+(`campaign --reuse-trials ROOT`).
 
 A core trial's record is a function of the trial (its id, case, speed, seed, fault) and of what
 trial_engine runs it with: the build, the package's files it reads at run time (urdf/, config/,

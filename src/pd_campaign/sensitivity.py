@@ -1,4 +1,4 @@
-"""Sensitivity of the campaign's conclusions to the bench's uncertain constants (issue 29, item 3).
+"""Sensitivity of the campaign's conclusions to the bench's uncertain constants.
 
     rosrun pedicle_drilling campaign_sensitivity [--scenario FILE] [--sweep FILE] [--rpm R,...]
         [--trials N] [--seed S] [--seed-space SPACE] [--jobs J] [--out DIR] [--only NAME ...]

@@ -511,7 +511,7 @@ def analyse_trial(recorder, row, trial, trace_dir):
                           and 0.0 < truth.residual_inner_cortical_m <= 2.0e-3)
     states = [s for s in recorder.states if s[0] >= t_drill]
     truth_rows = [r for r in recorder.truth if r[0] >= t_drill]
-    # Why it ended so (issue 27): the failure kind and the field's metrics (pd_campaign.outcome).
+    # Why it ended so: the failure kind and the field's metrics (pd_campaign.outcome).
     row['failure_kind'], metrics = outcome.classify(
         truth_rows, recorder.stops, truth.inner_cortical_start_m if truth else 0.0,
         row['success'])

@@ -20,7 +20,7 @@ struct PluginKind;
 
 template <>
 struct PluginKind<core::RecognizerInterface> {
-  /** @brief A class written in Python (`python:<module>.<Class>`, issue 32), else nullptr. */
+  /** @brief A class written in Python (`python:<module>.<Class>`), else nullptr. */
   static std::unique_ptr<core::RecognizerInterface> makeForeign(const std::string& name) {
     if (!isPythonClassName(name)) return nullptr;
     return std::make_unique<PythonRecognizer>(name.substr(std::string(kPythonClassPrefix).size()));
@@ -36,7 +36,7 @@ struct PluginKind<core::RecognizerInterface> {
 
 template <>
 struct PluginKind<core::CompensatorInterface> {
-  /** @brief A class written in Python (`python:<module>.<Class>`, issue 32), else nullptr. */
+  /** @brief A class written in Python (`python:<module>.<Class>`), else nullptr. */
   static std::unique_ptr<core::CompensatorInterface> makeForeign(const std::string& name) {
     if (!isPythonClassName(name)) return nullptr;
     return std::make_unique<PythonCompensator>(name.substr(std::string(kPythonClassPrefix).size()));

@@ -507,7 +507,7 @@ TEST(BulletArm, IndexedTargetsEqualNamedTargets) {
   EXPECT_TRUE(indexed.jointPositionTargets() == before);
 }
 
-// The kept inverse inertia (issue 31): computed once per sub-step at tolerance 0; while the arm
+// The kept inverse inertia: computed once per sub-step at tolerance 0; while the arm
 // holds a pose with the spindle turning (a rotor: not watched) once; a tolerance's run stays within
 // a micrometre of the exact one through a move, a feed under a tip load and a hold; a reset of
 // the joints computes it afresh; a bad tolerance is refused.

@@ -1,6 +1,6 @@
 /**
  * @file test_component_profile.cpp
- * @brief core::ComponentProfile (issue 31): laps and scoped timers add to their component, off
+ * @brief core::ComponentProfile: laps and scoped timers add to their component, off
  *        (no profile) they do nothing; a profiled simulation times its components, Bullet's
  *        world step inside the arm's, and steps exactly as an unprofiled one.
  */

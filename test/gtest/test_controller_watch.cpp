@@ -1,4 +1,4 @@
-// Tests of core::ControllerWatch: the planner's closed loop on its controllers' states (issue 30).
+// Tests of core::ControllerWatch: the planner's closed loop on its controllers' states.
 #include "pedicle_drilling/core/control/controller_watch.hpp"
 
 #include <gtest/gtest.h>

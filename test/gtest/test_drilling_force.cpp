@@ -289,7 +289,7 @@ TEST(DrillingForce, BreathingMotionMakesThrustIntermittentAndVariable) {
   EXPECT_GT(cortical_max, 1.5 * cortical_min);  // cortical thrust varies strongly
 }
 
-// --- Elastic contact (issue 14: the contact after the stop) ---------------------------------
+// --- Elastic contact (the contact after the stop) -------------------------------------------
 
 DrillParameters elastic(double k) {
   DrillParameters d;

@@ -1,4 +1,4 @@
-// core::FaultInjector: what each fault does to the streams, and when (issue 15). The core engine
+// core::FaultInjector: what each fault does to the streams, and when. The core engine
 // and the FaultInjector nodelet run this class.
 #include <gtest/gtest.h>
 

@@ -162,7 +162,7 @@ TEST(ForceSensor, DriftIsARandomWalk) {
   EXPECT_NEAR(std::sqrt(sum2 / seeds), 0.005, 0.002);
 }
 
-// The measurement chain (issue 14): sample() at the physics rate with the default chain (1 kHz
+// The measurement chain: sample() at the physics rate with the default chain (1 kHz
 // output, no filter) is measure() bit for bit, so the default simulation is unchanged.
 TEST(ForceSensorChain, TheDefaultChainIsMeasureBitForBit) {
   ForceSensor direct(9, ForceSensorParams());

@@ -1,4 +1,4 @@
-// Tests of core::ForceTare: the F/T sensor's tare before contact (issue 30).
+// Tests of core::ForceTare: the F/T sensor's tare before contact.
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
 
 #include <gtest/gtest.h>

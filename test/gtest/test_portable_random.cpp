@@ -1,4 +1,4 @@
-// Portable random transforms (core/common/portable_random.hpp, issue 29): a seed's numbers must
+// Portable random transforms (core/common/portable_random.hpp): a seed's numbers must
 // not depend on the standard library. Two kinds of check:
 // - on libstdc++, the transforms equal its distributions bit for bit (the trials recorded before
 //   the change are reproduced);

@@ -1,4 +1,4 @@
-// Tests of PythonCompensator (issue 32): a motion compensator written in Python, driven through
+// Tests of PythonCompensator: a motion compensator written in Python, driven through
 // the C++ interface. The classes under test are written here into a module on the Python path.
 #include "pedicle_drilling/python/python_compensator.hpp"
 

@@ -1,4 +1,4 @@
-// Tests of PythonRecognizer (issue 32): a recognizer class written in Python, driven through the
+// Tests of PythonRecognizer: a recognizer class written in Python, driven through the
 // C++ interface. The classes under test are written here into a module on the Python path.
 #include "pedicle_drilling/python/python_recognizer.hpp"
 

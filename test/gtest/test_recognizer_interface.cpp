@@ -1,4 +1,4 @@
-// The recognizer plugin interface (issue 17): the paper recognizer behind it behaves as
+// The recognizer plugin interface: the paper recognizer behind it behaves as
 // StateRecognizer itself, the force-difference baseline stops at the second breakthrough, the
 // factory refuses unknown names and bad settings naming them.
 #include <gtest/gtest.h>

@@ -135,7 +135,7 @@ TEST(SpmsKinematics, UnreachablePosesReportReason) {
 }
 
 // The spherical joints' limit decides as acos(cosine) > limit, also a hair either side of it
-// (inverse and forward skip the acos only well within the limit: issue 31).
+// (inverse and forward skip the acos only well within the limit).
 TEST(SpmsKinematics, TheTiltLimitDecidesExactlyAtItsBoundary) {
   PlatformPose p;
   p.z_m = 3e-3;
@@ -206,7 +206,7 @@ TEST(LeadScrew, AngleSliderRoundTrip) {
   }
 }
 
-// The platform's forward kinematics with a kept Jacobian (issue 31: the simulation steps it every
+// The platform's forward kinematics with a kept Jacobian (the simulation steps it every
 // millisecond): along a breathing heave with a tilt, each step from the last pose, the same pose
 // as Newton's method to 1e-12 in every coordinate; a NaN matrix is replaced by a computed one; a
 // wrong one (a tenth of the true Jacobian) still converges, as Newton does.

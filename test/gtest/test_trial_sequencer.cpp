@@ -380,7 +380,7 @@ TEST(TrialSequencer, MaxDurationRetracts) {
   EXPECT_NEAR(now, 4.0, 1e-9);
 }
 
-// A component unloaded or dead mid-trial (issue 15): its silence stops the feed and retracts,
+// A component unloaded or dead mid-trial: its silence stops the feed and retracts,
 // with a StopCommand the driver publishes. Timed from the start of the drilling.
 TEST(TrialSequencer, SilentRecognizerOrMonitorWhileDrillingRetreats) {
   pd::TrialSequencerParams p = params();
@@ -661,7 +661,7 @@ TEST(TrialSequencer, ARequestMayNameTheSegmentProfileOfItsTrial) {
   EXPECT_EQ(other.planner()->params().segment_profile, pd::SegmentProfile::kRestToRest);
 }
 
-// Issue 27: the outer cortical layer's plausibility is geometric. Once the tip's predicted
+// The outer cortical layer's plausibility is geometric. Once the tip's predicted
 // advance into the bone is outer_cortical_max_mm past the recognizer's contact report, the
 // outer cortex must be cut through; a recognizer still reporting it recognizer_delay_s later
 // (a drifting sensor) stops the drill with retreat. Stationary: the advance is the feed
@@ -872,7 +872,7 @@ TEST(SequencerTimers, TheSequencerDispatchesAFiredTimerToItsHandler) {
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kRegistering);
 }
 
-// ------------------------------------------------------------------ the closed loop (issue 30)
+// ----------------------------------------------------------------------------- the closed loop
 
 TEST(TrialSequencer, WatchedStartNeedsEachControllersState) {
   pd::TrialSequencerParams p = params();

@@ -1,4 +1,4 @@
-// Tests of core::TrialView, PanelSettings and layoutLabels: what the rviz plugins show (issue 16),
+// Tests of core::TrialView, PanelSettings and layoutLabels: what the rviz plugins show,
 // without Qt, Ogre or ROS.
 #include "pedicle_drilling/core/control/trial_view.hpp"
 

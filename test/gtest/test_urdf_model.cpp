@@ -1,4 +1,4 @@
-// urdfdom's parse kept for the description parsed last (issue 31: a campaign builds a simulation
+// urdfdom's parse kept for the description parsed last (a campaign builds a simulation
 // per trial from one description).
 #include <gtest/gtest.h>
 

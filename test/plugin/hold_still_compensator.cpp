@@ -1,6 +1,6 @@
 /**
  * @file hold_still_compensator.cpp
- * @brief A compensator plugin that lives only in the test tree (issue 17): an outside class,
+ * @brief A compensator plugin that lives only in the test tree: an outside class,
  *        built apart from our library and known to us only by its name, plugs into the planner
  *        through pluginlib. It predicts that the bone holds still at `offset_mm` along world z
  *        (no compensation at all: nothing a surgeon should use).

@@ -1,6 +1,6 @@
 /**
  * @file stop_after_samples.cpp
- * @brief A recognizer plugin that lives only in the test tree (issue 17): it proves that an
+ * @brief A recognizer plugin that lives only in the test tree: it proves that an
  *        outside class, built apart from our library and known to us only by its name, plugs in
  *        through pluginlib. It stops after `samples` raw samples above `threshold_n` (nothing a
  *        surgeon should use).

@@ -1,4 +1,4 @@
-"""Every output file of the scripts is written to a temporary file and renamed (issue 15):
+"""Every output file of the scripts is written to a temporary file and renamed:
 pd_campaign.atomic on its own (a write that fails midway leaves the old file and no temporary
 one), the scripts' source (no output opened for writing any other way), and the scripts run
 under an audit hook that sees every file they open for writing."""

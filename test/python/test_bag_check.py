@@ -1,4 +1,4 @@
-"""A kept recording says what it lost (issue 15): pd_campaign.worker.check_bag counts every
+"""A kept recording says what it lost: pd_campaign.worker.check_bag counts every
 topic of a campaign bag, names the required topics that have no message and finds the samples
 missing from the force stream (gaps against its own median period). Checked on bags written
 here, with known losses. And the worker names a dead process of its launch from roslaunch's log

@@ -1,4 +1,4 @@
-"""Baseline recognizers for the labelled dataset (issue 32, pd_campaign.baselines): the offline
+"""Baseline recognizers for the labelled dataset (pd_campaign.baselines): the offline
 harness on traces with a known answer; the change-point and the learned recognizer stop inside
 the inner cortex of synthetic three-layer force profiles at two force scales; parameter errors
 name the parameter; train_learned on a small campaign_dataset writes a deterministic model that

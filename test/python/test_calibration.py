@@ -1,5 +1,5 @@
-"""The simulator's calibration against the paper's force figures (issue 14,
-doc/simulator_physics.md "Measurement chain"), re-checked: the peak_forces protocol with the
+"""The simulator's calibration against the paper's force figures
+(doc/simulator_physics.md "Measurement chain"), re-checked: the peak_forces protocol with the
 simulator's defaults (the calibrated DAQ rate and chisel-edge share), on the documented seed,
 reproduces Fig. 16 within the stated tolerances, and the documented row of that rate within
 sampling error. 40 trials per case here (200 in the doc)."""
@@ -22,7 +22,7 @@ SIMULATOR = 'pedicle_drilling/Simulator'
 # case's median difference to the stationary one, in percent.
 PAPER_STATIONARY = (3.16, 2.88)
 PAPER_DIFFERENCE = {'uncompensated': (-38.0, -49.7), 'compensated': (-13.0, -0.2)}
-STATIONARY_TOLERANCE = 0.20  # relative (issue 14: stationary medians within 20 %)
+STATIONARY_TOLERANCE = 0.20  # relative: the stationary medians within 20 %
 DIFFERENCE_TOLERANCE = 16.0  # percentage points, 40 trials per case
 
 

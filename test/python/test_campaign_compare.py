@@ -1,4 +1,4 @@
-"""campaign_compare: paired comparison of two campaigns on the same design (issue 17)."""
+"""campaign_compare: paired comparison of two campaigns on the same design."""
 import json
 import os
 import random

@@ -238,7 +238,7 @@ def test_campaign_bad_arguments_exit_2(args, named):
     ('trials: 1\nfaults: [none, none]\n', ['faults']),
     ('trials: 1\nfaults: [none]\nfault_params: {spike: 3}\n', ['fault_params.spike']),
     ('trials: 1\nfaults: [none]\nfault_params: {spike_n: big}\n', ['fault_params.spike_n']),
-    # Corrupt, truncated, empty or of another version (issue 15): exit 2, nothing written.
+    # Corrupt, truncated, empty or of another version: exit 2, nothing written.
     ('', ['holds no setting']),
     ('# a scenario whose settings were cut off\n# cases: [compensated]\n', ['holds no setting']),
     ('cases: [stationary, compen', ['cannot read']),
@@ -410,7 +410,7 @@ def test_report_tests_the_compensated_counts_against_fig15_at_every_speed(tmp_pa
 
 
 def test_seed_spaces_are_disjoint_by_construction():
-    # Issue 27: calibration and evaluation seeds never meet, whatever the base seeds: bit 62
+    # Calibration and evaluation seeds never meet, whatever the base seeds: bit 62
     # tells them apart, and each seed says which space it is from.
     calibration = {design.trial_seed(b, r, i, 'calibration')
                    for b in range(5) for r in (12000, 20000) for i in range(50)}
@@ -443,7 +443,7 @@ def test_shipped_scenarios_publish_on_evaluation_seeds():
 
 
 def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_path):
-    # Issue 27: the report counts every failure kind, the field's metrics, and the H1 stops per
+    # The report counts every failure kind, the field's metrics, and the H1 stops per
     # virtual volunteer with the position error they reported.
     d = design.build_design(['stationary', 'compensated'], [12000], 4, 5)
     rows = []
@@ -568,7 +568,7 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
 
 
 def test_the_ros_pipelines_pace_and_lockstep_options():
-    """--engine ros runs as fast as the lockstep lets it unless a bag is recorded (issue 31);
+    """--engine ros runs as fast as the lockstep lets it unless a bag is recorded;
     --lockstep-every-step is the ROS pipeline's, refused with the core engine; a bad real-time
     factor is refused naming the option."""
     from pd_campaign import cli

@@ -1,4 +1,4 @@
-"""The campaign's progress display (issue 31): a bar in place on a terminal, whole lines
+"""The campaign's progress display: a bar in place on a terminal, whole lines
 elsewhere (a file, a pipe, Slurm's log), no carriage return there."""
 import io
 import os

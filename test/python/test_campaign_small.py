@@ -357,7 +357,7 @@ def test_fault_campaign_stops_every_sensor_fault_and_breaks_through_nowhere(tmp_
 
 
 def test_a_profiled_campaign_says_where_its_time_goes_and_changes_no_trial(tmp_path):
-    """campaign --profile (issue 31): the core engine's workers time each component; the
+    """campaign --profile: the core engine's workers time each component; the
     merged profile covers every trial, its components fit inside the engine's steps, Bullet's
     world step inside the arm's, and the trials are the unprofiled run's, bit for bit."""
     outs = {}

@@ -1,4 +1,4 @@
-"""The labelled force dataset (issue 32): written by campaign_dataset, read back with numpy; the
+"""The labelled force dataset: written by campaign_dataset, read back with numpy; the
 split by seed space; the labels against the ground truth; recording samples changes no trial."""
 import csv
 import json

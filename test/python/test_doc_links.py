@@ -1,4 +1,4 @@
-"""Every relative link of the documentation resolves (issue 12): in README.md and doc/**/*.md,
+"""Every relative link of the documentation resolves: in README.md and doc/**/*.md,
 each `[text](target)` and `![alt](target)` that is not a web address (http, https, mailto) or an
 anchor of the same page (`#...`) names a file or folder that exists relative to the markdown
 file; an anchor into another file (`file.md#section`) is checked for the file only. Fenced code

@@ -1,4 +1,4 @@
-"""The two engines run the same trial (issue 28): the same seeds through the core engine and
+"""The two engines run the same trial: the same seeds through the core engine and
 through the ROS pipeline (the Simulator in lockstep with the planner, the recognizer and the
 monitor; README "Lockstep"), trial by trial: 2 per case of the paper's design at 12000 rpm and 2
 of the virtual patient (the bone's true motion, lag, drift and small movements).
@@ -76,7 +76,7 @@ WALL = {'wall_s'}
 
 
 def test_waiting_at_every_step_changes_no_ros_trial(tmp_path):
-    """Fewer synchronised steps (issue 31, StepAck.next_step) are the same trials, and the ROS
+    """Fewer synchronised steps (StepAck.next_step) are the same trials, and the ROS
     pipeline gives a seed the same trial in every run: the realistic bench (its delays, the
     tracker's 14 ms among them) through the ROS pipeline twice, once waiting for the
     participants at every step (--lockstep-every-step), with one worker instead of two, and

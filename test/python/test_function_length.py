@@ -1,4 +1,4 @@
-"""No function in src/ or include/ longer than about 120 lines (issue 12): a long function is
+"""No function in src/ or include/ longer than about 120 lines: a long function is
 split into named steps. The scan is lexical (comments and literals removed, braces matched): a
 function body is a brace block whose head ends like a signature, nested lambdas and blocks count
 to their function."""

@@ -1,4 +1,4 @@
-"""Fuzzing the scenario loader (issue 15). libFuzzer fuzzes the C++ readers (test_fuzz.py); the
+"""Fuzzing the scenario loader. libFuzzer fuzzes the C++ readers (test_fuzz.py); the
 scenario loader is Python, so it is fuzzed here: seeded mutations of every shipped scenario
 file (bytes flipped, inserted, deleted, the file cut short, lines swapped, YAML-significant
 characters injected) and random bytes. Every input must give a validated scenario (a dict of

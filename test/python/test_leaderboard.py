@@ -1,4 +1,4 @@
-"""The recognizer leaderboard (issue 32): tuning on the training split only, the choice on the
+"""The recognizer leaderboard: tuning on the training split only, the choice on the
 validation split, closed-loop campaigns on the test split's specimens, paired tests with the
 paper's recognizer; its rules on synthetic scores."""
 import csv

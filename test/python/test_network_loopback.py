@@ -1,4 +1,4 @@
-"""Loopback by default (issue 15): every shipped launch file starts its nodes with ROS_HOSTNAME
+"""Loopback by default: every shipped launch file starts its nodes with ROS_HOSTNAME
 (and, on loopback, ROS_IP) set to its `ros_host` argument, 127.0.0.1 unless the user exported
 ROS_HOSTNAME or ROS_IP or gave ros_host:=...; and a launched nodelet manager really serves its
 topics on 127.0.0.1 only."""

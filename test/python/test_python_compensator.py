@@ -1,4 +1,4 @@
-"""Compensators written in Python (issue 32): `python:pd_campaign.compensators.
+"""Compensators written in Python: `python:pd_campaign.compensators.
 PhaseTemplateCompensator` runs in the closed loop of the core engine and of the ROS pipeline
 (the CompensationPlanner nodelet embeds the interpreter), chosen by name as the C++ classes are,
 with the same parameter handling; the base class and the example on their own."""

@@ -1,4 +1,4 @@
-"""Recognizers written in Python (issue 32): `python:pd_campaign.recognizers.ThresholdRecognizer`
+"""Recognizers written in Python: `python:pd_campaign.recognizers.ThresholdRecognizer`
 runs in the closed loop of the core engine (200 trials per case at 12000 rpm, calibration seeds)
 and of the ROS pipeline (one trial: the StateRecognizer nodelet embeds the interpreter), chosen
 by name as the C++ classes are, with the same parameter handling; pd_campaign.recognizers'

@@ -1,5 +1,5 @@
-"""The README's parameter tables against the code's declarations and the shipped configuration
-(issue 12). Each nodelet's parameters are declared once in C++ (core::ParamTable, through
+"""The README's parameter tables against the code's declarations and the shipped configuration.
+Each nodelet's parameters are declared once in C++ (core::ParamTable, through
 ros/node_params.hpp); `param_docs --format json` prints them. Every declared parameter has a README
 row with the same type, default and allowed values (the range column starts with the declared
 rule; notes may follow after "; "), and every README row is declared: a range changed in the code

@@ -1,4 +1,4 @@
-"""Bring your own recognizer or compensator (issue 17): the built-in recognizers and
+"""Bring your own recognizer or compensator: the built-in recognizers and
 compensators are pluginlib classes that rospack lists; the offline `recognize` tool, trial_engine
 and the campaign run whichever class is named; plugins defined only in the test tree
 (test/plugin/, built with the tests) are loaded by their names, which proves that an outside

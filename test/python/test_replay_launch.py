@@ -1,4 +1,4 @@
-"""replay.launch (issue 16): a campaign-style bag played on sim time from the bag, headless: the
+"""replay.launch: a campaign-style bag played on sim time from the bag, headless: the
 clock it publishes never steps back, every force sample comes out with its stamp, and
 robot_description is set for the workcell display (a bag cannot hold it)."""
 import os

@@ -1,4 +1,4 @@
-"""campaign_sensitivity (issue 29, item 3): one constant at a time over its documented range, on
+"""campaign_sensitivity: one constant at a time over its documented range, on
 the nominal bench's seeds. The sweep file's checks, the table and the conclusions on synthetic
 trials, and a tiny real sweep whose table is recomputed from its campaigns' trials.csv."""
 import csv

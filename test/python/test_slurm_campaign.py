@@ -1,4 +1,4 @@
-"""The Slurm job-array recipe of doc/experiments.md, run for real in `make test` (issue 31):
+"""The Slurm job-array recipe of doc/experiments.md, run for real in `make test`:
 test/slurm/slurm_campaign.sh starts a one-node Slurm cluster on loopback (slurm-wlm and munge
 come from `make deps`; the script installs them when missing), submits that page's job script
 as a 3-shard array, merges the shards with its campaign_merge line as a dependent job, and

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Scenario (issue 17): the CompensationPlanner nodelet runs the compensator class its
+"""Scenario: the CompensationPlanner nodelet runs the compensator class its
 ~compensator names. With pedicle_drilling/TrackedMarkerCompensator (hold the last tracker
 sample), the pose the planner predicts for the safety monitor at each tracker stamp is the
 previous tracker sample, to rounding: a prediction made before the sample was heard. The paper's

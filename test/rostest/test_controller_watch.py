@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The planner's closed loop on the arm's controllers (issue 30), on the simulated pipeline
+"""The planner's closed loop on the arm's controllers, on the simulated pipeline
 (drilling_pipeline.launch sim:=true, seed 5, compensated): each case makes a controller depart
 from what the planner commanded and requires a stop from the planner with the controller watch's
 reason (~expect, a substring), announced on drill/stop with retreat = true.

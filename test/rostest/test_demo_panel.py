@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""demo.launch driven through the DrillingPanel (issue 16). The test never calls the planner's
+"""demo.launch driven through the DrillingPanel. The test never calls the planner's
 service itself: it publishes "start" on drilling_panel/press, which clicks the panel's Start
 button (a greyed-out button ignores it, so the press is repeated until the planner reports the
 trial under way). Then it waits for the trial's end and checks, from the plugins' own state and

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""hardware.launch against the Simulator playing a lab's drivers (hardware_launch.test, issue 30).
+"""hardware.launch against the Simulator playing a lab's drivers (hardware_launch.test).
 
 One compensated trial: the planner asks the sensor driver for its tare with the spindle running
 and the tool free (the untared sensor reads the tool's 4.9 N), the recognizer restarts on the

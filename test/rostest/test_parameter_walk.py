@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The parameter walk (issue 15): every parameter of every nodelet, as the README's parameter
+"""The parameter walk: every parameter of every nodelet, as the README's parameter
 tables declare it, given a value of the wrong type and a value out of range (and a required one
 left out): the nodelet, started standalone with the parameters of its shipped launch file plus
 that one bad value, must refuse to start (exit non-zero) with an error naming the parameter.

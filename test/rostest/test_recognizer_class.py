@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Scenario (issue 17): the StateRecognizer nodelet runs the class its ~recognizer names. Fed a
+"""Scenario: the StateRecognizer nodelet runs the class its ~recognizer names. Fed a
 vertebra-like thrust profile at 1 kHz (air, outer cortex 3.5 N, cancellous 1.2 N, inner cortex
 4 N, canal), the force-difference baseline must send exactly one StopCommand (retreat = false)
 with its own reason, after the second fall of the force, and publish drilling_state."""

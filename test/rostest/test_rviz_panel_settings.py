@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""The DrillingPanel's settings come back from a saved rviz configuration (issue 16): rviz starts
+"""The DrillingPanel's settings come back from a saved rviz configuration: rviz starts
 with test/config/panel_settings.rviz, whose panel entry is not the default, and the panel's
 drilling_panel/controls report (latched, from its own widgets) names exactly those settings."""
 import sys

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Scenario: fewer synchronised steps under the lockstep (issue 31, StepAck.next_step).
+"""Scenario: fewer synchronised steps under the lockstep (StepAck.next_step).
 
 This test is the only lockstep participant. Answering with next_step zero it is stepped at every
 1 ms step. Answering with next_step = never, it sees only the steps at which the simulator

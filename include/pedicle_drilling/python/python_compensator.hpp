@@ -1,6 +1,6 @@
 /**
  * @file python_compensator.hpp
- * @brief A motion compensator written in Python (issue 32), behind the same interface as the
+ * @brief A motion compensator written in Python, behind the same interface as the
  *        C++ ones: `python:<module>.<Class>` names it wherever a compensator class is named (the
  *        CompensationPlanner nodelet's ~compensator, trial_engine and the campaign's
  *        --compensator). The class is imported from the Python path into the interpreter

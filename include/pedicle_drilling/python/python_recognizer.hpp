@@ -1,6 +1,6 @@
 /**
  * @file python_recognizer.hpp
- * @brief A drilling-state recognizer written in Python (issue 32), behind the same interface as
+ * @brief A drilling-state recognizer written in Python, behind the same interface as
  *        the C++ ones: `python:<module>.<Class>` names it wherever a recognizer class is named
  *        (the StateRecognizer nodelet's ~recognizer, trial_engine and the campaign's
  *        --recognizer). The class is imported from the Python path (PYTHONPATH, the sourced

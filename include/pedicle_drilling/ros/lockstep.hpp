@@ -1,6 +1,6 @@
 /**
  * @file lockstep.hpp
- * @brief The simulator's lockstep (README "Lockstep"; issue 28): with the global parameter
+ * @brief The simulator's lockstep (README "Lockstep"): with the global parameter
  *        /use_sim_lockstep true, the Simulator publishes `simulator/step` (rosgraph_msgs/Clock)
  *        after a physics step's messages and steps again only when every participant has
  *        answered it (at every step a participant can act at: see below) on `simulator/step_ack`
@@ -14,7 +14,7 @@
  * pose) is handled at the first step after the one it was sent in (deliver()), in stamp order,
  * whichever thread delivered it first: the engine's 1 ms transport, the same in every run.
  *
- * Fewer synchronised steps (issue 31): each answer says the next step the participant must see
+ * Fewer synchronised steps: each answer says the next step the participant must see
  * for itself (StepAck.next_step: its next timer, or the very next step when it published
  * something, noteSent()); the simulator steps everyone at those steps and at every step that
  * publishes one of its streams, and runs the steps in between without waiting. A step a
@@ -116,7 +116,7 @@ class LockstepParticipant {
    *        registered on them) on the process's participants' queue (sharedQueue()): one
    *        thread runs the callbacks of every participant that shares it, in the order they
    *        arrived, so that a synchronised step passes from one participant to the next
-   *        without a thread switch (issue 31). Each participant's callbacks stay in their
+   *        without a thread switch. Each participant's callbacks stay in their
    *        order, and what one sends another is handled at the next step (deliver()), so the
    *        trial is the same as on the nodelet manager's threads. Nothing without the lockstep:
    *        on hardware each nodelet keeps its own queue (a slow planner never delays the

@@ -66,7 +66,7 @@ struct SimulatorNodeParams {
   double tracker_rate_hz = 8.0;        ///< tracker rate (NDI Polaris in the paper: 8 Hz)
   double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume (0: off)
   std::string bone_motion_model_path;  ///< identified model driving the bone ("" = built-in)
-  /// The tracker as a lab's tracker driver publishes it (issue 30): "" (default) publishes its
+  /// The tracker as a lab's tracker driver publishes it: "" (default) publishes its
   /// samples on tracker/marker_pose only; a frame name also puts each sample on tf as
   /// tracker_camera -> this frame (the sample's stamp, after tracker_delay_s), and the URDF's
   /// frames of that name and tracker_camera leave the simulator's tf: the tracker's driver and

@@ -1,6 +1,6 @@
 /**
  * @file plugin_loader.hpp
- * @brief Creates a recognizer or a compensator by class name (issue 17): the built-in ones
+ * @brief Creates a recognizer or a compensator by class name: the built-in ones
  *        directly, any other through pluginlib (base classes
  *        pedicle_drilling::core::RecognizerInterface and ::CompensatorInterface, exported by a
  *        package's plugin XML under `<pedicle_drilling plugin="..."/>`). Plugin XML files outside

@@ -1,6 +1,6 @@
 /**
  * @file drilling_panel.hpp
- * @brief rviz panel `pedicle_drilling/DrillingPanel` (issue 16): choose the case, the
+ * @brief rviz panel `pedicle_drilling/DrillingPanel`: choose the case, the
  *        compensation profile, the spindle speed, the feed rate and the specimen seed; start,
  *        stop and reset a trial through the planner's and the simulator's services; watch the
  *        trial's phase, the recognizer, the force and A*, predicted vs tracked bone (H1), the

@@ -159,7 +159,7 @@ std::string ControllerWatch::onState(double now, const std::string& name,
     worst_following_ = std::max(worst_following_, f / w.following_tolerance[j]);
     if (!(d > w.desired_tolerance[j]) && !(f > w.following_tolerance[j])) continue;
     // The message is built only on a violation (a stream per state was a visible share of a
-    // trial's time: issue 31).
+    // trial's time).
     std::ostringstream os;
     if (d > w.desired_tolerance[j]) {
       os << w.spec.name << ": the desired position of " << w.spec.joints[j] << " differs from the "

@@ -41,7 +41,7 @@ SpmsKinematics::SpmsKinematics(SpmsGeometry geometry) : geometry_(geometry) {
   const SpmsGeometry& g = geometry_;
   // A tilt's cosine above this is well within the limit (1e-9 in cosine is far more than
   // acos's rounding), so the joint-limit checks decide as acos(cosine) > limit would, without
-  // an acos per leg per query (issue 31: the simulation solves the platform every step).
+  // an acos per leg per query (the simulation solves the platform every step).
   tilt_certainly_within_cos_ = std::cos(g.max_spherical_tilt_deg * kDeg) + 1e-9;
   if (!(g.base_radius_m > 0.0 && g.platform_radius_m > 0.0 && g.rod_length_m > 0.0 &&
         g.slider_max_m > g.slider_min_m && g.home_slider_m >= g.slider_min_m &&

@@ -1,6 +1,6 @@
 /**
  * @file component_profile.hpp
- * @brief Where a trial's wall time goes (issue 31): the core engine's own profile, by
+ * @brief Where a trial's wall time goes: the core engine's own profile, by
  *        component, accumulated while profiling is on (trial_engine --profile, campaign
  *        --profile, make bench). Off, nothing is timed: no clock is read.
  */

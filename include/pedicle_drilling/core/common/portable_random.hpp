@@ -1,7 +1,7 @@
 /**
  * @file portable_random.hpp
  * @brief Random transforms written out in full, so that a seed gives the same numbers with every
- *        standard library (issue 29): uniform, normal and exponential deviates from the raw
+ *        standard library: uniform, normal and exponential deviates from the raw
  *        output of the standard engines, whose sequences the C++ standard does fix.
  *
  * The standard *distributions* (std::uniform_real_distribution, std::normal_distribution,

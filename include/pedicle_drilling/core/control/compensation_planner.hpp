@@ -159,7 +159,7 @@ class CompensationPlanner {
   CompensationPlanner(const CompensationParams& params, const MotionModel& model);
 
   /**
-   * @brief Construct with a compensator of any class (issue 17), configured; setPatient(model,
+   * @brief Construct with a compensator of any class, configured; setPatient(model,
    *        params) is called here. @throws std::invalid_argument if params.validate() fails or
    *        `compensator` is null.
    */

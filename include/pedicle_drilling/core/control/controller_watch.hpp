@@ -1,6 +1,6 @@
 /**
  * @file controller_watch.hpp
- * @brief The planner's closed loop on the arm's controllers (issue 30): from each controller's
+ * @brief The planner's closed loop on the arm's controllers: from each controller's
  *        state (control_msgs/JointTrajectoryControllerState's fields) it tells a command that was
  *        refused or came late, a joint that does not follow, and a controller that fell silent.
  *

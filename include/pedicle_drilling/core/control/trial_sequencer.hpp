@@ -72,7 +72,7 @@ struct TrialSequencerParams {
   double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
   int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
   /**
-   * @brief The F/T tare before contact (issue 30), in samples of the sensor [0, 100000]; 0 (the
+   * @brief The F/T tare before contact, in samples of the sensor [0, 100000]; 0 (the
    *        benches, whose simulated sensor is tared at reset): none. Else, when the arm reached
    *        the drilling pose (spindle running, tool free), a TareRequest goes to the sensor's
    *        driver (`ft_sensor/tare_request`) and the drilling waits for its successful result as
@@ -101,7 +101,7 @@ struct TrialSequencerParams {
    */
   double monitor_timeout_s = 2.5;
   /**
-   * @brief Geometric plausibility of the outer cortical layer (issue 27) [mm], 0 = off. Once the
+   * @brief Geometric plausibility of the outer cortical layer [mm], 0 = off. Once the
    *        tip's deepest predicted advance into the bone (feed relative to the bone: the
    *        commanded feed minus the predicted bone displacement along the drill axis) exceeds
    *        this much past where the recognizer first reported contact, the outer cortex must
@@ -252,7 +252,7 @@ class SequencerTimers {
   std::vector<Timer> timers_;
 };
 
-/** @brief Makes the compensator of a trial (issue 17); configured, one per trial. */
+/** @brief Makes the compensator of a trial; configured, one per trial. */
 using CompensatorFactory = std::function<std::unique_ptr<CompensatorInterface>()>;
 
 /**
@@ -281,7 +281,7 @@ class TrialSequencer {
                  std::string world_frame = "world");
 
   /**
-   * @brief The compensator class of the next trials (issue 17): empty (the default) is the
+   * @brief The compensator class of the next trials: empty (the default) is the
    *        paper's, PaperCompensator. The factory is called by start(); an exception it throws
    *        is start()'s refusal.
    */

@@ -1,4 +1,4 @@
-// What the rviz plugins show of a trial, without Qt, Ogre or ROS (issue 16): the DrillingPanel's
+// What the rviz plugins show of a trial, without Qt, Ogre or ROS: the DrillingPanel's
 // settings and their validation, the live readouts and the verdict of a trial built from the
 // pipeline's messages, and the placement of the force plot's labels. The plugins feed these
 // classes from their subscriptions and draw what they answer; gtest covers them.

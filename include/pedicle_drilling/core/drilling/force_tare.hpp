@@ -1,6 +1,6 @@
 /**
  * @file force_tare.hpp
- * @brief The F/T sensor's tare before contact (issue 30): with the spindle running and the tool
+ * @brief The F/T sensor's tare before contact: with the spindle running and the tool
  *        free, the mean of a declared number of samples is taken as the bias and subtracted from
  *        every later sample. A window whose force spread is too large (something touches the
  *        tool) or that holds a non-finite sample fails, and the previous bias is kept. The

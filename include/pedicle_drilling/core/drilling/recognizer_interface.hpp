@@ -1,4 +1,4 @@
-// The drilling-state recognizer as a plugin interface (issue 17): raw thrust samples in, the
+// The drilling-state recognizer as a plugin interface: raw thrust samples in, the
 // state and the stop decision out. Our paper recognizer (StateRecognizer) and the literature
 // baseline implement it; the StateRecognizer nodelet, the core engine (trial_engine, campaign)
 // and the offline `recognize` tool run whichever class is named. pluginlib loads outside classes
@@ -110,7 +110,7 @@ struct ForceDifferenceParams {
  *        outer cortex's breakthrough into cancellous bone is the first). States: idle before
  *        contact, outer cortical until the first breakthrough, cancellous until the force rises
  *        again, inner cortical after. With `stop_at_entry` 2 it stops where the force rises
- *        again after the first breakthrough (the inner cortex's entry, issue 32's adaptation).
+ *        again after the first breakthrough (the inner cortex's entry; added for the leaderboard).
  */
 class ForceDifferenceRecognizer : public RecognizerInterface {
  public:

@@ -54,7 +54,7 @@ struct RecognizerParams {
   /**
    * @brief Averaged samples after key point 2 within which key point 3 must be confirmed, else
    *        the force is implausible and the drill is stopped (0 disables). From the filter, not
-   *        from observed durations (issue 27): at key point 2 fbar < K F_max, so f* < 1/2 and
+   *        from observed durations: at key point 2 fbar < K F_max, so f* < 1/2 and
    *        A* < D/8 (about C1 at the typical D of 3.2 N); the Eq. 13 window holds only post-layer
    *        blocks `window` samples later, and the confirmation takes `cancellous_confirm`.
    *        Hence it must be 0 or at least window + cancellous_confirm. The default 25 = 2 x

@@ -83,7 +83,7 @@ struct SpmsFkResult {
 
 /**
  * @brief A rod-length Jacobian kept between SpmsKinematics::forward() calls, with its
- * factorisation (a caller stepping the platform every millisecond keeps one; issue 31).
+ * factorisation (a caller stepping the platform every millisecond keeps one).
  */
 struct SpmsFkJacobian {
   /// The Jacobian; non-finite (the default) makes forward() compute one.

@@ -3,7 +3,7 @@
  * @brief urdfdom's parse of a robot description, kept for the description parsed last.
  *
  * A campaign builds a simulation per trial from one description (the simulation and its arm
- * each read it): parsing it once per process instead of twice per trial (issue 31).
+ * each read it): parsing it once per process instead of twice per trial.
  *
  * No ROS headers; urdfdom only.
  */
