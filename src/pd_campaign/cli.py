@@ -299,7 +299,7 @@ def parse_args(argv):
                         'recorder in another process must keep up)')
     parser.add_argument('--profile', action='store_true',
                         help='--engine core: where the trials\' wall time goes, by component '
-                        '(OUT/profile.md and profile.json; issue 31)')
+                        '(OUT/profile.md and profile.json)')
     parser.add_argument('--identification', default=None, metavar='DIR',
                         help='use the Table II identification in DIR (written by table2.py '
                         '--out DIR, or a campaign\'s OUT/identification) instead of running it '

@@ -1,4 +1,4 @@
-"""Motion compensators written in Python (issue 32), run in the closed loop wherever a
+"""Motion compensators written in Python, run in the closed loop wherever a
 compensator class is named: `python:pd_campaign.compensators.PhaseTemplateCompensator` as the
 CompensationPlanner nodelet's `~compensator`, `trial_engine --compensator` or the campaign's
 `--compensator`. The C++ side (pedicle_drilling/python/python_compensator.hpp) imports the class

@@ -165,8 +165,8 @@ def start(command):
 class TrialFeed:
     """The design's trials to `trial_engine --trials -` processes, in design order, the next one to
     the process that finished one: each holds one trial queued behind the one it runs, so none
-    waits for the campaign, and none idles while another finishes a fixed share of the design
-    (issue 31). Thread-safe: each process's reader thread calls start() once, then next() on each
+    waits for the campaign, and none idles while another finishes a fixed share of the design.
+    Thread-safe: each process's reader thread calls start() once, then next() on each
     of its output lines; a process's stdin is closed when the trials run out."""
 
     AHEAD = 2  # trials a process holds: the one it runs and the next

@@ -18,7 +18,7 @@
 // `--trials -` reads the trials from stdin instead, one JSON object per line, and runs each as it
 // arrives (its output line flushed before the next is read); end of input ends the run. The
 // campaign feeds each of its trial_engine processes this way, the next trial to the process that
-// finished one (issue 31: no process idles while the other finishes a fixed half of the design).
+// finished one (no process idles while the other finishes a fixed half of the design).
 // A line that is not a valid trial is exit 2 naming its line number (the trials before it ran).
 //
 // Command-line parsing: CLI11 (Debian libcli11-dev): header-only, typed options with ranges,
@@ -367,7 +367,7 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "--node pedicle_drilling/CompensationPlanner` lists them)");
   app->add_option("--profile", o->profile_path,
                   "write where the trials' wall time went, by component, to FILE (JSON: trials, "
-                  "sim_s, wall_s per component; issue 31's profile, make bench)");
+                  "sim_s, wall_s per component; the profile of make bench)");
   app->add_option("--samples-dir", o->samples_dir,
                   "write every force-sensor sample of a trial to DIR/<trial_id>.npy (the "
                   "labelled dataset, doc/dataset.md)")

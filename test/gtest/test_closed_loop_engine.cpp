@@ -116,8 +116,8 @@ bool succeeded(const pd::EngineTrialRecord& r) {
 // intact, and (the campaign measures 98 %) at least five of the six stop inside the inner layer
 // within 2 mm of the canal. With the hysteresis model of config/patient_default.yaml the SPMS
 // plays q2 dTv/dt, a 0.5 mm step at each edge of the square flow that 125 ms segments cannot
-// follow: the force then exceeds H2 at an edge and the monitor stops the drill (issue 13's
-// actuator limits and exact profile).
+// follow: the force then exceeds H2 at an edge and the monitor stops the drill (see
+// the actuator limits and the exact profile).
 TEST(ClosedLoopEngine, CompensatedTrialsFollowTheBoneAndStopInsideTheInnerLayer) {
   pd::ClosedLoopEngine engine(config());
   int successes = 0;
@@ -279,7 +279,7 @@ TEST(ClosedLoopEngine, ARefusedTrialIsAnErrorNamingTheReason) {
   }
 }
 
-// The paper's Sec. V-D force trials (issue 14): the recognizer observes without stopping, the
+// The paper's Sec. V-D force trials: the recognizer observes without stopping, the
 // drill goes through the inner layer and is stopped with retreat there; the recognizer's stop
 // time and the ground-truth peaks (block means of the true thrust) are recorded. The same seed
 // under the recognition protocol has the same recognizer output up to its stop, and its
@@ -326,7 +326,7 @@ TEST(ClosedLoopEngine, ProtocolNames) {
   EXPECT_THROW(pd::parseTrialProtocol("breakthrough"), std::invalid_argument);
 }
 
-// Issue 30: a sensor that is not tared at reset (the tool's 4.9 N on it) and the tare before
+// A sensor that is not tared at reset (the tool's 4.9 N on it) and the tare before
 // contact. Untared, the recognizer takes the weight for the bone (F_max > F_th at once) and the
 // trial does not stop inside the inner layer (on seed 5 the planner's outer_cortical_max_mm
 // bound stops it before the drill reached the bone); tared with the spindle running, the same

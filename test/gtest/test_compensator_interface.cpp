@@ -1,4 +1,4 @@
-// Tests of the compensator plugin interface (issue 17): the paper compensator is the prediction
+// Tests of the compensator plugin interface: the paper compensator is the prediction
 // it wraps, the tracker-feedback baseline, the factory, and a planner driven by any class.
 #include "pedicle_drilling/core/control/compensator_interface.hpp"
 

@@ -212,7 +212,7 @@ TEST(DrillingSimulation, TrackerSamplesOncePerPeriodAtAPhaseDrawnFromTheSeed) {
   EXPECT_GE(phases.size(), 5u);  // six seeds, 125 possible phases
 }
 
-// Registration error (issue 29): the declared magnitudes, a direction per seed, none by default.
+// Registration error: the declared magnitudes, a direction per seed, none by default.
 TEST(DrillingSimulation, TheRegistrationErrorHasItsMagnitudeAndADirectionPerSeed) {
   const Eigen::Isometry3d none = registrationError(7, 0.0, 0.0);
   EXPECT_TRUE(none.matrix() == Eigen::Matrix4d::Identity());
@@ -245,7 +245,7 @@ TEST(DrillingSimulation, TheTrackerMeasuresInTheTrueCameraFrame) {
               2e-3, 1e-9);
 }
 
-// The breath phase as a bench senses it (issue 29): exact by default; with a 64 Hz flow sensor
+// The breath phase as a bench senses it: exact by default; with a 64 Hz flow sensor
 // each breath start is seen at the sensor's first sample of the breath (16 ms grid, the square
 // waveform's flow jumps at the start), until then the previous breath's start holds; a clock
 // offset shifts every sensed start.
@@ -457,7 +457,7 @@ TEST(DrillingSimulation, CountsEachSeparationOfDrillAndBoneOnce) {
   EXPECT_EQ(sim.groundTruth().contact_loss_count, 0u);
 }
 
-// Issue 14, the contact after the stop: a drill that does not turn, lowered so that the
+// The contact after the stop: a drill that does not turn, lowered so that the
 // breathing bone's next approach presses into it. The elastic contact passes the bone's push
 // through the drill and the arm to the force sensor, and the safety monitor's H2 (10 N) trips;
 // nothing is cut. The rigid contact let the bone pass through the stopped drill without force.

@@ -503,7 +503,7 @@ struct DrillingSimulation::Impl {
   SpmsFkJacobian platform_jacobian;
   // The sliders of the last forward kinematics, kept when it ended within its 1e-13 m test: the
   // same sliders from that pose pass the test at once and give the same pose, bit for bit, so
-  // the solve is skipped (issue 31: a stationary bench's sliders come to rest). Likewise the
+  // the solve is skipped (a stationary bench's sliders come to rest). Likewise the
   // inverse of the last heave. Cleared at every reset.
   std::optional<Eigen::Vector3d> converged_sliders;
   // The steps of the platform's last two successful solves (newest first) and the pose before
@@ -748,7 +748,7 @@ struct DrillingSimulation::Impl {
       if (solved_steps[0] + 1 == step_index && solved_steps[1] + 2 == step_index) {
         // Solved at the last two steps: start from their linear extrapolation, a breathing
         // platform's next pose to second order (one chord iteration fewer than from the last
-        // pose; the same 1e-13 m test ends it). Issue 31.
+        // pose; the same 1e-13 m test ends it).
         guess.z_m = 2.0 * platform.z_m - platform_before.z_m;
         guess.roll_rad = 2.0 * platform.roll_rad - platform_before.roll_rad;
         guess.pitch_rad = 2.0 * platform.pitch_rad - platform_before.pitch_rad;

@@ -1,4 +1,4 @@
-// The motion compensator as a plugin interface (issue 17): ventilator settings, breath phase,
+// The motion compensator as a plugin interface: ventilator settings, breath phase,
 // the patient's motion model and the tracked marker in; the predicted bone displacement out,
 // from which the CompensationPlanner makes the feed-axis and the lateral reference (feed +
 // displacement, cut into the 125 ms segments). Our paper compensator (Algorithm 1's prediction,

@@ -110,12 +110,12 @@ struct EngineConfig {
   double ground_truth_rate_hz = 20.0;  ///< recorded ground truth (plus every layer change)
   RecognizerParams recognizer;         ///< config/recognizer.yaml (thrust = +z of the sensor)
   /**
-   * @brief The recognizer of each trial (issue 17): empty = the paper's (PaperRecognizer with
+   * @brief The recognizer of each trial: empty = the paper's (PaperRecognizer with
    *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.
    */
   std::function<std::unique_ptr<RecognizerInterface>()> make_recognizer;
   /**
-   * @brief The compensator of each trial (issue 17): empty = the paper's (PaperCompensator);
+   * @brief The compensator of each trial: empty = the paper's (PaperCompensator);
    *        trial_engine --compensator sets a built-in or a pluginlib class.
    */
   CompensatorFactory make_compensator;
@@ -129,7 +129,7 @@ struct EngineConfig {
   std::string arm_tip_link = "device_base";
   EngineDelays delays;
   /**
-   * @brief Where the trials' wall time goes (issue 31; trial_engine --profile): each trial adds
+   * @brief Where the trials' wall time goes (trial_engine --profile): each trial adds
    *        its time by component and its simulated time. nullptr (default): nothing is timed.
    *        Not owned; must outlive the engine's runs.
    */
@@ -188,7 +188,7 @@ struct EngineTrialSpec {
    */
   TrialProtocol protocol = TrialProtocol::kRecognition;
   /** @brief Record every force-sensor sample from the trial's start (EngineTrialRecord::samples,
-   *         the labelled dataset of issue 32). */
+   *         the labelled dataset, doc/dataset.md). */
   bool record_samples = false;
 };
 

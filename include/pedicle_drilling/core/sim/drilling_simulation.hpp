@@ -215,20 +215,20 @@ struct DrillingSimulationParams {
   /// The sensor tared at every reset, its bias gone before the trial (true: the benches as the
   /// paper's results were simulated). false: the sensor keeps its bias (force_bias_sd_n per
   /// axis, plus sensor_bias_offset_n) until a tare request (requestTare) takes it, as a real F/T
-  /// sensor does (issue 30: hardware.launch's trials tare with the spindle running).
+  /// sensor does (hardware.launch's trials tare with the spindle running).
   bool sensor_tared_at_reset = true;
   /// A constant offset of the untared thrust axis (z) [N]: the weight of the tool beyond the
   /// sensor (spindle motor and bit; 4.9 N for 0.5 kg, an assumption, doc/simulator_physics.md).
   /// Only with sensor_tared_at_reset false. [-50, 50].
   double sensor_bias_offset_n = 0.0;
   double tracker_noise_rms_mm = 0.25;  ///< 3-D RMS position noise of the marker (NDI Polaris)
-  /// Registration error between the tracker and the robot (issue 29): the camera's true pose
+  /// Registration error between the tracker and the robot: the camera's true pose
   /// is the registered one (the URDF's tracker_camera) moved by this much in a direction drawn
   /// from each trial's seed [mm] ...
   double registration_error_mm = 0.0;
   /// ... and turned by this much about an axis drawn from the seed [deg].
   double registration_error_deg = 0.0;
-  /// The breath phase as a bench senses it (issue 29): each breath's start is detected on a
+  /// The breath phase as a bench senses it: each breath's start is detected on a
   /// flow sensor sampled at this rate (the nearest whole number of physics steps), at its first
   /// sample whose flow exceeds breath_trigger_flow_ml_s; the paper records with a gas-flow sensor
   /// at 64 Hz. 0: the ventilator's own breath start, exact (the paper's bench as simulated).
@@ -241,14 +241,14 @@ struct DrillingSimulationParams {
   /// Offset of the breath sensor's clock against the pipeline's [s] (two PCs), added to each
   /// sensed breath start; with breath_sensor_rate_hz 0 it is not used.
   double breath_clock_offset_s = 0.0;
-  /// The arm controllers' clock against the pipeline's (issue 29: two PCs): the controllers
+  /// The arm controllers' clock against the pipeline's (two PCs): the controllers
   /// read a command's stamps on a clock c(t) = t + arm_clock_offset_s + arm_clock_drift_ppm
   /// 1e-6 t (t: sim time since the trial's reset), so a stamp s takes effect at the true time
   /// (s - offset) / (1 + drift). NTP on a LAN keeps the offset to tens of us (bench_sources
   /// item 3); unsynchronised PCs drift apart by up to tens of ppm (crystal tolerance).
   double arm_clock_offset_s = 0.0;
   double arm_clock_drift_ppm = 0.0;  ///< see arm_clock_offset_s
-  /// The arm's controllers as a lab wires them (issue 30): names and joint sets.
+  /// The arm's controllers as a lab wires them: names and joint sets.
   ControllerLayoutParams controllers;
   /// The rules the simulated controllers apply: ros_control's (strict) by default.
   ControllerRules controller_rules;
@@ -384,7 +384,7 @@ class DrillingSimulation {
   /** @brief Advances one physics step (1 / physics_rate_hz). */
   SimulationStep stepOnce();
   /**
-   * @brief Times the steps' components into @p profile (issue 31; nullptr: off, no clock read).
+   * @brief Times the steps' components into @p profile (nullptr: off, no clock read).
    *        Not owned: it must outlive the simulation or be reset to nullptr.
    */
   void setProfile(ComponentProfile* profile);
