@@ -378,6 +378,11 @@ def parse_args(argv):
     elif scenario.get('faults') or scenario.get('fault_params'):
         raise UsageError('scenario keys faults/fault_params: faults are injected by --engine core '
                          'only (the ROS pipeline has one rostest per fault, README)')
+    elif str((scenario.get('simulator_params') or {}).get('population/enabled', '')).lower() in (
+            'true', '1'):
+        raise UsageError('simulator_params population/enabled: the population bench is run by '
+                         '--engine core only (each trial\'s model is identified from its own '
+                         'patient\'s recording; the ROS pipeline identifies the volunteers)')
     if args.case is None:
         cases = list(scenario.get('cases', CASES))
     elif args.case == 'all':

@@ -13,7 +13,8 @@ from pd_campaign import worker
 from pd_campaign.tools import tool
 
 CONDITION_COLUMNS = ('volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
-                     'force_noise_sd_n', 'arm_stiffness_scale', 'inner_cortical_mm')
+                     'force_noise_sd_n', 'arm_stiffness_scale', 'inner_cortical_mm',
+                     'patient_ap_slope_mm_per_ml', 'patient_lag_s', 'patient_gain_change')
 
 
 class RecordedTrial:
@@ -136,6 +137,11 @@ def row_from_line(line, trace_dir):
     for key in CONDITION_COLUMNS:
         row[key] = record['conditions'][key]
     row['wall_s'] = None  # trial_engine reports no wall time per trial: nothing to compare
+    model_ap = record.get('model_ap') or {}
+    row['model_ap_slope_mm_per_ml'] = model_ap.get('q1_mm_per_ml')
+    if record['conditions'].get('volunteer_id') == 0:
+        # A population patient: its model was identified from its own recording for this trial.
+        row['identification_r2_ap'] = model_ap.get('r2')
     watch = record.get('controller_watch') or {}
     row['watch_desired_ratio'] = watch.get('desired_ratio')
     row['watch_following_ratio'] = watch.get('following_ratio')

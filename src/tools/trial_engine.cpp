@@ -46,6 +46,7 @@
 #include "pedicle_drilling/core/common/atomic_file.hpp"
 #include "pedicle_drilling/core/common/text_parse.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
+#include "pedicle_drilling/core/sim/patient_population.hpp"
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "tool_cli.hpp"
 
@@ -90,7 +91,10 @@ json recordToJson(const pd::EngineTrialRecord& r) {
         {"tidal_volume_ml", r.conditions.ventilator_tidal_volume_ml},
         {"force_noise_sd_n", r.conditions.force_noise_sd_n},
         {"arm_stiffness_scale", r.conditions.arm_stiffness_scale},
-        {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3}}},
+        {"inner_cortical_mm", r.inner_cortical_thickness_m * 1e3},
+        {"patient_ap_slope_mm_per_ml", r.conditions.patient_ap_slope_mm_per_ml},
+        {"patient_lag_s", r.conditions.patient_lag_s},
+        {"patient_gain_change", r.conditions.patient_gain_change}}},
       {"last_truth",
        {{"breakthrough", g.breakthrough},
         {"residual_inner_cortical_m", g.residual_inner_cortical_m},
@@ -496,7 +500,24 @@ void runTrial(const json& t, const Options& o, const pd::EngineConfig& config,
       spec.record_samples = !o.samples_dir.empty();
       const bool moving = spec.mode != "stationary";
       pd::PatientModel patient = stationary_model;
-      if (moving) {
+      if (moving && config.simulation.population.enabled) {
+        // A population patient: the model identified from the patient's own identification
+        // recording (the paper's pipeline), once per seed (the cases of a seed share it).
+        if (o.bone_motion == "model") {
+          throw std::runtime_error(
+              "population/enabled needs --bone-motion virtual_patient (the paper's bench plays "
+              "the model)");
+        }
+        const std::string key = "population:" + std::to_string(spec.seed);
+        auto it = models.find(key);
+        if (it == models.end()) {
+          const pd::PopulationPatient drawn =
+              pd::drawPopulationPatient(spec.seed, config.simulation.population);
+          if (models.size() > 64) models.clear();  // a stream of seeds: keep the memory bounded
+          it = models.emplace(key, pd::identifyPopulationPatient(drawn).model).first;
+        }
+        patient = it->second;
+      } else if (moving) {
         if (o.models_dir.empty()) {
           throw std::runtime_error("--models-dir is needed for the moving cases");
         }
@@ -518,6 +539,7 @@ void runTrial(const json& t, const Options& o, const pd::EngineConfig& config,
       }
       spec.model = patient.motionModel();
       const pd::EngineTrialRecord record = engine->run(spec);
+      const pd::AxisModelRecord& model_ap = patient.axes[static_cast<int>(pd::Axis::kAP)];
       if (spec.record_samples) {
         const std::string id = t.at("trial_id").get<std::string>();
         if (id.empty() || id.find('/') != std::string::npos || id[0] == '.') {
@@ -527,6 +549,8 @@ void runTrial(const json& t, const Options& o, const pd::EngineConfig& config,
       }
       out["record"] = recordToJson(record);
       out["record"]["protocol"] = o.protocol;
+      // The planner's model of the AP axis: its slope and the R^2 of its identification.
+      out["record"]["model_ap"] = {{"q1_mm_per_ml", model_ap.model.q1}, {"r2", model_ap.r2}};
     } catch (const std::exception& e) {
       out["error"] = e.what();
     }

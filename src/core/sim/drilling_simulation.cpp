@@ -87,19 +87,27 @@ Eigen::Isometry3d jointMotion(const urdf::Joint& joint, double q) {
 
 double VirtualPatient::apDisplacementMm(double lagged_tv_ml, double t,
                                         double lagged_flow_ml_s) const {
-  return q1_ap_mm_per_ml * lagged_tv_ml + q2_ap_mm_s_per_ml * lagged_flow_ml_s +
-         drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad) +
-         movementDisplacementMm(movements, 0, t);
+  const double d = q1_ap_mm_per_ml * lagged_tv_ml + q2_ap_mm_s_per_ml * lagged_flow_ml_s +
+                   drift_mm * std::sin(2.0 * kPi * t / drift_period_s + drift_phase_rad) +
+                   movementDisplacementMm(movements, 0, t);
+  if (cardiac_mm == 0.0) return d;
+  return d + cardiac_mm * std::sin(2.0 * kPi * heart_rate_bpm / 60.0 * t + cardiac_phase_rad);
 }
 
-VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s, double movement_scale) {
+namespace {
+
+/**
+ * @brief A patient of slope q1, lag and drift amplitude, its drift period and phase from the
+ *        seed, and small movements at `movements_per_min` (AP size SD `movement_ap_mm` times
+ *        `movement_scale`) over the hour after `start_time_s`.
+ */
+VirtualPatient makeVirtualPatient(std::uint64_t seed, double start_time_s, double movement_scale,
+                                  double q1, double lag_s, double drift_mm,
+                                  double movements_per_min, double movement_ap_mm) {
   VirtualPatient p;
-  p.volunteer_id = 1 + static_cast<int>(seed % 5);
-  const VolunteerParams v = defaultVolunteer(p.volunteer_id);
-  const AxisModel& ap = v.truth.axis(Axis::kAP);
-  p.q1_ap_mm_per_ml = ap.q1;
-  p.lag_s = ap.lagSeconds();
-  p.drift_mm = v.drift_mm[0];
+  p.q1_ap_mm_per_ml = q1;
+  p.lag_s = lag_s;
+  p.drift_mm = drift_mm;
   std::mt19937_64 rng(seed ^ 0x9e3779b97f4a7c15ULL);
   const double u1 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
   const double u2 = static_cast<double>(rng() >> 11) * 0x1.0p-53;
@@ -107,20 +115,48 @@ VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s, doubl
   p.drift_phase_rad = 2.0 * kPi * u2;
   // Small movements over the next hour, as generateVolunteer() shapes them: raised-cosine
   // ramps of 0.5-1 s, half persisting steps, half bumps held 1-3 s.
-  if (movement_scale > 0.0 && v.movements_per_min > 0.0) {
+  if (movement_scale > 0.0 && movements_per_min > 0.0) {
     NormalSource mv(seed * 0x9E3779B97F4A7C15ULL + 0x5851F42D4C957F2DULL);
-    const double rate_hz = v.movements_per_min / 60.0;
+    const double rate_hz = movements_per_min / 60.0;
     double t = start_time_s - std::log(mv.uniformOpen()) / rate_hz;
     while (t < start_time_s + 3600.0) {
       PatientMovement m;
       m.t = t;
       m.ramp = 0.5 + 0.5 * mv.uniformOpen();
       m.hold = mv.uniformOpen() < 0.5 ? -1.0 : 1.0 + 2.0 * mv.uniformOpen();
-      m.size[0] = movement_scale * v.movement_mm[0] * mv.normal();
+      m.size[0] = movement_scale * movement_ap_mm * mv.normal();
       p.movements.push_back(m);
       t -= std::log(mv.uniformOpen()) / rate_hz;
     }
   }
+  return p;
+}
+
+}  // namespace
+
+VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s, double movement_scale) {
+  const int id = 1 + static_cast<int>(seed % 5);
+  const VolunteerParams v = defaultVolunteer(id);
+  const AxisModel& ap = v.truth.axis(Axis::kAP);
+  VirtualPatient p = makeVirtualPatient(seed, start_time_s, movement_scale, ap.q1, ap.lagSeconds(),
+                                        v.drift_mm[0], v.movements_per_min, v.movement_mm[0]);
+  p.volunteer_id = id;
+  return p;
+}
+
+VirtualPatient populationVirtualPatient(std::uint64_t seed, const PopulationPatient& patient,
+                                        double start_time_s, double movement_scale) {
+  const VolunteerParams& v = patient.identification;
+  VirtualPatient p = makeVirtualPatient(
+      seed, start_time_s, movement_scale, patient.identificationSlope() * patient.surgery.gain,
+      std::max(0.0, patient.identificationLag() + patient.surgery.lag_change_s), patient.drift_mm,
+      v.movements_per_min, v.movement_mm[0]);
+  p.volunteer_id = 0;
+  p.cardiac_mm = patient.surgery.cardiac_mm;
+  p.heart_rate_bpm = patient.surgery.heart_rate_bpm;
+  p.cardiac_phase_rad = patient.surgery.cardiac_phase_rad;
+  p.delivered_volume_cv = patient.surgery.delivered_volume_cv;
+  p.delivered_volume_bias = patient.surgery.delivered_volume_bias;
   return p;
 }
 
@@ -145,7 +181,9 @@ const ParamTable<TrialVariability>& TrialVariability::table() {
                 Range::closed(0, 200), "ml")
         .number("sensor/noise_scale_sd", &V::sensor_noise_scale_sd, Range::closed(0, 0.5))
         .number("arm/stiffness_scale_sd", &V::arm_stiffness_scale_sd, Range::closed(0, 0.3))
-        .number("arm/stiffness_scale", &V::arm_stiffness_scale, Range::closed(0.1, 4));
+        .number("arm/stiffness_scale", &V::arm_stiffness_scale, Range::closed(0.1, 4))
+        .number("patient/gain_error", &V::patient_gain_error, Range::closed(0.3, 3))
+        .number("patient/lag_error_s", &V::patient_lag_error_s, Range::closed(-0.2, 0.2), "s");
     return d;
   }();
   return t;
@@ -269,7 +307,8 @@ const ParamTable<DrillingSimulationParams>& DrillingSimulationParams::table() {
         .include(VentilatorSettings::table(), &P::ventilator, "ventilator/")
         .include(SpecimenDistribution::table(), &P::specimen, "trial_distribution/specimen/")
         .include(PlanImagingParams::table(), &P::plan, "plan/")
-        .include(TrialVariability::table(), &P::variability, "trial_distribution/");
+        .include(TrialVariability::table(), &P::variability, "trial_distribution/")
+        .include(PopulationParams::table(), &P::population, "population/");
     return d;
   }();
   return t;
@@ -720,10 +759,16 @@ struct DrillingSimulation::Impl {
       const double t_lag = std::max(0.0, time - patient.lag_s);
       // Earlier times than the last call are clamped by the scheduler (lag change on reset).
       const VentilatorSample lagged = lagged_ventilator.sample(t_lag);
-      desired_heave = moving_bone
-                          ? 1e-3 * amplitude_factor *
-                                patient.apDisplacementMm(lagged.volume_ml, time, lagged.flow_ml_s)
-                          : 0.0;
+      // The volume this breath delivered against the setting (1 for a virtual volunteer).
+      const double delivered = patient.delivered_volume_bias *
+                               (patient.delivered_volume_cv > 0.0
+                                    ? deliveredVolumeFactor(seed, lagged_ventilator.breathIndex(),
+                                                            patient.delivered_volume_cv)
+                                    : 1.0);
+      desired_heave = moving_bone ? 1e-3 * amplitude_factor *
+                                        patient.apDisplacementMm(delivered * lagged.volume_ml, time,
+                                                                 delivered * lagged.flow_ml_s)
+                                  : 0.0;
       if (!(ik_heave && *ik_heave == desired_heave)) {
         ik_of_heave = spms.inverseHeave(desired_heave);
         ik_heave = desired_heave;
@@ -931,6 +976,16 @@ struct DrillingSimulation::Impl {
 
   void resetTrial(std::uint64_t new_seed, bool moving) {
     // Everything that can throw first, so that a bad distribution leaves the trial unchanged.
+    if (bone_motion_model && params.variability.patient_lag_error_s != 0.0) {
+      throw std::invalid_argument(
+          "trial_distribution/patient/lag_error_s: the paper's bench plays the model without a "
+          "lag; a lag error needs the bone to move as the patient (bone motion virtual_patient)");
+    }
+    if (bone_motion_model && params.population.enabled) {
+      throw std::invalid_argument(
+          "population/enabled: the paper's bench plays the model; a population patient needs the "
+          "bone to move as the patient (bone motion virtual_patient)");
+    }
     const TrialConditions drawn = drawTrialConditions(
         new_seed, params.variability, params.ventilator, params.sensor.force_noise_sd_n);
     auto new_process =
@@ -954,7 +1009,15 @@ struct DrillingSimulation::Impl {
     moving_bone = moving;
     amplitude_factor = 1.0;
     conditions = drawn;
-    patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
+    if (params.population.enabled) {
+      const PopulationPatient drawn_patient = drawPopulationPatient(seed, params.population);
+      patient = populationVirtualPatient(seed, drawn_patient, time,
+                                         params.variability.patient_movement_scale);
+      conditions.volunteer_id = 0;
+      conditions.patient_gain_change = drawn_patient.surgery.gain;
+    } else {
+      patient = drawVirtualPatient(seed, time, params.variability.patient_movement_scale);
+    }
     if (bone_motion_model) {
       // The paper's bench: the SPMS plays the model, nothing else.
       patient.q1_ap_mm_per_ml = bone_motion_model->q1_ap_mm_per_ml;
@@ -964,6 +1027,10 @@ struct DrillingSimulation::Impl {
       patient.movements.clear();
     }
     patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
+    patient.q1_ap_mm_per_ml *= params.variability.patient_gain_error;
+    patient.lag_s = std::max(0.0, patient.lag_s + params.variability.patient_lag_error_s);
+    conditions.patient_ap_slope_mm_per_ml = patient.q1_ap_mm_per_ml;
+    conditions.patient_lag_s = patient.lag_s;
     process = std::move(new_process);
     imaging_plan = std::move(new_plan);
     sensor = std::make_unique<ForceSensor>(seed * 2654435761ULL + 17ULL, sensor_params);

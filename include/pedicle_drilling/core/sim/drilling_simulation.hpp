@@ -47,6 +47,7 @@
 #include "pedicle_drilling/core/robot/spms_kinematics.hpp"
 #include "pedicle_drilling/core/robot/trajectory_executor.hpp"
 #include "pedicle_drilling/core/sim/imaging_plan.hpp"
+#include "pedicle_drilling/core/sim/patient_population.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -63,9 +64,16 @@ struct VirtualPatient {
   /// Phase-lead term on the flow [mm s/ml] (d = q1 Tv + q2 dTv/dt), 0 for a virtual volunteer;
   /// set when the bone plays a displacement model (BoneMotionModel).
   double q2_ap_mm_s_per_ml = 0.0;
+  double cardiac_mm = 0.0;         ///< cardiac AP amplitude [mm] (0: none)
+  double heart_rate_bpm = 68.0;    ///< heart rate [beats/min]
+  double cardiac_phase_rad = 0.0;  ///< cardiac phase at t = 0 [rad]
+  /// Breath-to-breath CV of the delivered volume around the ventilator's setting (0: exact).
+  double delivered_volume_cv = 0.0;
+  /// Delivered / set volume of every breath (the ventilator's systematic error; 1: exact).
+  double delivered_volume_bias = 1.0;
   /**
    * @brief True AP displacement [mm] for a lagged tidal volume [ml] and flow [ml/s] at time
-   *        t [s]: q1 Tv + q2 dTv/dt + drift + movements.
+   *        t [s]: q1 Tv + q2 dTv/dt + drift + movements + cardiac.
    */
   double apDisplacementMm(double lagged_tv_ml, double t, double lagged_flow_ml_s = 0.0) const;
 };
@@ -92,6 +100,16 @@ VirtualPatient drawVirtualPatient(std::uint64_t seed, double start_time_s = 0.0,
                                   double movement_scale = 1.0);
 
 /**
+ * @brief The surgery state of the population's patient of `seed` (drawPopulationPatient): the
+ *        identification state's AP slope times the gain change, its lag plus the lag change
+ *        (at least 0), its drift, its small movements (its rate, the volunteers' shapes and AP
+ *        size SD 0.1 mm times `movement_scale`), the cardiac component and the delivered
+ *        volume's bias and breath-to-breath CV. volunteer_id is 0.
+ */
+VirtualPatient populationVirtualPatient(std::uint64_t seed, const PopulationPatient& patient,
+                                        double start_time_s = 0.0, double movement_scale = 1.0);
+
+/**
  * @brief Per-trial spread of the patient, ventilator, sensor and arm, drawn at every
  *        reset(seed) (the specimen's spread is SpecimenDistribution). Every SD defaults to 0:
  *        the paper's conditions (one ventilator setting, one sensor, one arm; patients differ
@@ -114,6 +132,12 @@ struct TrialVariability {
   /// Factor on the size of the volunteer's small movements, [0, 5]; 0: none. Not a spread: 1
   /// keeps the movements the virtual volunteers' recordings show (virtual_volunteer.hpp).
   double patient_movement_scale = 1.0;
+  /// A model error for every trial: factor on the bone's AP slope against the patient's
+  /// (robustness curves), [0.3, 3]. Not a spread.
+  double patient_gain_error = 1.0;
+  /// A model error for every trial: added to the bone's lag behind the volume [s] (the result at
+  /// least 0), [-0.2, 0.2]; needs the bone to move as the patient (not the paper's bench).
+  double patient_lag_error_s = 0.0;
   /** @brief @throws std::invalid_argument naming the field when a value is out of range. */
   void validate() const;
 
@@ -129,6 +153,11 @@ struct TrialConditions {
   double ventilator_tidal_volume_ml = 500.0;  ///< Tv_max of the trial [ml]
   double force_noise_sd_n = 0.03;             ///< sensor white noise per force axis [N]
   double arm_stiffness_scale = 1.0;           ///< factor on every arm joint's servo stiffness
+  /// The bone's AP slope [mm/ml] and lag [s] in the trial (the patient's, with the model errors).
+  double patient_ap_slope_mm_per_ml = 0.0;
+  double patient_lag_s = 0.0;
+  /// Population patients: the slope's change from identification to surgery (1 otherwise).
+  double patient_gain_change = 1.0;
 };
 
 /**
@@ -208,7 +237,10 @@ struct DrillingSimulationParams {
   /// The planning step's errors and margin: the plan each reset makes (imagingPlan()).
   PlanImagingParams plan;
   TrialVariability variability;  ///< patient/ventilator/sensor/arm spread for reset(seed)
-  DrillParameters drill;         ///< drill and force-law constants
+  /// The population of patients (population/enabled: a patient per seed instead of the five
+  /// virtual volunteers; patient_population.hpp).
+  PopulationParams population;
+  DrillParameters drill;  ///< drill and force-law constants
   /// Force/torque sensor model, at the DAQ rate calibrated against the paper's Fig. 16 and 18
   /// (calibratedSensor()).
   ForceSensorParams sensor = calibratedSensor();
