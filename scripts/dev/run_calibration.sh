@@ -20,7 +20,11 @@
 #      limit's estimate error on the paper design (3 cases, 12000 rpm), the virtual patient, and
 #      the tracked-marker compensator with the amplitude fault, 100 calibration seeds each
 #      (scripts/dev/calibration_depth_margin.py writes depth_margin.md; outcomes are not read)
-# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|watch|depth|all]   (default all)
+#   6. the AdaptiveModelCompensator's memory (forgetting_time_s 1, 2, 3 s) and its gate
+#      (gate_mm, disagree_samples): the amplitude fault and the realistic bench, compensated at
+#      12000 rpm, 100 calibration seeds of base seed 11 each, beside the paper's compensator
+# Usage: scripts/dev/run_calibration.sh [bounds|fig16|hold|watch|depth|adaptive|all]
+#        (default all)
 set -eu
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 # shellcheck source=scripts/dev/workspace_env.sh
@@ -113,3 +117,18 @@ if [ "${WHAT}" = depth ] || [ "${WHAT}" = all ]; then
   cat "${OUT}/depth_margin.md"
 fi
 echo "calibration: done; outputs in ${OUT}"
+if [ "${WHAT}" = adaptive ] || [ "${WHAT}" = all ]; then
+  adaptive() { rosrun pedicle_drilling campaign --seed-space calibration --seed 11 --trials 100 \
+    --jobs "${JOBS}" --no-figures "$@"; }
+  for memory in 1 2 3; do
+    adaptive --scenario "${ROOT}/config/scenario_adaptive_amplitude.yaml" \
+      --compensator-param "forgetting_time_s=${memory}" --out "${OUT}/adaptive_amplitude_${memory}"
+    adaptive --scenario "${ROOT}/config/scenario_realistic.yaml" --case compensated --rpm 12000 \
+      --compensator pedicle_drilling/AdaptiveModelCompensator \
+      --compensator-param "forgetting_time_s=${memory}" --out "${OUT}/adaptive_realistic_${memory}"
+  done
+  adaptive --scenario "${ROOT}/config/scenario_adaptive_amplitude.yaml" \
+    --compensator pedicle_drilling/PaperCompensator --out "${OUT}/adaptive_amplitude_paper"
+  adaptive --scenario "${ROOT}/config/scenario_realistic.yaml" --case compensated --rpm 12000 \
+    --out "${OUT}/adaptive_realistic_paper"
+fi

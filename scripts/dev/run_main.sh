@@ -12,7 +12,8 @@
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
-#      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md)
+#      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md);
+#      the AdaptiveModelCompensator beside the paper's compensator (adaptive.md)
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
@@ -85,6 +86,25 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
+# 2d'. The AdaptiveModelCompensator beside the paper's compensator, seed for seed at 12000 rpm:
+#     the x1.3 amplitude fault (scenario_adaptive_amplitude.yaml), no fault on the paper's and the
+#     realistic bench, and 30 trials through the ROS pipeline: adaptive.md.
+ADAPTIVE=(--compensator pedicle_drilling/AdaptiveModelCompensator)
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_adaptive_amplitude.yaml" \
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --no-figures --out "${OUT}/adaptive_amplitude"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_adaptive_amplitude.yaml" \
+  --compensator pedicle_drilling/PaperCompensator --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" \
+  --no-figures --out "${OUT}/adaptive_amplitude_paper"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" --case compensated \
+  --rpm 12000 --trials 200 "${ADAPTIVE[@]}" --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" \
+  --no-figures --out "${OUT}/campaign_adaptive"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
+  --case compensated --rpm 12000 --trials 200 "${ADAPTIVE[@]}" --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/campaign_realistic_adaptive"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" --case compensated \
+  --rpm 12000 --trials 30 --engine ros "${ADAPTIVE[@]}" --jobs "${JOBS}" "${IDENT[@]}" \
+  --no-figures --out "${OUT}/campaign_adaptive_ros"
+python3 "${ROOT}/scripts/dev/adaptive_tables.py" "${OUT}" > "${OUT}/adaptive.md"
 # 2e. Sensitivity of the conclusions: every uncertain constant of
 #     config/sensitivity.yaml at each end of its documented range on the paper's bench, and the
 #     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, one
@@ -156,4 +176,5 @@ echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/se
 echo "  ${OUT}/sensitivity_speed/sensitivity.md"
 echo "  ${OUT}/dataset/DATASHEET.md and ${OUT}/leaderboard/leaderboard.md"
 echo "  ${OUT}/engine_agreement.md"
+echo "  ${OUT}/adaptive.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"
