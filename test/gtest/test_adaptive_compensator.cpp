@@ -171,7 +171,7 @@ TEST(AdaptiveModelCompensator, NoTrackerInputMovesItFurtherFromTheModelThanTheBo
 }
 
 TEST(AdaptiveModelCompensator, IgnoresOneTrackerJumpAndStopsWhenTheyDisagree) {
-  auto c = adaptive();  // gate 1 mm, two in a row
+  auto c = adaptive();  // gate 1.2 mm, three in a row
   Patient patient;
   double t = 1.0;
   for (; t < 11.0; t += 0.125) c->observeMarker(t, patient.at(t));
@@ -183,9 +183,11 @@ TEST(AdaptiveModelCompensator, IgnoresOneTrackerJumpAndStopsWhenTheyDisagree) {
   t += 0.125;
   c->observeMarker(t, patient.at(t));  // a good one resets the count
   t += 0.125;
-  // The marker moved on the bone by 3 mm: two samples in a row, then the stop.
-  c->observeMarker(t, patient.at(t) + Eigen::Vector3d(0.0, 0.0, 3e-3));
-  t += 0.125;
+  // The marker moved on the bone by 3 mm: three samples in a row, then the stop.
+  for (int i = 0; i < 2; ++i, t += 0.125) {
+    c->observeMarker(t, patient.at(t) + Eigen::Vector3d(0.0, 0.0, 3e-3));
+  }
+  EXPECT_EQ(c->samplesGated(), 3);
   try {
     c->observeMarker(t, patient.at(t) + Eigen::Vector3d(0.0, 0.0, 3e-3));
     FAIL() << "no stop on a disagreement";

@@ -67,8 +67,8 @@ struct AdaptiveModelParams {
   double lag_max_s = 0.1;          ///< lag candidates in [-lag_max_s, lag_max_s] [s], [0, 0.5]
   double lag_step_s = 0.01;        ///< spacing of the lag candidates [s], [0.001, 0.1]
   double max_correction_mm = 2.0;  ///< bound on the departure from the model [mm], (0, 20]
-  double gate_mm = 1.0;            ///< a sample further than this from the prediction is unused
-  int disagree_samples = 2;        ///< unused samples in a row that stop the trial, [1, 100]
+  double gate_mm = 1.2;            ///< a sample further than this from the prediction is unused
+  int disagree_samples = 3;        ///< unused samples in a row that stop the trial, [1, 100]
 
   /** @brief @throws std::invalid_argument naming the field. */
   void validate() const;
