@@ -79,7 +79,7 @@ TEST(PatientPopulation, DrawsFromTheDeclaredDistributions) {
   std::vector<double> log_amplitude, lag, log_gain, lag_change, rate, heart, cardiac;
   for (std::uint64_t i = 0; i < 4000; ++i) {
     const pd::PopulationPatient p = pd::drawPopulationPatient(calibrationSeed(i), params);
-    const double amplitude = p.identificationSlope() * p.identification.tidal_volume_ml;
+    const double amplitude = p.identificationSlope() * 500.0;  // the amplitude is per 500 ml
     log_amplitude.push_back(std::log(amplitude));
     lag.push_back(p.identificationLag());
     log_gain.push_back(std::log(p.surgery.gain));

@@ -1027,6 +1027,16 @@ struct DrillingSimulation::Impl {
       patient.movements.clear();
     }
     patient.q1_ap_mm_per_ml *= drawn.patient_amplitude_scale;
+    if (params.population.enabled) {
+      // The bench's approach clears about 7 mm above the bone's end-expiratory surface: a patient
+      // whose vertebra would move more at this trial's delivered volume moves that much.
+      const double stroke =
+          patient.q1_ap_mm_per_ml * breathing.tv_max_ml * patient.delivered_volume_bias;
+      if (stroke > params.population.max_stroke_mm) {
+        patient.q1_ap_mm_per_ml *= params.population.max_stroke_mm / stroke;
+        conditions.patient_gain_change *= params.population.max_stroke_mm / stroke;
+      }
+    }
     patient.q1_ap_mm_per_ml *= params.variability.patient_gain_error;
     patient.lag_s = std::max(0.0, patient.lag_s + params.variability.patient_lag_error_s);
     conditions.patient_ap_slope_mm_per_ml = patient.q1_ap_mm_per_ml;

@@ -72,7 +72,8 @@ const ParamTable<PopulationParams>& PopulationParams::table() {
         .number("delivered_volume_bias_sd", &P::delivered_volume_bias_sd, Range::closed(0, 0.1))
         .number("cardiac_amplitude_max_mm", &P::cardiac_amplitude_max_mm, Range::closed(0, 2), "mm")
         .number("heart_rate_mean_bpm", &P::heart_rate_mean_bpm, Range::closed(50, 100), "beats/min")
-        .number("heart_rate_sd_bpm", &P::heart_rate_sd_bpm, Range::closed(0, 30), "beats/min");
+        .number("heart_rate_sd_bpm", &P::heart_rate_sd_bpm, Range::closed(0, 30), "beats/min")
+        .number("max_stroke_mm", &P::max_stroke_mm, Range::closed(1, 20), "mm");
     return d;
   }();
   return t;
@@ -133,7 +134,7 @@ PopulationPatient drawPopulationPatient(std::uint64_t seed, const PopulationPara
     AxisModel& m = v.truth.axis(a);
     const int i = static_cast<int>(a);
     m.kind = ModelKind::kHysteresis;
-    m.q1 = amplitudes[i] / vt;
+    m.q1 = amplitudes[i] / 500.0;  // the amplitudes are per 500 ml
     m.q2 = -m.q1 * lag;
     m.q0 = q0s[i];
   }

@@ -33,8 +33,8 @@ namespace pedicle_drilling::core {
 struct PopulationParams {
   /// false: the five virtual volunteers (the realistic bench); true: a patient per seed.
   bool enabled = false;
-  /// AP peak-to-peak displacement at the identification tidal volume [mm], median, [0.1, 20].
-  double ap_amplitude_median_mm = 3.0;
+  /// AP peak-to-peak displacement for 500 ml (the slope x 500 ml) [mm], median, [0.1, 20].
+  double ap_amplitude_median_mm = 2.5;
   double ap_amplitude_sigma_ln = 0.5;  ///< its log SD, [0, 1.5]
   double si_over_ap = 0.4;             ///< SI amplitude / AP amplitude, [0, 2]
   double lr_over_ap = 0.2;             ///< LR amplitude / AP amplitude, [0, 2]
@@ -66,6 +66,9 @@ struct PopulationParams {
   double cardiac_amplitude_max_mm = 0.1;  ///< cardiac AP amplitude uniform in [0, this] [mm]
   double heart_rate_mean_bpm = 68.0;      ///< heart rate [beats/min] (truncated [50, 100])
   double heart_rate_sd_bpm = 10.0;        ///< its SD [beats/min]
+  /// The bone's AP stroke on the table (slope x the trial's delivered volume) is at most this
+  /// [mm] (the slope is scaled down to it), [1, 20]: what the bench's approach clears.
+  double max_stroke_mm = 7.0;
 
   /** @brief @throws std::invalid_argument naming the field (as `population/<name>`). */
   void validate() const;
