@@ -50,6 +50,8 @@ SPEED_CASE = 'compensated'  # the case whose success the paper compares across s
 DEFAULT_SWEEP = os.path.join(cli.PACKAGE_ROOT, 'config', 'sensitivity.yaml')
 DELAY_RANGE = (0.0, 1.0)  # engine_delays, s (the campaign's scenario check)
 
+TOOL = 'campaign_sensitivity'  # the progress lines' and derived scenarios' prefix
+
 
 class SweepError(ValueError):
     """A sweep file, or an entry of it, that cannot be run; the message names the entry."""
@@ -326,8 +328,10 @@ def label(condition):
 
 
 def scenario_text(condition, base_path):
-    """The scenario file of a bench, as the sub-campaign reads it."""
-    head = '# campaign_sensitivity: %s, %s\n' % (os.path.basename(base_path), label(condition))
+    """The scenario file of a bench, as the sub-campaign reads it (headed by the tool that made
+    it: the condition's 'tool', campaign_sensitivity by default)."""
+    head = '# %s: %s, %s\n' % (condition.get('tool', TOOL), os.path.basename(base_path),
+                               label(condition))
     return head + yaml.safe_dump(condition['scenario'], default_flow_style=False, sort_keys=True)
 
 
@@ -502,9 +506,9 @@ def run_all(benches, argv, expected, base_path, stream, jobs=1, out=None):
                     eta = elapsed / ran * (len(todo) - done_count) if ran else 0
                     what = ('finished in %s (exit %d)' % (cli._clock(took), status)
                             if how == 'ran' else 'complete already, kept')
-                    stream.write('campaign_sensitivity: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
-                        done_count, len(todo), label(condition), what, cli._clock(elapsed),
-                        cli._clock(eta)))
+                    stream.write('%s: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
+                        condition.get('tool', TOOL), done_count, len(todo), label(condition),
+                        what, cli._clock(elapsed), cli._clock(eta)))
                     stream.flush()
                     if status == 130:
                         raise KeyboardInterrupt()

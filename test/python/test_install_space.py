@@ -30,7 +30,7 @@ NOT_PACKAGE = ('catkin_ws', 'results', 'out')
 CPP_TOOLS = sorted(name[:-len('.cpp')] for name in os.listdir(os.path.join(ROOT, 'src', 'tools'))
                    if name.endswith('.cpp'))  # src/tools/<name>.cpp: the tool <name>
 SCRIPTS = ['campaign', 'campaign_compare', 'campaign_merge', 'campaign_sensitivity',
-           'plot_tidal_volume.py', 'static_transform.py', 'table2.py', 'volunteers_to_bag.py']
+           'campaign_robustness', 'plot_tidal_volume.py', 'static_transform.py', 'table2.py', 'volunteers_to_bag.py']
 SHARE = ['config', 'launch_scripts', 'rviz', 'urdf', 'package.xml', 'nodelet_plugins.xml',
          'rviz_plugins.xml', 'recognizer_plugins.xml', 'compensator_plugins.xml']
 
