@@ -6,7 +6,8 @@ corrects a wrong model" from the run, not typed. Every comparison is paired, see
   1. the breathing_amplitude fault (the bone moves 1.3 x the model from a moment drawn per seed):
      adaptive_amplitude/ (AdaptiveModelCompensator) against adaptive_amplitude_paper/;
   2. no fault, the paper's bench: campaign_adaptive/ against campaign/; the realistic bench:
-     campaign_realistic_adaptive/ against campaign_realistic/. "Not worse" is a non-inferiority
+     campaign_realistic_adaptive/ against campaign_realistic/; the population bench:
+     campaign_population_adaptive/ against campaign_population/. "Not worse" is a non-inferiority
      claim: the lower end of the 95 % interval of the paired difference in success rate must lie
      above -NONINFERIORITY_MARGIN;
   3. the ROS pipeline beside the core engine, trial by trial (campaign_adaptive_ros/ against the
@@ -82,6 +83,7 @@ BENCHES = (
     ('x1.3 amplitude fault, paper\'s bench', 'adaptive_amplitude', 'adaptive_amplitude_paper'),
     ('no fault, paper\'s bench', 'campaign_adaptive', 'campaign'),
     ('no fault, realistic bench', 'campaign_realistic_adaptive', 'campaign_realistic'),
+    ('no fault, population bench', 'campaign_population_adaptive', 'campaign_population'),
 )
 
 

@@ -13,7 +13,8 @@
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
 #      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md);
-#      the AdaptiveModelCompensator beside the paper's compensator (adaptive.md)
+#      the population bench (population.md); the AdaptiveModelCompensator beside the paper's
+#      compensator (adaptive.md) and both against the model's error (robustness/)
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
@@ -86,7 +87,17 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
-# 2d'. The AdaptiveModelCompensator beside the paper's compensator, seed for seed at 12000 rpm:
+# 2d-1. The population bench (scenario_population.yaml): a patient per seed who is not their
+#     model, the paper's design with the paper's compensator, and the adaptive one compensated
+#     at 12000 rpm on the same seeds (population.md; its row in adaptive.md below).
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_population.yaml" \
+  --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_population"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_population.yaml" \
+  --case compensated --rpm 12000 --trials 200 \
+  --compensator pedicle_drilling/AdaptiveModelCompensator --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/campaign_population_adaptive"
+python3 "${ROOT}/scripts/dev/population_tables.py" "${OUT}" > "${OUT}/population.md"
+# 2d-2. The AdaptiveModelCompensator beside the paper's compensator, seed for seed at 12000 rpm:
 #     the x1.3 amplitude fault (scenario_adaptive_amplitude.yaml), no fault on the paper's and the
 #     realistic bench, and 30 trials through the ROS pipeline: adaptive.md.
 ADAPTIVE=(--compensator pedicle_drilling/AdaptiveModelCompensator)
@@ -105,9 +116,15 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml"
   --rpm 12000 --trials 30 --engine ros "${ADAPTIVE[@]}" --jobs "${JOBS}" "${IDENT[@]}" \
   --no-figures --out "${OUT}/campaign_adaptive_ros"
 python3 "${ROOT}/scripts/dev/adaptive_tables.py" "${OUT}" > "${OUT}/adaptive.md"
+# 2d-3. Robustness curves (config/robustness.yaml): both compensators against the size of the
+#     model's error in slope, lag and breathing rate, 100 trials per point on the realistic
+#     bench, paired seeds (robustness/robustness.md and its figures).
+rosrun pedicle_drilling campaign_robustness --sweep "${ROOT}/config/robustness.yaml" \
+  --jobs "${JOBS}" --out "${OUT}/robustness"
 # 2e. Sensitivity of the conclusions: every uncertain constant of
 #     config/sensitivity.yaml at each end of its documented range on the paper's bench, and the
-#     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, one
+#     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, the
+#     population bench's distributions (config/sensitivity_population.yaml) on that one, one
 #     at a time on the same seeds, 12000 rpm, SENSITIVITY_TRIALS per case (default 20: a screen,
 #     not a measurement; doc/experiments.md, "Sensitivity of the conclusions").
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_paper.yaml" \
@@ -118,6 +135,10 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
   --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" "${REUSE[@]}" \
   --out "${OUT}/sensitivity_realistic" \
   > /dev/null
+rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_population.yaml" \
+  --sweep "${ROOT}/config/sensitivity_population.yaml" --rpm 12000 \
+  --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" "${REUSE[@]}" \
+  --out "${OUT}/sensitivity_population" > /dev/null
 # 2f. Fig. 15's question: the compensated case at 12000/16000/20000 rpm, 50 trials per speed,
 #     over every speed-dependent candidate (config/sensitivity_speed.yaml).
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
@@ -173,8 +194,8 @@ echo "  ${OUT}/campaign_hysteresis/report.md"
 echo "  ${OUT}/campaign_faults/report.md"
 echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.md"
 echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/sensitivity.md,"
-echo "  ${OUT}/sensitivity_speed/sensitivity.md"
+echo "  ${OUT}/sensitivity_speed/sensitivity.md, ${OUT}/sensitivity_population/sensitivity.md"
 echo "  ${OUT}/dataset/DATASHEET.md and ${OUT}/leaderboard/leaderboard.md"
 echo "  ${OUT}/engine_agreement.md"
-echo "  ${OUT}/adaptive.md"
+echo "  ${OUT}/adaptive.md, ${OUT}/population.md, ${OUT}/robustness/robustness.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

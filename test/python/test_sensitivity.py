@@ -201,6 +201,13 @@ def test_the_shipped_sweep_names_declared_constants_with_sourced_ranges():
     for entry in own:
         assert entry['source'].startswith(('doc/simulator_physics.md', 'doc/bench_sources.md')), \
             entry
+    # The population bench's distributions around the scenario's (the Simulator's defaults).
+    population = cli.load_scenario(os.path.join(ROOT, 'config', 'scenario_population.yaml'))
+    own = sensitivity.load_sweep(os.path.join(ROOT, 'config', 'sensitivity_population.yaml'))
+    sensitivity.resolve(own, population, sensitivity.declared_defaults())
+    assert len(own) >= 6
+    for entry in own:
+        assert entry['source'].startswith('doc/simulator_physics.md section 6'), entry
 
 
 def test_the_declaration_refuses_an_unknown_simulator_parameter():
