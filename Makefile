@@ -17,7 +17,7 @@ CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
 	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON \
 	-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -j$(JOBS)
 
-.PHONY: all deps build test run bench lint format format-check hooks clean
+.PHONY: all deps build test run bench docs lint format format-check hooks clean
 
 all: build
 
@@ -37,6 +37,12 @@ run: build
 
 bench: build
 	./scripts/dev/run_bench.sh
+
+# The documents' generated blocks (<!-- generated: NAME -->) from the archived results in
+# doc/results/: on a checkout it leaves `git diff` empty. To publish a new `make run`, first
+# `scripts/dev/make_docs.py --archive results/` (test_generated_docs.py checks the blocks).
+docs: deps
+	/usr/bin/python3 scripts/dev/make_docs.py
 
 lint: deps
 	./scripts/dev/link_workspace.sh

@@ -99,7 +99,7 @@ def main(argv):
     for label, (adaptive, paper) in groups:
         print(comparison(label, adaptive, paper))
     print()
-    print('| bench | failure kinds, adaptive | failure kinds, paper\'s compensator |')
+    print('| bench | how the trials ended, adaptive | how the trials ended, paper\'s compensator |')
     print('|---|---|---|')
     for label, (adaptive, paper) in groups:
         print('| %s | %s | %s |' % (label, kinds(adaptive), kinds(paper)))

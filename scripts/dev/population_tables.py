@@ -50,6 +50,20 @@ def tracking_table(trials):
             sum(bool(r['breakthrough']) for r in group)))
 
 
+def kinds_table(summary, trials):
+    """Why trials ended at 12000 rpm (the failure kinds) and the tracking RMS's spread."""
+    print('| case (12000 rpm) | failure kinds | tracking RMS, median [quartiles] [mm] |')
+    print('|---|---|---|')
+    for g in summary['groups']:
+        if g['rpm'] != 12000.0:
+            continue
+        kinds = sorted(((k, v) for k, v in g['failure_kinds'].items() if k != 'success'),
+                       key=lambda kv: (-kv[1], kv[0]))
+        group = [r for r in trials if r['case'] == g['case'] and r['rpm'] == 12000.0]
+        print('| %s | %s | %s |' % (g['case'], ', '.join('%s %d' % kv for kv in kinds) or '-',
+                                    quartiles(r.get('tracking_rms_mm') for r in group)))
+
+
 def number(text):
     return float(text) if text not in (None, '') else None
 
@@ -93,6 +107,8 @@ def main(argv):
     print()
     trials = rows(population)
     tracking_table(trials)
+    print()
+    kinds_table(summary, trials)
     print()
     identification_table(trials, os.path.join(out, 'campaign', 'table2.csv'))
     return 0

@@ -1,0 +1,167 @@
+#!/usr/bin/python3
+"""The documents' generated blocks, from the archived results in doc/results/.
+
+A generated block is the text between `<!-- generated: NAME -->` and `<!-- end generated -->` in
+a document; NAME is one of BLOCKS, a function of the archive folder that returns the block's
+markdown. `make docs` rewrites every block from the archive (run on a checkout it leaves
+`git diff` empty); `--check` rewrites nothing and exits 1 naming every block that differs
+(test_generated_docs.py). `--archive RESULTS_DIR` first copies what the blocks read from a
+`make run` output (default results/) into doc/results/: the trial tables trimmed to the columns
+the tables use, the campaigns' summary.json, Table II and the robustness curves' csv.
+
+usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
+import argparse
+import csv
+import io
+import os
+import re
+import shutil
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'src'))
+sys.path.insert(0, HERE)
+
+from pd_campaign.atomic import atomic_path  # noqa: E402
+import adaptive_tables  # noqa: E402
+import population_tables  # noqa: E402
+
+ARCHIVE = os.path.join(ROOT, 'doc', 'results')
+DOCUMENTS = ('README.md', os.path.join('doc', 'identification.md'))
+BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
+# The trial columns the generated tables read (report.normalise_row needs the first five).
+COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
+           'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
+           'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
+           'error')
+# The campaigns of a `make run` output the blocks read: True for the population bench, whose
+# summary.json and every row are read; the others give only their compensated 12000 rpm rows.
+CAMPAIGNS = {
+    'campaign': False, 'campaign_adaptive': False, 'campaign_adaptive_ros': False,
+    'adaptive_amplitude': False, 'adaptive_amplitude_paper': False,
+    'campaign_realistic': False, 'campaign_realistic_adaptive': False,
+    'campaign_population': True, 'campaign_population_adaptive': False,
+}
+
+
+def captured(function, *args):
+    """What `function(*args)` prints."""
+    saved, sys.stdout = sys.stdout, io.StringIO()
+    try:
+        function(*args)
+        return sys.stdout.getvalue()
+    finally:
+        sys.stdout = saved
+
+
+def robustness_table(archive):
+    """The README's digest of the robustness curves: per error, each compensator's success at
+    the two ends and at the nominal point, and the range where the adaptive one holds 95 %."""
+    with open(os.path.join(archive, 'robustness', 'robustness.csv')) as handle:
+        rows = list(csv.DictReader(handle))
+    lines = ['| error | compensator | success at the smallest / nominal / largest size (of '
+             'trials) | H1 stops at the ends | sizes at or above 95 % |', '|---|---|---|---|---|']
+    for error in dict.fromkeys(r['error'] for r in rows):
+        for compensator in dict.fromkeys(r['compensator'] for r in rows):
+            points = sorted((r for r in rows if r['error'] == error
+                             and r['compensator'] == compensator), key=lambda r: float(r['value']))
+            nominal = next(r for r in points if r['nominal'] == 'true')
+            held = [r['value'] for r in points if int(r['successes']) >= 0.95 * int(r['trials'])]
+            unit = points[0]['unit']
+            lines.append('| %s | %s | %s / %s / %s of %s | %s, %s | %s |' % (
+                '%s [%s]' % (error, unit) if unit else '%s (factor)' % error,
+                compensator.split('/')[-1], points[0]['successes'],
+                nominal['successes'], points[-1]['successes'], nominal['trials'],
+                points[0]['h1_stops'], points[-1]['h1_stops'],
+                ', '.join(held) if held else 'none'))
+    return '\n'.join(lines) + '\n'
+
+
+def population_block(archive):
+    trials = population_tables.rows(os.path.join(archive, 'campaign_population'))
+    summary = population_tables.results_tables.load(os.path.join(archive, 'campaign_population'))
+    return (captured(population_tables.results_tables.design_table, summary) + '\n'
+            + captured(population_tables.kinds_table, summary, trials))
+
+
+BLOCKS = {
+    'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
+    'population': population_block,
+    'population_identification': lambda archive: captured(
+        population_tables.identification_table,
+        population_tables.rows(os.path.join(archive, 'campaign_population')),
+        os.path.join(archive, 'campaign', 'table2.csv')),
+    'robustness': robustness_table,
+}
+
+
+def archive_results(results):
+    """Copies what the blocks read from a `make run` output into doc/results/."""
+    for name, with_summary in CAMPAIGNS.items():
+        source, target = os.path.join(results, name), os.path.join(ARCHIVE, name)
+        os.makedirs(target, exist_ok=True)
+        with open(os.path.join(source, 'trials.csv')) as handle:
+            rows = [r for r in csv.DictReader(handle) if with_summary or (
+                r['case'] == 'compensated' and float(r['rpm']) == 12000.0)]
+        with atomic_path(os.path.join(target, 'trials.csv')) as tmp, open(tmp, 'w') as out:
+            writer = csv.DictWriter(out, fieldnames=COLUMNS, extrasaction='ignore',
+                                    lineterminator='\n')
+            writer.writeheader()
+            writer.writerows(rows)
+        files = (['summary.json'] if with_summary else []) + (
+            ['table2.csv'] if name == 'campaign' else [])
+        for file_name in files:
+            with atomic_path(os.path.join(target, file_name)) as tmp:
+                shutil.copyfile(os.path.join(source, file_name), tmp)
+    os.makedirs(os.path.join(ARCHIVE, 'robustness'), exist_ok=True)
+    with atomic_path(os.path.join(ARCHIVE, 'robustness', 'robustness.csv')) as tmp:
+        shutil.copyfile(os.path.join(results, 'robustness', 'robustness.csv'), tmp)
+
+
+def regenerate(text, archive):
+    """The document `text` with every generated block rebuilt; and the names of the blocks."""
+    names = []
+
+    def rebuilt(match):
+        name = match.group(2)
+        if name not in BLOCKS:
+            raise KeyError('unknown generated block %r (known: %s)' % (name, ', '.join(BLOCKS)))
+        names.append(name)
+        return match.group(1) + BLOCKS[name](archive) + match.group(4)
+    return BLOCK.sub(rebuilt, text), names
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--check', action='store_true',
+                        help='change nothing; exit 1 naming every block that differs')
+    parser.add_argument('--archive', nargs='?', const=os.path.join(ROOT, 'results'),
+                        metavar='RESULTS_DIR', help='first copy a make run output into doc/results/')
+    args = parser.parse_args(argv)
+    if args.archive:
+        archive_results(args.archive)
+    stale = []
+    for document in DOCUMENTS:
+        path = os.path.join(ROOT, document)
+        with open(path) as handle:
+            text = handle.read()
+        new, names = regenerate(text, ARCHIVE)
+        if new == text:
+            continue
+        if args.check:
+            old_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(text))
+            new_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(new))
+            stale += ['%s: %s' % (document, n) for n in names if old_blocks[n] != new_blocks[n]]
+        else:
+            with atomic_path(path) as tmp, open(tmp, 'w') as out:
+                out.write(new)
+    if stale:
+        sys.stderr.write('make_docs: blocks that differ from doc/results/ (make docs): %s\n'
+                         % ', '.join(stale))
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
