@@ -17,7 +17,7 @@ CATKIN_MAKE := cd $(WS) && catkin_make -DCMAKE_BUILD_TYPE=Release \
 	-DPYTHON_EXECUTABLE=/usr/bin/python3 -DCATKIN_ENABLE_TESTING=ON \
 	-DCMAKE_C_COMPILER_LAUNCHER=ccache -DCMAKE_CXX_COMPILER_LAUNCHER=ccache -j$(JOBS)
 
-.PHONY: all deps build test run bench docs lint format format-check hooks clean
+.PHONY: all deps build test test-fast run bench docs lint format format-check hooks clean
 
 all: build
 
@@ -31,6 +31,11 @@ build: deps
 test: build format-check
 	cd $(WS)/build && $(MAKE) -j$(JOBS) tests
 	xvfb-run -a -s "-screen 0 1280x1024x24" ./scripts/dev/run_tests.sh
+
+# The developer's loop: the gtest suites, the formatting and the documents' checks, no rostest.
+test-fast: build format-check
+	cd $(WS)/build && $(MAKE) -j$(JOBS) tests
+	TEST_TIER=fast ./scripts/dev/run_tests.sh
 
 run: build
 	./scripts/dev/run_main.sh

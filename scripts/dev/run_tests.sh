@@ -6,12 +6,23 @@
 #   3. python tests (test/python), pytest
 # Needs a DISPLAY for the rviz scenario: `make test` runs this under xvfb-run.
 # Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
+# TEST_TIER=fast (`make test-fast`): the gtest suites and the python files of FAST_PYTHON (unit
+# tests and the documents' checks), no rostest: a developer's loop of about a minute.
 set -u
 ROOT="$(cd "$(dirname "$0")/../.." && pwd)"
 WS="${ROOT}/catkin_ws"
 # shellcheck source=scripts/dev/workspace_env.sh
 source "${ROOT}/scripts/dev/workspace_env.sh"
 FILTER="${TEST_FILTER:-}"
+TIER="${TEST_TIER:-all}"
+# The fast tier's python files: each runs in seconds, and none starts a ROS master or a campaign.
+FAST_PYTHON=(test_format.py test_function_length.py test_no_issue_numbers.py test_doc_links.py
+  test_readme_parameters.py test_generated_docs.py test_no_machine_paths.py
+  test_atomic_outputs.py test_commit_msg_hook.py test_outcome.py test_summarize_test_results.py)
+if [ "${TIER}" != all ] && [ "${TIER}" != fast ]; then
+  echo "run_tests: TEST_TIER=${TIER}: not all or fast" >&2
+  exit 2
+fi
 RESULTS="${WS}/build/test_results/pedicle_drilling"
 export PEDICLE_DRILLING_ARTIFACTS="${WS}/build/test_artifacts"
 export PEDICLE_DRILLING_BIN_DIR="${WS}/devel/lib/pedicle_drilling"
@@ -49,8 +60,10 @@ for source in "${ROOT}"/test/gtest/test_*.cpp; do
 done
 
 echo "== rostest scenarios"
+[ "${TIER}" = fast ] && echo "  (none in the fast tier)"
 for scenario in "${ROOT}"/test/rostest/*.test "${ROOT}"/test/rostest_gtest/*.test; do
   name="$(basename "${scenario}" .test)"
+  [ "${TIER}" = all ] || continue
   [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
   start=$(date +%s)
   timeout 900 rostest --results-filename "rostest_${name}.xml" --results-base-dir "${WS}/build/test_results" \
@@ -69,8 +82,12 @@ for scenario in "${ROOT}"/test/rostest/*.test "${ROOT}"/test/rostest_gtest/*.tes
 done
 
 echo "== python tests"
+PYTHON_TESTS=("${ROOT}/test/python")
+if [ "${TIER}" = fast ]; then
+  PYTHON_TESTS=("${FAST_PYTHON[@]/#/${ROOT}/test/python/}")
+fi
 if ls "${ROOT}"/test/python/test_*.py >/dev/null 2>&1; then
-  /usr/bin/python3 -m pytest -q -p no:cacheprovider ${FILTER:+-k "${FILTER}"} "${ROOT}/test/python" \
+  /usr/bin/python3 -m pytest -q -p no:cacheprovider ${FILTER:+-k "${FILTER}"} "${PYTHON_TESTS[@]}" \
     --junitxml="${RESULTS}/pytest-python.xml" 2>&1 | tail -n 25
 fi
 
