@@ -168,6 +168,10 @@ done
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.yaml" \
   --rpm 12000 --trials 10 --engine ros --jobs "${JOBS}" "${IDENT[@]}" \
   --out "${OUT}/campaign_realistic_ros"
+# ... and the plan's depth limit (scenario_depth_limit.yaml): its first 10 trials per case.
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit.yaml" \
+  --trials 10 --engine ros --jobs "${JOBS}" "${IDENT[@]}" --no-figures \
+  --out "${OUT}/campaign_depth_limit_ros"
 {
   echo "# Engine agreement (same seeds)"
   echo
@@ -182,6 +186,11 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   echo "## The realistic bench (scenario_realistic.yaml), 12000 rpm"
   echo
   python3 -m pd_campaign.agreement "${OUT}/campaign_realistic_ros" "${OUT}/campaign_realistic" \
+    --label-a ros --label-b core
+  echo
+  echo "## The plan's depth limit (scenario_depth_limit.yaml), 12000 rpm"
+  echo
+  python3 -m pd_campaign.agreement "${OUT}/campaign_depth_limit_ros" "${OUT}/campaign_depth_limit" \
     --label-a ros --label-b core
 } > "${OUT}/engine_agreement.md.tmp"
 mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
