@@ -263,6 +263,8 @@ const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::
         .text("compensator", &P::compensator_class)
         .pairs("compensator_params", &P::compensator_params)
         .number("heartbeat_period_s", &P::heartbeat_period_s, Range::closed(0.001, 0.1), "s")
+        .number("breath_timeout_periods", &P::breath_timeout_periods, Range::aboveUpTo(1, 10),
+                "breath periods")
         .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();

@@ -199,6 +199,11 @@ struct CompensationPlannerNodeParams {
    * guard timeout, so a late beat does not stop a healthy trial.
    */
   double heartbeat_period_s = core::kPlannerHeartbeatPeriodS;
+  /// A moving trial needs a breath start at most this many breath periods old
+  /// (core::TrialSequencer::setBreathSource): refused before, stopped with retreat while
+  /// drilling. The Ventilator's `flow` source stops publishing at its own
+  /// breath_timeout_periods (the same default).
+  double breath_timeout_periods = 2.0;
   /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
   std::vector<std::string> disabledWatchdogs() const;
   /** @brief Component index (0..2) of thrust_axis. */
