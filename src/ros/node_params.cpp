@@ -21,7 +21,11 @@ const ParamTable<VentilatorNodeParams>& VentilatorNodeParams::table() {
     ParamTable<P> d;
     d.include(core::VentilatorSettings::table(), &P::settings)
         .number("publish_rate_hz", &P::publish_rate_hz, Range::aboveUpTo(0, 1000), "Hz")
-        .text("frame_id", &P::frame_id);
+        .text("frame_id", &P::frame_id)
+        .parsed(
+            "breath_source", {"internal", "flow"}, "", [](const P& v) { return v.breath_source; },
+            [](P& v, const std::string& x) { v.breath_source = x; })
+        .include(core::FlowPhaseParams::table(), &P::flow);
     return d;
   }();
   return t;
@@ -30,6 +34,7 @@ const ParamTable<VentilatorNodeParams>& VentilatorNodeParams::table() {
 void VentilatorNodeParams::validate() const {
   table().validate(*this);
   settings.validate();
+  flow.validate();
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "pedicle_drilling/core/breathing/breath_detector.hpp"
 #include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/core/common/param_table.hpp"
@@ -26,7 +27,11 @@ namespace pedicle_drilling {
 
 /** @brief pedicle_drilling/Ventilator. */
 struct VentilatorNodeParams {
-  core::VentilatorSettings settings;    ///< the ventilator's settings (core)
+  core::VentilatorSettings settings;  ///< the ventilator's settings (core)
+  /// Where the breath phase comes from: "internal", a schedule running from the nodelet's start
+  /// (the simulator-only demo); "flow", breath starts detected on breath_sensor/flow.
+  std::string breath_source = "internal";
+  core::FlowPhaseParams flow;           ///< the detector and its timeout, with breath_source flow
   double publish_rate_hz = 64.0;        ///< tidal_volume rate
   std::string frame_id = "ventilator";  ///< header.frame_id of what it publishes
   /** @brief Checks the declared ranges. @throws std::invalid_argument naming the parameter. */
