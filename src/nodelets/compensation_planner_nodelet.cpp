@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "pedicle_drilling/BreathSourceStatus.h"
 #include "pedicle_drilling/DrillingPlan.h"
 #include "pedicle_drilling/DrillingState.h"
 #include "pedicle_drilling/StartTrial.h"
@@ -67,8 +68,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     if (start_spinner_) start_spinner_->stop();
     if (lockstep_) lockstep_->stop();
     for (ros::Subscriber* sub :
-         {&tidal_sub_, &settings_sub_, &marker_sub_, &stop_sub_, &state_sub_, &diagnostics_sub_,
-          &tare_result_sub_, &enable_sub_, &plan_sub_, &wrench_sub_}) {
+         {&tidal_sub_, &settings_sub_, &breath_source_sub_, &marker_sub_, &stop_sub_, &state_sub_,
+          &diagnostics_sub_, &tare_result_sub_, &enable_sub_, &plan_sub_, &wrench_sub_}) {
       sub->shutdown();
     }
     for (ros::Subscriber& sub : controller_state_subs_) sub.shutdown();
@@ -90,6 +91,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       loader.load(CompensationPlannerNodeParams::table(), &params_);
       patient_ = loadPatient();
       sequencer_ = makeSequencer(params_, loader, nh);
+      tidal_volume_topic_ = nh.resolveName("tidal_volume");
+      sequencer_->setBreathSource(tidal_volume_topic_, params_.breath_timeout_periods);
       thrust_index_ = params_.thrustAxisIndex();
       thrust_sign_ = params_.thrustAxisSign();
       controllers_ = sequencer_->controllers();
@@ -157,6 +160,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         nh.subscribe("tidal_volume", 10, &CompensationPlannerNodelet::onTidalVolume, this, hints);
     settings_sub_ =
         nh.subscribe("ventilator/settings", 1, &CompensationPlannerNodelet::onSettings, this);
+    breath_source_sub_ = nh.subscribe("ventilator/breath_source_status", 1,
+                                      &CompensationPlannerNodelet::onBreathSource, this);
     marker_sub_ =
         nh.subscribe("tracker/marker_pose", 10, &CompensationPlannerNodelet::onMarker, this, hints);
     // The depth limit's inputs: the plan (latched by its publisher), and the thrust that shows
@@ -243,6 +248,17 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     } catch (const std::exception& e) {
       NODELET_ERROR("CompensationPlanner: ignored invalid ventilator settings: %s", e.what());
     }
+  }
+
+  /** @brief The Ventilator's breath source: named in a refusal or a stop, its problem quoted. */
+  void onBreathSource(const BreathSourceStatus::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const std::string source = msg->topic.empty() ? tidal_volume_topic_
+                                                  : msg->source + " on " + msg->topic + " (via " +
+                                                        tidal_volume_topic_ + ")";
+    sequencer_->setBreathSource(source, params_.breath_timeout_periods);
+    sequencer_->setBreathSourceProblem(msg->ready ? "" : msg->message);
+    if (!msg->ready) NODELET_WARN("CompensationPlanner: %s", msg->message.c_str());
   }
 
   void onControllerState(const std::string& name,
@@ -619,6 +635,8 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   ros::Publisher predicted_pub_;
   ros::Publisher status_pub_;
   ros::Subscriber tidal_sub_;
+  ros::Subscriber breath_source_sub_;
+  std::string tidal_volume_topic_;  // resolved: named when the breath phase is missing
   ros::Subscriber settings_sub_;
   ros::Subscriber marker_sub_;
   ros::Subscriber stop_sub_;

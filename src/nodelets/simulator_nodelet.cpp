@@ -42,6 +42,7 @@
 #include <vector>
 
 #include "pedicle_drilling/AbortController.h"
+#include "pedicle_drilling/AirwayFlow.h"
 #include "pedicle_drilling/ResetSimulation.h"
 #include "pedicle_drilling/SetPatientAmplitude.h"
 #include "pedicle_drilling/SetVentilatorSettings.h"
@@ -156,6 +157,11 @@ class SimulatorNodelet : public nodelet::Nodelet {
     tare_result_pub_ = nh.advertise<TareResult>("ft_sensor/tare_result", 10, true);
     marker_pub_ = nh.advertise<geometry_msgs::PoseStamped>("tracker/marker_pose", 20);
     ground_truth_pub_ = nh.advertise<GroundTruth>("simulator/ground_truth", 200);
+    // The bench's breath sensor (~breath_sensor_rate_hz > 0): the raw flow it samples, as a
+    // lab's flow sensor feeds the Ventilator's `flow` breath source.
+    if (sim_->params().breath_sensor_rate_hz > 0.0) {
+      flow_pub_ = nh.advertise<AirwayFlow>("breath_sensor/flow", 200);
+    }
     // The bench's planning tool: the plan of the mounted specimen, latched.
     plan_pub_ = nh.advertise<DrillingPlan>("drilling_plan", 1, true);
     publishPlan(sim_->time());
@@ -326,6 +332,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
         if (stream(tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0)) {
           publishTidalVolume(t);
         }
+        // Not a lockstep stream: its reader, the Ventilator, is not a participant.
+        if (sim_->breathFlowSampled()) publishFlow(t);
+        publishDelayedFlow(t);
         // The step that reaches the trial's hold: the participants are at it while it holds
         // (the planner starts the trial at its time).
         const bool holds_next = hold_at_ && t >= *hold_at_ - 1e-9;
@@ -611,6 +620,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void publishGroundTruth(double t) {
     GroundTruth msg = toMsg(sim_->groundTruth(), stampOf(t));
+    msg.breath_index = static_cast<std::uint32_t>(sim_->ventilator().breathIndex());
+    msg.breath_start = stampOf(sim_->ventilator().breathStart());
     msg.late_commands = late_commands_;
     msg.rejected_commands = rejected_commands_;
     msg.max_command_lateness_s = max_command_lateness_s_;
@@ -656,6 +667,26 @@ class SimulatorNodelet : public nodelet::Nodelet {
     lockstep_timeouts_ = 0;
     lockstep_steps_ = 0;
     lockstep_skipped_ = 0;
+  }
+
+  /**
+   * @brief A breath-sensor sample: stamped with its time on the sensor's clock (+
+   *        ~breath_clock_offset_s), published ~breath_sensor_latency_s later.
+   */
+  void publishFlow(double t) {
+    if (flow_pub_.getNumSubscribers() == 0) return;
+    AirwayFlow m;
+    m.header.stamp = stampOf(t + sim_->params().breath_clock_offset_s);
+    m.header.frame_id = "breath_sensor";
+    m.flow_ml_s = sim_->ventilatorSample().flow_ml_s;
+    delayed_flow_.emplace_back(t + sim_->params().breath_sensor_latency_s, m);
+  }
+
+  void publishDelayedFlow(double t) {
+    while (!delayed_flow_.empty() && delayed_flow_.front().first <= t + 1e-9) {
+      publishInOrder(flow_pub_, delayed_flow_.front().second);
+      delayed_flow_.pop_front();
+    }
   }
 
   /** @brief A tracker sample: now, or ~tracker_delay_s later (its stamp kept). */
@@ -968,6 +999,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     tracker_delay_s_ = distribution.tracker_delay_s;
     lockstep_every_step_ = distribution.lockstep_every_step;
     delayed_markers_.clear();
+    delayed_flow_.clear();
     last_breath_index_ = -1;
     last_settings_msg_ = VentilatorSettings();  // the new breathing is announced
     if (lockstep_ && lockstep_steps_ + lockstep_skipped_ > 0) {
@@ -1008,6 +1040,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   core::CommandTransport command_transport_;  ///< under the lockstep (set at every reset)
   double tracker_delay_s_ = 0.0;              ///< (re-read at every reset)
   std::deque<std::pair<double, geometry_msgs::PoseStamped>> delayed_markers_;
+  std::deque<std::pair<double, AirwayFlow>> delayed_flow_;  // breath_sensor/flow, due times
   std::vector<PendingCommand> pending_;              ///< under the lockstep, for the next step
   std::atomic<std::uint32_t> lockstep_timeouts_{0};  ///< counted on the stepping thread
   std::mutex ack_mutex_;
@@ -1063,6 +1096,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
   ros::ServiceServer set_ventilator_srv_, set_amplitude_srv_, stall_joint_srv_;
   ros::ServiceServer abort_controller_srv_;
   ros::Publisher tidal_volume_pub_;
+  ros::Publisher flow_pub_;
   ros::Publisher ventilator_settings_pub_;
   ros::Publisher clock_pub_;
   ros::Publisher joint_state_pub_;

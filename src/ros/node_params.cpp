@@ -21,7 +21,11 @@ const ParamTable<VentilatorNodeParams>& VentilatorNodeParams::table() {
     ParamTable<P> d;
     d.include(core::VentilatorSettings::table(), &P::settings)
         .number("publish_rate_hz", &P::publish_rate_hz, Range::aboveUpTo(0, 1000), "Hz")
-        .text("frame_id", &P::frame_id);
+        .text("frame_id", &P::frame_id)
+        .parsed(
+            "breath_source", {"internal", "flow"}, "", [](const P& v) { return v.breath_source; },
+            [](P& v, const std::string& x) { v.breath_source = x; })
+        .include(core::FlowPhaseParams::table(), &P::flow);
     return d;
   }();
   return t;
@@ -30,6 +34,7 @@ const ParamTable<VentilatorNodeParams>& VentilatorNodeParams::table() {
 void VentilatorNodeParams::validate() const {
   table().validate(*this);
   settings.validate();
+  flow.validate();
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -263,6 +268,8 @@ const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::
         .text("compensator", &P::compensator_class)
         .pairs("compensator_params", &P::compensator_params)
         .number("heartbeat_period_s", &P::heartbeat_period_s, Range::closed(0.001, 0.1), "s")
+        .number("breath_timeout_periods", &P::breath_timeout_periods, Range::aboveUpTo(1, 10),
+                "breath periods")
         .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();

@@ -1199,3 +1199,63 @@ TEST(TrialSequencerDepthLimit, APlanAtAnAngleToTheDrillFailsTheTrialBeforeTheFee
   registerAt(&seq, 12.5);
   EXPECT_EQ(seq.phase(), pd::TrialPhase::kFailed);
 }
+
+// The breath source (setBreathSource): a moving trial needs a recent breath start; a source that
+// falls silent while drilling stops the trial with retreat, the reason naming the source.
+TEST(TrialSequencer, ASilentBreathSourceRefusesAndStopsAMovingTrialNamingIt) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setBreathSource("flow on /lab/flow (via /tidal_volume)", 2.0);
+  // The source's own report before any breath: quoted in the refusal.
+  seq.setBreathSourceProblem("breath source flow on /lab/flow: no flow sample yet");
+  std::string why = seq.check(request("compensated"));
+  EXPECT_NE(why.find("needs the ventilator"), std::string::npos) << why;
+  EXPECT_NE(why.find("/lab/flow: no flow sample yet"), std::string::npos) << why;
+  EXPECT_EQ(seq.check(request("stationary")), "");  // the bone still: no breath needed
+  seq.setBreathSourceProblem("");
+  seq.setVentilator(pd::VentilatorSettings());  // 5 s breaths: 10 s bound
+  seq.setBreathStart(0.0);
+  // Its last start 10.5 s old: refused by the planner's own bound.
+  why = seq.start(request("compensated"), apModel(), 10.5);
+  EXPECT_NE(why.find("breath source silent"), std::string::npos) << why;
+  EXPECT_NE(why.find("/lab/flow"), std::string::npos) << why;
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kIdle);
+  // Recent: the trial starts and drills; the starts then stop coming.
+  seq.setBreathStart(5.0);
+  ASSERT_EQ(seq.start(request("compensated"), apModel(), 10.0), "");
+  seq.takeOutput();
+  registerAt(&seq, 12.5);
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  seq.takeOutput();
+  std::vector<std::string> stops;
+  double now = 13.0;
+  for (; now < 20.0 && seq.phase() == pd::TrialPhase::kDrilling; now += 0.125) {
+    seq.onSegmentTimer(now);
+    for (const std::string& s : seq.takeOutput().stops) stops.push_back(s);
+  }
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  ASSERT_EQ(stops.size(), 1u);
+  EXPECT_NE(stops[0].find("breath source silent: no breath start from flow on /lab/flow"),
+            std::string::npos)
+      << stops[0];
+  EXPECT_GT(now - 0.125 - 5.0, 10.0);  // the tick that stopped it: the first past the bound
+  EXPECT_LE(now - 0.125 - 5.0, 10.0 + 0.125 + 1e-9);
+}
+
+TEST(TrialSequencer, TheBreathSourcesReportStopsADrillingTrial) {
+  pd::TrialSequencer seq(params(), workcellArm());
+  seq.setVentilator(pd::VentilatorSettings());
+  seq.setBreathStart(9.0);
+  ASSERT_EQ(seq.start(request("uncompensated"), apModel(), 10.0), "");
+  seq.takeOutput();
+  registerAt(&seq, 12.5);
+  ASSERT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  seq.takeOutput();
+  seq.onSegmentTimer(13.125);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);  // no bound declared (0): no stop
+  seq.setBreathSourceProblem("breath source flow on /lab/flow: no breath start for 10.1 s");
+  seq.onSegmentTimer(13.25);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kRetreating);
+  const pd::SequencerOutput out = seq.takeOutput();
+  ASSERT_EQ(out.stops.size(), 1u);
+  EXPECT_NE(out.stops[0].find("/lab/flow"), std::string::npos) << out.stops[0];
+}

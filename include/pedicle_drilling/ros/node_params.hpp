@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "pedicle_drilling/core/breathing/breath_detector.hpp"
 #include "pedicle_drilling/core/breathing/motion_pipeline.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
 #include "pedicle_drilling/core/common/param_table.hpp"
@@ -26,7 +27,11 @@ namespace pedicle_drilling {
 
 /** @brief pedicle_drilling/Ventilator. */
 struct VentilatorNodeParams {
-  core::VentilatorSettings settings;    ///< the ventilator's settings (core)
+  core::VentilatorSettings settings;  ///< the ventilator's settings (core)
+  /// Where the breath phase comes from: "internal", a schedule running from the nodelet's start
+  /// (the simulator-only demo); "flow", breath starts detected on breath_sensor/flow.
+  std::string breath_source = "internal";
+  core::FlowPhaseParams flow;           ///< the detector and its timeout, with breath_source flow
   double publish_rate_hz = 64.0;        ///< tidal_volume rate
   std::string frame_id = "ventilator";  ///< header.frame_id of what it publishes
   /** @brief Checks the declared ranges. @throws std::invalid_argument naming the parameter. */
@@ -199,6 +204,11 @@ struct CompensationPlannerNodeParams {
    * guard timeout, so a late beat does not stop a healthy trial.
    */
   double heartbeat_period_s = core::kPlannerHeartbeatPeriodS;
+  /// A moving trial needs a breath start at most this many breath periods old
+  /// (core::TrialSequencer::setBreathSource): refused before, stopped with retreat while
+  /// drilling. The Ventilator's `flow` source stops publishing at its own
+  /// breath_timeout_periods (the same default).
+  double breath_timeout_periods = 2.0;
   /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
   std::vector<std::string> disabledWatchdogs() const;
   /** @brief Component index (0..2) of thrust_axis. */

@@ -380,6 +380,14 @@ void BreathScheduler::restart(double start_time) {
   ++breath_index_;
 }
 
+void BreathScheduler::rephase(double start_time) {
+  if (!std::isfinite(start_time)) {
+    throw std::invalid_argument("BreathScheduler::rephase: start_time must be finite");
+  }
+  breath_start_ = start_time;
+  last_t_ = std::max(last_t_, start_time);
+}
+
 VentilatorSample BreathScheduler::sample(double t) {
   if (!(t >= last_t_)) t = last_t_;  // also catches NaN
   last_t_ = t;

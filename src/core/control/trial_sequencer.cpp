@@ -168,6 +168,32 @@ void TrialSequencer::setBreathStart(double t) {
   if (planner_) planner_->compensator().setBreathStart(t);
 }
 
+void TrialSequencer::setBreathSource(const std::string& source, double timeout_periods) {
+  breath_source_ = source;
+  breath_timeout_periods_ = timeout_periods;
+}
+
+void TrialSequencer::setBreathSourceProblem(const std::string& problem) {
+  breath_source_problem_ = problem;
+}
+
+std::string TrialSequencer::breathProblem(double now) const {
+  if (!breath_source_problem_.empty()) return breath_source_problem_;
+  if (!haveVentilator()) {
+    return "no ventilator/settings or tidal_volume received (breath source: " + breath_source_ +
+           ")";
+  }
+  const double period = 60.0 / settings_.rate_bpm;
+  const double age = now - breath_start_;
+  if (breath_timeout_periods_ <= 0.0 || age <= breath_timeout_periods_ * period) return "";
+  std::ostringstream os;
+  os.precision(4);
+  os << "breath source silent: no breath start from " << breath_source_ << " for " << age
+     << " s (more than breath_timeout_periods " << breath_timeout_periods_ << " x the " << period
+     << " s breath period)";
+  return os.str();
+}
+
 double TrialSequencer::limitAdvance(double t) const {
   return planner_ ? planner_->predictedAdvance(t) : 0.0;
 }
@@ -249,9 +275,10 @@ std::string TrialSequencer::resolve(const TrialRequest& request, ResolvedRequest
     return "segment_profile: unknown profile '" + request.segment_profile +
            "' (use rest_to_rest or exact; empty: the planner's)";
   }
-  if (mode != CompensationMode::kStationary && !haveVentilator()) {
+  if (mode != CompensationMode::kStationary &&
+      (!haveVentilator() || !breath_source_problem_.empty())) {
     return std::string(toString(mode)) +
-           " mode needs the ventilator: no ventilator/settings or tidal_volume received";
+           " mode needs the ventilator's breath phase: " + breathProblem(0.0);
   }
   *out = {mode, feed_mm_s, rpm, max_duration, profile};
   return "";
@@ -262,6 +289,12 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   ResolvedRequest r;
   const std::string why = resolve(request, &r);
   if (!why.empty()) return why;
+  if (r.mode != CompensationMode::kStationary) {
+    const std::string breath = breathProblem(now);
+    if (!breath.empty()) {
+      return std::string(toString(r.mode)) + " mode needs the ventilator's breath phase: " + breath;
+    }
+  }
   if (plan_) {
     const std::string bad = plan_->check();
     if (!bad.empty()) return bad;
@@ -651,6 +684,8 @@ void TrialSequencer::onSegmentTimer(double now) {
     } else if (silent(last_monitor_t_, params_.monitor_timeout_s)) {
       why = "safety monitor silent: not heard for more than " +
             std::to_string(params_.monitor_timeout_s) + " s while drilling";
+    } else if (mode_ != CompensationMode::kStationary && !breathProblem(now).empty()) {
+      why = breathProblem(now);  // the predicted motion's phase is lost: no drilling on a guess
     } else {
       why = watch_->checkSilence(now);
     }

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "pedicle_drilling/core/breathing/breath_detector.hpp"
 #include "pedicle_drilling/core/breathing/virtual_volunteer.hpp"
 #include "pedicle_drilling/core/common/portable_random.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
@@ -419,9 +420,12 @@ struct DrillingSimulation::Impl {
   double dt = 1e-3;
   std::uint64_t step_index = 0;
   // The sensed breath start (breath_sensor_rate_hz): the flow sensor's period in steps (0: off),
-  // the last breath detected and its start on the pipeline's clock.
+  // the detector on its samples (the Ventilator nodelet's `flow` source runs the same one), the
+  // last breath detected and its start on the pipeline's clock.
   // A detection reaches the pipeline breath_sensor_latency_s later, stamped on its arrival.
   std::uint64_t breath_sensor_period = 0;
+  std::optional<BreathStartDetector> breath_detector;
+  bool breath_flow_sampled = false;  // this step took a flow-sensor sample (vent_now's flow)
   long detected_breath_index = -1;
   double detection_arrives = std::numeric_limits<double>::infinity();
   long sensed_breath_index = -1;
@@ -432,10 +436,13 @@ struct DrillingSimulation::Impl {
    *        detected; a detection whose latency has passed becomes the sensed start.
    */
   void senseBreath() {
+    breath_flow_sampled = breath_sensor_period != 0 && step_index % breath_sensor_period == 0;
     if (breath_sensor_period == 0) return;
-    if (ventilator.breathIndex() != detected_breath_index &&
-        step_index % breath_sensor_period == 0 &&
-        vent_now.flow_ml_s > params.breath_trigger_flow_ml_s) {
+    // The sensor's stream starts with breath 0, so the detector is armed at its start; every
+    // breath's inspiration is one run of samples above the trigger and its expiration (negative
+    // flow) re-arms it: the first sample of a breath above the trigger, as before the detector.
+    if (breath_flow_sampled &&
+        breath_detector->add(time, vent_now.flow_ml_s) == FlowSampleStatus::kBreathStart) {
       detected_breath_index = ventilator.breathIndex();
       detection_arrives = time + params.breath_sensor_latency_s;
     }
@@ -1183,6 +1190,12 @@ DrillingSimulation::DrillingSimulation(const std::string& urdf_xml,
             ? streamPeriodSteps(params.physics_rate_hz, params.breath_sensor_rate_hz,
                                 "breath_sensor_rate_hz")
             : 0;
+    BreathDetectorParams detector;
+    detector.trigger_flow_ml_s = params.breath_trigger_flow_ml_s;
+    detector.rearm_flow_ml_s = 0.0;
+    detector.min_interval_s = 0.0;
+    detector.armed_at_start = true;
+    s.breath_detector.emplace(detector);
   }
   s.updatePlatform();  // home pose at t = 0 (platform not moving yet)
   {
@@ -1511,6 +1524,8 @@ double DrillingSimulation::sensedTimeInBreath() const {
                            : s.sensed_breath_start;
   return std::max(0.0, s.vent_now.t - start);
 }
+
+bool DrillingSimulation::breathFlowSampled() const { return impl_->breath_flow_sampled; }
 
 const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
 

@@ -165,6 +165,13 @@ class BreathScheduler {
    *        non-finite time.
    */
   void restart(double start_time);
+  /**
+   * @brief Moves the current breath's start to `start_time` without counting a new breath (a
+   *        breath the schedule began on its own, found on the patient's flow a little earlier or
+   *        later: FlowPhasedSchedule). Times before it are sampled as it. @throws
+   *        std::invalid_argument for a non-finite time.
+   */
+  void rephase(double start_time);
   /** @brief The last sampled time (or the start time). */
   double lastTime() const { return last_t_; }
   /** @brief Index of the breath containing the last sampled time (0-based). */

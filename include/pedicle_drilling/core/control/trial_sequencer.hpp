@@ -295,6 +295,18 @@ class TrialSequencer {
   void setVentilator(const VentilatorSettings& settings);
   /** @brief Start time of the current breath (tidal volume stamp - time in breath). */
   void setBreathStart(double t);
+  /**
+   * @brief Where the breath phase comes from, for the reasons below (default "tidal_volume"),
+   *        and how old the latest breath start may be in a moving trial, in breath periods of
+   *        the current settings (0, the default: no bound). Beyond it a moving trial is refused
+   *        and a drilling one stopped with retreat, the reason naming @p source.
+   */
+  void setBreathSource(const std::string& source, double timeout_periods);
+  /** @brief The breath source's own report that its phase is unusable ("": it is usable), e.g.
+   *         the Ventilator's flow source before its first detected breath; quoted the same way. */
+  void setBreathSourceProblem(const std::string& problem);
+  /** @brief Why the breath phase is unusable for a moving trial at @p now ("": it is usable). */
+  std::string breathProblem(double now) const;
 
   /**
    * @brief Start a trial at `now` with the patient's motion model.
@@ -460,6 +472,9 @@ class TrialSequencer {
   bool have_settings_ = false;
   double breath_start_ = 0.0;
   bool have_phase_ = false;
+  std::string breath_source_ = "tidal_volume";  // setBreathSource()
+  double breath_timeout_periods_ = 0.0;
+  std::string breath_source_problem_;
   bool recognizer_reports_stop_ = false;
   /// Geometric plausibility of one layer the recognizer reports (outer_cortical_max_mm,
   /// cancellous_max_mm): how much deeper the cut went after its first report.

@@ -557,6 +557,13 @@ class DrillingSimulation {
    *        core engine's breath phase, one rule for both.
    */
   double sensedTimeInBreath() const;
+  /**
+   * @brief Whether the last step took a sample of the breath sensor (every physics rate /
+   *        breath_sensor_rate_hz steps; never at 0 Hz): its flow, the airway flow into the
+   *        patient in ml/s, is ventilatorSample().flow_ml_s, taken at time(). The Simulator
+   *        nodelet publishes these samples (breath_sensor/flow).
+   */
+  bool breathFlowSampled() const;
   /** @brief The internal ventilator (breath index and start, current settings). */
   const BreathScheduler& ventilator() const;
   /** @brief Whether the bone follows the patient. */
