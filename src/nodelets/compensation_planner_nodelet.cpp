@@ -450,8 +450,10 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     res.message = sequencer_->start(request, patient_.motionModel(), now());
     res.success = res.message.empty();
     if (res.success) {
+      // Numbers as a person reads them: "spindle 12000 rpm" (%g), not std::to_string's
+      // "12000.000000".
       res.message = "trial started: " + req.mode + ", spindle " +
-                    std::to_string(sequencer_->spindleRpm()) + " rpm";
+                    core::Range::format(sequencer_->spindleRpm()) + " rpm";
     }
     carryOut();
     return true;
@@ -473,7 +475,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
         *why =
             "trial refused: no drill guard (drill_guard/enable true, listening to "
             "compensation/heartbeat) within " +
-            std::to_string(params_.trial_start_timeout_s) +
+            core::Range::format(params_.trial_start_timeout_s) +
             " s (is the SafetyMonitor running?); nothing was started";
         return false;
       }

@@ -97,6 +97,22 @@ void TfPoseRelayNodeParams::validate() const {
 
 // ---------------------------------------------------------------------------------------------
 
+const ParamTable<ForceTareNodeParams>& ForceTareNodeParams::table() {
+  static const ParamTable<ForceTareNodeParams> t = [] {
+    using P = ForceTareNodeParams;
+    ParamTable<P> d;
+    d.text("zero_service", &P::zero_service, true)
+        .number("zero_tolerance_n", &P::zero_tolerance_n, Range::aboveUpTo(0, 100), "N")
+        .number("zero_service_timeout_s", &P::zero_service_timeout_s, Range::aboveUpTo(0, 60), "s");
+    return d;
+  }();
+  return t;
+}
+
+void ForceTareNodeParams::validate() const { table().validate(*this); }
+
+// ---------------------------------------------------------------------------------------------
+
 const ParamTable<MotionIdentificationParams>& MotionIdentificationParams::table() {
   static const ParamTable<MotionIdentificationParams> t = [] {
     using P = MotionIdentificationParams;
@@ -351,6 +367,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
   const SafetyMonitorNodeParams monitor;
   const FaultInjectorNodeParams faults;
   const TfPoseRelayNodeParams relay;
+  const ForceTareNodeParams tare;
   return {
       {"pedicle_drilling/Ventilator", VentilatorNodeParams::table().describe(ventilator)},
       {"pedicle_drilling/Simulator", SimulatorNodeParams::table().describe(simulator)},
@@ -361,6 +378,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
       {"pedicle_drilling/CompensationPlanner", planner},
       {"pedicle_drilling/FaultInjector", FaultInjectorNodeParams::table().describe(faults)},
       {"pedicle_drilling/TfPoseRelay", TfPoseRelayNodeParams::table().describe(relay)},
+      {"pedicle_drilling/ForceTare", ForceTareNodeParams::table().describe(tare)},
   };
 }
 

@@ -5,7 +5,9 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <stdexcept>
+#include <string>
 
 namespace pd = pedicle_drilling::core;
 
@@ -78,7 +80,7 @@ TEST(ForceTare, ANonFiniteSampleFailsTheWindow) {
   ASSERT_TRUE(r);
   EXPECT_FALSE(r->success);
   EXPECT_NE(r->message.find("non-finite"), std::string::npos) << r->message;
-  EXPECT_EQ(tare.bias(), pd::ForceTare::Wrench::Zero());
+  EXPECT_TRUE(tare.bias().isZero());
 }
 
 TEST(ForceTare, BadRequestsAreRefusedNamingTheField) {
@@ -106,4 +108,56 @@ TEST(ForceTare, ResetForgetsTheBiasAndTheWindow) {
   EXPECT_FALSE(tare.collecting());
   EXPECT_FALSE(tare.takeResult());
   EXPECT_EQ(tare.apply(0.1, wrench(3.0))[2], 3.0);
+}
+
+TEST(ForceTare, AZeroCheckCountsTheSamplesAfterTheZeroAndSubtractsNothing) {
+  pd::ForceTare tare;
+  // The driver zeroed at t = 1: the samples stamped before still carry the 4.9 N.
+  tare.checkZero({3, 0.5}, 0.3, 1.0);
+  EXPECT_EQ(tare.apply(0.9, wrench(4.9))[2], 4.9);
+  EXPECT_TRUE(tare.collecting());
+  const double fz[3] = {0.05, -0.05, 0.0};
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(tare.apply(1.0 + 0.1 * i, wrench(fz[i], 0.1))[2], fz[i]);  // nothing subtracted
+  }
+  const std::optional<pd::TareResult> r = tare.takeResult();
+  ASSERT_TRUE(r);
+  EXPECT_TRUE(r->success) << r->message;
+  EXPECT_EQ(r->samples, 3);
+  EXPECT_DOUBLE_EQ(r->t, 1.2);
+  EXPECT_NEAR(r->bias[0], 0.1, 1e-12);  // what remained after the zero
+  EXPECT_NEAR(r->bias[2], 0.0, 1e-12);
+  EXPECT_NE(r->message.find("zero checked over 3 samples"), std::string::npos) << r->message;
+  EXPECT_TRUE(tare.bias().isZero());
+  EXPECT_EQ(tare.apply(1.3, wrench(2.0))[2], 2.0);
+}
+
+TEST(ForceTare, AZeroCheckFailsWhenTheForceStaysAwayFromZero) {
+  pd::ForceTare tare;
+  tare.checkZero({2, 0.5}, 0.3, 0.0);
+  tare.apply(0.0, wrench(4.9));
+  tare.apply(0.1, wrench(4.9));
+  const std::optional<pd::TareResult> r = tare.takeResult();
+  ASSERT_TRUE(r);
+  EXPECT_FALSE(r->success);
+  EXPECT_NE(r->message.find("did not zero"), std::string::npos) << r->message;
+  EXPECT_NE(r->message.find("4.9 N from zero"), std::string::npos) << r->message;
+  EXPECT_NEAR(r->bias[2], 4.9, 1e-12);
+  EXPECT_TRUE(tare.bias().isZero());
+  // A spread above the request's fails too, and a non-finite sample.
+  tare.checkZero({2, 0.5}, 0.3, 0.0);
+  tare.apply(0.2, wrench(-1.0));
+  tare.apply(0.3, wrench(1.0));
+  EXPECT_NE(tare.takeResult()->message.find("spread"), std::string::npos);
+  tare.checkZero({1, 0.5}, 0.3, 0.0);
+  tare.apply(0.4, wrench(std::numeric_limits<double>::quiet_NaN()));
+  EXPECT_NE(tare.takeResult()->message.find("non-finite"), std::string::npos);
+}
+
+TEST(ForceTare, AZeroCheckRefusesABadTolerance) {
+  pd::ForceTare tare;
+  EXPECT_THROW(tare.checkZero({2, 0.5}, 0.0, 0.0), std::invalid_argument);
+  EXPECT_THROW(tare.checkZero({2, 0.5}, std::nan(""), 0.0), std::invalid_argument);
+  EXPECT_THROW(tare.checkZero({0, 0.5}, 0.3, 0.0), std::invalid_argument);
+  EXPECT_FALSE(tare.collecting());
 }

@@ -164,8 +164,9 @@ TEST(NodeParams, EveryDeclarationAcceptsItsDefaults) {
   EXPECT_NO_THROW(pd::CompensationPlannerNodeParams().validate());
   EXPECT_NO_THROW(pd::FaultInjectorNodeParams().validate());
   EXPECT_NO_THROW(pd::TfPoseRelayNodeParams().validate());
+  EXPECT_NO_THROW(pd::ForceTareNodeParams().validate());
   const auto docs = pd::nodeParameterDocs();
-  ASSERT_EQ(docs.size(), 8u);
+  ASSERT_EQ(docs.size(), 9u);
   for (const auto& [node, params] : docs) EXPECT_FALSE(params.empty()) << node;
 }
 
@@ -194,6 +195,9 @@ TEST(NodeParams, ChecksBetweenFieldsNameTheParameter) {
   pd::TfPoseRelayNodeParams relay;
   relay.marker_frame = relay.tracker_frame;
   EXPECT_EQ(errorOf([&] { relay.validate(); }).rfind("marker_frame", 0), 0u);
+  pd::ForceTareNodeParams tare;
+  tare.zero_tolerance_n = 0.0;  // (0, 100] N
+  EXPECT_EQ(errorOf([&] { tare.validate(); }).rfind("zero_tolerance_n", 0), 0u);
 }
 
 // A parameter that switches a watchdog off is refused naming it, unless the node is told

@@ -26,6 +26,7 @@ CONFIGS = {
     'pedicle_drilling/CompensationPlanner': 'compensation_planner.yaml',
     'pedicle_drilling/FaultInjector': 'fault_injector.yaml',
     'pedicle_drilling/TfPoseRelay': 'tf_pose_relay.yaml',
+    'pedicle_drilling/ForceTare': 'force_tare.yaml',
 }
 
 

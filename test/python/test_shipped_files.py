@@ -110,3 +110,18 @@ def test_make_test_runs_every_rostest_folder():
     assert folders, 'no .test file found'
     for folder in sorted(folders):
         assert '"${ROOT}"/%s/*.test' % folder in runner, folder
+
+
+# control_msgs/JointTrajectoryControllerState's md5sum in ROS Noetic (Header header,
+# string[] joint_names, trajectory_msgs/JointTrajectoryPoint desired, actual, error).
+CONTROL_MSGS_STATE_MD5 = '10817c60c2486ef6b33e97dcd87f4474'
+
+
+def test_controller_state_is_wire_compatible_with_control_msgs():
+    """README, "Hardware bring-up": a ros_control controller's control_msgs state connects to the
+    planner's <name>/state subscription directly (ROS 1 matches a connection by md5sum), which
+    holds only while our message keeps control_msgs' fields."""
+    out = subprocess.run(['rosmsg', 'md5', 'pedicle_drilling/JointTrajectoryControllerState'],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == CONTROL_MSGS_STATE_MD5

@@ -38,6 +38,7 @@ NODES = {
                                              'compensation_planner', []),
     'pedicle_drilling/FaultInjector': ('fault_injector.launch', 'fault_injector', []),
     'pedicle_drilling/TfPoseRelay': ('tf_pose_relay.launch', 'tf_pose_relay', []),
+    'pedicle_drilling/ForceTare': ('force_tare.launch', 'force_tare', []),
 }
 
 # Parameters whose every value of the right type is valid (no range to leave), with the reason.

@@ -124,6 +124,27 @@ struct TfPoseRelayNodeParams {
   static const core::ParamTable<TfPoseRelayNodeParams>& table();
 };
 
+/**
+ * @brief pedicle_drilling/ForceTare: the tare for a sensor driver that does not speak our
+ *        TareRequest/TareResult: our own bias (relay), or the driver's zero service, checked.
+ */
+struct ForceTareNodeParams {
+  /// The driver's zero (bias) service, std_srvs/Trigger: "" (default), ForceTare measures and
+  /// subtracts the bias itself (the relay); a name, ForceTare calls it at each tare request and
+  /// checks the zero on the driver's stream (no relay).
+  std::string zero_service;
+  /// With zero_service: the largest norm [N] of the mean force over the request's samples
+  /// after the call (the monitor's retare_max_offset_n: 10 x the sensor's noise SD).
+  double zero_tolerance_n = 0.3;
+  /// With zero_service: how long [s] to wait for the service to exist (below the planner's
+  /// registration_timeout_s, so that a missing service is named before the planner gives up).
+  double zero_service_timeout_s = 1.0;
+  /** @brief Checks the declared ranges. @throws std::invalid_argument naming the parameter. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<ForceTareNodeParams>& table();
+};
+
 /** @brief The wrench components a node may read as the thrust: x, y or z, with an optional sign
  *         ("-z": the thrust is -force.z). The StateRecognizer's `axis`, the planner's
  *         `thrust_axis`. */

@@ -5,12 +5,15 @@
  *        every later sample. A window whose force spread is too large (something touches the
  *        tool) or that holds a non-finite sample fails, and the previous bias is kept. The
  *        simulator's sensor driver and the ForceTare relay (for a driver without a tare of its
- *        own) run this class. No ROS.
+ *        own) run this class. For a driver that zeroes itself (its zero service), the same
+ *        window checks the zero instead (checkZero()): the mean force after the zero must lie
+ *        within a tolerance of zero, and nothing is subtracted. No ROS.
  */
 #pragma once
 
 #include <Eigen/Core>
 #include <optional>
+#include <sstream>
 #include <string>
 
 namespace pedicle_drilling::core {
@@ -48,6 +51,17 @@ class ForceTare {
   void request(const TareRequest& request);
 
   /**
+   * @brief Start a window that checks a zero the sensor's driver made (its zero service)
+   *        instead of measuring a bias: it takes the samples stamped at or after @p from_t (the
+   *        zero was done by then) and succeeds when they are finite, their spread is within the
+   *        request's and the norm of their mean force is at most @p tolerance_n. The bias is not
+   *        changed; the result's bias is the mean that remained after the zero.
+   * @throws std::invalid_argument for a request that TareRequest::validate() refuses or a
+   *         tolerance that is not positive and finite.
+   */
+  void checkZero(const TareRequest& request, double tolerance_n, double from_t);
+
+  /**
    * @brief One raw sample at @p t: returns it minus the bias in force (the window's own samples
    *        too, with the bias from before). Completes a window at its last sample.
    */
@@ -65,6 +79,8 @@ class ForceTare {
 
  private:
   void finish(double t);
+  /** @brief A complete window's verdict (finite, with its mean and spread in @p r). */
+  void judge(TareResult* r, const Wrench& mean, std::ostringstream* os);
 
   TareRequest request_;
   int remaining_ = 0;
@@ -73,6 +89,9 @@ class ForceTare {
   Wrench sum_ = Wrench::Zero();
   Eigen::Vector3d sum_sq_ = Eigen::Vector3d::Zero();
   Wrench bias_ = Wrench::Zero();
+  bool checking_zero_ = false;     ///< the window checks the driver's zero (checkZero)
+  double zero_tolerance_n_ = 0.0;  ///< with checkZero: the largest mean force accepted [N]
+  double from_t_ = 0.0;            ///< with checkZero: the window's first stamp [s]
   std::optional<TareResult> result_;
 };
 
