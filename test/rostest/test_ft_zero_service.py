@@ -37,6 +37,8 @@ class FtZeroServiceTest(unittest.TestCase):
         self.zero_calls = 0
         self.max_feed_m = 0.0
         self.drives_enabled = False
+        self.enabled_at = None
+        self.settled = False
         rospy.Subscriber('/ft_sensor/tare_result', TareResult, self.keep(self.tares),
                          queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, self.keep(self.status),
@@ -62,6 +64,12 @@ class FtZeroServiceTest(unittest.TestCase):
             self.max_feed_m = max(self.max_feed_m, msg.feed_joint_m)
             # The lab's drivers hold until they hear our drill guard (another process).
             self.drives_enabled = self.drives_enabled or not msg.drives_halted
+            if self.drives_enabled:
+                if self.enabled_at is None:
+                    self.enabled_at = msg.header.stamp.to_sec()
+                # Settled: 2 s of sim time with the drives enabled, the nodes loaded (a trial
+                # started at once can meet a loading machine's gap in the force stream).
+                self.settled = msg.header.stamp.to_sec() >= self.enabled_at + 2.0
             self.cond.notify_all()
 
     def wait_for(self, what, predicate):
@@ -79,6 +87,7 @@ class FtZeroServiceTest(unittest.TestCase):
     def start(self):
         rospy.wait_for_service('/compensation_planner/start_trial', BOUND_S)
         self.wait_for('drill guard heard by the drivers', lambda: self.drives_enabled)
+        self.wait_for('2 s of sim time with the drives enabled', lambda: self.settled)
         proxy = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
         # max_duration_s: 2 s of drilling from the registration, the tip still 4 mm above the bone.
         answer = start_trial(proxy, mode='compensated', spindle_rpm=12000.0, feed_rate_mm_s=0.5,

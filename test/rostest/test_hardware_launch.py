@@ -20,6 +20,8 @@ from std_msgs.msg import Float64
 from pedicle_drilling.msg import GroundTruth, StopCommand, TareRequest, TareResult, TrialStatus
 from pedicle_drilling.srv import StartTrial
 
+SETTLE_S = 2.0  # sim time with the drives enabled before the trial starts [s]
+
 
 class HardwareLaunchTest(unittest.TestCase):
     def setUp(self):
@@ -43,11 +45,21 @@ class HardwareLaunchTest(unittest.TestCase):
         # connection): a trial started before is refused by them, safely, but it is not this
         # scenario. Set by the first ground truth whose drives are not halted.
         self.drives_enabled = threading.Event()
+        # The pipeline settled: 2 s of sim time with the drives enabled, so that the trial does
+        # not start while the nodes are still loading (at a quarter of real time a loaded
+        # start-up once left the monitor 0.105 s of sim time without a force sample at 0.255 s).
+        self.settled = threading.Event()
+        self.enabled_at = None
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_drives, queue_size=10)
 
     def on_drives(self, msg):
         if not msg.drives_halted:
             self.drives_enabled.set()
+            t = msg.header.stamp.to_sec()
+            if self.enabled_at is None:
+                self.enabled_at = t
+            elif t >= self.enabled_at + SETTLE_S:
+                self.settled.set()
 
     def keep(self, store):
         def callback(msg):
@@ -63,6 +75,7 @@ class HardwareLaunchTest(unittest.TestCase):
         rospy.wait_for_service('/compensation_planner/start_trial', 60.0)
         # 60 s of wall time bounds a broken run only.
         self.assertTrue(self.drives_enabled.wait(60.0), 'the drivers never heard the drill guard')
+        self.assertTrue(self.settled.wait(120.0), 'sim time did not advance %.0f s' % SETTLE_S)
         start = rospy.ServiceProxy('/compensation_planner/start_trial', StartTrial)
         # The compensated mode needs the ventilator's settings and phase: retry until accepted.
         res = None
