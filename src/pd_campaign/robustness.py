@@ -76,7 +76,7 @@ def load_config(path):
         raise ConfigError('%s: case %r is not one of %s' % (where, config['case'],
                                                             ', '.join(CASES)))
     rpm = config['rpm']
-    if not _is_number(rpm) or not 1000.0 <= rpm <= 60000.0:
+    if not sensitivity.is_finite_number(rpm) or not 1000.0 <= rpm <= 60000.0:
         raise ConfigError('%s: rpm %r is not a speed in [1000, 60000]' % (where, rpm))
     config['rpm'] = float(rpm)
     trials = config['trials']
@@ -118,25 +118,10 @@ def _compensators(where, value):
     return list(value)
 
 
-def _is_number(value):
-    return not isinstance(value, bool) and isinstance(value, (int, float)) \
-        and math.isfinite(value)
-
-
 def _error(where, index, raw):
     """One entry of `errors`, checked in form."""
-    where = '%s: errors, entry %d' % (where, index)
-    if not isinstance(raw, dict):
-        raise ConfigError('%s: not a mapping' % where)
-    if isinstance(raw.get('name'), str) and raw['name']:
-        where += ' (%s)' % raw['name']
-    unknown = sorted(set(raw) - set(ERROR_KEYS))
-    if unknown:
-        raise ConfigError('%s: unknown key %r (known: %s)' % (where, unknown[0],
-                                                              ', '.join(ERROR_KEYS)))
-    missing = [key for key in REQUIRED_ERROR_KEYS if key not in raw]
-    if missing:
-        raise ConfigError('%s: %s missing' % (where, ', '.join(missing)))
+    where = sensitivity.entry_form('%s: errors, entry %d' % (where, index), raw, ERROR_KEYS,
+                                   REQUIRED_ERROR_KEYS, ConfigError)
     if not isinstance(raw['name'], str) or not NAME.match(raw['name']):
         raise ConfigError('%s: name must be letters, digits, _ or - (it names files)' % where)
     if not isinstance(raw['parameter'], str) or not raw['parameter'].strip():
@@ -150,7 +135,7 @@ def _error(where, index, raw):
         raise ConfigError('%s: points is empty (give the error sizes, a list of numbers)'
                           % where)
     for point in points:
-        if not _is_number(point):
+        if not sensitivity.is_finite_number(point):
             raise ConfigError('%s: points: %r is not a finite number' % (where, point))
     if len({'%g' % p for p in points}) != len(points):  # '%g': the size in a folder's name
         raise ConfigError('%s: points: a size is given twice' % where)

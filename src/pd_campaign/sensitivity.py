@@ -93,20 +93,32 @@ def load_sweep(path):
     return entries
 
 
-def _entry(path, index, raw):
-    """One entry of the sweep file, checked in form (not yet against the declarations)."""
-    where = '--sweep %s: constant %d' % (path, index)
+def entry_form(where, raw, known, required, error=SweepError):
+    """`where`, extended with the entry's name, of one mapping entry of a sweep file (this
+    tool's constants, campaign_robustness's errors). Raises `error` when it is not a mapping,
+    has a key not in `known` or lacks one of `required`."""
     if not isinstance(raw, dict):
-        raise SweepError('%s: not a mapping' % where)
+        raise error('%s: not a mapping' % where)
     if isinstance(raw.get('name'), str) and raw['name']:
         where += ' (%s)' % raw['name']
-    unknown = sorted(set(raw) - set(ENTRY_KEYS))
+    unknown = sorted(set(raw) - set(known))
     if unknown:
-        raise SweepError('%s: unknown key %r (known: %s)' % (where, unknown[0],
-                                                             ', '.join(ENTRY_KEYS)))
-    missing = [key for key in REQUIRED_KEYS if key not in raw]
+        raise error('%s: unknown key %r (known: %s)' % (where, unknown[0], ', '.join(known)))
+    missing = [key for key in required if key not in raw]
     if missing:
-        raise SweepError('%s: %s missing' % (where, ', '.join(missing)))
+        raise error('%s: %s missing' % (where, ', '.join(missing)))
+    return where
+
+
+def is_finite_number(value):
+    """A YAML number that is finite (not a bool)."""
+    return not isinstance(value, bool) and isinstance(value, (int, float)) \
+        and math.isfinite(value)
+
+
+def _entry(path, index, raw):
+    """One entry of the sweep file, checked in form (not yet against the declarations)."""
+    where = entry_form('--sweep %s: constant %d' % (path, index), raw, ENTRY_KEYS, REQUIRED_KEYS)
     kind, name = _kind_and_name(where, raw)
     low, high = _number(where, raw, 'low'), _number(where, raw, 'high')
     nominal = _number(where, raw, 'nominal') if raw.get('nominal') is not None else None
@@ -152,7 +164,7 @@ def _kind_and_name(where, raw):
 
 def _number(where, raw, key):
     value = raw[key]
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if not is_finite_number(value):
         raise SweepError('%s: %s %r is not a finite number' % (where, key, value))
     return float(value)
 
