@@ -111,15 +111,18 @@ void AdaptiveModelCompensator::setVentilator(const VentilatorSettings& settings)
 
 void AdaptiveModelCompensator::setBreathStart(double t) { paper_.setBreathStart(t); }
 
-std::array<double, 3> AdaptiveModelCompensator::modelAxes(double t) const {
-  const Eigen::Vector3d d = paper_.displacement(t);
+std::array<double, 3> AdaptiveModelCompensator::axes(const Eigen::Vector3d& v) const {
   std::array<double, 3> out{};
-  for (int j = 0; j < 3; ++j) out[j] = axis_used_[j] ? axis_dir_[j].dot(d) : 0.0;
+  for (int j = 0; j < 3; ++j) out[j] = axis_used_[j] ? axis_dir_[j].dot(v) : 0.0;
   return out;
 }
 
-std::array<double, 3> AdaptiveModelCompensator::fittedAxes(double t) const {
-  const std::array<double, 3> now = modelAxes(t);
+std::array<double, 3> AdaptiveModelCompensator::modelAxes(double t) const {
+  return axes(paper_.displacement(t));
+}
+
+std::array<double, 3> AdaptiveModelCompensator::fittedAxes(double t,
+                                                           const std::array<double, 3>& now) const {
   const std::array<double, 3> lagged = lag_ == 0.0 ? now : modelAxes(t - lag_);
   const double bound = p_.max_correction_mm * kMm;
   std::array<double, 3> out{};
@@ -134,8 +137,8 @@ std::array<double, 3> AdaptiveModelCompensator::fittedAxes(double t) const {
 Eigen::Vector3d AdaptiveModelCompensator::displacement(double t) const {
   Eigen::Vector3d d = paper_.displacement(t);
   if (!offset_) return d;
-  const std::array<double, 3> model = modelAxes(t);
-  const std::array<double, 3> fitted = fittedAxes(t);
+  const std::array<double, 3> model = axes(d);
+  const std::array<double, 3> fitted = fittedAxes(t, model);
   for (int j = 0; j < 3; ++j) {
     if (axis_used_[j]) d += axis_dir_[j] * ((*offset_)[j] + fitted[j] - model[j]);
   }
@@ -145,8 +148,7 @@ Eigen::Vector3d AdaptiveModelCompensator::displacement(double t) const {
 void AdaptiveModelCompensator::observeMarker(double stamp, const Eigen::Vector3d& position) {
   if (!ready() || !std::isfinite(stamp) || !position.allFinite()) return;  // a lost sample
   if (offset_ && !(stamp > last_stamp_)) return;                           // late or repeated
-  std::array<double, 3> tracked{};
-  for (int j = 0; j < 3; ++j) tracked[j] = axis_used_[j] ? axis_dir_[j].dot(position) : 0.0;
+  const std::array<double, 3> tracked = axes(position);
   if (!offset_) {
     // The first sample fixes the tracker's origin against the model's: the fit works on the
     // tracked positions relative to it, so that its sums stay of the size of the motion.
@@ -155,7 +157,7 @@ void AdaptiveModelCompensator::observeMarker(double stamp, const Eigen::Vector3d
     for (int j = 0; j < 3; ++j) offset[j] = tracked[j] - model[j];
     offset_ = offset;
   } else {
-    const std::array<double, 3> fitted = fittedAxes(stamp);
+    const std::array<double, 3> fitted = fittedAxes(stamp, modelAxes(stamp));
     double r2 = 0.0;
     for (int j = 0; j < 3; ++j) {
       const double r = tracked[j] - (*offset_)[j] - fitted[j];

@@ -115,10 +115,13 @@ class AdaptiveModelCompensator : public CompensatorInterface {
   struct Sums {
     std::array<double, 3> x{}, y{}, xx{}, xy{}, yy{};
   };
+  /// A world vector's components along each predicted axis (0 on the others).
+  std::array<double, 3> axes(const Eigen::Vector3d& v) const;
   /// The model's displacement along each predicted axis at t [m].
   std::array<double, 3> modelAxes(double t) const;
-  /// The fitted prediction along each predicted axis at t, bounded [m].
-  std::array<double, 3> fittedAxes(double t) const;
+  /// The fitted prediction along each predicted axis at t, bounded [m], given the model's
+  /// there (`now`, modelAxes(t)).
+  std::array<double, 3> fittedAxes(double t, const std::array<double, 3>& now) const;
   void refit();
 
   AdaptiveModelParams p_;
