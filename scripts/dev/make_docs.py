@@ -97,7 +97,15 @@ BLOCKS = {
 
 
 def archive_results(results):
-    """Copies what the blocks read from a `make run` output into doc/results/."""
+    """Copies what the blocks read from a `make run` output into doc/results/; nothing when a
+    file is missing (SystemExit naming it)."""
+    needed = [os.path.join(name, 'trials.csv') for name in CAMPAIGNS] + [
+        os.path.join(name, 'summary.json') for name, whole in CAMPAIGNS.items() if whole] + [
+        os.path.join('campaign', 'table2.csv'), os.path.join('robustness', 'robustness.csv')]
+    missing = [path for path in needed if not os.path.isfile(os.path.join(results, path))]
+    if missing:
+        sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'
+                 % (results, ', '.join(missing)))
     for name, with_summary in CAMPAIGNS.items():
         source, target = os.path.join(results, name), os.path.join(ARCHIVE, name)
         os.makedirs(target, exist_ok=True)

@@ -1,11 +1,11 @@
 #!/usr/bin/python3
 """The population bench in a `make run` output directory (default results/): markdown tables on
-stdout, copied into the README's "The population bench" and doc/identification.md from the run,
-not typed.
+stdout (population.md); the README's and doc/identification.md's generated blocks come from the
+same functions, on the archived data (make_docs.py).
   1. the paper's design on the population bench (campaign_population/): successes per case and
      speed with the paper's Table III beside them, and the failure kinds at 12000 rpm (the same
      tables as the paper's bench, results_tables.py);
-  2. the tip-bone tracking RMS per case at 12000 rpm (quartiles), and the H1 stops;
+  2. why trials ended at 12000 rpm (failure kinds) and the tip-bone tracking RMS's quartiles;
   3. the models the planner drilled with, identified per trial from each patient's own
      recording, against Table II's five volunteers (campaign/table2.csv): the AP slope of the
      linear model, its R^2, and the bone's slope on the table over the identified one.
@@ -34,20 +34,6 @@ def quartiles(values):
         return '-'
     q = report._quartile_values(values)
     return '%.3g [%.3g, %.3g]' % (q[1], q[0], q[2])
-
-
-def tracking_table(trials):
-    print('| case (12000 rpm) | trials | tracking RMS, median [quartiles] [mm] | H1 stops | '
-          'breakthroughs |')
-    print('|---|---|---|---|---|')
-    for case in report.CASES:
-        group = [r for r in trials if r['case'] == case and r['rpm'] == 12000.0]
-        if not group:
-            continue
-        print('| %s | %d | %s | %d | %d |' % (
-            case, len(group), quartiles(r.get('tracking_rms_mm') for r in group),
-            sum(r.get('failure_kind') == 'safety_h1' for r in group),
-            sum(bool(r['breakthrough']) for r in group)))
 
 
 def kinds_table(summary, trials):
@@ -106,8 +92,6 @@ def main(argv):
     results_tables.metrics_table(summary)
     print()
     trials = rows(population)
-    tracking_table(trials)
-    print()
     kinds_table(summary, trials)
     print()
     identification_table(trials, os.path.join(out, 'campaign', 'table2.csv'))
