@@ -116,7 +116,6 @@ if [ "${WHAT}" = depth ] || [ "${WHAT}" = all ]; then
     "${OUT}/depth_virtual_patient" "${OUT}/depth_tracked_marker" > "${OUT}/depth_margin.md"
   cat "${OUT}/depth_margin.md"
 fi
-echo "calibration: done; outputs in ${OUT}"
 if [ "${WHAT}" = adaptive ] || [ "${WHAT}" = all ]; then
   adaptive() { rosrun pedicle_drilling campaign --seed-space calibration --seed 11 --trials 100 \
     --jobs "${JOBS}" --no-figures "$@"; }
@@ -132,3 +131,4 @@ if [ "${WHAT}" = adaptive ] || [ "${WHAT}" = all ]; then
   adaptive --scenario "${ROOT}/config/scenario_realistic.yaml" --case compensated --rpm 12000 \
     --out "${OUT}/adaptive_realistic_paper"
 fi
+echo "calibration: done; outputs in ${OUT}"
