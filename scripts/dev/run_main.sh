@@ -52,19 +52,29 @@ done
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_faults"
 # 2b'. The plan's depth limit (scenario_depth_limit*.yaml): the paper's design at 12000 rpm with
-#      the limit on; every shipped compensator and recognizer class through every fault (20
-#      trials each) and through the fault-free and x1.3 amplitude trials (100 each).
+#      the limit on; every shipped compensator (with the paper's recognizer) and every shipped
+#      recognizer (with the paper's compensator; the learned one needs a training run, see
+#      doc/leaderboard.md) through every fault (20 trials each) and through the fault-free and
+#      x1.3 amplitude trials (100 each), and the two C++ alternatives together.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_depth_limit"
-for classes in PaperCompensator:PaperRecognizer TrackedMarkerCompensator:PaperRecognizer \
-               PaperCompensator:ForceDifferenceRecognizer \
-               TrackedMarkerCompensator:ForceDifferenceRecognizer; do
-  compensator="${classes%%:*}"; recognizer="${classes##*:}"
+PD=pedicle_drilling
+for classes in "${PD}/PaperCompensator ${PD}/PaperRecognizer" \
+               "${PD}/TrackedMarkerCompensator ${PD}/PaperRecognizer" \
+               "${PD}/AdaptiveModelCompensator ${PD}/PaperRecognizer" \
+               "python:pd_campaign.compensators.PhaseTemplateCompensator ${PD}/PaperRecognizer" \
+               "${PD}/PaperCompensator ${PD}/ForceDifferenceRecognizer" \
+               "${PD}/PaperCompensator python:pd_campaign.recognizers.ThresholdRecognizer" \
+               "${PD}/PaperCompensator python:pd_campaign.baselines.ChangePointRecognizer" \
+               "${PD}/TrackedMarkerCompensator ${PD}/ForceDifferenceRecognizer"; do
+  read -r compensator recognizer <<< "${classes}"
+  # The folder: the classes' own names (ThresholdRecognizer, not its module path).
+  name="${compensator##*[/.]}_${recognizer##*[/.]}"
   for scenario in faults amplitude; do
     rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit_${scenario}.yaml" \
-      --compensator "pedicle_drilling/${compensator}" --recognizer "pedicle_drilling/${recognizer}" \
+      --compensator "${compensator}" --recognizer "${recognizer}" \
       --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --no-figures \
-      --out "${OUT}/depth_limit_${scenario}/${compensator}_${recognizer}"
+      --out "${OUT}/depth_limit_${scenario}/${name}"
   done
 done
 # The control: the tracked-marker compensator on the same seeds without the plan.

@@ -15,7 +15,10 @@
 3. **The board**: per bench and case, each entry's correct stops with the Wilson 95 % interval,
    no-penetration, early stops, residual, overshoot and detection latency, and McNemar's exact
    test paired with the reference entry (the paper's recognizer), in DIR/leaderboard.md, .json
-   and a figure.
+   and a figure. The benches run the paper's system (no drilling plan): the recognizer alone
+   decides. Each entry drills the same trials a second time with the plan's depth limit on
+   (scenario key depth_limit), for the system's no-penetration column: what a recognizer leaves
+   to the last line, and how often that line stopped the drill first.
 """
 
 import argparse
@@ -249,13 +252,43 @@ def run_campaign(entry, params, scenario, meta, args, out_dir, identification):
     return report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
 
 
+def scenario_with_depth_limit(scenario, out_dir):
+    """A copy of the bench's scenario with the plan's depth limit on, written into out_dir."""
+    with open(scenario) as handle:
+        settings = yaml.safe_load(handle)
+    settings['depth_limit'] = True
+    os.makedirs(out_dir, exist_ok=True)
+    path = os.path.join(out_dir, 'scenario_depth_limit.yaml')
+    with atomic_write(path) as handle:
+        yaml.safe_dump(settings, handle, sort_keys=False)
+    return path
+
+
+def limited_rows(rows_by_entry):
+    """Per entry and (case, rpm), from the runs with the depth limit: trials, no penetration
+    and the stops the limit made first."""
+    out = {}
+    for name, rows in rows_by_entry.items():
+        for r in rows:
+            if r.get('error'):
+                continue
+            cell = out.setdefault((name, r['case'], r['rpm']),
+                                  {'n': 0, 'no_penetration': 0, 'limit_first': 0})
+            cell['n'] += 1
+            cell['no_penetration'] += 0 if r.get('breakthrough') else 1
+            cell['limit_first'] += 1 if r.get('first_stop_kind') == 'safety_depth_limit' else 0
+    return out
+
+
 def _median(rows, key):
     return stats.median([r.get(key) for r in rows if not r.get('error')
                          and r.get(key) is not None])
 
 
-def board_rows(rows_by_entry, reference):
-    """Per entry and (case, rpm): the field's metrics and the paired test with the reference."""
+def board_rows(rows_by_entry, reference, limited=None):
+    """Per entry and (case, rpm): the field's metrics and the paired test with the reference;
+    with `limited` (limited_rows), the same trials' no penetration with the depth limit."""
+    limited = limited or {}
     out = []
     for name, rows in rows_by_entry.items():
         groups = compare.compare(rows, rows_by_entry[reference])
@@ -273,6 +306,7 @@ def board_rows(rows_by_entry, reference):
                 'median_residual_mm': _median(in_group, 'residual_mm'),
                 'median_overshoot_mm': _median(in_group, 'overshoot_mm'),
                 'median_latency_ms': _median(in_group, 'detection_latency_ms'),
+                'with_depth_limit': limited.get((name, g['case'], g['rpm'])),
                 'vs_reference': None if name == reference else {
                     'only_entry': g['only_a'], 'only_reference': g['only_b'],
                     'mcnemar_p': g['mcnemar_p'], 'difference': g['difference'],
@@ -298,19 +332,24 @@ def markdown(boards, tuning, config, meta, args):
         lines += ['## Bench: %s (`config/%s`)' % (bench, config['benches'][bench]), '',
                   '| entry | case | rpm | correct stops (95 %% CI) | no penetration | early | '
                   'breakthrough | residual mm | overshoot mm | latency ms | vs %s: only / only, '
-                  'McNemar p |' % config['reference'],
-                  '|---|---|---|---|---|---|---|---|---|---|---|']
+                  'McNemar p | with the depth limit: no penetration (limit first) |'
+                  % config['reference'],
+                  '|---|---|---|---|---|---|---|---|---|---|---|---|']
         for r in rows:
             vs = r['vs_reference']
+            limited = r.get('with_depth_limit')
             lines.append('| %s | %s | %d | %d/%d (%.0f-%.0f %%) | %d/%d | %d | %d | %s | %s | %s | '
-                         '%s |' % (
+                         '%s | %s |' % (
                              r['entry'], r['case'], r['rpm'], r['correct'], r['n'],
                              100 * r['wilson95'][0], 100 * r['wilson95'][1],
                              r['no_penetration'], r['n'], r['early'], r['breakthrough'],
                              _fmt(r['median_residual_mm']), _fmt(r['median_overshoot_mm']),
                              _fmt(r['median_latency_ms'], '%.0f'),
                              '-' if vs is None else '%d / %d, %.3g' % (
-                                 vs['only_entry'], vs['only_reference'], vs['mcnemar_p'])))
+                                 vs['only_entry'], vs['only_reference'], vs['mcnemar_p']),
+                             '-' if not limited else '%d/%d (%d)' % (
+                                 limited['no_penetration'], limited['n'],
+                                 limited['limit_first'])))
         lines.append('')
     lines += ['## Tuning (offline, training and validation splits)', '',
               'Offline stops per trial: correct (inner cortex, at most 2 mm of it left) / shallow '
@@ -446,13 +485,23 @@ def main(argv=None):
     boards = {}
     for bench in benches:
         scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])
+        limited_scenario = scenario_with_depth_limit(
+            scenario, os.path.join(args.out, 'closed_loop_depth_limit', bench))
         rows_by_entry = {}
+        limited_by_entry = {}
         for entry in config['entries']:
             sys.stderr.write('leaderboard: %s on the %s bench\n' % (entry['name'], bench))
             rows_by_entry[entry['name']] = run_campaign(
                 entry, tuning[entry['name']]['params'], scenario, meta, args,
                 os.path.join(args.out, 'closed_loop', bench, entry['name']), identification)
-        boards[bench] = board_rows(rows_by_entry, config['reference'])
+            sys.stderr.write('leaderboard: %s on the %s bench, depth limit on\n'
+                             % (entry['name'], bench))
+            limited_by_entry[entry['name']] = run_campaign(
+                entry, tuning[entry['name']]['params'], limited_scenario, meta, args,
+                os.path.join(args.out, 'closed_loop_depth_limit', bench, entry['name']),
+                identification)
+        boards[bench] = board_rows(rows_by_entry, config['reference'],
+                                   limited_rows(limited_by_entry))
     with atomic_write(os.path.join(args.out, 'leaderboard.json')) as handle:
         json.dump({'meta': meta, 'trials': args.trials, 'boards': boards, 'tuning': tuning},
                   handle, indent=1)

@@ -98,12 +98,25 @@ def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(sma
     for row in rows:
         assert row['n'] == 1 and row['errors'] == 0
         assert (row['vs_reference'] is None) == (row['entry'] == 'paper')
+        # The same trial again with the plan's depth limit: the system's no penetration.
+        limited = row['with_depth_limit']
+        assert limited['n'] == 1 and limited['no_penetration'] in (0, 1)
+        assert 0 <= limited['limit_first'] <= 1
     # The closed loop drilled the test split's specimens: the same seeds as test.npz.
     test_seeds = {int(s) for s in np.load(dataset / 'test.npz')['trial_seed']}
     for name in ('paper', 'kalman', 'threshold'):
         with open(out / 'closed_loop' / 'paper' / name / 'trials.csv') as handle:
             seeds = {int(row['seed']) for row in csv.DictReader(handle)}
         assert seeds <= test_seeds and seeds
+    for name in ('paper', 'kalman', 'threshold'):
+        with open(out / 'closed_loop_depth_limit' / 'paper' / name / 'trials.csv') as handle:
+            limited = list(csv.DictReader(handle))
+        assert {int(row['seed']) for row in limited} <= test_seeds and limited
+        # The limit was active: it estimated the depth once the drill touched the bone.
+        assert any(row['depth_estimate_error_mm'] not in ('', None) for row in limited)
+    with open(out / 'closed_loop_depth_limit' / 'paper' / 'scenario_depth_limit.yaml') as handle:
+        assert yaml.safe_load(handle)['depth_limit'] is True
     text = (out / 'leaderboard.md').read_text()
     assert '| kalman | compensated | 12000 |' in text and 'McNemar' in text
+    assert 'with the depth limit: no penetration (limit first)' in text
     assert (out / 'leaderboard.png').stat().st_size > 10000
