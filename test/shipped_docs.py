@@ -1,11 +1,15 @@
-"""What the tests read from the shipped files, read once for all of them: the README's
-per-node parameter tables, the launch files' required arguments, and a node's declared
-parameter defaults (param_docs). Imported by the python
+"""What the tests read from the shipped files, read once for all of them: the node reference's
+per-node parameter tables (doc/nodes.md), the launch files' required arguments, and a node's
+declared parameter defaults (param_docs). Imported by the python
 tests (test/python) and the rostest scripts (test/rostest) with test/ on sys.path."""
 import json
+import os
 import re
 import subprocess
 import xml.etree.ElementTree as ET
+
+# The document with every node's parameter tables, relative to the repository root.
+NODE_REFERENCE = os.path.join('doc', 'nodes.md')
 
 
 def declared_default(node, name):
@@ -17,12 +21,12 @@ def declared_default(node, name):
     return float([r for r in json.loads(out)[node] if r['name'] == name][0]['default'])
 
 
-def readme_parameter_rows(readme_path):
-    """{node type: [(parameter name without ~, type, default, range text)]} from the README's
-    tables under each `### pedicle_drilling/<Node>` heading (rows `| `~name` [, `~name`] | type |
+def parameter_rows(path):
+    """{node type: [(parameter name without ~, type, default, range text)]} from the tables of a
+    document (the node reference, NODE_REFERENCE) under each `### pedicle_drilling/<Node>` heading (rows `| `~name` [, `~name`] | type |
     default | range |`; a row naming several parameters gives one entry per name)."""
     tables, node = {}, None
-    with open(readme_path) as handle:
+    with open(path) as handle:
         for line in handle:
             heading = re.match(r'^### (pedicle_drilling/\w+)', line)
             if heading:
@@ -38,11 +42,11 @@ def readme_parameter_rows(readme_path):
     return tables
 
 
-def readme_parameter_tables(readme_path):
-    """{node type: [(parameter name without ~, type, range text)]}: readme_parameter_rows
-    without the default column."""
+def parameter_tables(path):
+    """{node type: [(parameter name without ~, type, range text)]}: parameter_rows without the
+    default column."""
     return {node: [(name, kind, rule) for name, kind, _, rule in rows]
-            for node, rows in readme_parameter_rows(readme_path).items()}
+            for node, rows in parameter_rows(path).items()}
 
 
 def required_launch_args(path):

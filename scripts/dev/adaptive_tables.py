@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """The AdaptiveModelCompensator against the paper's compensator in a `make run` output directory
-(default results/): markdown tables on stdout, copied into the README's "A compensator that
-corrects a wrong model" from the run, not typed. Every comparison is paired, seed for seed, at
+(default results/): markdown tables on stdout, the generated block of doc/results.md's "A
+compensator that corrects a wrong model" (make_docs.py), from the run, not typed. Every comparison is paired, seed for seed, at
 12000 rpm, compensated:
   1. the breathing_amplitude fault (the bone moves 1.3 x the model from a moment drawn per seed):
      adaptive_amplitude/ (AdaptiveModelCompensator) against adaptive_amplitude_paper/;

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """The plan's depth limit in a `make run` output directory (default results/): markdown tables
-on stdout, copied into the README's "The plan's depth limit" from the run, not typed.
+on stdout, copied into doc/results.md's "The plan's depth limit" from the run, not typed.
   1. the paper's design at 12000 rpm on the same seeds without the plan (campaign/, the paper's
      system as published) and with it (campaign_depth_limit/): the paper's successes (the
      recognizer's stop in the inner layer), the drill stopped in the inner layer by either line

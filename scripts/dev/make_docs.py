@@ -12,6 +12,7 @@ the tables use, the campaigns' summary.json, Table II and the robustness curves'
 usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
 import argparse
 import csv
+import glob
 import io
 import os
 import re
@@ -28,7 +29,10 @@ import adaptive_tables  # noqa: E402
 import population_tables  # noqa: E402
 
 ARCHIVE = os.path.join(ROOT, 'doc', 'results')
-DOCUMENTS = ('README.md', os.path.join('doc', 'identification.md'))
+# Every document that may hold a generated block: the README and the pages of doc/ (the blocks
+# are today in doc/results.md and doc/identification.md).
+DOCUMENTS = tuple(['README.md'] + sorted(
+    os.path.relpath(path, ROOT) for path in glob.glob(os.path.join(ROOT, 'doc', '*.md'))))
 BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
 # The trial columns the generated tables read (report.normalise_row needs the first five).
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
@@ -56,7 +60,7 @@ def captured(function, *args):
 
 
 def robustness_table(archive):
-    """The README's digest of the robustness curves: per error, each compensator's success at
+    """doc/results.md's digest of the robustness curves: per error, each compensator's success at
     the two ends and at the nominal point, and the range where the adaptive one holds 95 %."""
     with open(os.path.join(archive, 'robustness', 'robustness.csv')) as handle:
         rows = list(csv.DictReader(handle))

@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """The population bench in a `make run` output directory (default results/): markdown tables on
-stdout (population.md); the README's and doc/identification.md's generated blocks come from the
+stdout (population.md); doc/results.md's and doc/identification.md's generated blocks come from the
 same functions, on the archived data (make_docs.py).
   1. the paper's design on the population bench (campaign_population/): successes per case and
      speed with the paper's Table III beside them, and the failure kinds at 12000 rpm (the same

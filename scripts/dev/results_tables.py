@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
-"""Prints the README's results tables from a `make run` output directory (default results/):
-the paper's design (successes with Wilson intervals, Fisher against Table III), the field's
-metrics with the failure kinds at 12000 rpm, and the fault campaign's breakthroughs, so that the
+"""Prints the published results tables from a `make run` output directory (default results/):
+the paper's design (successes with Wilson intervals, Fisher against Table III: the README), the
+field's metrics with the failure kinds at 12000 rpm (doc/results.md), and the fault campaign's
+breakthroughs, so that the
 published numbers are copied from the run, not typed. usage: results_tables.py [RESULTS_DIR]"""
 import json
 import os

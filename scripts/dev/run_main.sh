@@ -16,7 +16,7 @@
 #      the population bench (population.md); the AdaptiveModelCompensator beside the paper's
 #      compensator (adaptive.md) and both against the model's error (robustness/)
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
-#      (lockstep, README "Lockstep"), twice, each trial beside the core engine's, and 10 per case
+#      (lockstep, doc/running.md "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
 # Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.

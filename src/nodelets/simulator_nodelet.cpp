@@ -4,7 +4,7 @@
  *        the ROS interfaces a real setup would have. A dedicated thread steps the 1 kHz physics,
  *        owns /clock (when ~publish_clock) and paces the simulation at ~real_time_factor.
  *
- * Interfaces (see README "pedicle_drilling/Simulator"): publishes /clock, joint_states,
+ * Interfaces (see doc/nodes.md, "pedicle_drilling/Simulator"): publishes /clock, joint_states,
  * ft_sensor/wrench (at ~force_sensor_rate_hz, 1000/3 Hz), tf + tf_static, tracker/marker_pose (8
  * Hz), simulator/ground_truth, drilling_plan (latched: the specimen's plan, at start and at every
  * reset or start_trial); subscribes each controller's <name>/command

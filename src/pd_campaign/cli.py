@@ -377,7 +377,7 @@ def parse_args(argv):
                          'pipeline\'s recognizer always stops the drill)' % scenario['protocol'])
     elif scenario.get('faults') or scenario.get('fault_params'):
         raise UsageError('scenario keys faults/fault_params: faults are injected by --engine core '
-                         'only (the ROS pipeline has one rostest per fault, README)')
+                         'only (the ROS pipeline has one rostest per fault, doc/nodes.md)')
     elif str((scenario.get('simulator_params') or {}).get('population/enabled', '')).lower() in (
             'true', '1'):
         raise UsageError('simulator_params population/enabled: the population bench is run by '

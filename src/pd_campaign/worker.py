@@ -757,7 +757,7 @@ def main(argv=None):
         args.pre_trial_s = args.identification_window_s if not args.models_dir else 1.0
     with open(args.trials) as handle:
         trials = json.load(handle)
-    # Loopback only, whatever the shell exported (README, "Network: loopback by default"): the
+    # Loopback only, whatever the shell exported (doc/network.md): the
     # master, rosout, the launch's nodes, rosbag and this node. ROS_HOSTNAME names the host in
     # the URIs; roscpp keeps its topics and services on loopback only with ROS_IP=127.x.
     os.environ['ROS_MASTER_URI'] = 'http://127.0.0.1:%d' % args.port

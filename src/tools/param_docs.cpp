@@ -2,7 +2,7 @@
  * @file param_docs.cpp
  * @brief `rosrun pedicle_drilling param_docs [--node CLASS] [--format markdown|json]`: every
  *        nodelet's parameters as declared in the code (ros/node_params.hpp), with type, default
- *        and allowed values. The README's parameter tables are checked against `--format json`
+ *        and allowed values. doc/nodes.md's parameter tables are checked against `--format json`
  *        (test_readme_parameters.py); `--format markdown` prints the rows to paste.
  */
 #include <CLI/CLI.hpp>

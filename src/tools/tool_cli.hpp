@@ -151,8 +151,8 @@ inline int usageError(const CLI::App& app, const std::string& message) {
 
 /**
  * @brief The option of one value (or the flag) that was given more than once, as the message
- *        of every tool and script (README; CLI11's own would be "--x: At Most 1 required but
- *        received 2"); nothing when no option was.
+ *        of every tool and script (doc/development.md, "Tools"; CLI11's own would be
+ *        "--x: At Most 1 required but received 2"); nothing when no option was.
  */
 inline std::optional<std::string> givenTwice(const CLI::App& app) {
   for (const CLI::Option* opt : app.get_options()) {

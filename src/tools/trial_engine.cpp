@@ -12,8 +12,8 @@
 // config/patient_default.yaml, found at run time through rospack (the devel or the install
 // space whose setup.bash was sourced).
 //
-// A trial may name a fault to inject ("fault": "force_silent", ...; README "Fault campaign");
-// its record then says when it took effect.
+// A trial may name a fault to inject ("fault": "force_silent", ...; doc/experiments.md, "Fault
+// campaign"); its record then says when it took effect.
 //
 // `--trials -` reads the trials from stdin instead, one JSON object per line, and runs each as it
 // arrives (its output line flushed before the next is read); end of input ends the run. The
@@ -318,7 +318,7 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
       ->check(tools::finiteNumber(0.01, 10.0));
   app->add_option("--max-duration", o->max_duration, "sim time after which a trial is ended, s")
       ->check(tools::finiteNumber(1.0, 3600.0));
-  // Sizes of the injected faults (a trial's "fault" key names the fault; README).
+  // Sizes of the injected faults (a trial's "fault" key names the fault; doc/experiments.md).
   pd::FaultParams& faults = config->faults;
   app->add_option("--fault-spike-n", faults.spike_n, "thrust of the force_spike sample, N")
       ->check(tools::finiteNumber());
@@ -348,14 +348,12 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
   app->add_option("--fault-occlusion-period-samples", faults.occlusion_period_samples,
                   "tracker_occlusion: tracker samples from one burst's start to the next");
   app->add_option("--recognizer", o->recognizer_class,
-                  "drilling-state recognizer class (built-in or pluginlib; README \"Bring your "
-                  "own recognizer or compensator\")");
+                  "drilling-state recognizer class (built-in or pluginlib; doc/plugins.md)");
   app->add_option("--recognizer-param", o->recognizer_params,
                   "name=value for the recognizer (repeatable; the paper recognizer's default: "
                   "config/recognizer.yaml's values are its defaults)");
   app->add_option("--compensator", o->compensator_class,
-                  "motion compensator class (built-in or pluginlib; README \"Bring your own "
-                  "recognizer or compensator\")");
+                  "motion compensator class (built-in or pluginlib; doc/plugins.md)");
   app->add_option("--compensator-param", o->compensator_params,
                   "name=value for the compensator (repeatable)");
   app->add_option("--protocol", o->protocol,

@@ -180,8 +180,9 @@ TEST(CompensationPlanner, LateralPartOnlyWhenRequested) {
 
 // Latency study: a controller that executes the segmented command with a pure delay L. The
 // tracking error is the tip's compensation (execution minus the delayed feed) minus the bone
-// displacement along the drill axis, with a perfect patient model. Prints the table used in the
-// README and checks that commanding the prediction for now + L removes most of the lag error.
+// displacement along the drill axis, with a perfect patient model. Prints the table of
+// doc/campaign_results.md ("Compensation latency") and checks that commanding the prediction for
+// now + L removes most of the lag error.
 TEST(CompensationPlanner, LatencyParameterCancelsControllerDelay) {
   auto trackingError = [](double controller_delay, double latency, double* max_err) {
     pd::CompensationParams p;

@@ -183,7 +183,7 @@ TEST(TrapezoidSegmenterTest, SegmentProfileNames) {
   EXPECT_TRUE(parseSegmentProfile("exact", &p));
   EXPECT_EQ(p, SegmentProfile::kExact);
   EXPECT_STREQ(toString(p), "exact");
-  EXPECT_FALSE(parseSegmentProfile("blended", &p));  // retired (README)
+  EXPECT_FALSE(parseSegmentProfile("blended", &p));  // retired (doc/nodes.md)
   EXPECT_TRUE(parseSegmentProfile("rest_to_rest", &p));
   EXPECT_EQ(p, SegmentProfile::kRestToRest);
   EXPECT_FALSE(parseSegmentProfile("smooth", &p));

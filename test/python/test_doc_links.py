@@ -1,8 +1,9 @@
 """Every relative link of the documentation resolves: in README.md and doc/**/*.md,
 each `[text](target)` and `![alt](target)` that is not a web address (http, https, mailto) or an
 anchor of the same page (`#...`) names a file or folder that exists relative to the markdown
-file; an anchor into another file (`file.md#section`) is checked for the file only. Fenced code
-blocks and inline code are not links."""
+file; and every anchor, of the same page or of another markdown file (`file.md#section`), names
+a heading there, as GitHub makes a heading's anchor (lower case, punctuation dropped, spaces to
+hyphens, `-1`, `-2` for repeats). Fenced code blocks and inline code are not links."""
 import glob
 import os
 import re
@@ -62,6 +63,62 @@ def broken_links(path):
         if not os.path.exists(os.path.normpath(os.path.join(base, name))):
             broken.append((line, target, 'no such file'))
     return broken
+
+
+def heading_anchor(heading):
+    """The anchor GitHub gives a markdown heading's text."""
+    text = re.sub(r'[^\w\- ]', '', heading.strip().lower())
+    return text.replace(' ', '-')
+
+
+def anchors(path):
+    """The anchors of a markdown file's headings (outside fenced code)."""
+    seen, found, fenced = {}, set(), False
+    with open(path, encoding='utf-8') as handle:
+        for line in handle:
+            if FENCE.match(line):
+                fenced = not fenced
+                continue
+            heading = None if fenced else re.match(r'^#{1,6}\s+(.*)', line)
+            if heading:
+                anchor = heading_anchor(heading.group(1))
+                count = seen.get(anchor, 0)
+                found.add(anchor if count == 0 else '%s-%d' % (anchor, count))
+                seen[anchor] = count + 1
+    return found
+
+
+def broken_anchors(path):
+    """[(line, target)] of the links of a markdown file whose anchor names no heading of the
+    markdown file it points to."""
+    with open(path, encoding='utf-8') as handle:
+        text = handle.read()
+    broken = []
+    for line, target in links(text):
+        if re.match(r'^(https?:|mailto:)', target) or '#' not in target:
+            continue
+        name, anchor = target.split('#', 1)
+        page = os.path.normpath(os.path.join(os.path.dirname(path), name)) if name else path
+        if page.endswith('.md') and os.path.isfile(page) and anchor not in anchors(page):
+            broken.append((line, target))
+    return broken
+
+
+def test_every_anchor_names_a_heading():
+    hits = ['%s:%d: %s' % (os.path.relpath(path, ROOT), line, target)
+            for path in markdown_files() for line, target in broken_anchors(path)]
+    assert not hits, 'anchors that name no heading:\n' + '\n'.join(hits)
+
+
+def test_the_check_sees_a_broken_anchor(tmp_path):
+    (tmp_path / 'other.md').write_text('# Other\n\n## The paper\'s bench (`make run`)\n## Same\n'
+                                       '## Same\n```\n# not a heading\n```\n')
+    page = tmp_path / 'page.md'
+    page.write_text('# Page: one, two\n\n[a](#page-one-two) [b](other.md#the-papers-bench-make-run)'
+                    ' [c](other.md#same-1) [d](#nowhere) [e](other.md#not-a-heading)'
+                    ' [f](other.md#same-2) [web](https://example.org/#x)\n')
+    assert broken_anchors(str(page)) == [(3, '#nowhere'), (3, 'other.md#not-a-heading'),
+                                         (3, 'other.md#same-2')]
 
 
 def test_every_relative_link_resolves():

@@ -1,6 +1,6 @@
 """The two engines run the same trial: the same seeds through the core engine and
 through the ROS pipeline (the Simulator in lockstep with the planner, the recognizer and the
-monitor; README "Lockstep"), trial by trial: 2 per case of the paper's design at 12000 rpm and 2
+monitor; doc/running.md "Lockstep"), trial by trial: 2 per case of the paper's design at 12000 rpm and 2
 of the virtual patient (the bone's true motion, lag, drift and small movements).
 
 The pipeline's trial of a seed is the engine's, so the pass criterion is equality, not a

@@ -4,7 +4,7 @@ time from its seed corpus (test/fuzz/corpus) in a scratch copy. Any crash, sanit
 broken invariant fails the test and leaves the input in the test artifacts folder.
 
 FUZZ_SECONDS (default 10) sets the time per target: a smoke run in every `make test` (the saved
-regressions replayed first); longer runs are for a fuzzing session (README, "Tests")."""
+regressions replayed first); longer runs are for a fuzzing session (doc/development.md, "Tests")."""
 import os
 import shutil
 import subprocess

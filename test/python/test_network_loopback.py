@@ -156,7 +156,7 @@ def test_a_launched_nodelet_manager_serves_its_topics_on_loopback_only(tmp_path)
     master_uri = 'http://127.0.0.1:%d' % port
     env = {k: v for k, v in os.environ.items() if k not in ('ROS_IP', 'ROS_HOSTNAME')}
     env.update(ROS_MASTER_URI=master_uri, ROS_LOG_DIR=str(tmp_path / 'log'))
-    # The master as the README says to start it on loopback; the launch itself in a shell that
+    # The master as doc/network.md says to start it on loopback; the launch itself in a shell that
     # exported neither ROS_IP nor ROS_HOSTNAME.
     master = subprocess.Popen(['rosmaster', '--core', '-p', str(port), '-w', '2'],
                               env=dict(env, ROS_IP='127.0.0.1'), stdout=subprocess.DEVNULL,
@@ -195,7 +195,7 @@ def test_a_launched_nodelet_manager_serves_its_topics_on_loopback_only(tmp_path)
         sockets = listening_sockets(pid)
         xmlrpc_port = int(node_uri.rstrip('/').rsplit(':', 1)[1])
         assert ('127.0.0.1', tcpros_port) in sockets, sockets
-        # roscpp's XML-RPC server (xmlrpcpp) binds every interface whatever ROS_IP says (README);
+        # roscpp's XML-RPC server (xmlrpcpp) binds every interface whatever ROS_IP says (doc/network.md);
         # everything else of the process, its topics and services, listens on loopback only.
         others = [s for s in sockets if s[1] != xmlrpc_port]
         assert others and all(h == '127.0.0.1' for h, _ in others), sockets

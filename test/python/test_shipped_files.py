@@ -118,7 +118,7 @@ CONTROL_MSGS_STATE_MD5 = '10817c60c2486ef6b33e97dcd87f4474'
 
 
 def test_controller_state_is_wire_compatible_with_control_msgs():
-    """README, "Hardware bring-up": a ros_control controller's control_msgs state connects to the
+    """doc/hardware.md, "The arm and the feed axis": a ros_control controller's control_msgs state connects to the
     planner's <name>/state subscription directly (ROS 1 matches a connection by md5sum), which
     holds only while our message keeps control_msgs' fields."""
     out = subprocess.run(['rosmsg', 'md5', 'pedicle_drilling/JointTrajectoryControllerState'],

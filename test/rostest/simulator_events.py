@@ -61,7 +61,7 @@ class SimulatorEvents:
 
 
 class StepParticipant(SimulatorEvents):
-    """Mixin: the test is a lockstep participant (README "Lockstep"). Call participate(node) in
+    """Mixin: the test is a lockstep participant (doc/running.md, "Lockstep"). Call participate(node) in
     setUp. It answers simulator/step while self.answering (under self.cond); a step it does not
     answer is kept in self.unanswered."""
 

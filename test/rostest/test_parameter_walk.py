@@ -1,10 +1,10 @@
 #!/usr/bin/python3
-"""The parameter walk: every parameter of every nodelet, as the README's parameter
-tables declare it, given a value of the wrong type and a value out of range (and a required one
+"""The parameter walk: every parameter of every nodelet, as the node reference's parameter
+tables (doc/nodes.md) declare it, given a value of the wrong type and a value out of range (and a required one
 left out): the nodelet, started standalone with the parameters of its shipped launch file plus
 that one bad value, must refuse to start (exit non-zero) with an error naming the parameter.
 
-The parameters come from the README (one table per node, `| `~name` | type | default | range |`),
+The parameters come from doc/nodes.md (one table per node, `| `~name` | type | default | range |`),
 so a parameter documented there and not checked by the code, or renamed in one place only, fails
 here; the nodes' good parameters come from roslaunch's own loader reading the shipped launch
 files. A few parameters accept any value of their type by design; they are listed in
@@ -24,7 +24,7 @@ from roslaunch.xmlloader import XmlLoader
 
 ROOT = rospkg.RosPack().get_path('pedicle_drilling')
 sys.path.insert(0, os.path.join(ROOT, 'test'))
-from shipped_docs import readme_parameter_tables  # noqa: E402
+from shipped_docs import NODE_REFERENCE, parameter_tables  # noqa: E402
 
 # node type -> (launch file, node name in it, extra launch args)
 NODES = {
@@ -68,9 +68,9 @@ SKIPPED = {
 }
 
 
-def readme_parameters():
-    """{node type: [(name, type, range text)]} from the README's parameter tables."""
-    return readme_parameter_tables(os.path.join(ROOT, 'README.md'))
+def documented_parameters():
+    """{node type: [(name, type, range text)]} from the node reference's parameter tables."""
+    return parameter_tables(os.path.join(ROOT, NODE_REFERENCE))
 
 
 def launch_params(launch, node_name):
@@ -101,7 +101,7 @@ def bad_values(kind, name):
         return [('wrong type', 42)]
     if kind == 'integers':
         return [('wrong type', 'three'), ('out of range', [0])]
-    raise AssertionError('README type %r of %s is unknown to the walk' % (kind, name))
+    raise AssertionError('documented type %r of %s is unknown to the walk' % (kind, name))
 
 
 PARAM_LOCK = threading.Lock()  # rospy's master proxy is one xmlrpc client: one call at a time
@@ -152,8 +152,8 @@ def check_case(node_type, node_name, good, name, what, value):
 
 class ParameterWalkTest(unittest.TestCase):
     def test_every_documented_parameter_is_checked(self):
-        tables = readme_parameters()
-        self.assertEqual(sorted(tables), sorted(NODES), 'README parameter tables vs NODES')
+        tables = documented_parameters()
+        self.assertEqual(sorted(tables), sorted(NODES), 'doc/nodes.md parameter tables vs NODES')
         failures, cases = [], []
         for node_type, rows in sorted(tables.items()):
             launch, node_name, _ = NODES[node_type]

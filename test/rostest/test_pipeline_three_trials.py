@@ -1,6 +1,6 @@
 #!/usr/bin/python3
 """Three trials back to back on one running pipeline (drilling_pipeline.launch sim:=true), each
-started with the README's call only:
+started with doc/running.md's call only:
   rosservice call /compensation_planner/start_trial "{mode: compensated, spindle_rpm: 0,
     feed_rate_mm_s: 0, max_duration_s: 0}"
 and waited for until the planner reports done. For every trial: a stop command from the

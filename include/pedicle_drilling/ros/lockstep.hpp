@@ -1,6 +1,6 @@
 /**
  * @file lockstep.hpp
- * @brief The simulator's lockstep (README "Lockstep"): with the global parameter
+ * @brief The simulator's lockstep (doc/running.md, "Lockstep"): with the global parameter
  *        /use_sim_lockstep true, the Simulator publishes `simulator/step` (rosgraph_msgs/Clock)
  *        after a physics step's messages and steps again only when every participant has
  *        answered it (at every step a participant can act at: see below) on `simulator/step_ack`

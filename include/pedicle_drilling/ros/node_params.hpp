@@ -3,7 +3,7 @@
  * @brief One parameter struct per nodelet, each declared once (core::ParamTable): the core
  *        options struct it holds plus the node's own settings (rates, frames, queue sizes).
  *        Loaded once by ParamLoader::load(), validated by the same table, and documented from it
- *        (`rosrun pedicle_drilling param_docs`; test_readme_parameters checks the README's
+ *        (`rosrun pedicle_drilling param_docs`; test_node_reference checks doc/nodes.md's
  *        tables against it). No ROS type in this header.
  */
 #pragma once

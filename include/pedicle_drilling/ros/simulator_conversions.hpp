@@ -33,8 +33,8 @@
 namespace pedicle_drilling {
 
 /**
- * @brief Every parameter of the Simulator (README), loaded once: a key under ~trial_distribution
- *        or ~ventilator that is not declared is refused too.
+ * @brief Every parameter of the Simulator (doc/nodes.md), loaded once: a key under
+ *        ~trial_distribution or ~ventilator that is not declared is refused too.
  * @throws ParameterError naming the parameter.
  */
 SimulatorNodeParams loadSimulatorParams(const ros::NodeHandle& private_nh);

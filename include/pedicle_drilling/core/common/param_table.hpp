@@ -4,7 +4,7 @@
  *        kind, range and unit in one ParamTable. The same table validates the struct (the core's
  *        validate()), sets a field from text (plugin settings, command lines), loads it from the
  *        ROS parameter server (ros/param_loader.hpp) and documents it (the `param_docs` tool,
- *        against which a test checks the README's parameter tables). No ROS type.
+ *        against which a test checks doc/nodes.md's parameter tables). No ROS type.
  */
 #pragma once
 
@@ -72,7 +72,7 @@ enum class ParamKind {
 /** @brief Name-value pairs as text (a plugin's settings). */
 using TextPairs = std::vector<std::pair<std::string, std::string>>;
 
-/** @brief The name of a kind as the README tables write it ("double", "int", ...). */
+/** @brief The name of a kind as the tables of doc/nodes.md write it ("double", "int", ...). */
 inline const char* kindName(ParamKind kind) {
   switch (kind) {
     case ParamKind::kDouble:

@@ -42,7 +42,7 @@ struct DrillingPlan {
   std::string check() const;
 };
 
-/** @brief The planner's depth-limit settings (README, CompensationPlanner `depth_limit/...`). */
+/** @brief The planner's depth-limit settings (doc/nodes.md: the planner's `depth_limit/...`). */
 struct DepthLimitParams {
   /**
    * @brief A trial needs a plan (true): without one the planner refuses to start. false: a

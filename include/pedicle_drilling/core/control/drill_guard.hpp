@@ -20,12 +20,12 @@
 namespace pedicle_drilling::core {
 
 /**
- * @brief The drivers' timeout [s] on drill_guard/enable, what a lab's drivers must use (README,
- * "Safe whatever dies"): 8 periods of the guard's 0.01 s heartbeat, so that a process that
- * dies right after a beat stops the feed within 0.08 s and the spindle's run-down starts then,
- * while a scheduling gap of up to 70 ms on a loaded machine does not stop a healthy trial. The
- * simulator's
- * config/simulator.yaml drive_guard_timeout_s and the core engine's drivers use it.
+ * @brief The drivers' timeout [s] on drill_guard/enable, what a lab's drivers must use
+ * (doc/hardware.md, "Safe whatever dies"): 8 periods of the guard's 0.01 s heartbeat, so that a
+ * process that dies right after a beat stops the feed within 0.08 s and the spindle's run-down
+ * starts then, while a scheduling gap of up to 70 ms on a loaded machine does not stop a healthy
+ * trial. The simulator's config/simulator.yaml drive_guard_timeout_s and the core engine's drivers
+ * use it.
  */
 constexpr double kDriveGuardTimeoutS = 0.08;
 /** @brief The planner's compensation/heartbeat period [s] while its trial runs (its

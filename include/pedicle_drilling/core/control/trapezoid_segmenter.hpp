@@ -102,7 +102,7 @@ enum class SegmentProfile {
 /** @brief Name of a profile: "rest_to_rest" or "exact". */
 const char* toString(SegmentProfile profile);
 /** @brief Parses "rest_to_rest" or "exact"; false otherwise (also for "blended", a
- *         velocity-continuous profile retired once "exact" beat it: README). */
+ *         velocity-continuous profile retired once "exact" beat it: doc/nodes.md). */
 bool parseSegmentProfile(const std::string& name, SegmentProfile* profile);
 
 /** @brief Position and velocity of a segmented trajectory at one time. */

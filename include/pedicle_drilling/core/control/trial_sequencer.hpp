@@ -43,7 +43,7 @@ const char* toString(TrialPhase p);
 /** @brief True while a trial runs (moving_to_pose .. retreating). */
 bool isRunning(TrialPhase p);
 
-/** @brief Parameters of the sequence (the CompensationPlanner's, README). */
+/** @brief Parameters of the sequence (the CompensationPlanner's, doc/nodes.md). */
 struct TrialSequencerParams {
   /** @brief Segmentation and prediction; feed_rate_m_s is set per trial. drill_axis is set from
    *         the arm by the constructor. */

@@ -99,7 +99,7 @@ class CommandTransport {
   double last_spindle_rpm_ = 0.0;  ///< the latest spindle speed sent (spindleDelay)
 };
 
-/** @brief Configuration of the engine (the pipeline's parameters; README, config/). */
+/** @brief Configuration of the engine (the pipeline's parameters; doc/nodes.md, config/). */
 struct EngineConfig {
   std::string urdf_xml;                 ///< the workcell (urdf/workcell.urdf)
   DrillingSimulationParams simulation;  ///< config/simulator.yaml

@@ -227,7 +227,7 @@ struct DrillingSimulationParams {
   /// (commanded to 0) as soon as the latest onDriveEnable() is false or older than this, and
   /// commands are refused until an enable comes again (counted in driveGuardTrips()); before
   /// the first enable the drives are held (fails closed). The pipeline's simulator sets 0.08 s
-  /// (config/simulator.yaml), the rule a lab's drivers follow (README, hardware bring-up).
+  /// (config/simulator.yaml), the rule a lab's drivers follow (doc/hardware.md).
   double drive_guard_timeout_s = 0.0;
   double bone_half_x_m = 0.02;    ///< bone footprint half size along the bone frame x [m]
   double bone_half_y_m = 0.015;   ///< bone footprint half size along the bone frame y [m]

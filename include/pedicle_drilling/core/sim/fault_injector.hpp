@@ -18,10 +18,10 @@
 namespace pedicle_drilling::core {
 
 /**
- * @brief A fault injected into a trial (README "Fault campaign"; the core engine and the
- *        FaultInjector nodelet). Each acts where
- *        the real fault would: on the force stream both the recognizer and the monitor receive,
- *        on the tracker stream, on the patient, or on the planner's trajectory commands.
+ * @brief A fault injected into a trial (doc/experiments.md, "Fault campaign"; the core engine
+ *        and the FaultInjector nodelet). Each acts where the real fault would: on the force
+ *        stream both the recognizer and the monitor receive, on the tracker stream, on the
+ *        patient, or on the planner's trajectory commands.
  */
 enum class FaultKind {
   kNone,                ///< no fault

@@ -1,11 +1,12 @@
-"""The README's parameter tables against the code's declarations and the shipped configuration.
-Each nodelet's parameters are declared once in C++ (core::ParamTable, through
-ros/node_params.hpp); `param_docs --format json` prints them. Every declared parameter has a README
-row with the same type, default and allowed values (the range column starts with the declared
-rule; notes may follow after "; "), and every README row is declared: a range changed in the code
-and not in the README, or the reverse, fails here. A wildcard row (`~ventilator/*`) covers a
-declared group. Every key a config/*.yaml sets is documented. That the nodelets refuse what the
-README calls out of range is the rostest parameter_walk."""
+"""The node reference's parameter tables (doc/nodes.md) against the code's declarations and the
+shipped configuration. Each nodelet's parameters are declared once in C++ (core::ParamTable,
+through ros/node_params.hpp); `param_docs --format json` prints them. Every declared parameter has
+a row in doc/nodes.md with the same type, default and allowed values (the range column starts with
+the declared rule; notes may follow after "; "), and every row is declared: a range changed in the
+code and not in the document, or the reverse, fails here. A wildcard row (`~ventilator/*`) covers
+a declared group. Every key a config/*.yaml sets is documented. The README holds no parameter
+table (the reference is doc/nodes.md). That the nodelets refuse what the document calls out of
+range is the rostest parameter_walk."""
 import json
 import os
 import subprocess
@@ -16,7 +17,7 @@ import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'test'))
-from shipped_docs import readme_parameter_rows, readme_parameter_tables  # noqa: E402
+from shipped_docs import NODE_REFERENCE, parameter_rows, parameter_tables  # noqa: E402
 CONFIGS = {
     'pedicle_drilling/Ventilator': 'ventilator.yaml',
     'pedicle_drilling/Simulator': 'simulator.yaml',
@@ -30,9 +31,12 @@ CONFIGS = {
 }
 
 
-def readme_tables():
+REFERENCE = os.path.join(ROOT, NODE_REFERENCE)
+
+
+def reference_tables():
     return {node: [name for name, _, _ in rows] for node, rows in
-            readme_parameter_tables(os.path.join(ROOT, 'README.md')).items()}
+            parameter_tables(REFERENCE).items()}
 
 
 def flat_keys(data, prefix=''):
@@ -56,13 +60,13 @@ def documented(name, rows):
 
 @pytest.mark.parametrize('node', sorted(CONFIGS))
 def test_every_shipped_parameter_is_documented(node):
-    rows = readme_tables().get(node, [])
-    assert rows, 'no README parameter table for %s' % node
+    rows = reference_tables().get(node, [])
+    assert rows, 'no parameter table for %s in %s' % (node, NODE_REFERENCE)
     with open(os.path.join(ROOT, 'config', CONFIGS[node])) as handle:
         config = yaml.safe_load(handle)
     missing = [k for k in flat_keys(config) if not documented(k, rows)]
-    assert missing == [], '%s: in config/%s but not in the README: %s' % (
-        node, CONFIGS[node], missing)
+    assert missing == [], '%s: in config/%s but not in %s: %s' % (
+        node, CONFIGS[node], NODE_REFERENCE, missing)
 
 
 @pytest.fixture(scope='module')
@@ -72,58 +76,80 @@ def declared(bin_dir):
     return json.loads(out)
 
 
-def readme_rows():
-    """{node: {name: (type, default, range column)}} with the README's default column kept."""
+def reference_rows():
+    """{node: {name: (type, default, range column)}} with the document's default column kept."""
     return {node: {name: (kind, default, rule) for name, kind, default, rule in rows}
-            for node, rows in readme_parameter_rows(os.path.join(ROOT, 'README.md')).items()}
+            for node, rows in parameter_rows(REFERENCE).items()}
 
 
 def test_every_nodelet_declares_its_parameters(declared):
     assert sorted(declared) == sorted(CONFIGS)
-    assert sorted(readme_rows()) == sorted(CONFIGS)
+    assert sorted(reference_rows()) == sorted(CONFIGS)
 
 
-@pytest.mark.parametrize('node', sorted(CONFIGS))
-def test_readme_table_matches_the_declarations(node, declared):
-    rows = readme_rows()[node]
-    params = {p['name']: p for p in declared[node]}
+def row_problems(rows, params):
+    """What differs between a node's documented rows {name: (type, default, range column)} and
+    its declared parameters {name: param_docs entry}."""
     problems = []
     for name, p in params.items():
         wildcard = [r for r in rows if r.endswith('/*') and name.startswith(r[:-1])]
         if wildcard:
             continue
         if name not in rows:
-            problems.append('~%s is declared (%s, default %r, %s) but has no README row' % (
+            problems.append('~%s is declared (%s, default %r, %s) but has no row' % (
                 name, p['type'], p['default'], p['rule']))
             continue
         kind, default, rule = rows[name]
         expected_default = '`%s`' % p['default'] if p['default'] else '`""`'
         if kind != p['type']:
-            problems.append('~%s: README type %r, declared %r' % (name, kind, p['type']))
+            problems.append('~%s: documented type %r, declared %r' % (name, kind, p['type']))
         if default != expected_default:
-            problems.append('~%s: README default %s, declared %s' % (name, default,
-                                                                    expected_default))
+            problems.append('~%s: documented default %s, declared %s' % (name, default,
+                                                                        expected_default))
         if not (rule == p['rule'] or rule.startswith(p['rule'] + '; ')):
-            problems.append('~%s: README range %r does not start with the declared %r' % (
+            problems.append('~%s: documented range %r does not start with the declared %r' % (
                 name, rule, p['rule']))
     for name in rows:
         if name.endswith('/*'):
             if not any(n.startswith(name[:-1]) for n in params):
-                problems.append('README wildcard ~%s covers no declared parameter' % name)
+                problems.append('wildcard row ~%s covers no declared parameter' % name)
         elif name not in params:
-            problems.append('README row ~%s is not a declared parameter' % name)
+            problems.append('row ~%s is not a declared parameter' % name)
+    return problems
+
+
+@pytest.mark.parametrize('node', sorted(CONFIGS))
+def test_reference_table_matches_the_declarations(node, declared):
+    problems = row_problems(reference_rows()[node], {p['name']: p for p in declared[node]})
     assert problems == [], node + ':\n' + '\n'.join(problems)
 
 
 def test_the_check_sees_a_changed_range(declared, tmp_path):
-    """The comparison itself: a declared range that differs from the README's is reported."""
+    """The comparison itself: a declared range that differs from the document's is reported."""
     node = 'pedicle_drilling/SafetyMonitor'
     changed = json.loads(json.dumps(declared))
     for p in changed[node]:
         if p['name'] == 'position_threshold_m':
             p['rule'] = '(0, 0.2] m'
     with pytest.raises(AssertionError, match='position_threshold_m'):
-        test_readme_table_matches_the_declarations(node, changed)
+        test_reference_table_matches_the_declarations(node, changed)
+
+
+def test_the_check_sees_a_changed_default(declared):
+    """A default written wrong in the document is reported (the document's rows, one changed)."""
+    node = 'pedicle_drilling/SafetyMonitor'
+    rows = reference_rows()
+    kind, default, rule = rows[node]['force_timeout_s']
+    assert default == '`0.1`'
+    rows[node]['force_timeout_s'] = (kind, '`0.2`', rule)
+    problems = row_problems(rows[node], {p['name']: p for p in declared[node]})
+    assert any('force_timeout_s' in p and 'default' in p for p in problems)
+
+
+def test_the_readme_holds_no_parameter_table():
+    """The parameter tables are the node reference's only: a table in the README would go
+    unchecked here."""
+    assert parameter_rows(os.path.join(ROOT, 'README.md')) == {}
 
 
 # Shipped settings that differ from the declared default on purpose, with the reason. Any other
