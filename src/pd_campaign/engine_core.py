@@ -152,9 +152,6 @@ def row_from_line(line, trace_dir):
     # The estimate error's maxima over 0.25 s windows (what the margin's choice pools).
     row['depth_window_errors_mm'] = ';'.join(
         '%.4f' % (e * 1e3) for e in limit.get('window_errors_m') or []) or None
-    # The residual's spread in the same windows (what the limit's online margin covered).
-    row['depth_window_spreads_mm'] = ';'.join(
-        '%.4f' % (e * 1e3) for e in limit.get('window_spreads_m') or []) or None
     try:
         row = worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
         return fault_columns(row, record)

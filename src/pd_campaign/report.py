@@ -27,8 +27,7 @@ TRIAL_COLUMNS = [
     'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
     'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
     'watch_desired_ratio', 'watch_following_ratio', 'depth_estimate_error_mm',
-    'plan_far_side_error_mm', 'depth_window_errors_mm', 'depth_window_spreads_mm',
-    'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
+    'plan_far_side_error_mm', 'depth_window_errors_mm', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
     'drift_detected', 'bag_lost', 'error',
 ]
 

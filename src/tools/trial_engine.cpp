@@ -108,7 +108,6 @@ json recordToJson(const pd::EngineTrialRecord& r) {
                                      ? json(nullptr)
                                      : json(r.depth_estimate_error_max_m)},
         {"window_errors_m", r.depth_estimate_window_errors_m},
-        {"window_spreads_m", r.depth_estimate_window_spreads_m},
         {"plan_far_side_error_m", r.plan_far_side_error_m}}},
       {"controller_watch",
        {{"desired_ratio", r.watch_desired_ratio}, {"following_ratio", r.watch_following_ratio}}},

@@ -125,7 +125,6 @@ TEST(DepthLimit, AContactBeyondTheToleranceIsClampedToItsDeepEnd) {
 TEST(DepthLimit, ABoneNearerThanPredictedLowersTheLimitByTheMeanResidual) {
   pd::DepthLimitParams params;
   params.residual_samples = 2;
-  params.spread_gain = 0.0;  // the correction alone (the spread's margin below)
   pd::DepthLimit limit = begun(params);
   const double before = limit.limit();
   limit.onResidual(1e-3);
@@ -137,30 +136,6 @@ TEST(DepthLimit, ABoneNearerThanPredictedLowersTheLimitByTheMeanResidual) {
   // The contact is measured with the correction: the tip's true advance.
   for (int i = 0; i < 3; ++i) limit.onThrust(5e-3, 1.0);
   EXPECT_NEAR(limit.entry(), 5.4e-3, 1e-12);
-}
-
-TEST(DepthLimit, AResidualThatChangesWidensTheMarginByItsSpread) {
-  pd::DepthLimitParams params;
-  params.residual_samples = 2;
-  params.spread_samples = 3;
-  params.spread_gain = 2.0;
-  pd::DepthLimit limit = begun(params);
-  const double before = limit.limit();
-  limit.onResidual(2e-4);
-  EXPECT_EQ(limit.spread(), 0.0);  // one sample has no spread
-  EXPECT_NEAR(limit.limit(), before - 2e-4, 1e-12);
-  limit.onResidual(-1e-4);
-  limit.onResidual(5e-4);
-  // Spread over the last 3: 5e-4 - (-1e-4); the correction over the last 2: 2e-4.
-  EXPECT_NEAR(limit.spread(), 6e-4, 1e-12);
-  EXPECT_NEAR(limit.onlineMargin(), 1.2e-3, 1e-12);
-  EXPECT_NEAR(limit.limit(), before - 2e-4 - 1.2e-3, 1e-12);
-  // A bone that moves as predicted again: the oldest leave the window, the margin closes.
-  for (int i = 0; i < 3; ++i) limit.onResidual(5e-4);
-  EXPECT_EQ(limit.spread(), 0.0);
-  EXPECT_NEAR(limit.limit(), before - 5e-4, 1e-12);
-  params.spread_samples = 1;
-  EXPECT_THROW(pd::DepthLimit{params}, std::invalid_argument);
 }
 
 TEST(ImagingPlan, ThePlanIsTheMeasuredFarSideLessTheMarginInTheMarkersFrame) {

@@ -32,9 +32,7 @@ const ParamTable<DepthLimitParams>& DepthLimitParams::table() {
         .number("contact_force_n", &P::contact_force_n, Range::aboveUpTo(0, 5), "N")
         .integer("contact_samples", &P::contact_samples, Range::closed(1, 100))
         .number("max_plan_angle_deg", &P::max_plan_angle_deg, Range::aboveUpTo(0, 30), "deg")
-        .integer("residual_samples", &P::residual_samples, Range::closed(1, 100))
-        .integer("spread_samples", &P::spread_samples, Range::closed(2, 100))
-        .number("spread_gain", &P::spread_gain, Range::closed(0, 5));
+        .integer("residual_samples", &P::residual_samples, Range::closed(1, 100));
     return d;
   }();
   return t;
@@ -94,8 +92,7 @@ void DepthLimit::onThrust(double predicted_advance, double thrust_n) {
 void DepthLimit::onResidual(double residual_m) {
   if (!active_ || !std::isfinite(residual_m)) return;
   residuals_.push_back(residual_m);
-  const int keep = std::max(params_.residual_samples, params_.spread_samples);
-  while (static_cast<int>(residuals_.size()) > keep) residuals_.pop_front();
+  while (static_cast<int>(residuals_.size()) > params_.residual_samples) residuals_.pop_front();
 }
 
 double DepthLimit::entry() const {
@@ -106,22 +103,11 @@ double DepthLimit::entry() const {
 
 double DepthLimit::correction() const {
   if (residuals_.empty()) return 0.0;
-  const auto n =
-      std::min<std::size_t>(residuals_.size(), static_cast<std::size_t>(params_.residual_samples));
-  return std::accumulate(residuals_.end() - static_cast<std::ptrdiff_t>(n), residuals_.end(), 0.0) /
-         static_cast<double>(n);
+  return std::accumulate(residuals_.begin(), residuals_.end(), 0.0) /
+         static_cast<double>(residuals_.size());
 }
 
-double DepthLimit::spread() const {
-  const auto n =
-      std::min<std::size_t>(residuals_.size(), static_cast<std::size_t>(params_.spread_samples));
-  if (n < 2) return 0.0;
-  const auto [lo, hi] =
-      std::minmax_element(residuals_.end() - static_cast<std::ptrdiff_t>(n), residuals_.end());
-  return *hi - *lo;
-}
-
-double DepthLimit::limit() const { return entry() + depth_ - correction() - onlineMargin(); }
+double DepthLimit::limit() const { return entry() + depth_ - correction(); }
 
 std::string DepthLimit::describe() const {
   std::ostringstream os;
@@ -130,8 +116,7 @@ std::string DepthLimit::describe() const {
      << entry() * 1e3 << " mm of advance ("
      << (contact_ ? "sensed contact" : "no contact sensed: the registration's shallow end")
      << "; registered entry " << registered_entry_ * 1e3 << " +- " << tolerance_ * 1e3
-     << " mm), tracker correction " << correction() * 1e3 << " mm, online margin "
-     << onlineMargin() * 1e3 << " mm";
+     << " mm), tracker correction " << correction() * 1e3 << " mm";
   return os.str();
 }
 

@@ -507,14 +507,11 @@ struct ClosedLoopEngine::Impl {
     double& worst = record.depth_estimate_error_max_m;
     if (std::isnan(worst) || error > worst) worst = error;
     std::vector<double>& windows = record.depth_estimate_window_errors_m;
-    std::vector<double>& spreads = record.depth_estimate_window_spreads_m;
     if (windows.empty() || now >= depth_window_start + kDepthWindowS) {
       windows.push_back(error);
-      spreads.push_back(limit.spread());
       depth_window_start = now;
     } else {
       windows.back() = std::max(windows.back(), error);
-      spreads.back() = std::min(spreads.back(), limit.spread());
     }
   }
 

@@ -8,10 +8,7 @@
 // predicted bone (the tracker's residual against the prediction corrects the prediction), takes
 // the bone's surface where the drill's own thrust first shows contact (within the registration's
 // tolerance of the planned entry; its shallow end when no contact shows), and holds the feed at
-// the surface plus the planned depth, less a margin that widens online with the spread of the
-// tracker's recent residuals: a bone that moves as predicted leaves the plan's own margin, a
-// bone that does not (a wrong model, a compensator that lags) widens it by what the correction
-// cannot know.
+// the surface plus the planned depth.
 #ifndef PEDICLE_DRILLING_CORE_DEPTH_LIMIT_HPP_
 #define PEDICLE_DRILLING_CORE_DEPTH_LIMIT_HPP_
 
@@ -65,16 +62,6 @@ struct DepthLimitParams {
   /** @brief Tracker samples whose axial residual against the prediction are averaged into the
    *         correction, [1, 100]: 4, half a second at 8 Hz. */
   int residual_samples = 4;
-  /** @brief Tracker samples over which the residual's spread (largest minus smallest) is taken,
-   *         [2, 100]: 8, one second at 8 Hz (a fifth of a breath at 12 /min). */
-  int spread_samples = 8;
-  /**
-   * @brief Margin added to the plan's per metre of residual spread, [0, 5]: the correction is
-   *        the residual's recent mean, so a residual that changes within the spread window can
-   *        be off by about its spread when the limit acts. Chosen on calibration seeds from the
-   *        limit's estimate errors, never outcomes (scripts/dev/calibration_depth_margin.py).
-   */
-  double spread_gain = 1.0;
 
   /** @brief Check every field. @throws std::invalid_argument naming the field. */
   void validate() const;
@@ -121,15 +108,9 @@ class DepthLimit {
   double entry() const;
   /** @brief The mean residual of the last residual_samples tracker samples [m]. */
   double correction() const;
-  /** @brief The largest minus the smallest residual of the last spread_samples tracker samples
-   *         [m]; 0 with fewer than two. */
-  double spread() const;
-  /** @brief The online margin [m]: spread_gain x spread(). */
-  double onlineMargin() const { return params_.spread_gain * spread(); }
   /**
-   * @brief The deepest predicted advance allowed now [m]: entry() + depth - correction() -
-   *        onlineMargin() (a bone nearer the drill than predicted, or less well predicted,
-   *        lowers it).
+   * @brief The deepest predicted advance allowed now [m]: entry() + depth - correction() (a
+   *        bone nearer the drill than predicted lowers it).
    */
   double limit() const;
   /** @brief The plan's depth [m]. */

@@ -298,11 +298,6 @@ struct EngineTrialRecord {
    *        the limit from the hold until the stop's retreat, at most about one window).
    */
   std::vector<double> depth_estimate_window_errors_m;
-  /**
-   * @brief The residual's spread (DepthLimit::spread) at its smallest in each of those windows
-   *        [m], in the same order: what the limit's online margin covered at least there.
-   */
-  std::vector<double> depth_estimate_window_spreads_m;
   /** @brief The plan's far-side error before its margin (ImagingPlan::far_side_error_m) [m]. */
   double plan_far_side_error_m = 0.0;
 };
