@@ -1,8 +1,10 @@
 """The simulator's calibration against the paper's force figures
 (doc/simulator_physics.md "Measurement chain"), re-checked: the peak_forces protocol with the
-simulator's defaults (the calibrated DAQ rate and chisel-edge share), on the documented seed,
-reproduces Fig. 16 within the stated tolerances, and the documented row of that rate within
-sampling error. 40 trials per case here (200 in the doc)."""
+simulator's defaults (the calibrated DAQ rate and chisel-edge share), on calibration seeds (base
+seed 1 of the calibration space: no gate of the build is measured on the evaluation seeds whose
+numbers are published), reproduces Fig. 16 within the stated tolerances, and the documented row
+of that rate (evaluation seeds) within sampling error. 40 trials per case here (200 in the
+doc)."""
 import csv
 import os
 import re
@@ -49,7 +51,8 @@ def calibrated(tmp_path_factory):
     scenario.write_text(re.sub(r'(?m)^trials:.*$', 'trials: 40', scenario_text))
     out = scenario.parent / 'out'
     result = subprocess.run(['rosrun', 'pedicle_drilling', 'campaign', '--scenario',
-                             str(scenario), '--out', str(out), '--jobs', '2', '--engine', 'core'],
+                             str(scenario), '--out', str(out), '--jobs', '2', '--engine', 'core',
+                             '--seed-space', 'calibration', '--seed', '1'],
                             capture_output=True, text=True, timeout=900)
     assert result.returncode == 0, result.stderr[-3000:]
     with open(out / 'trials.csv') as handle:

@@ -69,23 +69,22 @@ std::string PaperCompensator::describe() const {
 
 // ------------------------------------------------------------- TrackedMarkerCompensator
 
-void TrackedMarkerParams::validate() const {
-  if (!(std::isfinite(max_horizon_s) && max_horizon_s > 0.0 && max_horizon_s <= 10.0)) {
-    throw std::invalid_argument("max_horizon_s: must be in (0, 10] s");
-  }
+const ParamTable<TrackedMarkerParams>& TrackedMarkerParams::table() {
+  static const ParamTable<TrackedMarkerParams> t = [] {
+    using P = TrackedMarkerParams;
+    ParamTable<P> d;
+    d.flag("extrapolate", &P::extrapolate)
+        .number("max_horizon_s", &P::max_horizon_s, Range::aboveUpTo(0, 10), "s");
+    return d;
+  }();
+  return t;
 }
+
+void TrackedMarkerParams::validate() const { table().validate(*this); }
 
 void TrackedMarkerCompensator::configure(const CompensatorSettings& settings) {
   TrackedMarkerParams p;
-  for (const auto& [name, value] : settings) {
-    if (name == "extrapolate") {
-      p.extrapolate = parseSettingBool(name, value);
-    } else if (name == "max_horizon_s") {
-      p.max_horizon_s = parseSettingDouble(name, value);
-    } else {
-      throw std::invalid_argument(name + ": unknown tracked-marker compensator parameter");
-    }
-  }
+  for (const auto& [name, value] : settings) TrackedMarkerParams::table().set(p, name, value);
   p.validate();
   p_ = p;
 }
@@ -116,7 +115,9 @@ std::string TrackedMarkerCompensator::describe() const {
 }
 
 std::vector<std::string> TrackedMarkerCompensator::parameterNames() const {
-  return {"extrapolate", "max_horizon_s"};
+  std::vector<std::string> names;
+  for (const auto& e : TrackedMarkerParams::table().entries()) names.push_back(e.info.name);
+  return names;
 }
 
 // ----------------------------------------------------------------------------- guard

@@ -20,6 +20,7 @@
 
 #include "pedicle_drilling/core/breathing/motion_model.hpp"
 #include "pedicle_drilling/core/breathing/ventilator.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -117,6 +118,8 @@ struct TrackedMarkerParams {
   double max_horizon_s = 0.5;
   /** @throws std::invalid_argument naming the field. */
   void validate() const;
+  /** @brief The declaration of the fields (the class's settings, by these names). */
+  static const ParamTable<TrackedMarkerParams>& table();
 };
 
 /**
