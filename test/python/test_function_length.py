@@ -91,3 +91,53 @@ def test_no_function_over_the_limit():
                             long.append('%s:%d %d lines (%s)' % (os.path.relpath(path, ROOT),
                                                                 first, lines, head))
     assert long == [], 'functions over %d lines:\n%s' % (LIMIT, '\n'.join(long))
+
+
+# Python: no function over 80 lines in the package, the tools and the scripts. The ones below
+# were longer when the limit came (argument parsers and a worker's main loop); each may only
+# shrink until it is split, and the list only lose entries.
+PYTHON_LIMIT = 80
+PYTHON_DIRS = ('src', 'scripts')
+PYTHON_PENDING = {
+    ('src/pd_campaign/worker.py', 'main'): 200,
+    ('src/pd_campaign/cli.py', 'parse_args'): 199,
+    ('src/pd_campaign/cli.py', 'load_scenario'): 101,
+    ('scripts/table2.py', 'main'): 101,
+}
+
+
+def python_functions(path):
+    """(name, lines) of every function and method in a Python file."""
+    import ast
+    with open(path) as handle:
+        tree = ast.parse(handle.read(), path)
+    return [(node.name, node.end_lineno - node.lineno + 1) for node in ast.walk(tree)
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))]
+
+
+def test_the_python_scan_counts_from_the_def_to_the_last_line(tmp_path):
+    path = tmp_path / 'module.py'
+    path.write_text('def short():\n    return 1\n\n\nclass A:\n    def method(self):\n'
+                    + '        x = 1\n' * 90 + '        return x\n')
+    assert python_functions(str(path)) == [('short', 2), ('method', 92)]
+
+
+def test_no_python_function_over_the_limit():
+    long, seen = [], set()
+    for top in PYTHON_DIRS:
+        for folder, _, files in os.walk(os.path.join(ROOT, top)):
+            for name in sorted(files):
+                if not name.endswith('.py'):
+                    continue
+                path = os.path.join(folder, name)
+                relative = os.path.relpath(path, ROOT)
+                for function, lines in python_functions(path):
+                    cap = PYTHON_PENDING.get((relative, function))
+                    if cap is not None:
+                        seen.add((relative, function))
+                    if lines > (cap if cap is not None else PYTHON_LIMIT):
+                        long.append('%s: %s, %d lines' % (relative, function, lines))
+    assert long == [], 'Python functions over %d lines (or grown past their pending cap):\n%s' % (
+        PYTHON_LIMIT, '\n'.join(long))
+    gone = sorted(set(PYTHON_PENDING) - seen)
+    assert gone == [], 'split or removed: take them off PYTHON_PENDING: %s' % gone
