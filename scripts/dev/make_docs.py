@@ -26,7 +26,9 @@ sys.path.insert(0, HERE)
 
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
+import equivalence_tables  # noqa: E402
 import population_tables  # noqa: E402
+import results_tables  # noqa: E402
 
 ARCHIVE = os.path.join(ROOT, 'doc', 'results')
 # Every document that may hold a generated block: the README and the pages of doc/ (the blocks
@@ -39,12 +41,13 @@ COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough'
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
            'error')
-# The campaigns of a `make run` output the blocks read: True for the population bench, whose
-# summary.json and every row are read; the others give only their compensated 12000 rpm rows.
+# The campaigns of a `make run` output the blocks read: True for the paper's design on the three
+# benches, whose summary.json and every row are read; the others give only their compensated
+# 12000 rpm rows.
 CAMPAIGNS = {
-    'campaign': False, 'campaign_adaptive': False, 'campaign_adaptive_ros': False,
+    'campaign': True, 'campaign_adaptive': False, 'campaign_adaptive_ros': False,
     'adaptive_amplitude': False, 'adaptive_amplitude_paper': False,
-    'campaign_realistic': False, 'campaign_realistic_adaptive': False,
+    'campaign_realistic': True, 'campaign_realistic_adaptive': False,
     'campaign_population': True, 'campaign_population_adaptive': False,
 }
 
@@ -84,13 +87,34 @@ def robustness_table(archive):
 
 def population_block(archive):
     trials = population_tables.rows(os.path.join(archive, 'campaign_population'))
-    summary = population_tables.results_tables.load(os.path.join(archive, 'campaign_population'))
-    return (captured(population_tables.results_tables.design_table, summary) + '\n'
+    summary = results_tables.load(os.path.join(archive, 'campaign_population'))
+    return (captured(results_tables.design_table, summary) + '\n'
             + captured(population_tables.kinds_table, summary, trials))
+
+
+def paper_design(archive):
+    """The README's table: the paper's design on the paper's bench against Table III."""
+    summary = results_tables.load(os.path.join(archive, 'campaign'))
+    return captured(results_tables.design_table, summary)
+
+
+def paper_metrics(archive):
+    """doc/results.md's table: why the paper's bench's trials ended as they did."""
+    summary = results_tables.load(os.path.join(archive, 'campaign'))
+    return captured(results_tables.metrics_table, summary)
+
+
+def equivalence_summary(archive):
+    """The README's sentence: the conclusion of the non-inferiority table."""
+    return captured(equivalence_tables.main, ['', archive]).strip().splitlines()[-1] + '\n'
 
 
 BLOCKS = {
     'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
+    'equivalence': lambda archive: captured(equivalence_tables.main, ['', archive]),
+    'equivalence_summary': equivalence_summary,
+    'paper_design': paper_design,
+    'paper_metrics': paper_metrics,
     'population': population_block,
     'population_identification': lambda archive: captured(
         population_tables.identification_table,

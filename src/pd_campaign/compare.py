@@ -59,6 +59,32 @@ def paired_difference_interval(both, only_a, only_b, neither, z=1.95996398454005
     return (max(-1.0, low), min(1.0, high))
 
 
+def noninferiority_p(both, only_a, only_b, neither, margin):
+    """One-sided p of "A is not worse than B by `margin` or more" (H0: p_A - p_B <= -margin) for
+    paired binary outcomes, by inverting Newcombe's interval (paired_difference_interval): the
+    one-sided level at which its lower bound reaches -margin. Below 0.025: the 95 % interval's
+    lower bound lies above -margin. 0.5 or more when the observed difference is -margin or
+    worse."""
+    n = both + only_a + only_b + neither
+    if n == 0:
+        return 1.0
+    if (only_a - only_b) / n <= -margin:
+        return 1.0 - stats.normal_cdf(0.0)  # 0.5: the estimate itself is at the margin
+
+    def lower(z):
+        return paired_difference_interval(both, only_a, only_b, neither, z)[0]
+    low_z, high_z = 0.0, 40.0
+    if lower(high_z) > -margin:
+        return 1.0 - stats.normal_cdf(high_z)
+    for _ in range(200):  # bisection: the lower bound falls as z grows
+        mid = 0.5 * (low_z + high_z)
+        if lower(mid) > -margin:
+            low_z = mid
+        else:
+            high_z = mid
+    return 1.0 - stats.normal_cdf(0.5 * (low_z + high_z))
+
+
 def read_campaign(directory):
     """(meta of design.json, rows of trials.csv) of a campaign's output folder."""
     design_path = os.path.join(directory, 'design.json')

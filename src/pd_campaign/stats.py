@@ -56,3 +56,23 @@ def paired_counts(rows_a, rows_b, key):
     only_a = sum(1 for a, b in pairs if a['success'] and not b['success'])
     only_b = sum(1 for a, b in pairs if b['success'] and not a['success'])
     return len(pairs), both, only_a, only_b, len(pairs) - both - only_a - only_b
+
+
+def holm(p_values):
+    """Holm's step-down adjusted p values, in the order given: a conclusion holds at level alpha
+    over the whole family when its adjusted p is below alpha.
+
+    Holm, S. (1979) A simple sequentially rejective multiple test procedure. Scand J Stat
+    6:65-70."""
+    order = sorted(range(len(p_values)), key=lambda i: p_values[i])
+    adjusted = [1.0] * len(p_values)
+    running = 0.0
+    for rank, i in enumerate(order):
+        running = max(running, min(1.0, (len(p_values) - rank) * p_values[i]))
+        adjusted[i] = running
+    return adjusted
+
+
+def normal_cdf(z):
+    """The standard normal distribution function."""
+    return 0.5 * math.erfc(-z / math.sqrt(2.0))
