@@ -1,9 +1,11 @@
-"""No work-item numbers in the tree: documents and comments describe the current state and name a
-capability or a document section, never the work item that brought it (the word "issue" or
-"issues", in any case, before a number, with or without "#"). The history is CHANGELOG.md's, and
-it has none either. A citation of another project's issue tracker is a source and stays: the line
-names that project (CITATION below). scripts/dev/commit-msg applies the same rule to commit
-messages."""
+"""No work-item or session numbers in the tree: documents and comments describe the current state
+and name a capability or a document section, never the work item that brought it (the word
+"issue" or "issues", in any case, before a number, with or without "#") nor the working session
+a measurement was made in (the word "session" or "sessions", in any case, before a number): a
+reader has neither. A measurement carries its date instead. The history is CHANGELOG.md's, and
+it has none either (it is checked like every other file). A citation of another project's issue
+tracker is a source and stays: the line names that project (CITATION below).
+scripts/dev/commit-msg applies the work-item rule to commit messages."""
 import os
 import re
 import subprocess
@@ -13,6 +15,10 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 # break (and a comment leader) falls between the two.
 REFERENCE = re.compile(r'\bissues?(?:[ \t]+|[ \t]*\n[ \t]*(?:#+|//+|\*|;+)?[ \t]*)#?\d',
                        re.IGNORECASE)
+# The word "session", singular or plural, in any case, then a number with or without "#"; also
+# across a line break and a comment leader, as above. No citation is exempt.
+SESSION = re.compile(r'\bsessions?(?:[ \t]+|[ \t]*\n[ \t]*(?:#+|//+|\*|;+)?[ \t]*)#?\d',
+                     re.IGNORECASE)
 # A line that cites another project's tracker: a web address, owner/repository#N, or one of the
 # projects the documents cite by name.
 CITATION = re.compile(r'https?://|github\.com|[\w.-]+/[\w.-]+#\d|Universal_Robots|ros_comm|'
@@ -37,6 +43,13 @@ def references(text):
         if not CITATION.search(line):
             found.append((number, line))
     return found
+
+
+def session_references(text):
+    """(line number, line) of every session number in text."""
+    lines = text.splitlines()
+    return [(text.count('\n', 0, m.start()) + 1, lines[text.count('\n', 0, m.start())])
+            for m in SESSION.finditer(text)]
 
 
 def text_of(name):
@@ -65,6 +78,19 @@ def test_no_work_item_number_in_the_tree():
                       'instead):\n' + '\n'.join(hits))
 
 
+def test_no_session_number_in_the_tree():
+    """Every tracked file, CHANGELOG.md included: a measurement names its date, not the session
+    it was made in."""
+    hits = []
+    for name in tracked_files():
+        text = text_of(name)
+        if text is None:
+            continue
+        for number, line in session_references(text):
+            hits.append('%s:%d: %s' % (name, number, line.strip()[:120]))
+    assert not hits, ('session numbers (give the date of the run instead):\n' + '\n'.join(hits))
+
+
 def test_pending_cleanup_names_tracked_files():
     """Every entry of PENDING_CLEANUP is a tracked file (a renamed or deleted one leaves it)."""
     tracked = set(tracked_files())
@@ -89,3 +115,19 @@ def test_the_check_sees_a_planted_reference():
     for clean in ('The recognizer of each trial: empty = the paper\'s.',
                   'tissue 3 mm deep', 'an issue with 2 threads', 'issues: none'):
         assert references(clean) == [], clean
+
+
+def test_the_check_sees_a_planted_session_number():
+    """The session pattern catches the word with a capital, the plural, "#" and a number carried
+    over a comment's line break ("session", then "# 5" on the next line), and lets a session
+    without a number through. The examples are built
+    here so that this file itself holds none."""
+    for form in ('Session %d', 'session %d', 'sessions %d and 5', 'SESSION #%d', 'session\t%d'):
+        text = '(measured in %s, one run, 2 cores)' % (form % 4)
+        assert session_references(text) == [(1, text)], form
+    for leader in ('#', '//', '*', ';', ''):
+        wrapped = 'the run of the session\n%s %d, 2 cores' % (leader, 5)
+        assert session_references(wrapped) == [(1, 'the run of the session')], leader
+    for clean in ('one session, 2 cores', 'the session\'s machine is faster',
+                  'a rosbag session: 3 topics', 'sessions: none', 'session4'):
+        assert session_references(clean) == [], clean

@@ -102,8 +102,8 @@ def test_nodelet_plugins_declared_and_exported():
 
 def test_make_test_runs_every_rostest_folder():
     """Every folder of .test files is a glob of the test runner's rostest loop: the C++-node
-    scenarios of test/rostest_gtest were built but never run by `make test` until session 10
-    (the lockstep participant's own scenario among them)."""
+    scenarios of test/rostest_gtest (the lockstep participant's own scenario among them) are
+    run by `make test`, not only built."""
     with open(os.path.join(ROOT, 'scripts', 'dev', 'run_tests.sh')) as handle:
         runner = handle.read()
     folders = {os.path.relpath(os.path.dirname(f), ROOT) for f in files('test/**/*.test')}

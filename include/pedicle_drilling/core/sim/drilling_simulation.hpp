@@ -190,8 +190,7 @@ struct DrillingSimulationParams {
   double arm_rate_in_air_hz = 250.0;
   /// @brief A block runs at arm_rate_in_air_hz only with the tip out of contact and at least this
   /// far above the bone's top surface, plus twice the block's approach at the last block's
-  /// speed [m]. Chosen on calibration seeds by trace accuracy against one rate (doc/benchmarks.md,
-  /// session 6).
+  /// speed [m]. Chosen on calibration seeds by trace accuracy against one rate (doc/benchmarks.md).
   double arm_air_clearance_m = 2.0e-4;
   /// @brief The arm's BulletArmParams::inverse_inertia_tolerance [rad or m]; 0 = every step.
   double arm_inverse_inertia_tolerance = 1.0e-4;
