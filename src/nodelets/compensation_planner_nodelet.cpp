@@ -81,7 +81,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
     heartbeat_timer_.stop();
     steady_heartbeat_timer_.stop();
-    route_.reset();                     // a running goal is canceled: the controllers hold
+    // A running goal is canceled (the controllers hold); a fault handler that runs meanwhile
+    // finds no route (mutex_) and does nothing.
+    std::unique_ptr<TrajectoryRoute> route;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      route.swap(route_);
+    }
+    route.reset();
     if (lockstep_) lockstep_->drain();  // a callback already running on the shared queue ends
   }
 
@@ -126,12 +133,9 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // controller rejects or aborts is a controller fault, as the controller watch's.
     std::vector<std::string> controller_names;
     for (const core::ControllerSpec& c : controllers_) controller_names.push_back(c.name);
-    route_ = std::make_unique<TrajectoryRoute>(nh, controller_names, params_.useAction(),
-                                               [this](const std::string& why) {
-                                                 std::lock_guard<std::mutex> lock(mutex_);
-                                                 sequencer_->onControllerFault(now(), why);
-                                                 carryOut();
-                                               });
+    route_ = std::make_unique<TrajectoryRoute>(
+        nh, controller_names, params_.useAction(),
+        [this](const std::string& why) { onControllerFault(why); });
     // rad/s (REP 103), not latched: a driver that reconnects must not get an old speed again;
     // repeated every ~spindle_keepalive_s while it runs, for the driver's watchdog.
     spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10);
@@ -283,6 +287,15 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     sequencer_->onControllerState(now(), name, fromMsg(*msg, 0.0));
+    carryOut();
+  }
+
+  /** @brief A goal the controller rejected, aborted or lost (TrajectoryRoute): a controller
+   *         fault while a trial runs. */
+  void onControllerFault(const std::string& why) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!route_) return;  // unloading
+    sequencer_->onControllerFault(now(), why);
     carryOut();
   }
 
@@ -528,7 +541,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     for (const core::JointTrajectoryCommand& c : out.trajectories) {
       // One stream per controller, each naming its own joints (as a lab's controllers take it).
       for (const auto& [index, part] : core::splitByController(c, controllers_)) {
-        route_->send(index, toMsg(part));
+        if (route_) route_->send(index, toMsg(part));
       }
     }
     for (const core::PredictedMarker& m : out.predicted) publishInOrder(predicted_pub_, toMsg(m));
