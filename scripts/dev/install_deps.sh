@@ -6,6 +6,7 @@ PACKAGES=(
   build-essential cmake pkg-config ccache
   catkin python3-catkin-pkg catkin-lint
   ros-core-dev ros-message-generation ros-message-runtime rosbash
+  libactionlib-dev python3-actionlib libactionlib-msgs-dev python3-actionlib-msgs
   libroscpp-dev libnodeletlib-dev libnodeletlib-tools python3-nodelet
   libtf2-ros-dev libtf2-eigen-dev libtf2-geometry-msgs-dev python3-tf2-ros
   libgeometry-msgs-dev libsensor-msgs-dev libtrajectory-msgs-dev libdiagnostic-msgs-dev

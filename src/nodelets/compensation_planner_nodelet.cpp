@@ -4,12 +4,13 @@
  *        (`~start_trial`): every component started afresh, spindle on, arm to the drilling pose,
  *        marker registration, then every 125 ms the next trapezoidal segment of feed
  *        (+ predicted displacement in compensated mode) as a JointTrajectory on
- *        each controller's `<name>/command` (by default arm_controller: the 6 arm joints;
- *        feed_controller: feed_joint); stops on `drill/stop` (hold, or retreat along the drill
- * axis); holds the feed at the depth of the drilling plan (`drilling_plan`), from the contact the
- *        thrust on `ft_sensor/wrench` shows. Thin ROS adapter of core::TrialSequencer (the trial
- *        logic, shared with the closed-loop engine): parameters, message conversion, timers and
- *        the component resets.
+ *        each controller's `<name>/command`, or as a FollowJointTrajectory goal on its
+ *        `<name>/follow_joint_trajectory` (~trajectory_interface; by default arm_controller: the 6
+ *        arm joints; feed_controller: feed_joint); stops on `drill/stop` (hold, or retreat along
+ * the drill axis); holds the feed at the depth of the drilling plan (`drilling_plan`), from the
+ * contact the thrust on `ft_sensor/wrench` shows. Thin ROS adapter of core::TrialSequencer (the
+ * trial logic, shared with the closed-loop engine): parameters, message conversion, timers and the
+ * component resets.
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/PoseStamped.h>
@@ -54,6 +55,7 @@
 #include "pedicle_drilling/ros/plugin_loader.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
+#include "pedicle_drilling/ros/trajectory_route.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -79,6 +81,14 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     }
     heartbeat_timer_.stop();
     steady_heartbeat_timer_.stop();
+    // A running goal is canceled (the controllers hold); a fault handler that runs meanwhile
+    // finds no route (mutex_) and does nothing.
+    std::unique_ptr<TrajectoryRoute> route;
+    {
+      std::lock_guard<std::mutex> lock(mutex_);
+      route.swap(route_);
+    }
+    route.reset();
     if (lockstep_) lockstep_->drain();  // a callback already running on the shared queue ends
   }
 
@@ -105,6 +115,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
       // Under the lockstep: one thread for the participants' callbacks; ~start_trial
       // keeps its own queue and thread below (it waits for the other nodelets' services).
       lockstep_->shareQueue({&nh, &pnh});
+      if (params_.useAction() && lockstep_->enabled()) {
+        throw std::invalid_argument(
+            "parameter '" + pnh.resolveName("trajectory_interface") +
+            "' = 'action' is not available under the lockstep (/use_sim_lockstep): its goals "
+            "and results are not steps; use 'topic'");
+      }
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
@@ -113,10 +129,13 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // The nodelet manager runs this nodelet's callbacks while onInit still runs (nodelet
     // 1.10.2): every publisher and client exists before the first callback is registered, and
     // the steps of the lockstep come last.
-    for (const core::ControllerSpec& c : controllers_) {
-      trajectory_pubs_.push_back(
-          nh.advertise<trajectory_msgs::JointTrajectory>(c.name + "/command", 10));
-    }
+    // ~trajectory_interface: the command topics or the action (one route). A goal the
+    // controller rejects or aborts is a controller fault, as the controller watch's.
+    std::vector<std::string> controller_names;
+    for (const core::ControllerSpec& c : controllers_) controller_names.push_back(c.name);
+    route_ = std::make_unique<TrajectoryRoute>(
+        nh, controller_names, params_.useAction(),
+        [this](const std::string& why) { onControllerFault(why); });
     // rad/s (REP 103), not latched: a driver that reconnects must not get an old speed again;
     // repeated every ~spindle_keepalive_s while it runs, for the driver's watchdog.
     spindle_pub_ = nh.advertise<std_msgs::Float64>("spindle/command", 10);
@@ -137,10 +156,12 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     const core::TrialSequencerParams& p = sequencer_->params();
     NODELET_INFO(
         "CompensationPlanner: patient '%s', drill axis (%.3f %.3f %.3f), latency %.3f s, "
-        "compensator %s, depth limit from the drill tip '%s' and the thrust on %s",
+        "compensator %s, depth limit from the drill tip '%s' and the thrust on %s, "
+        "trajectories to %s%s",
         patient_.patient_id.c_str(), p.compensation.drill_axis.x(), p.compensation.drill_axis.y(),
         p.compensation.drill_axis.z(), p.compensation.latency_s, params_.compensator_class.c_str(),
-        params_.tip_link.c_str(), params_.thrust_axis.c_str());
+        params_.tip_link.c_str(), params_.thrust_axis.c_str(), route_->name(0).c_str(),
+        controllers_.size() > 1 ? " ..." : "");
     for (const std::string& off : params_.disabledWatchdogs()) {
       NODELET_WARN("CompensationPlanner: UNSAFE (~unsafe_allow_disabled_watchdogs): %s",
                    off.c_str());
@@ -266,6 +287,15 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     sequencer_->onControllerState(now(), name, fromMsg(*msg, 0.0));
+    carryOut();
+  }
+
+  /** @brief A goal the controller rejected, aborted or lost (TrajectoryRoute): a controller
+   *         fault while a trial runs. */
+  void onControllerFault(const std::string& why) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (!route_) return;  // unloading
+    sequencer_->onControllerFault(now(), why);
     carryOut();
   }
 
@@ -441,6 +471,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     // is held while calling: the components' answers may need this nodelet's callbacks.
     lock.unlock();
     const bool started =
+        route_->waitForServers(params_.action_server_timeout_s, &res.message) &&
         guardListens(&res.message) &&
         callTriggerChain(&trial_start_clients_, params_.trial_start_timeout_s, &res.message);
     lock.lock();
@@ -510,7 +541,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
     for (const core::JointTrajectoryCommand& c : out.trajectories) {
       // One stream per controller, each naming its own joints (as a lab's controllers take it).
       for (const auto& [index, part] : core::splitByController(c, controllers_)) {
-        publishInOrder(trajectory_pubs_[index], toMsg(part));
+        if (route_) route_->send(index, toMsg(part));
       }
     }
     for (const core::PredictedMarker& m : out.predicted) publishInOrder(predicted_pub_, toMsg(m));
@@ -631,7 +662,7 @@ class CompensationPlannerNodelet : public nodelet::Nodelet {
   std::unique_ptr<tf2_ros::Buffer> tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::vector<core::ControllerSpec> controllers_;       ///< params_.controllers, checked
-  std::vector<ros::Publisher> trajectory_pubs_;         ///< one per controller
+  std::unique_ptr<TrajectoryRoute> route_;              ///< the trajectories' route
   std::vector<ros::Subscriber> controller_state_subs_;  ///< <controller>/state, one each
   ros::Publisher spindle_pub_;
   ros::Publisher predicted_pub_;

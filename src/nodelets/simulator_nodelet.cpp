@@ -60,6 +60,7 @@
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
+#include "pedicle_drilling/ros/trajectory_action_server.hpp"
 #include "pedicle_drilling/ros/ventilator_conversions.hpp"
 
 namespace pedicle_drilling {
@@ -77,6 +78,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     if (thread_.joinable()) thread_.join();
     if (lockstep_spinner_) lockstep_spinner_->stop();
     if (trial_spinner_) trial_spinner_->stop();
+    actions_.reset();  // its thread ends: no goal reaches sim_ after this
   }
 
  private:
@@ -95,6 +97,13 @@ class SimulatorNodelet : public nodelet::Nodelet {
       }
       urdf_xml_ = loader.readFile("urdf_path", params.urdf_path);  // a reset builds a new one
       lockstep_ = useSimLockstep();
+      follow_joint_trajectory_ = params.follow_joint_trajectory;
+      if (follow_joint_trajectory_ && lockstep_) {
+        throw std::invalid_argument(
+            "parameter '" + pnh.resolveName("follow_joint_trajectory") +
+            "' true is not available under the lockstep (/use_sim_lockstep): an action's goals "
+            "and results are not steps");
+      }
       lockstep_timeout_s_ = params.lockstep_timeout_s;
       lockstep_every_step_ = params.lockstep_every_step;
       command_transport_ = core::CommandTransport(params.command_delay_s, params.command_jitter_s,
@@ -239,6 +248,27 @@ class SimulatorNodelet : public nodelet::Nodelet {
         nh.advertiseService("simulator/stall_joint", &SimulatorNodelet::onStallJoint, this);
     abort_controller_srv_ = nh.advertiseService("simulator/abort_controller",
                                                 &SimulatorNodelet::onAbortController, this);
+    if (follow_joint_trajectory_) advertiseActions(nh, controller_names);
+  }
+
+  /**
+   * @brief ~follow_joint_trajectory: each controller's FollowJointTrajectory server beside its
+   *        command topic (a goal's trajectory takes the topic's path: the same rules).
+   */
+  void advertiseActions(const ros::NodeHandle& nh, const std::vector<std::string>& controllers) {
+    TrajectoryActionServer::Hooks hooks;
+    hooks.command = [this](const std::string& controller,
+                           const trajectory_msgs::JointTrajectory& msg,
+                           double* end_s) { return applyTrajectory(controller, msg, end_s); };
+    hooks.hold = [this](const std::string& controller) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      sim_->holdController(controller);
+    };
+    hooks.now = [this]() {
+      std::lock_guard<std::mutex> lock(mutex_);
+      return sim_->time();
+    };
+    actions_ = std::make_unique<TrajectoryActionServer>(nh, controllers, std::move(hooks));
   }
 
   ros::Time stampOf(double sim_time) const { return ros::Time(sim_time + time_offset_); }
@@ -815,6 +845,10 @@ class SimulatorNodelet : public nodelet::Nodelet {
     }
     NODELET_WARN("Simulator: %s aborted its trajectory: it holds where its reference is",
                  request.controller.c_str());
+    if (actions_) {
+      actions_->abort(request.controller,
+                      request.controller + " aborted its trajectory (simulator/abort_controller)");
+    }
     response.success = true;
     response.message = request.controller + " aborted";
     return true;
@@ -838,18 +872,37 @@ class SimulatorNodelet : public nodelet::Nodelet {
 
   void onTrajectory(const std::string& controller,
                     const trajectory_msgs::JointTrajectory::ConstPtr& msg) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
     if (lockstep_) {
+      std::lock_guard<std::mutex> lock(mutex_);
+      const core::TrajectoryCommand command = fromMsg(*msg, sim_->time(), time_offset_);
       pending_.push_back({commandDue(), command, 0.0, controller, std::nullopt});
       return;
     }
+    applyTrajectory(controller, *msg, nullptr);
+  }
+
+  /**
+   * @brief Without the lockstep: a trajectory for @p controller (its command topic or a
+   *        FollowJointTrajectory goal) taken now; @p end_s (if given) gets the time the
+   *        controller's trajectory ends when taken.
+   */
+  core::TargetResult applyTrajectory(const std::string& controller,
+                                     const trajectory_msgs::JointTrajectory& msg, double* end_s) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const core::TrajectoryCommand command = fromMsg(msg, sim_->time(), time_offset_);
     noteLateness(command);
     const core::TargetResult r = sim_->commandTrajectory(controller, command);
     wait_given_up_ = false;
     reportTrajectory(controller, r);  // counts under mutex_
+    if (end_s != nullptr) {
+      const std::vector<core::ControllerSpec>& specs = sim_->controllers();
+      for (std::size_t i = 0; i < specs.size(); ++i) {
+        if (specs[i].name == controller) *end_s = sim_->controllerTrajectoryEnd(i);
+      }
+    }
     lock.unlock();
     command_cv_.notify_all();
+    return r;
   }
 
   /** @brief Late: its start passed before it arrived (half a physics step of rounding allowed);
@@ -1029,13 +1082,15 @@ class SimulatorNodelet : public nodelet::Nodelet {
   }
 
   std::mutex mutex_;
-  std::condition_variable command_cv_;  ///< a trajectory, a planner phase, a hold or a resume
-  std::string urdf_xml_;                ///< the workcell, for the simulation of each reset
-  bool restart_pacing_ = false;         ///< a reset restarted sim time
-  std::optional<double> hold_at_;       ///< the trial's start drawn by the reset (sim time)
-  bool held_ = false;                   ///< sim time stands at hold_at_
-  std::uint64_t reset_generation_ = 0;  ///< counts resets (a hold ends with its simulation)
-  bool lockstep_ = false;               ///< /use_sim_lockstep
+  std::condition_variable command_cv_;    ///< a trajectory, a planner phase, a hold or a resume
+  std::string urdf_xml_;                  ///< the workcell, for the simulation of each reset
+  bool restart_pacing_ = false;           ///< a reset restarted sim time
+  std::optional<double> hold_at_;         ///< the trial's start drawn by the reset (sim time)
+  bool held_ = false;                     ///< sim time stands at hold_at_
+  std::uint64_t reset_generation_ = 0;    ///< counts resets (a hold ends with its simulation)
+  bool lockstep_ = false;                 ///< /use_sim_lockstep
+  bool follow_joint_trajectory_ = false;  ///< ~follow_joint_trajectory
+  std::unique_ptr<TrajectoryActionServer> actions_;  ///< its servers (else null)
   double lockstep_timeout_s_ = 5.0;
   core::CommandTransport command_transport_;  ///< under the lockstep (set at every reset)
   double tracker_delay_s_ = 0.0;              ///< (re-read at every reset)

@@ -52,6 +52,7 @@ const ParamTable<SimulatorNodeParams>& SimulatorNodeParams::table() {
         .number("command_wait_s", &P::command_wait_s, Range::closed(0, 60), "s")
         .number("lockstep_timeout_s", &P::lockstep_timeout_s, Range::closed(0.01, 600), "s")
         .flag("lockstep_every_step", &P::lockstep_every_step)
+        .flag("follow_joint_trajectory", &P::follow_joint_trajectory)
         .number("command_delay_s", &P::command_delay_s, Range::closed(0.001, 1), "s")
         .number("command_jitter_s", &P::command_jitter_s, Range::closed(0, 1), "s")
         .number("tracker_delay_s", &P::tracker_delay_s, Range::closed(0, 1), "s")
@@ -286,6 +287,12 @@ const ParamTable<CompensationPlannerNodeParams>& CompensationPlannerNodeParams::
         .number("heartbeat_period_s", &P::heartbeat_period_s, Range::closed(0.001, 0.1), "s")
         .number("breath_timeout_periods", &P::breath_timeout_periods, Range::aboveUpTo(1, 10),
                 "breath periods")
+        .parsed(
+            "trajectory_interface", {"topic", "action"}, "",
+            [](const P& v) { return v.trajectory_interface; },
+            [](P& v, const std::string& x) { v.trajectory_interface = x; })
+        .number("action_server_timeout_s", &P::action_server_timeout_s, Range::aboveUpTo(0, 60),
+                "s")
         .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
     return d;
   }();

@@ -125,3 +125,30 @@ def test_controller_state_is_wire_compatible_with_control_msgs():
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == CONTROL_MSGS_STATE_MD5
+
+
+# control_msgs' md5sums in ROS Noetic (control_msgs 1.5: FollowJointTrajectory.action with
+# path_tolerance, goal_tolerance, goal_time_tolerance and the result's error_string;
+# JointTolerance without effort), as its generated messages publish them.
+CONTROL_MSGS_FOLLOW_JOINT_TRAJECTORY_MD5 = {
+    'JointTolerance': 'f544fe9c16cf04547e135dd6063ff5be',
+    'FollowJointTrajectoryAction': 'bc4f9b743838566551c0390c65f1a248',
+    'FollowJointTrajectoryGoal': '69636787b6ecbde4d61d711979bc7ecb',
+    'FollowJointTrajectoryActionGoal': 'cff5c1d533bf2f82dd0138d57f4304bb',
+    'FollowJointTrajectoryResult': '493383b18409bfb604b4e26c676401d2',
+    'FollowJointTrajectoryActionResult': 'c4fb3b000dc9da4fd99699380efcc5d9',
+    'FollowJointTrajectoryFeedback': '10817c60c2486ef6b33e97dcd87f4474',
+    'FollowJointTrajectoryActionFeedback': 'd8920dc4eae9fc107e00999cce4be641',
+}
+
+
+def test_follow_joint_trajectory_is_wire_compatible_with_control_msgs():
+    """doc/hardware.md, "The arm and the feed axis": the planner's goals (~trajectory_interface
+    action) reach a ros_control controller's control_msgs follow_joint_trajectory action server
+    directly (ROS 1 matches a connection by md5sum): every message of the action (goal, result,
+    feedback, their action wrappers) and JointTolerance keep control_msgs' fields."""
+    for name, md5 in sorted(CONTROL_MSGS_FOLLOW_JOINT_TRAJECTORY_MD5.items()):
+        out = subprocess.run(['rosmsg', 'md5', 'pedicle_drilling/' + name],
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+        assert out.stdout.strip() == md5, name

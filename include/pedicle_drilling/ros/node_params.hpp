@@ -52,6 +52,10 @@ struct SimulatorNodeParams {
   /// the end of the last one it received (sim time waits for the planner); 0: never waits.
   double command_wait_s = 1.0;
   double lockstep_timeout_s = 5.0;  ///< wall time to wait for a lockstep participant
+  /// Serves control_msgs' FollowJointTrajectory on each controller's
+  /// `<controller>/follow_joint_trajectory` beside its `<controller>/command` topic, as a lab's
+  /// ros_control controllers do (not under the lockstep: the load fails).
+  bool follow_joint_trajectory = false;
   /// Under the lockstep: every step waits for every participant (true), instead of the steps
   /// that publish a simulator stream or that a participant's answer asked for (false: the same
   /// trial with fewer hand-offs; StepAck.next_step).
@@ -225,6 +229,19 @@ struct CompensationPlannerNodeParams {
    * guard timeout, so a late beat does not stop a healthy trial.
    */
   double heartbeat_period_s = core::kPlannerHeartbeatPeriodS;
+  /**
+   * @brief How the segments reach the controllers: `topic` (a trajectory_msgs/JointTrajectory on
+   *        `<controller>/command`) or `action` (a FollowJointTrajectory goal on
+   *        `<controller>/follow_joint_trajectory`, each goal replacing the running one; a goal
+   *        rejected or aborted is a controller fault). One route; `action` is refused under the
+   *        lockstep.
+   */
+  std::string trajectory_interface = "topic";
+  /// With trajectory_interface `action`: a trial is refused unless every controller's action
+  /// server is connected within this wall time [s].
+  double action_server_timeout_s = 5.0;
+  /** @brief Whether the segments go as FollowJointTrajectory goals. */
+  bool useAction() const { return trajectory_interface == "action"; }
   /// A moving trial needs a breath start at most this many breath periods old
   /// (core::TrialSequencer::setBreathSource): refused before, stopped with retreat while
   /// drilling. The Ventilator's `flow` source stops publishing at its own

@@ -136,6 +136,10 @@ void TrialSequencer::onControllerState(double now, const std::string& name,
   if (!why.empty()) controllerFault(now, why);
 }
 
+void TrialSequencer::onControllerFault(double now, const std::string& why) {
+  if (isRunning(phase_)) controllerFault(now, why);
+}
+
 void TrialSequencer::controllerFault(double now, const std::string& why) {
   log(SequencerLog::Level::kError, why + "; stopping and retracting");
   out_.stops.push_back(why);

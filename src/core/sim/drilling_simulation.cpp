@@ -1434,6 +1434,24 @@ void DrillingSimulation::abortController(const std::string& controller) {
   throw std::invalid_argument("abortController: no controller named '" + controller + "'");
 }
 
+void DrillingSimulation::holdController(const std::string& controller) {
+  const std::vector<ControllerSpec>& specs = impl_->controller_specs;
+  for (std::size_t c = 0; c < specs.size(); ++c) {
+    if (specs[c].name != controller) continue;
+    impl_->holdController(c);
+    return;
+  }
+  throw std::invalid_argument("holdController: no controller named '" + controller + "'");
+}
+
+double DrillingSimulation::controllerTrajectoryEnd(std::size_t index) const {
+  if (index >= impl_->controller_trajectories.size()) {
+    throw std::out_of_range("DrillingSimulation::controllerTrajectoryEnd: no controller " +
+                            std::to_string(index));
+  }
+  return impl_->controller_trajectories[index]->endTime();
+}
+
 int DrillingSimulation::controllerAborts() const { return impl_->controller_aborts; }
 
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {

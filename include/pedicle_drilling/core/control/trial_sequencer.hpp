@@ -359,6 +359,14 @@ class TrialSequencer {
    */
   void onControllerState(double now, const std::string& name, const ControllerStateSample& state);
 
+  /**
+   * @brief A controller refused or dropped a command (a follow_joint_trajectory goal rejected or
+   *        aborted): the same fault as the controller watch's (onControllerState) while a trial
+   *        runs, a stop with retreat announced in SequencerOutput::stops with @p why. Nothing
+   *        when no trial runs.
+   */
+  void onControllerFault(double now, const std::string& why);
+
   /** @brief The controllers the commands go to (the layout of params().controllers). */
   const std::vector<ControllerSpec>& controllers() const { return controllers_; }
   /** @brief The closed loop's watch (its worst ratios since the trial's start). */

@@ -449,6 +449,14 @@ class DrillingSimulation {
    *        Counted in controllerAborts(). @throws std::invalid_argument for an unknown name.
    */
   void abortController(const std::string& controller);
+  /**
+   * @brief Controller @p controller drops its trajectory and holds where its reference is (a
+   *        canceled FollowJointTrajectory goal: ros_control's JointTrajectoryController holds).
+   *        Not an abort. @throws std::invalid_argument for an unknown name.
+   */
+  void holdController(const std::string& controller);
+  /** @brief Time [s] of the last point of controller @p index's trajectory (-inf: it holds). */
+  double controllerTrajectoryEnd(std::size_t index) const;
   /** @brief Controller aborts (abortController()) since construction. */
   int controllerAborts() const;
   /** @brief The controllers (names and joints, the order of controllerState()'s index). */
