@@ -9,15 +9,18 @@ success rate is lower than the stationary one by less than MARGIN_POINTS, at one
 ALPHA, for every bench and speed at once (Holm's correction over the whole table). The test
 inverts Newcombe's paired interval (pd_campaign.compare.noninferiority_p). The margin is one
 trial in twenty: the resolution of the paper's Table III (20 trials per case), below which the
-paper's own claim could not tell two systems apart. The power column is the approximate chance
-to show non-inferiority when the two cases truly succeed equally often, at this many pairs and
-the observed share of discordant pairs (at least one pair), at the Bonferroni level
-ALPHA / (tests in the table): normal approximation, SE of the difference sqrt(discordant / n).
+paper's own claim could not tell two systems apart. The power column is the chance to show
+non-inferiority when the two cases truly succeed equally often: the share of POWER_DRAWS
+simulated tables of the same number of pairs, drawn with the observed share of pairs where both
+succeed and the observed share of discordant pairs (at least one pair) split evenly, whose
+Newcombe lower bound at the Bonferroni level ALPHA / (tests in the table) lies above the margin
+(a fixed random seed: the same table every time).
 usage: equivalence_tables.py [RESULTS_DIR]"""
 import csv
-import math
 import os
 import sys
+
+import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
@@ -27,6 +30,7 @@ from pd_campaign import compare, report, stats  # noqa: E402
 
 MARGIN_POINTS = 5.0
 ALPHA = 0.025  # one-sided
+POWER_DRAWS = 2000
 # (label, campaign folder): the benches whose design runs both cases on the same seeds.
 BENCHES = (('paper\'s bench', 'campaign'), ('realistic bench', 'campaign_realistic'),
            ('population bench', 'campaign_population'))
@@ -73,11 +77,16 @@ def tests(out):
 
 
 def power(entry, tests_in_family):
-    """The approximate power at a true difference of 0 (see the module's text)."""
-    discordant = max(entry['only_c'] + entry['only_s'], 1) / entry['n']
-    se = math.sqrt(discordant / entry['n'])
+    """The simulated power at a true difference of 0 (see the module's text)."""
+    n = entry['n']
+    discordant = max(entry['only_c'] + entry['only_s'], 1)
+    both = min(entry['compensated'] - entry['only_c'], n - discordant)
+    shares = np.array([both, discordant / 2.0, discordant / 2.0, n - both - discordant]) / n
     z = normal_quantile(1.0 - ALPHA / tests_in_family)
-    return stats.normal_cdf(MARGIN_POINTS / 100.0 / se - z)
+    tables = np.random.default_rng(1).multinomial(n, shares, size=POWER_DRAWS)
+    shown = sum(1 for t in tables if compare.paired_difference_interval(
+        int(t[0]), int(t[1]), int(t[2]), int(t[3]), z)[0] > -MARGIN_POINTS / 100.0)
+    return shown / float(POWER_DRAWS)
 
 
 def main(argv):
