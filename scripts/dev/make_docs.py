@@ -3,11 +3,12 @@
 
 A generated block is the text between `<!-- generated: NAME -->` and `<!-- end generated -->` in
 a document; NAME is one of BLOCKS, a function of the archive folder that returns the block's
-markdown. `make docs` rewrites every block from the archive (run on a checkout it leaves
-`git diff` empty); `--check` rewrites nothing and exits 1 naming every block that differs
-(test_generated_docs.py). `--archive RESULTS_DIR` first copies what the blocks read from a
-`make run` output (default results/) into doc/results/: the trial tables trimmed to the columns
-the tables use, the campaigns' summary.json, Table II and the robustness curves' csv.
+markdown (the dataset's column tables come from pd_campaign.dataset's declaration instead).
+`make docs` rewrites every block from the archive (run on a checkout it leaves `git diff` empty);
+`--check` rewrites nothing and exits 1 naming every block that differs (test_generated_docs.py).
+`--archive RESULTS_DIR` first copies what the blocks read from a `make run` output (default
+results/) into doc/results/: the trial tables trimmed to the columns the tables use, the
+campaigns' summary.json, Table II and the robustness curves' csv.
 
 usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
 import argparse
@@ -24,6 +25,7 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
+from pd_campaign import dataset  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import equivalence_tables  # noqa: E402
@@ -32,7 +34,7 @@ import results_tables  # noqa: E402
 
 ARCHIVE = os.path.join(ROOT, 'doc', 'results')
 # Every document that may hold a generated block: the README and the pages of doc/ (the blocks
-# are today in doc/results.md and doc/identification.md).
+# are today in doc/results.md, doc/identification.md and doc/dataset.md).
 DOCUMENTS = tuple(['README.md'] + sorted(
     os.path.relpath(path, ROOT) for path in glob.glob(os.path.join(ROOT, 'doc', '*.md'))))
 BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
@@ -121,6 +123,8 @@ BLOCKS = {
         population_tables.rows(os.path.join(archive, 'campaign_population')),
         os.path.join(archive, 'campaign', 'table2.csv')),
     'robustness': robustness_table,
+    # doc/dataset.md's column tables: from the dataset's declaration, not the archive.
+    'dataset_columns': lambda archive: dataset.columns_markdown(),
 }
 
 

@@ -1,9 +1,14 @@
-"""The labelled force dataset: written by campaign_dataset, read back with numpy; the
-split by seed space; the labels against the ground truth; recording samples changes no trial."""
+"""The labelled force dataset: written by campaign_dataset, read back with numpy and with h5py
+alone; the split by seed space; the labels against the ground truth; recording samples changes no
+trial; the HDF5 attributes, the Croissant description, the checksums and doc/dataset.md's tables
+against the one declaration of the columns; the dataset version."""
 import csv
+import hashlib
 import json
 import os
+import re
 import subprocess
+import xml.etree.ElementTree as ElementTree
 
 import numpy as np
 import pytest
@@ -75,7 +80,7 @@ def test_the_datasheet_lists_every_field_and_the_counts(small_dataset):
     text = (small_dataset / 'DATASHEET.md').read_text()
     for name in dataset.SAMPLE_COLUMNS:
         assert '`%s`' % name in text, name
-    for name, _, _, _ in dataset.TRIAL_FIELDS:
+    for name, _, _, _, _ in dataset.TRIAL_FIELDS:
         assert '`trial_%s`' % name in text, name
     z = np.load(small_dataset / 'test.npz')
     assert '| test | 3 | %d |' % len(z['trial']) in text
@@ -107,3 +112,277 @@ def test_bad_arguments_are_refused(tmp_path):
                              'ros', '--out', str(tmp_path / 'y')],
                             capture_output=True, text=True, timeout=60)
     assert result.returncode != 0 and '--samples' in result.stderr
+
+
+# --- the HDF5 file, the Croissant description, the checksums, the version ----------------------
+
+PAGE = os.path.join(ROOT, 'doc', 'dataset.md')
+
+# Reads a written dataset with h5py, numpy and the standard library only, run as `python3 -I`
+# (no PYTHONPATH: pd_campaign cannot be imported): the HDF5 attributes against doc/dataset.md's
+# generated tables, every column against the .npz files, the content hash recomputed as the page
+# defines it. Prints what the test compares further (JSON).
+READER = r'''
+import hashlib, json, sys
+import h5py
+import numpy as np
+
+folder, page = sys.argv[1], sys.argv[2]
+try:
+    import pd_campaign  # noqa: F401
+    sys.exit('the reader could import pd_campaign')
+except ImportError:
+    pass
+
+
+def tables(path):
+    """The rows (lists of cells) of each table of the page's generated column block."""
+    text = open(path, encoding='utf-8').read()
+    block = text.split('<!-- generated: dataset_columns -->')[1].split('<!-- end generated -->')[0]
+    found, rows = [], None
+    for line in block.splitlines():
+        if not line.startswith('|'):
+            rows = None
+            continue
+        if rows is None:
+            rows = []
+            found.append(rows)
+        elif not set(line) <= set('|- '):
+            rows.append([cell.strip() for cell in line.strip().strip('|').split('|')])
+    return found
+
+
+def plain(cell):
+    return cell.strip('`')
+
+
+def digest_column(digest, path, values):
+    if values.dtype.kind == 'O':
+        kind, data = 'text', '\0'.join(values).encode('utf-8')
+    else:
+        kind, data = values.dtype.str, np.ascontiguousarray(values).tobytes()
+    digest.update(('%s %s %d\n' % (path, kind, len(values))).encode('utf-8'))
+    digest.update(data)
+
+
+def same(a, b):
+    if a.dtype.kind in 'fc':
+        return np.array_equal(a, b, equal_nan=True)
+    return [str(x) for x in a] == [str(x) for x in b]
+
+
+sample_rows, trial_rows, frame_rows, layer_rows = tables(page)
+with h5py.File(folder + '/dataset.h5', 'r') as f:
+    a = f.attrs
+    assert json.loads(a['frames']) == {plain(r[0]): r[1] for r in frame_rows}
+    assert json.loads(a['layer_labels']) == {
+        r[0]: {'name': plain(r[1]), 'meaning': r[2]} for r in layer_rows}
+    digest, rates = hashlib.sha256(), set()
+    for split in a['splits']:
+        z = np.load('%s/%s.npz' % (folder, split))
+        for table, rows in (('samples', sample_rows), ('trials', trial_rows)):
+            group = f[split][table]
+            assert list(group) == [plain(r[0]) for r in rows], (split, table, list(group))
+            for row in rows:
+                column = group[plain(row[0])]
+                text = h5py.check_string_dtype(column.dtype) is not None
+                values = column.asstr()[:] if text else column[:]
+                declared = row[1:4] if table == 'samples' else row[3:6]
+                assert [column.attrs[k] for k in ('unit', 'frame', 'description')] == declared, \
+                    (split, table, row)
+                if table == 'trials':
+                    assert (row[2] == 'text') if text else (np.dtype(row[2]) == column.dtype), row
+                digest_column(digest, '%s/%s/%s' % (split, table, plain(row[0])), values)
+                npz_name = plain(row[0]) if table == 'samples' else plain(row[1])
+                if npz_name != '-':
+                    assert same(values, z[npz_name]), (split, npz_name)
+        trials = f[split]['trials']
+        trial = z['trial']
+        for k, (start, count) in enumerate(zip(trials['sample_start'][:],
+                                               trials['sample_count'][:])):
+            assert count > 0 and np.all(trial[start:start + count] == k), (split, k)
+        assert trials['sample_count'][:].sum() == len(trial) == f[split].attrs['samples']
+        assert f[split].attrs['trials'] == len(z['trial_trial_id'])
+        rates |= set(trials['sample_rate_hz'][:].tolist())
+    content = digest.hexdigest()
+    assert a['content_sha256'] == content
+    assert a['dataset_version'] == '%s+%s' % (a['format_version'], content[:12])
+    assert sorted(rates) == sorted(a['sample_rates_hz'].tolist())
+    layers = f['train/samples/layer'].attrs['labels']
+    print(json.dumps({
+        key: (a[key].tolist() if hasattr(a[key], 'tolist') else a[key])
+        for key in a if key not in ('splits', 'sample_rates_hz')} | {
+        'sample_rates_hz': a['sample_rates_hz'].tolist(), 'splits': list(a['splits']),
+        'layer_column_labels': layers}))
+'''
+
+
+def _package_xml():
+    root = ElementTree.parse(os.path.join(ROOT, 'package.xml')).getroot()
+    return {key: root.findtext(key).strip() for key in ('name', 'version', 'license')}
+
+
+def test_the_hdf5_file_reads_back_with_h5py_alone(small_dataset):
+    result = subprocess.run(['/usr/bin/python3', '-I', '-c', READER, str(small_dataset), PAGE],
+                            capture_output=True, text=True, timeout=300)
+    assert result.returncode == 0, result.stderr[-3000:]
+    attrs = json.loads(result.stdout)
+    package = _package_xml()
+    assert (attrs['package'], attrs['package_version'], attrs['license']) == (
+        package['name'], package['version'], package['license'])
+    assert re.fullmatch(r'[0-9a-f]{40}(-dirty)?|unknown', attrs['build_id']), attrs['build_id']
+    assert re.fullmatch(r'[0-9a-f]{16}|unknown', attrs['build_digest'])
+    assert attrs['format_version'] == dataset.FORMAT_VERSION
+    assert attrs['splits'] == list(dataset.SPLITS)
+    with open(small_dataset / 'split.json') as handle:
+        meta = json.load(handle)['meta']
+    assert attrs['base_seed'] == meta['base_seed'] == 3201
+    assert attrs['dataset_version'] == meta['dataset_version']
+    assert attrs['scenario'] == 'scenario_dataset.yaml' == meta['scenario']
+    with open(os.path.join(ROOT, 'config', 'scenario_dataset.yaml')) as handle:
+        assert attrs['scenario_yaml'] == handle.read()
+    assert attrs['protocol'] == 'peak_forces'
+    assert json.loads(attrs['split_seed_spaces']) == {
+        'train': 'calibration', 'validation': 'calibration', 'test': 'evaluation'}
+    assert 1 << attrs['seed_space_bit'] == SEED_SPACE_BIT
+    assert attrs['sample_rates_hz'] == [pytest.approx(1000.0 / 3, abs=1e-5)]
+    assert json.loads(attrs['layer_column_labels'])['3']['name'] == 'inner_cortical'
+    assert '--out DIR' in attrs['command'] and str(small_dataset) not in attrs['command']
+    assert 'simulator_physics.md' in attrs['limitations']
+
+
+def _sha256(path):
+    digest = hashlib.sha256()
+    with open(path, 'rb') as handle:
+        digest.update(handle.read())
+    return digest.hexdigest()
+
+
+def test_the_checksums_cover_every_file(small_dataset):
+    lines = (small_dataset / 'SHA256SUMS').read_text().splitlines()
+    listed = dict(reversed(re.fullmatch(r'([0-9a-f]{64})  (\S+)', line).groups())
+                  for line in lines)
+    assert sorted(listed) == sorted(['dataset.h5', 'train.npz', 'validation.npz', 'test.npz',
+                                     'split.json', 'DATASHEET.md', 'croissant.json'])
+    for name, digest in listed.items():
+        assert _sha256(small_dataset / name) == digest, name
+
+
+RAI_FIELDS = ('rai:dataCollection', 'rai:dataCollectionType', 'rai:dataLimitations',
+              'rai:dataBiases', 'rai:personalSensitiveInformation', 'rai:dataUseCases',
+              'rai:dataReleaseMaintenance', 'rai:annotationProtocol')
+
+
+def _croissant_fields(document):
+    """{field @id: field} of every record set, checked for the keys a field must have."""
+    fields = {}
+    for record_set in document['recordSet']:
+        assert record_set['@type'] == 'cr:RecordSet' and record_set['name'] == record_set['@id']
+        assert record_set['description'] and record_set['field']
+        for field in record_set['field']:
+            assert field['@type'] == 'cr:Field'
+            assert field['@id'] == '%s/%s' % (record_set['@id'], field['name'])
+            assert field['dataType'] in ('sc:Float', 'sc:Integer', 'sc:Text', 'sc:Boolean')
+            assert field['description'], field['@id']
+            assert field['@id'] not in fields
+            fields[field['@id']] = field
+    return fields
+
+
+def test_the_croissant_file_describes_the_files_and_every_column(small_dataset):
+    import h5py
+    with open(small_dataset / 'croissant.json') as handle:
+        document = json.load(handle)
+    context = document['@context']
+    assert context['@vocab'] == 'https://schema.org/' and context['sc'] == 'https://schema.org/'
+    assert context['cr'] == 'http://mlcommons.org/croissant/'
+    assert context['rai'] == 'http://mlcommons.org/croissant/RAI/'
+    assert document['@type'] == 'sc:Dataset'
+    assert document['conformsTo'] == 'http://mlcommons.org/croissant/1.0'
+    for key in ('name', 'description', 'license', 'version', 'citeAs'):
+        assert isinstance(document[key], str) and document[key], key
+    assert document['license'] == 'https://spdx.org/licenses/%s.html' % _package_xml()['license']
+    assert re.fullmatch(r'\d+\.\d+\.\d+\+[0-9a-f]{12}', document['version'])
+    assert document['citeAs'].startswith('@misc{') and document['version'] in document['citeAs']
+    for key in RAI_FIELDS:
+        assert document[key], key
+    assert 'simulator_physics.md' in document['rai:dataLimitations']
+    files = {entry['@id']: entry for entry in document['distribution']}
+    assert sorted(files) == sorted(['dataset.h5', 'train.npz', 'validation.npz', 'test.npz',
+                                    'split.json', 'DATASHEET.md'])
+    for name, entry in files.items():
+        assert entry['@type'] == 'cr:FileObject' and entry['contentUrl'] == name
+        assert entry['sha256'] == _sha256(small_dataset / name), name
+        assert entry['contentSize'] == '%d B' % os.path.getsize(small_dataset / name)
+    assert files['dataset.h5']['encodingFormat'] == 'application/x-hdf5'
+    fields = _croissant_fields(document)
+    with h5py.File(small_dataset / 'dataset.h5', 'r') as f:
+        assert document['version'] == f.attrs['dataset_version']
+        columns = [field for field in fields.values() if 'source' in field]
+        for field in columns:
+            assert field['source']['fileObject']['@id'] == 'dataset.h5'
+            column = f[field['source']['extract']['column']]
+            assert 'Unit: %s. Frame: %s.' % (column.attrs['unit'], column.attrs['frame']) \
+                in field['description'], field['@id']
+        assert len(columns) == sum(len(f[s][t]) for s in f.attrs['splits']
+                                   for t in ('samples', 'trials'))
+    for field in fields.values():
+        if 'references' in field:
+            assert field['references']['field']['@id'] in fields
+    layers = next(r for r in document['recordSet'] if r['@id'] == 'layers')
+    assert [row['layers/name'] for row in layers['data']] == list(dataset.LAYERS)
+    try:
+        import mlcroissant
+    except ImportError:
+        return  # not in Debian 12: the checks above stand for it
+    mlcroissant.Dataset(jsonld=str(small_dataset / 'croissant.json'))  # raises on an error
+
+
+def test_the_page_tables_are_the_declaration():
+    with open(PAGE) as handle:
+        text = handle.read()
+    block = text.split('<!-- generated: dataset_columns -->\n')[1].split(
+        '<!-- end generated -->')[0]
+    assert block == dataset.columns_markdown(), 'doc/dataset.md: run make docs'
+
+
+def _semver(version):
+    return tuple(int(x) for x in version.split('.'))
+
+
+def test_a_change_of_the_declaration_needs_a_new_format_version():
+    history = dataset.FORMAT_HISTORY
+    assert history[dataset.FORMAT_VERSION] == dataset.declaration_sha256(), (
+        'the declaration of the columns changed: bump FORMAT_VERSION (dataset.py says how) and '
+        'add %r: %r to FORMAT_HISTORY' % ('NEW.VERSION', dataset.declaration_sha256()))
+    assert max(history, key=_semver) == dataset.FORMAT_VERSION
+    assert len(set(history.values())) == len(history)
+
+
+def _write_tiny(path, raw_force):
+    """A one-trial, three-sample dataset through the HDF5 writer; its version."""
+    from pd_campaign import dataset_files
+    arrays = {name: np.arange(3, dtype=np.float64) for name in dataset.SAMPLE_COLUMNS}
+    arrays.update(raw_force_n=np.array(raw_force), layer=np.array([0, 1, 3], np.int32),
+                  contact=np.array([0, 1, 1], np.uint8), trial=np.zeros(3, np.int32))
+    for name, kind, _, _, _ in dataset.TRIAL_FIELDS:
+        arrays['trial_' + name] = np.array(['x' if kind is str else 1], dtype=(
+            np.str_ if kind is str else kind))
+    meta = {'command': 'campaign_dataset --out DIR', 'scenario': 's.yaml', 'scenario_yaml': 'x',
+            'protocol': 'peak_forces', 'base_seed': 1, 'seed_space_bit': 62,
+            'package': {'name': 'pedicle_drilling', 'version': '0', 'license': 'BSD-3-Clause',
+                        'build_id': 'unknown', 'build_digest': 'unknown'}}
+    with dataset_files.hdf5_writer(str(path), meta) as writer:
+        for split in dataset.SPLITS:
+            writer.add_split(split, arrays)
+    return writer.version
+
+
+def test_the_dataset_version_changes_with_any_sample_and_only_then(tmp_path):
+    first = _write_tiny(tmp_path / 'a.h5', [0.0, 1.0, 2.0])
+    assert first.startswith(dataset.FORMAT_VERSION + '+')
+    assert _write_tiny(tmp_path / 'b.h5', [0.0, 1.0, 2.0]) == first
+    assert (tmp_path / 'a.h5').read_bytes() == (tmp_path / 'b.h5').read_bytes(), \
+        'the same values give the same file (no timestamps)'
+    assert _write_tiny(tmp_path / 'c.h5', [0.0, 1.0, 2.0 + 1e-12]) != first
+    assert sorted(os.listdir(tmp_path)) == ['a.h5', 'b.h5', 'c.h5']
