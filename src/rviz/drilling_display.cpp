@@ -174,6 +174,11 @@ DrillingDisplay::DrillingDisplay() {
 }
 
 void DrillingDisplay::createHardwareProperties() {
+  text_offset_property_ = new rviz::VectorProperty(
+      "Text offset", Ogre::Vector3::ZERO,
+      "Moves the text from its place below the specimen (or its detail copy) by this much, in "
+      "the bone frame (m): on hardware, out of the way of the drill.",
+      this, SLOT(updateAppearance()));
   plan_topic_property_ = new rviz::RosTopicProperty(
       "Plan topic", "drilling_plan",
       QString::fromStdString(ros::message_traits::datatype<DrillingPlan>()),
@@ -791,7 +796,8 @@ void DrillingDisplay::rebuild() {
   text_->setCaption(overlayText());
   text_->setColor(Ogre::ColourValue(1.0f, 1.0f, 1.0f, 1.0f));
   text_node_->setPosition(
-      anchor + Ogre::Vector3(-0.5f * width * scale, 0.0f, -depth * scale - 1.5f * text_height));
+      anchor + Ogre::Vector3(-0.5f * width * scale, 0.0f, -depth * scale - 1.5f * text_height) +
+      text_offset_property_->getVector());
   text_node_->setVisible(show_text_property_->getBool());
 }
 

@@ -74,7 +74,7 @@ class TraceChart : public QWidget {
  private:
   const QColor force_colour_{80, 200, 255};
   const QColor feature_colour_{255, 170, 60};
-  const QColor thrust_colour_{150, 150, 200};
+  const QColor thrust_colour_{150, 220, 150};
 
   /** @brief x of a sample time: seconds since the contact, or the deepest cut in mm. */
   double xValue(double t) const { return depth_axis ? 1e3 * trace.depthAt(t) : t - t0_; }

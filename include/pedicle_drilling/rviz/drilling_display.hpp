@@ -166,6 +166,7 @@ class DrillingDisplay : public rviz::Display {
   rviz::RosTopicProperty* tracked_topic_property_;
   rviz::StringProperty* monitor_status_property_;
   rviz::FloatProperty* marker_size_property_;
+  rviz::VectorProperty* text_offset_property_;
   rviz::RosTopicProperty* plan_topic_property_;
   rviz::ColorProperty* plan_colour_property_;
   rviz::FloatProperty* plan_width_property_;
