@@ -180,12 +180,12 @@ void DrillingDisplay::createHardwareProperties() {
       "the bone frame (m): on hardware, out of the way of the drill.",
       this, SLOT(updateAppearance()));
   plan_topic_property_ = new rviz::RosTopicProperty(
-      "Plan topic", "drilling_plan",
-      QString::fromStdString(ros::message_traits::datatype<DrillingPlan>()),
-      "The drilling plan (latched, in the tracked marker's frame): entry, planned path to the "
-      "planned depth, entry tolerance and depth limit.",
+      "Plan topic", "", QString::fromStdString(ros::message_traits::datatype<DrillingPlan>()),
+      "The drilling plan (latched, in the tracked marker's frame; drilling_plan): entry, planned "
+      "path to the planned depth, entry tolerance and depth limit, and the tip along it in the "
+      "text. Empty (the default, as before this property): off.",
       this, SLOT(updateTopics()));
-  plan_colour_property_ = new rviz::ColorProperty("Plan colour", QColor(0, 200, 255),
+  plan_colour_property_ = new rviz::ColorProperty("Plan colour", QColor(0, 230, 230),
                                                   "Colour of the planned path and its entry.", this,
                                                   SLOT(updateAppearance()));
   plan_width_property_ = new rviz::FloatProperty(
@@ -204,16 +204,16 @@ void DrillingDisplay::createHardwareProperties() {
       "The planner's trial phase (latched): in the text; a new trial starts the H1 pairing afresh.",
       this, SLOT(updateTopics()));
   tidal_volume_topic_property_ = new rviz::RosTopicProperty(
-      "Tidal volume topic", "tidal_volume",
+      "Tidal volume topic", "",
       QString::fromStdString(ros::message_traits::datatype<TidalVolume>()),
-      "The ventilator's tidal volume and breath phase (breath index, time in the breath): in the "
-      "text.",
+      "The ventilator's tidal volume and breath phase (tidal_volume: breath index, time in the "
+      "breath) in the text. Empty (the default): off.",
       this, SLOT(updateTopics()));
   breath_source_topic_property_ = new rviz::RosTopicProperty(
-      "Breath source topic", "ventilator/breath_source_status",
+      "Breath source topic", "",
       QString::fromStdString(ros::message_traits::datatype<BreathSourceStatus>()),
-      "Where the Ventilator's breath phase comes from and whether it is usable (latched): in the "
-      "text.",
+      "Where the Ventilator's breath phase comes from and whether it is usable (latched; "
+      "ventilator/breath_source_status) in the text. Empty (the default): off.",
       this, SLOT(updateTopics()));
 }
 
@@ -635,14 +635,28 @@ void DrillingDisplay::reportInputs() {
          state_topic_property_->getTopicStd());
   report("Tracked marker", static_cast<bool>(tracked_), tracked_received_,
          tracked_topic_property_->getTopicStd());
-  report("Predicted marker", static_cast<bool>(predicted_), predicted_received_,
-         predicted_topic_property_->getTopicStd());
-  report("Tidal volume", static_cast<bool>(tidal_volume_), tidal_volume_received_,
-         tidal_volume_topic_property_->getTopicStd());
+  // The planner predicts during a trial only: silence is no warning.
+  setStatus(
+      rviz::StatusProperty::Ok, "Predicted marker",
+      QString::fromStdString(
+          (predicted_ ? "last message " + format("%.1f s ago", (now - predicted_received_).toSec())
+                      : std::string("none yet")) +
+          " on [" + predicted_topic_property_->getTopicStd() +
+          "] (the planner predicts during a trial)"));
+  const std::string tidal_volume_topic = tidal_volume_topic_property_->getTopicStd();
+  if (tidal_volume_topic.empty()) {
+    deleteStatusStd("Tidal volume");
+  } else {
+    report("Tidal volume", static_cast<bool>(tidal_volume_), tidal_volume_received_,
+           tidal_volume_topic);
+  }
   // The plan is latched: one message, no staleness.
   const std::string plan_topic = plan_topic_property_->getTopicStd();
   std::string plan = "shown";
-  if (!plan_) {
+  if (plan_topic.empty()) {
+    plan = "off";
+    deleteStatusStd("Plan");
+  } else if (!plan_) {
     plan = "waiting";
     setStatus(rviz::StatusProperty::Warn, "Plan",
               QString::fromStdString("no message received on [" + plan_topic + "]"));
@@ -678,7 +692,9 @@ void DrillingDisplay::reportInputs() {
       "; tracked marker: " + shown(static_cast<bool>(tracked_), tracked_shown_) +
       "; predicted marker: " + shown(static_cast<bool>(predicted_), predicted_shown_) +
       "; tidal volume: " +
-      freshness(static_cast<bool>(tidal_volume_), tidal_volume_received_, stale_s) +
+      (tidal_volume_topic.empty()
+           ? std::string("off")
+           : freshness(static_cast<bool>(tidal_volume_), tidal_volume_received_, stale_s)) +
       "; trial: " + (view_.phase().empty() ? std::string("waiting") : view_.phase()) +
       "; anchor: " + anchor_;
   if (summary != last_summary_ && summary_pub_) {
@@ -839,35 +855,40 @@ std::string DrillingDisplay::overlayText() const {
   text += "\ntrial: " + (view_.phase().empty()
                              ? "no message on " + trial_status_topic_property_->getTopicStd()
                              : view_.phase());
-  text += "\n" + planText() + "\n" + breathText();
+  text += planText() + breathText();
   return text;
 }
 
 std::string DrillingDisplay::planText() const {
-  if (!plan_) return "plan: no message on " + plan_topic_property_->getTopicStd();
-  if (!plan_error_.empty()) return "plan invalid: " + plan_error_;
-  std::string text = format("plan: depth %.2f mm", 1e3 * plan_->depth_m) +
+  const std::string topic = plan_topic_property_->getTopicStd();
+  if (topic.empty()) return "";
+  if (!plan_) return "\nplan: no message on " + topic;
+  if (!plan_error_.empty()) return "\nplan invalid: " + plan_error_;
+  std::string text = format("\nplan: %.2f mm deep", 1e3 * plan_->depth_m) +
                      format(", entry tolerance %.2f mm", 1e3 * plan_->entry_tolerance_m);
   if (plan_placement_.empty()) {
     text += " (no transform from [" + plan_->header.frame_id + "])";
   } else if (std::isfinite(tip_along_m_)) {
-    text += format("\ntip along the plan: %.2f mm", 1e3 * tip_along_m_) +
-            format(" of %.2f,", 1e3 * plan_->depth_m) +
-            format(" %.2f mm off its axis", 1e3 * tip_off_axis_m_);
+    text += format("\ntip: %.2f", 1e3 * tip_along_m_) +
+            format(" of %.2f mm along the plan,", 1e3 * plan_->depth_m) +
+            format(" %.2f mm off it", 1e3 * tip_off_axis_m_);
   }
   return text;
 }
 
 std::string DrillingDisplay::breathText() const {
   std::string text;
-  if (!tidal_volume_) {
-    text = "breath: no message on " + tidal_volume_topic_property_->getTopicStd();
+  const std::string topic = tidal_volume_topic_property_->getTopicStd();
+  if (topic.empty()) {
+    // off
+  } else if (!tidal_volume_) {
+    text = "\nbreath: no message on " + topic;
   } else {
-    text = "breath " + std::to_string(tidal_volume_->breath_index) +
+    text = "\nbreath " + std::to_string(tidal_volume_->breath_index) +
            format(": %.2f s in", tidal_volume_->time_in_breath_s) +
            format(", %.0f ml", tidal_volume_->volume_ml);
   }
-  if (breath_source_) {
+  if (breath_source_ && !breath_source_topic_property_->getTopicStd().empty()) {
     text += "\nbreath source: " + breath_source_->source +
             (breath_source_->ready ? std::string(", ready") : ": " + breath_source_->message);
   }

@@ -40,6 +40,7 @@ class TraceChart : public QWidget {
 
   core::ForceTrace trace;
   bool depth_axis = false;
+  bool thrust_on = false;  // a wrench topic is set: the thrust's title
   double c1 = std::numeric_limits<double>::quiet_NaN();
   double c2 = std::numeric_limits<double>::quiet_NaN();
   double c3 = std::numeric_limits<double>::quiet_NaN();
@@ -96,11 +97,15 @@ class TraceChart : public QWidget {
     painter->setPen(feature_colour_);
     const double a_x = 4.0 + fm.horizontalAdvance("averaged force [N]  ");
     painter->drawText(QPointF(a_x, 2.0 + row_h_), "A*");
-    painter->setPen(thrust_colour_);
-    const double th_x = a_x + fm.horizontalAdvance("A*  ");
-    painter->drawText(QPointF(th_x, 2.0 + row_h_), "thrust [N]");
+    double x_x = a_x + fm.horizontalAdvance("A*   ");
+    if (thrust_on) {
+      painter->setPen(thrust_colour_);
+      const double th_x = a_x + fm.horizontalAdvance("A*  ");
+      painter->drawText(QPointF(th_x, 2.0 + row_h_), "thrust [N]");
+      x_x = th_x + fm.horizontalAdvance("thrust [N]   ");
+    }
     painter->setPen(QColor(170, 170, 170));
-    painter->drawText(QPointF(th_x + fm.horizontalAdvance("thrust [N]   "), 2.0 + row_h_),
+    painter->drawText(QPointF(x_x, 2.0 + row_h_),
                       depth_axis ? "x: depth of the cut [mm]" : "x: time since contact [s]");
     painter->setPen(Qt::white);
     painter->drawText(QRectF(0.0, 2.0, width() - 4.0, row_h_ + 2.0), Qt::AlignRight,
@@ -246,7 +251,9 @@ class TraceChart : public QWidget {
       }
     }
     painter->setClipRect(plot_);
-    painter->setPen(QPen(thrust_colour_, 1.0));
+    QColor thrust = thrust_colour_;
+    thrust.setAlpha(170);  // under the averaged force: the raw stream is noisy
+    painter->setPen(QPen(thrust, 1.0));
     painter->drawPath(thrust_path);
     painter->setPen(QPen(feature_colour_, 1.5));
     painter->drawPath(feature_path);
@@ -279,10 +286,10 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
   layout->addLayout(controls);
   auto* wrench = new QHBoxLayout();
   wrench->addWidget(new QLabel("Wrench (thrust):"));
-  wrench_edit_ = new QLineEdit("ft_sensor/wrench");
+  wrench_edit_ = new QLineEdit("");
   wrench_edit_->setToolTip(
-      "geometry_msgs/WrenchStamped the recognizer reads; its thrust is the component along the "
-      "recognizer's ~axis. Empty: no thrust curve.");
+      "geometry_msgs/WrenchStamped the recognizer reads (ft_sensor/wrench); its thrust is the "
+      "component along the recognizer's ~axis. Empty (the default): no thrust curve.");
   wrench->addWidget(wrench_edit_);
   layout->addLayout(wrench);
   auto* thresholds = new QHBoxLayout();
@@ -392,6 +399,7 @@ void ForcePlotPanel::subscribeWrench() {
   thrust_received_ = false;
   last_thrust_t_ = -1.0;
   const std::string topic = wrench_edit_->text().toStdString();
+  chart_->thrust_on = !topic.empty();
   if (topic.empty()) return;
   try {
     wrench_sub_ = nh_.subscribe(topic, 1000, &ForcePlotPanel::wrenchCallback, this);

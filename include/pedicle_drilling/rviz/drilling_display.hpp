@@ -10,13 +10,14 @@
  * Every input is optional; a missing or broken one only gives a warning or error in the Displays
  * panel, and the rest is still drawn.
  *
- * From the hardware's own topics it draws the drilling plan (`drilling_plan`,
- * pedicle_drilling/DrillingPlan, in the tracked marker's frame: the entry, the planned path to
- * the planned depth, the entry tolerance and the depth limit; placed by tf, or by the tracked
- * marker's pose when the marker's frame is not on tf) with the drill tip's advance along it
- * (tf frame "Tip frame"), and writes the trial's phase (`compensation/status`) and the breath
- * (`tidal_volume`, `ventilator/breath_source_status`) in its text. Without the `bone` frame
- * (hardware) the text hangs at the tracked marker.
+ * From the hardware's own topics, each off while its topic property is empty (the default, so
+ * that a configuration saved before them looks as it did), it draws the drilling plan ("Plan
+ * topic": `drilling_plan`, pedicle_drilling/DrillingPlan in the tracked marker's frame: the
+ * entry, the planned path to the planned depth, the entry tolerance and the depth limit; placed
+ * by tf, or by the tracked marker's pose when the marker's frame is not on tf) with the drill
+ * tip's advance along it (tf frame "Tip frame"), and writes the breath (`tidal_volume`,
+ * `ventilator/breath_source_status`) in its text, with the trial's phase
+ * (`compensation/status`). Without the `bone` frame the text hangs at the tracked marker.
  *
  * What it has is published latched on `drilling_display/status` (std_msgs/String) at every
  * change, for scripts and tests: "ground truth: off; drilling state: receiving; plan: shown;

@@ -1,9 +1,9 @@
 /**
  * @file force_plot_panel.hpp
  * @brief rviz panel `pedicle_drilling/ForcePlotPanel`: the recognizer's averaged force and
- *        feature A* from `drilling_state` and the F/T sensor's thrust (the wrench the
- *        recognizer reads, along its `~axis`) over the trial (from the bone contact to the
- *        stop), against time since the contact or the depth of the deepest cut (simulator
+ *        feature A* from `drilling_state` and the F/T sensor's thrust ("Wrench", empty by
+ *        default: the wrench the recognizer reads, along its `~axis`) over the trial (from the bone
+ * contact to the stop), against time since the contact or the depth of the deepest cut (simulator
  *        ground truth, optional: "Ground truth" empty on hardware), with the thresholds C1, C2
  *        and C3 x the inner peak drawn, the key points labelled without overlap and the stop
  *        marked. The record is core::ForceTrace. Each input works alone.
