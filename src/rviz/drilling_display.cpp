@@ -312,6 +312,10 @@ void DrillingDisplay::reset() {
   view_.reset();
   monitor_level_ = -1;
   dirty_ = true;
+  // The plan, the breath source and the trial's phase are latched: a new subscription brings
+  // them back.
+  unsubscribe();
+  subscribe();
 }
 
 void DrillingDisplay::updateTopics() {

@@ -87,7 +87,8 @@ class DrillingDisplay : public rviz::Display {
   /** @brief Unsubscribes and frees the Ogre objects. */
   ~DrillingDisplay() override;
 
-  /** @brief Drops both messages and clears the drawing (rviz "Reset"). */
+  /** @brief Drops every message and clears the drawing (rviz "Reset"); subscribes anew, so
+   *         that the latched ones (plan, breath source, trial phase) come back. */
   void reset() override;
   /** @brief Places the scene at the current pose of the bone frame; redraws on new data. */
   void update(float wall_dt, float ros_dt) override;
