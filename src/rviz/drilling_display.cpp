@@ -500,7 +500,7 @@ void DrillingDisplay::placeMarkers(const Ogre::Vector3& bone_position,
 bool DrillingDisplay::placeAnchor(Ogre::Vector3* position, Ogre::Quaternion* orientation) {
   const std::string frame = frame_property_->getFrameStd();
   if (context_->getFrameManager()->getTransform(frame, ros::Time(0), *position, *orientation)) {
-    anchor_ = "bone";
+    anchor_ = "bone frame";
     setStatus(rviz::StatusProperty::Ok, "Transform", "ok");
     return true;
   }
@@ -674,6 +674,7 @@ void DrillingDisplay::reportInputs() {
               QString::fromStdString("no transform from the plan's frame [" +
                                      plan_->header.frame_id + "] and no tracked marker pose"));
   } else {
+    plan = "shown by " + plan_placement_;
     setStatus(rviz::StatusProperty::Ok, "Plan",
               QString::fromStdString("in [" + plan_->header.frame_id + "], placed by " +
                                      plan_placement_));

@@ -8,8 +8,9 @@ nodes publish under hardware.launch, and no simulator (nothing on simulator/grou
   advancing the tip from 5 mm above the planned entry to ~advance_m beyond it and back;
 * the SPMS's controller: tf spms_base -> spms_platform (robot_state_publisher does not publish
   the floating joint), the platform at its nominal pose breathing ~breath_mm along z;
-* the tracker's driver: tf tracker_camera -> tracker_marker and the marker's pose on
-  tracker/marker_pose (in tracker_camera) at ~tracker_rate_hz, the bone breathing ~breath_mm
+* the tracker's driver: tf tracker_camera -> tracker_marker (unless ~marker_on_tf is false: a
+  tracker on a pose topic only) and the marker's pose on tracker/marker_pose (in
+  tracker_camera) at ~tracker_rate_hz, the bone breathing ~breath_mm
   along world z; world -> tracker_camera comes from the launch's registration
   (static_transform.py, private param ~registration: "x y z yaw pitch roll" as its args);
 * the planner: compensation/predicted_marker_pose (0.3 mm off the tracked pose, same stamp),
@@ -58,6 +59,7 @@ def main():
     advance_m = float(rospy.get_param('~advance_m', 0.004))
     tracker_rate = float(rospy.get_param('~tracker_rate_hz', 8.0))
     force_rate = float(rospy.get_param('~force_rate_hz', 200.0))
+    marker_on_tf = bool(rospy.get_param('~marker_on_tf', True))
     if tracker_rate <= 0.0 or force_rate <= 0.0:
         raise ValueError('~tracker_rate_hz and ~force_rate_hz must be > 0')
 
@@ -129,7 +131,7 @@ def main():
             platform.transform.translation.y = PLATFORM_IN_BASE[1]
             platform.transform.translation.z = PLATFORM_IN_BASE[2] + breath_m * breath
             platform.transform.rotation.w = 1.0
-            broadcaster.sendTransform([transform, platform])
+            broadcaster.sendTransform([transform, platform] if marker_on_tf else [platform])
             pose = PoseStamped()
             pose.header = transform.header
             pose.pose.position.x, pose.pose.position.y, pose.pose.position.z = in_camera

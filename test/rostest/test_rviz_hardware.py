@@ -11,7 +11,10 @@ screenshot with the plan in it) up to a deadline; none sleeps for a fixed time.
 3. rviz subscribes the hardware topics and not simulator/ground_truth;
 4. rviz logged no error about our plugin on /rosout;
 5. a screenshot shows the plan's colour (hardware.rviz: "Plan colour") and is not blank.
-Private params: ~screenshot (file name), ~timeout_s, ~min_plan_pixels.
+Private params: ~screenshot (file name), ~timeout_s, ~min_plan_pixels, ~plan_placed_by and
+~anchor (how the display places the plan and its text: with the marker on tf "tf" and "bone
+frame", hardware.rviz's bone frame being tracker_marker; with the tracker on a pose topic only
+"the tracked marker" for both).
 """
 import os
 import subprocess
@@ -72,9 +75,10 @@ class RvizHardwareTest(unittest.TestCase):
         return float(rospy.get_param('~timeout_s', 90.0))
 
     def test_1_display_has_the_hardware_inputs(self):
-        wanted = ['ground truth: off', 'drilling state: receiving', 'plan: shown',
+        wanted = ['ground truth: off', 'drilling state: receiving',
+                  'plan: shown by ' + rospy.get_param('~plan_placed_by', 'tf') + ';',
                   'tracked marker: shown', 'predicted marker: shown', 'tidal volume: receiving',
-                  'trial: drilling']
+                  'trial: drilling', 'anchor: ' + rospy.get_param('~anchor', 'bone frame')]
         status = wait_for_status('/drilling_display/status', wanted, self.timeout())
         self.assertIsNotNone(status, 'the display never published drilling_display/status')
         for part in wanted:
