@@ -132,19 +132,18 @@ DrillingPanel::~DrillingPanel() {
   if (watcher_.joinable()) watcher_.join();
   if (call_thread_.joinable()) call_thread_.join();
   for (ros::Subscriber& s : subs_) s.shutdown();
+  truth_sub_.shutdown();
+  wrench_sub_.shutdown();
 }
 
 void DrillingPanel::onInitialize() {
   subs_.push_back(nh_.subscribe("compensation/status", 20, &DrillingPanel::statusCallback, this));
   subs_.push_back(nh_.subscribe("drilling_state", 100, &DrillingPanel::stateCallback, this));
   subs_.push_back(nh_.subscribe("drill/stop", 20, &DrillingPanel::stopCallback, this));
-  subs_.push_back(
-      nh_.subscribe("simulator/ground_truth", 100, &DrillingPanel::truthCallback, this));
   subs_.push_back(nh_.subscribe("compensation/predicted_marker_pose", 50,
                                 &DrillingPanel::predictedCallback, this));
   subs_.push_back(nh_.subscribe("tracker/marker_pose", 50, &DrillingPanel::trackedCallback, this));
-  // The force at 1 kHz: only the newest few matter for the readout.
-  subs_.push_back(nh_.subscribe("ft_sensor/wrench", 5, &DrillingPanel::wrenchCallback, this));
+  subscribeInputs();
   subs_.push_back(nh_.subscribe("/diagnostics", 20, &DrillingPanel::diagnosticsCallback, this));
   subs_.push_back(nh_.subscribe("drilling_panel/press", 10, &DrillingPanel::pressCallback, this));
   stop_pub_ = nh_.advertise<StopCommand>("drill/stop", 10);
@@ -152,6 +151,23 @@ void DrillingPanel::onInitialize() {
   controls_pub_ = nh_.advertise<std_msgs::String>("drilling_panel/controls", 1, true);
   watcher_ = std::thread([this]() { watchServices(); });
   timer_->start(50);
+}
+
+void DrillingPanel::subscribeInputs() {
+  truth_sub_.shutdown();
+  wrench_sub_.shutdown();
+  try {
+    if (!truth_topic_.empty()) {
+      truth_sub_ = nh_.subscribe(truth_topic_, 100, &DrillingPanel::truthCallback, this);
+    }
+    // The force at 1 kHz: only the newest few matter for the readout.
+    if (!wrench_topic_.empty()) {
+      wrench_sub_ = nh_.subscribe(wrench_topic_, 5, &DrillingPanel::wrenchCallback, this);
+    }
+  } catch (const ros::Exception& e) {
+    ROS_ERROR("DrillingPanel: cannot subscribe to the inputs (Ground truth '%s', Wrench '%s'): %s",
+              truth_topic_.c_str(), wrench_topic_.c_str(), e.what());
+  }
 }
 
 core::PanelSettings DrillingPanel::settings() const {
@@ -184,6 +200,12 @@ void DrillingPanel::load(const rviz::Config& config) {
   std::vector<std::string> problems;
   applySettings(core::PanelSettings::fromConfig(saved, &problems));
   for (const std::string& p : problems) ROS_WARN("DrillingPanel: configuration: %s", p.c_str());
+  QString topic;
+  const bool truth = config.mapGetString("Ground truth", &topic);
+  if (truth) truth_topic_ = topic.toStdString();
+  const bool wrench = config.mapGetString("Wrench", &topic);
+  if (wrench) wrench_topic_ = topic.toStdString();
+  if (truth || wrench) subscribeInputs();
 }
 
 void DrillingPanel::save(rviz::Config config) const {
@@ -191,6 +213,8 @@ void DrillingPanel::save(rviz::Config config) const {
   for (const auto& [key, value] : settings().toConfig()) {
     config.mapSetValue(QString::fromStdString(key), QString::fromStdString(value));
   }
+  config.mapSetValue("Ground truth", QString::fromStdString(truth_topic_));
+  config.mapSetValue("Wrench", QString::fromStdString(wrench_topic_));
 }
 
 void DrillingPanel::onSettingsChanged() { Q_EMIT configChanged(); }

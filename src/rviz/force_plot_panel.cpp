@@ -22,6 +22,7 @@
 #include <vector>
 
 #include <rviz/config.h>
+#include <std_msgs/String.h>
 #include <pluginlib/class_list_macros.hpp>
 
 #include "pedicle_drilling/core/control/trial_view.hpp"
@@ -39,6 +40,7 @@ class TraceChart : public QWidget {
 
   core::ForceTrace trace;
   bool depth_axis = false;
+  bool thrust_on = false;  // a wrench topic is set: the thrust's title
   double c1 = std::numeric_limits<double>::quiet_NaN();
   double c2 = std::numeric_limits<double>::quiet_NaN();
   double c3 = std::numeric_limits<double>::quiet_NaN();
@@ -61,7 +63,7 @@ class TraceChart : public QWidget {
       painter.setPen(QColor(170, 170, 170));
       painter.drawText(plot_, Qt::AlignCenter,
                        depth_axis ? "no depth: the depth axis needs simulator/ground_truth"
-                                  : "no drilling_state received");
+                                  : "no drilling_state or wrench received");
       return;
     }
     drawAxes(&painter);
@@ -73,6 +75,7 @@ class TraceChart : public QWidget {
  private:
   const QColor force_colour_{80, 200, 255};
   const QColor feature_colour_{255, 170, 60};
+  const QColor thrust_colour_{150, 220, 150};
 
   /** @brief x of a sample time: seconds since the contact, or the deepest cut in mm. */
   double xValue(double t) const { return depth_axis ? 1e3 * trace.depthAt(t) : t - t0_; }
@@ -94,26 +97,44 @@ class TraceChart : public QWidget {
     painter->setPen(feature_colour_);
     const double a_x = 4.0 + fm.horizontalAdvance("averaged force [N]  ");
     painter->drawText(QPointF(a_x, 2.0 + row_h_), "A*");
+    double x_x = a_x + fm.horizontalAdvance("A*   ");
+    if (thrust_on) {
+      painter->setPen(thrust_colour_);
+      const double th_x = a_x + fm.horizontalAdvance("A*  ");
+      painter->drawText(QPointF(th_x, 2.0 + row_h_), "thrust [N]");
+      x_x = th_x + fm.horizontalAdvance("thrust [N]   ");
+    }
     painter->setPen(QColor(170, 170, 170));
-    painter->drawText(QPointF(a_x + fm.horizontalAdvance("A*   "), 2.0 + row_h_),
+    painter->drawText(QPointF(x_x, 2.0 + row_h_),
                       depth_axis ? "x: depth of the cut [mm]" : "x: time since contact [s]");
     painter->setPen(Qt::white);
     painter->drawText(QRectF(0.0, 2.0, width() - 4.0, row_h_ + 2.0), Qt::AlignRight,
                       QString::fromStdString(trace.stateName()));
   }
 
+  /** @brief Before the contact: the first kept sample of either series. */
+  double firstTime() const {
+    double t = std::numeric_limits<double>::infinity();
+    if (!trace.samples().empty()) t = trace.samples().front().t;
+    if (!trace.thrust().empty()) t = std::min(t, trace.thrust().front().t);
+    return std::isfinite(t) ? t : 0.0;
+  }
+
   /** @brief The plotted points and the axes' ranges; false when there is nothing to plot. */
   bool scale() {
-    t0_ = std::isnan(trace.contactTime())
-              ? (trace.samples().empty() ? 0.0 : trace.samples().front().t)
-              : trace.contactTime();
+    t0_ = std::isnan(trace.contactTime()) ? firstTime() : trace.contactTime();
     points_.clear();
     for (const core::TraceSample& s : trace.samples()) {
       const double x = xValue(s.t);
       if (std::isfinite(x)) points_.emplace_back(x, &s);
     }
-    if (points_.empty()) return false;
-    x_min_ = x_max_ = points_.front().first;
+    thrust_points_.clear();
+    for (const core::ThrustSample& s : trace.thrust()) {
+      const double x = xValue(s.t);
+      if (std::isfinite(x)) thrust_points_.emplace_back(x, s.thrust);
+    }
+    if (points_.empty() && thrust_points_.empty()) return false;
+    x_min_ = x_max_ = points_.empty() ? thrust_points_.front().first : points_.front().first;
     force_max_ = 1.0;
     feature_max_ = 0.0;
     feature_min_ = 0.0;
@@ -123,6 +144,11 @@ class TraceChart : public QWidget {
       force_max_ = std::max(force_max_, s->force);
       feature_max_ = std::max(feature_max_, s->feature);
       feature_min_ = std::min(feature_min_, s->feature);
+    }
+    for (const auto& [x, thrust] : thrust_points_) {
+      x_min_ = std::min(x_min_, x);
+      x_max_ = std::max(x_max_, x);
+      force_max_ = std::max(force_max_, thrust);
     }
     for (double c : {c1, c2}) {
       if (std::isfinite(c)) feature_max_ = std::max(feature_max_, c);
@@ -200,6 +226,15 @@ class TraceChart : public QWidget {
   }
 
   void drawCurves(QPainter* painter) const {
+    QPainterPath thrust_path;
+    for (std::size_t i = 0; i < thrust_points_.size(); ++i) {
+      const QPointF p(xOf(thrust_points_[i].first), yForce(thrust_points_[i].second));
+      if (i == 0) {
+        thrust_path.moveTo(p);
+      } else {
+        thrust_path.lineTo(p);
+      }
+    }
     QPainterPath force_path;
     QPainterPath feature_path;
     bool first = true;
@@ -216,6 +251,10 @@ class TraceChart : public QWidget {
       }
     }
     painter->setClipRect(plot_);
+    QColor thrust = thrust_colour_;
+    thrust.setAlpha(170);  // under the averaged force: the raw stream is noisy
+    painter->setPen(QPen(thrust, 1.0));
+    painter->drawPath(thrust_path);
     painter->setPen(QPen(feature_colour_, 1.5));
     painter->drawPath(feature_path);
     painter->setPen(QPen(force_colour_, 2.0));
@@ -231,6 +270,7 @@ class TraceChart : public QWidget {
   double feature_min_ = 0.0;
   double feature_max_ = 1.0;
   std::vector<std::pair<double, const core::TraceSample*>> points_;
+  std::vector<std::pair<double, double>> thrust_points_;  // (x, thrust [N])
 };
 
 ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
@@ -244,6 +284,14 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
   axis_combo_->addItems({"time", "depth"});
   controls->addWidget(axis_combo_);
   layout->addLayout(controls);
+  auto* wrench = new QHBoxLayout();
+  wrench->addWidget(new QLabel("Wrench (thrust):"));
+  wrench_edit_ = new QLineEdit("");
+  wrench_edit_->setToolTip(
+      "geometry_msgs/WrenchStamped the recognizer reads (ft_sensor/wrench); its thrust is the "
+      "component along the recognizer's ~axis. Empty (the default): no thrust curve.");
+  wrench->addWidget(wrench_edit_);
+  layout->addLayout(wrench);
   auto* thresholds = new QHBoxLayout();
   thresholds->addWidget(new QLabel("Recognizer node (C1, C2, C3):"));
   recognizer_edit_ = new QLineEdit("/state_recognizer");
@@ -257,6 +305,7 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
 
   nh_.setCallbackQueue(&queue_);
   connect(topic_edit_, SIGNAL(editingFinished()), this, SLOT(onTopicEdited()));
+  connect(wrench_edit_, SIGNAL(editingFinished()), this, SLOT(onTopicEdited()));
   connect(recognizer_edit_, SIGNAL(editingFinished()), this, SLOT(onTopicEdited()));
   connect(axis_combo_, SIGNAL(currentIndexChanged(int)), this, SLOT(onAxisChanged(int)));
   connect(timer_, SIGNAL(timeout()), this, SLOT(poll()));
@@ -265,14 +314,18 @@ ForcePlotPanel::ForcePlotPanel(QWidget* parent) : rviz::Panel(parent) {
 ForcePlotPanel::~ForcePlotPanel() {
   timer_->stop();
   sub_.shutdown();
+  wrench_sub_.shutdown();
   truth_sub_.shutdown();
   stop_sub_.shutdown();
 }
 
 void ForcePlotPanel::onInitialize() {
+  status_pub_ = nh_.advertise<std_msgs::String>("force_plot/status", 1, true);
   subscribe(topic_edit_->text().toStdString());
-  truth_sub_ = nh_.subscribe("simulator/ground_truth", 100, &ForcePlotPanel::truthCallback, this);
+  subscribeWrench();
+  subscribeTruth();
   stop_sub_ = nh_.subscribe("drill/stop", 20, &ForcePlotPanel::stopCallback, this);
+  publishStatus();
   timer_->start(50);
 }
 
@@ -282,6 +335,14 @@ void ForcePlotPanel::load(const rviz::Config& config) {
   if (config.mapGetString("Topic", &value)) {
     topic_edit_->setText(value);
     subscribe(value.toStdString());
+  }
+  if (config.mapGetString("Wrench", &value)) {
+    wrench_edit_->setText(value);
+    subscribeWrench();
+  }
+  if (config.mapGetString("Ground truth", &value)) {
+    truth_topic_ = value.toStdString();
+    subscribeTruth();
   }
   if (config.mapGetString("Axis", &value)) {
     const int index = axis_combo_->findText(value);
@@ -298,12 +359,15 @@ void ForcePlotPanel::load(const rviz::Config& config) {
 void ForcePlotPanel::save(rviz::Config config) const {
   rviz::Panel::save(config);
   config.mapSetValue("Topic", topic_edit_->text());
+  config.mapSetValue("Wrench", wrench_edit_->text());
+  config.mapSetValue("Ground truth", QString::fromStdString(truth_topic_));
   config.mapSetValue("Axis", axis_combo_->currentText());
   config.mapSetValue("Recognizer", recognizer_edit_->text());
 }
 
 void ForcePlotPanel::onTopicEdited() {
   subscribe(topic_edit_->text().toStdString());
+  subscribeWrench();
   thresholds_read_ = ros::WallTime();
   Q_EMIT configChanged();
 }
@@ -330,6 +394,30 @@ void ForcePlotPanel::subscribe(const std::string& topic) {
   }
 }
 
+void ForcePlotPanel::subscribeWrench() {
+  wrench_sub_.shutdown();
+  thrust_received_ = false;
+  last_thrust_t_ = -1.0;
+  const std::string topic = wrench_edit_->text().toStdString();
+  chart_->thrust_on = !topic.empty();
+  if (topic.empty()) return;
+  try {
+    wrench_sub_ = nh_.subscribe(topic, 1000, &ForcePlotPanel::wrenchCallback, this);
+  } catch (const ros::Exception& e) {
+    status_label_->setText(QString("cannot subscribe to the wrench: ") + e.what());
+  }
+}
+
+void ForcePlotPanel::subscribeTruth() {
+  truth_sub_.shutdown();
+  if (truth_topic_.empty()) return;
+  try {
+    truth_sub_ = nh_.subscribe(truth_topic_, 100, &ForcePlotPanel::truthCallback, this);
+  } catch (const ros::Exception& e) {
+    status_label_->setText(QString("cannot subscribe to the ground truth: ") + e.what());
+  }
+}
+
 void ForcePlotPanel::readThresholds() {
   // The recognizer's own parameters (the paper recognizer's ~c1, ~c2, ~c3); another class has
   // none of these, and then no line is drawn.
@@ -338,6 +426,46 @@ void ForcePlotPanel::readThresholds() {
   chart_->c1 = ros::param::getCached(node + "/c1", value) ? value : std::nan("");
   chart_->c2 = ros::param::getCached(node + "/c2", value) ? value : std::nan("");
   chart_->c3 = ros::param::getCached(node + "/c3", value) ? value : std::nan("");
+  // The thrust is the wrench along the recognizer's ~axis; without it, the force's magnitude.
+  std::string axis;
+  if (!ros::param::getCached(node + "/axis", axis)) {
+    axis.clear();
+  } else if (axis != "x" && axis != "y" && axis != "z" && axis != "-x" && axis != "-y" &&
+             axis != "-z") {
+    ROS_WARN_ONCE(
+        "ForcePlotPanel: parameter %s/axis is '%s', not x, y, z, -x, -y or -z: the "
+        "thrust curve shows the force's magnitude",
+        node.c_str(), axis.c_str());
+    axis.clear();
+  }
+  thrust_axis_ = axis;
+}
+
+void ForcePlotPanel::wrenchCallback(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
+  const double t =
+      msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
+  if (t >= last_thrust_t_ && t - last_thrust_t_ < 0.005) return;  // at most 200 samples/s
+  last_thrust_t_ = t;
+  const geometry_msgs::Vector3& f = msg->wrench.force;
+  double thrust = std::sqrt(f.x * f.x + f.y * f.y + f.z * f.z);
+  if (!thrust_axis_.empty()) {
+    const char c = thrust_axis_.back();
+    thrust = (thrust_axis_.front() == '-' ? -1.0 : 1.0) * (c == 'x' ? f.x : c == 'y' ? f.y : f.z);
+  }
+  chart_->trace.addThrust(t, thrust);
+  thrust_received_ = true;
+}
+
+void ForcePlotPanel::publishStatus() {
+  const std::string status =
+      std::string("recognizer samples: ") + (chart_->trace.samples().empty() ? "no" : "yes") +
+      "; thrust samples: " + (chart_->trace.thrust().empty() ? "no" : "yes") +
+      "; ground truth: " + (truth_topic_.empty() ? std::string("off") : truth_topic_);
+  if (status == last_status_ || !status_pub_) return;
+  last_status_ = status;
+  std_msgs::String msg;
+  msg.data = status;
+  status_pub_.publish(msg);
 }
 
 void ForcePlotPanel::stateCallback(const DrillingState::ConstPtr& msg) {
@@ -369,7 +497,11 @@ void ForcePlotPanel::poll() {
     const double age = (ros::WallTime::now() - last_message_).toSec();
     status_label_->setText(age > 2.0 ? QString("last message %1 s ago").arg(age, 0, 'f', 1)
                                      : QString("receiving"));
+  } else if (thrust_received_) {
+    status_label_->setText(
+        QString::fromStdString("thrust only: waiting for " + topic_edit_->text().toStdString()));
   }
+  publishStatus();
   const bool stopped = chart_->trace.stopped();
   if (stopped && !logged_stop_) {
     for (const core::TraceEvent& e : chart_->trace.events()) {

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -247,4 +248,27 @@ TEST(ForceTrace, AMonitorStopIsMarkedTooAndTheRecognizersResetStartsANewTrial) {
   trace.add(30.0, "idle", 0, 0.0, 0.0, false);  // reset at the next trial's start
   EXPECT_FALSE(trace.stopped());
   EXPECT_TRUE(trace.events().empty());
+}
+
+TEST(ForceTrace, ThrustAloneIsAStripChartOfTheLeadInAndFollowsTheTrialsRules) {
+  pd::ForceTrace trace(2.0, 3.0);
+  double t = 0.0;
+  for (; t < 10.0; t += 0.01) trace.addThrust(t, 0.1);  // no drilling_state: the F/T sensor only
+  ASSERT_FALSE(trace.thrust().empty());
+  EXPECT_TRUE(trace.samples().empty());
+  EXPECT_GE(trace.thrust().front().t, t - 0.01 - 2.0 - 1e-9);  // the last lead_in_s
+  trace.addThrust(t, std::nan(""));                            // dropped
+  trace.addThrust(t, std::numeric_limits<double>::infinity());
+  EXPECT_DOUBLE_EQ(trace.thrust().back().thrust, 0.1);
+  trace.add(t, "outer_cortical", 1, 1.5, 0.8, false);  // the contact: kept from here on
+  const std::size_t at_contact = trace.thrust().size();
+  for (double s = t; s < t + 5.0; s += 0.01) trace.addThrust(s, 2.0);
+  EXPECT_GT(trace.thrust().size(), at_contact + 400);
+  trace.add(t + 5.0, "stopped", 4, 3.4, 1.2, true);
+  trace.addThrust(t + 6.0, 1.0);   // within the tail
+  trace.addThrust(t + 60.0, 1.0);  // long after the stop: frozen
+  EXPECT_DOUBLE_EQ(trace.thrust().back().t, t + 6.0);
+  trace.addThrust(1.0, 0.5);  // time went backwards: a new record
+  ASSERT_EQ(trace.thrust().size(), 1u);
+  EXPECT_DOUBLE_EQ(trace.thrust().front().t, 1.0);
 }

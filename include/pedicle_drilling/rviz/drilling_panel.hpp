@@ -12,6 +12,10 @@
  * "reset" on `drilling_panel/press` clicks that button (nothing happens when it is greyed out).
  * The panel publishes its one-line summary, latched, on `drilling_panel/summary`, and which
  * buttons are enabled with the reason of the others, latched, on `drilling_panel/controls`.
+ *
+ * Its inputs are configurable: "Ground truth" (the simulator's, for the residual and the
+ * verdict; empty on hardware: not subscribed, the residual reads "(no ground truth)") and
+ * "Wrench" (the force readout; the F/T stream the pipeline reads).
  */
 #pragma once
 
@@ -59,9 +63,10 @@ class DrillingPanel : public rviz::Panel {
 
   /** @brief Subscribes, starts the service watcher and the refresh timer. */
   void onInitialize() override;
-  /** @brief Restores the settings (Mode, Profile, Rpm, Feed, Seed). */
+  /** @brief Restores the settings (Mode, Profile, Rpm, Feed, Seed) and the inputs (Ground
+   *         truth, Wrench: topics, empty = not subscribed). */
   void load(const rviz::Config& config) override;
-  /** @brief Stores the settings. */
+  /** @brief Stores the settings and the inputs. */
   void save(rviz::Config config) const override;
 
  private Q_SLOTS:
@@ -107,6 +112,11 @@ class DrillingPanel : public rviz::Panel {
   ros::CallbackQueue queue_;
   ros::NodeHandle nh_;
   std::vector<ros::Subscriber> subs_;
+  void subscribeInputs();
+  ros::Subscriber truth_sub_;
+  ros::Subscriber wrench_sub_;
+  std::string truth_topic_ = "simulator/ground_truth";  // "" = none (hardware)
+  std::string wrench_topic_ = "ft_sensor/wrench";       // "" = none
   ros::Publisher stop_pub_;
   ros::Publisher summary_pub_;
   ros::Publisher controls_pub_;

@@ -298,6 +298,20 @@ void ForceTrace::addDepth(double t, double depth_m) {
   if (depth_.size() > 200000) depth_.erase(depth_.begin());
 }
 
+void ForceTrace::addThrust(double t, double thrust_n) {
+  if (!std::isfinite(t) || !std::isfinite(thrust_n)) return;
+  if (!thrust_.empty() && t < thrust_.back().t) thrust_.clear();  // a new simulation
+  if (stopped() && t > stop_t_ + tail_s_) return;                 // frozen with the stop
+  thrust_.push_back({t, thrust_n});
+  if (std::isnan(contact_t_)) {
+    const double from = t - lead_in_s_;
+    thrust_.erase(thrust_.begin(),
+                  std::find_if(thrust_.begin(), thrust_.end(),
+                               [from](const ThrustSample& s) { return s.t >= from; }));
+  }
+  if (thrust_.size() > 200000) thrust_.erase(thrust_.begin());  // keep bounded
+}
+
 double ForceTrace::depthAt(double t) const {
   if (depth_.empty() || t < depth_.front().first) return std::numeric_limits<double>::quiet_NaN();
   const auto it = std::lower_bound(depth_.begin(), depth_.end(), t,

@@ -144,6 +144,12 @@ struct TraceSample {
   double feature = 0.0;  ///< A*
 };
 
+/** @brief One sample of the F/T sensor's thrust, for the force plot. */
+struct ThrustSample {
+  double t = 0.0;       ///< stamp [s]
+  double thrust = 0.0;  ///< the wrench's component along the recognizer's axis [N]
+};
+
 /** @brief A key point or the stop, for the force plot. */
 struct TraceEvent {
   double t = 0.0;
@@ -173,11 +179,21 @@ class ForceTrace {
   void addStop(double t, const std::string& source);
   /** @brief The deepest cut [m] at t (simulator/ground_truth), for the depth axis. */
   void addDepth(double t, double depth_m);
+  /**
+   * @brief The F/T sensor's thrust [N] at t (the wrench the recognizer reads, along its axis):
+   *        kept by the rules of the averaged samples (the lead-in before the contact, frozen
+   *        tail_s after the stop); non-finite values are dropped, time going backwards starts
+   *        the thrust record over. Without drilling_state it is a strip chart of the last
+   *        lead_in_s.
+   */
+  void addThrust(double t, double thrust_n);
   /** @brief Forget everything. */
   void clear();
 
   /** @brief The kept samples, in time order. */
   const std::vector<TraceSample>& samples() const { return samples_; }
+  /** @brief The kept thrust samples, in time order. */
+  const std::vector<ThrustSample>& thrust() const { return thrust_; }
   /** @brief Key points and the stop, in time order. */
   const std::vector<TraceEvent>& events() const { return events_; }
   /** @brief Time of the bone contact (NaN before). */
@@ -195,6 +211,7 @@ class ForceTrace {
   double lead_in_s_;
   double tail_s_;
   std::vector<TraceSample> samples_;
+  std::vector<ThrustSample> thrust_;
   std::vector<TraceEvent> events_;
   std::vector<std::pair<double, double>> depth_;  // (t, depth)
   std::string state_name_;
