@@ -41,18 +41,6 @@ def rows(directory):
         return [report.normalise_row(r) for r in csv.DictReader(handle)]
 
 
-def normal_quantile(p):
-    """The standard normal quantile (bisection on stats.normal_cdf)."""
-    low, high = -40.0, 40.0
-    for _ in range(200):
-        mid = 0.5 * (low + high)
-        if stats.normal_cdf(mid) < p:
-            low = mid
-        else:
-            high = mid
-    return 0.5 * (low + high)
-
-
 def tests(out):
     """One entry per bench and speed: the paired counts, the difference's interval, the
     non-inferiority p and its Holm-adjusted value."""
@@ -82,7 +70,7 @@ def power(entry, tests_in_family):
     discordant = max(entry['only_c'] + entry['only_s'], 1)
     both = min(entry['compensated'] - entry['only_c'], n - discordant)
     shares = np.array([both, discordant / 2.0, discordant / 2.0, n - both - discordant]) / n
-    z = normal_quantile(1.0 - ALPHA / tests_in_family)
+    z = stats.normal_quantile(1.0 - ALPHA / tests_in_family)
     tables = np.random.default_rng(1).multinomial(n, shares, size=POWER_DRAWS)
     shown = sum(1 for t in tables if compare.paired_difference_interval(
         int(t[0]), int(t[1]), int(t[2]), int(t[3]), z)[0] > -MARGIN_POINTS / 100.0)

@@ -13,6 +13,7 @@ campaigns' summary.json, Table II and the robustness curves' csv.
 usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
 import argparse
 import csv
+import functools
 import glob
 import io
 import os
@@ -106,14 +107,20 @@ def paper_metrics(archive):
     return captured(results_tables.metrics_table, summary)
 
 
+@functools.lru_cache(maxsize=None)
+def equivalence_block(archive):
+    """doc/results.md's non-inferiority table and its conclusion (computed once per archive)."""
+    return captured(equivalence_tables.main, ['', archive])
+
+
 def equivalence_summary(archive):
     """The README's sentence: the conclusion of the non-inferiority table."""
-    return captured(equivalence_tables.main, ['', archive]).strip().splitlines()[-1] + '\n'
+    return equivalence_block(archive).strip().splitlines()[-1] + '\n'
 
 
 BLOCKS = {
     'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
-    'equivalence': lambda archive: captured(equivalence_tables.main, ['', archive]),
+    'equivalence': equivalence_block,
     'equivalence_summary': equivalence_summary,
     'paper_design': paper_design,
     'paper_metrics': paper_metrics,

@@ -76,3 +76,9 @@ def holm(p_values):
 def normal_cdf(z):
     """The standard normal distribution function."""
     return 0.5 * math.erfc(-z / math.sqrt(2.0))
+
+
+def normal_quantile(p):
+    """The standard normal quantile function (the inverse of normal_cdf; scipy)."""
+    from scipy.stats import norm
+    return float(norm.ppf(p))
