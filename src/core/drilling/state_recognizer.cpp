@@ -97,7 +97,7 @@ void RecognizerParams::validate() const {
        << " Hz is a block of " << n << " sample(s) (" << exact << " to the nearest): " << why;
     throw std::invalid_argument(os.str());
   };
-  if (n < 2) blockFail("a block needs at least 2 samples (pre_average_s >= 1.5 / sensor_rate_hz)");
+  if (n < 2) blockFail("a block needs at least 2 samples (pre_average_s >= 2 / sensor_rate_hz)");
   if (n > 100000) blockFail("a block holds at most 100000 samples");
   if (std::fabs(n - exact) > 0.1 * exact) {
     std::ostringstream os;

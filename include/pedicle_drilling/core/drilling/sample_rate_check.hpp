@@ -64,8 +64,9 @@ class SampleRateCheck {
   const SampleRateCheckParams& params() const { return params_; }
 
   /**
-   * @brief One phrase naming both rates, e.g. "measured 1000 Hz over 1 s, declared 333.3 Hz
-   *        (off by +200 %, tolerance 10 %)"; "not measured yet" before the first window.
+   * @brief One phrase naming both rates, e.g. "measured 1000 Hz over 1 s, declared 333.333 Hz
+   *        (off by +200.0 %, tolerance 10 %)"; "not measured yet, declared 333.333 Hz" before
+   *        the first window.
    */
   std::string describe() const;
 

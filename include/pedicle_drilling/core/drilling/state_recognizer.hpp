@@ -74,10 +74,11 @@ struct RecognizerParams {
    *        window + cancellous_confirm also lets the confirmation restart once after one rebound
    *        of the force (a bone lagging its prediction); chosen on calibration seeds (base seed
    *        1: 15 stopped 3 of 100 fault-free virtual-patient trials, doc/state_machine.md).
-   *        3.75 s (25 blocks of 0.15 s) at any sensor rate. A force sensor whose bias drifts
-   * upwards keeps A* above C1, so key point 3, and with it the inner-layer stop, would never come.
-   *        The outer layer's bound is the planner's `outer_cortical_max_mm`, in mm of feed
-   *        relative to the bone (the recognizer does not know the feed).
+   *        3.75 s (25 blocks of 0.15 s) at any sensor rate. A force sensor whose bias
+   *        drifts upwards keeps A* above C1, so key point 3, and with it the inner-layer stop,
+   *        would never come. The outer layer's bound is the planner's
+   *        `outer_cortical_max_mm`, in mm of feed relative to the bone (the recognizer does not
+   *        know the feed).
    */
   int cancellous_deadline = 25;
   /** @brief Consecutive averaged samples with A* > C2 needed to confirm key point 4. */
