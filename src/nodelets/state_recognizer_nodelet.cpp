@@ -7,8 +7,12 @@
  *        core::StateRecognizer (doc/state_machine.md). An exception of the recognizer class is
  *        such a stop too, naming the error (core::GuardedRecognizer). While the planner's trial
  *        has the drill in bone (compensation/status), `~reset` is refused and a tare result does
- *        not restart the recognizer.
+ *        not restart the recognizer. The rate of `ft_sensor/wrench` is measured from its stamps
+ *        against the declared `~sensor_rate_hz` (core::SampleRateCheck): off by more than
+ *        `~rate_tolerance`, an ERROR on /diagnostics and in the log naming both rates, `~reset`
+ *        refused (the planner's trial is refused) and a running trial stopped with retreat.
  */
+#include <diagnostic_msgs/DiagnosticArray.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -27,6 +31,7 @@
 #include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TrialStatus.h"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
@@ -73,6 +78,13 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       // What the class throws while running is a stop naming it, never an escaped exception
       // (which would end the manager and every nodelet in it).
       recognizer_ = std::make_unique<core::GuardedRecognizer>(std::move(recognizer));
+      core::SampleRateCheckParams rate;
+      rate.declared_hz = params.recognizer.sensor_rate_hz;
+      rate.tolerance = params.rate_tolerance;
+      rate.window_s = params.rate_window_s;
+      rate_check_ = std::make_unique<core::SampleRateCheck>(rate);
+      block_samples_ = params.recognizer.blockSamples();
+      pre_average_s_ = params.recognizer.pre_average_s;
       // Under the simulator's lockstep it answers each step after the step's force samples.
       // No timers: it needs a step only after it published (its states and stops are handled
       // at the next step); the force samples' steps are stepped anyway.
@@ -83,8 +95,10 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     } catch (const std::exception& e) {
       failStartup(getName(), e.what());  // throws: the load fails
     }
-    NODELET_INFO("StateRecognizer: axis %s%c, %s", axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_],
-                 recognizer_ -> describe().c_str());
+    wrench_topic_ = nh.resolveName("ft_sensor/wrench");
+    NODELET_INFO("StateRecognizer: axis %s%c, %s; %s declared at %g Hz (~sensor_rate_hz)",
+                 axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_], recognizer_ -> describe().c_str(),
+                 wrench_topic_.c_str(), rate_check_->params().declared_hz);
     for (const std::string& off : params.disabledWatchdogs()) {
       NODELET_WARN("StateRecognizer: UNSAFE (~unsafe_allow_disabled_watchdogs): %s", off.c_str());
     }
@@ -92,6 +106,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     // 1.10.2): the publishers exist before the callbacks that use them are registered.
     state_pub_ = nh.advertise<DrillingState>("drilling_state", 100);
     stop_pub_ = nh.advertise<StopCommand>("drill/stop", 10);
+    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>("/diagnostics", 10);
     // The planner's phase (latched): no reset while its drill is in bone.
     status_sub_ =
         nh.subscribe("compensation/status", 10, &StateRecognizerNodelet::onTrialStatus, this);
@@ -111,6 +126,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     const double thrust = axis_sign_ * component;
     const double t =
         msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
+    // The stream's rate counts every message, whatever its force.
+    if (rate_check_->observe(t)) onRateMeasured(ros::Time(t));
     if (!std::isfinite(thrust) || !std::isfinite(t)) {
       // The core refuses non-finite samples; skipping one keeps the block means honest. The
       // SafetyMonitor stops the drill on NaN input, so this only has to stay alive.
@@ -158,6 +175,79 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     std::lock_guard<std::mutex> lock(mutex_);
     trial_phase_ = msg->phase;
     trial_phase_name_ = msg->phase_name;
+    trial_running_ = msg->running;
+    if (!trial_running_) rate_stop_sent_ = false;  // the next trial's own
+  }
+
+  /** @brief The rate check's verdict as one line naming both rates and the block's length. */
+  std::string rateText() const {
+    std::ostringstream os;
+    os << wrench_topic_ << " " << rate_check_->describe();
+    if (rate_check_->verdict() == core::RateVerdict::kMismatch) {
+      os << ": the block of " << block_samples_ << " samples lasts "
+         << block_samples_ / rate_check_->measuredHz() << " s instead of pre_average_s "
+         << pre_average_s_ << " s; set ~sensor_rate_hz to the sensor's rate (hardware.launch "
+         << "force_rate_hz)";
+    } else {
+      os << "; block " << block_samples_ << " samples = " << pre_average_s_ << " s";
+    }
+    return os.str();
+  }
+
+  /**
+   * @brief A window of the rate check completed: its status on /diagnostics, a log line when the
+   *        verdict changes (ERROR while off, throttled), and the stop of a running trial.
+   */
+  void onRateMeasured(const ros::Time& stamp) {
+    const bool mismatch = rate_check_->verdict() == core::RateVerdict::kMismatch;
+    const std::string text = rateText();
+    publishRateStatus(stamp, mismatch, text);
+    if (mismatch && !rate_mismatch_logged_) {
+      NODELET_ERROR("StateRecognizer: sensor rate: %s", text.c_str());
+    } else if (mismatch) {
+      NODELET_ERROR_THROTTLE(10.0, "StateRecognizer: sensor rate: %s", text.c_str());
+    } else if (rate_mismatch_logged_ || !rate_logged_) {
+      NODELET_INFO("StateRecognizer: sensor rate: %s", text.c_str());
+    }
+    rate_logged_ = true;
+    rate_mismatch_logged_ = mismatch;
+    if (!mismatch || !trial_running_ || rate_stop_sent_) return;
+    // A filter of the wrong length in time is no recognizer to drill on: fail closed.
+    rate_stop_sent_ = true;
+    StopCommand stop;
+    stop.header.stamp = stamp;
+    stop.source = getName();
+    stop.retreat = true;
+    stop.reason = "sensor rate mismatch, stop and retreat: " + text;
+    publishInOrder(stop_pub_, stop);
+    lockstep_->noteSent();
+    NODELET_ERROR("StateRecognizer: STOP: %s", stop.reason.c_str());
+  }
+
+  void publishRateStatus(const ros::Time& stamp, bool mismatch, const std::string& text) {
+    diagnostic_msgs::DiagnosticArray array;
+    array.header.stamp = stamp;
+    diagnostic_msgs::DiagnosticStatus status;
+    status.name = getName() + ": sensor rate";
+    status.hardware_id = wrench_topic_;
+    status.level =
+        mismatch ? diagnostic_msgs::DiagnosticStatus::ERROR : diagnostic_msgs::DiagnosticStatus::OK;
+    status.message = text;
+    const auto value = [&status](const std::string& key, double v) {
+      diagnostic_msgs::KeyValue kv;
+      kv.key = key;
+      kv.value = core::Range::format(v);
+      status.values.push_back(kv);
+    };
+    value("measured_rate_hz", rate_check_->measuredHz());
+    value("sensor_rate_hz", rate_check_->params().declared_hz);
+    value("rate_tolerance", rate_check_->params().tolerance);
+    value("rate_window_s", rate_check_->params().window_s);
+    value("block_samples", block_samples_);
+    value("block_s", block_samples_ / rate_check_->measuredHz());
+    array.status.push_back(status);
+    publishInOrder(diagnostics_pub_, array);
+    lockstep_->noteSent();
   }
 
   /** @brief "" while a restart is allowed, else why not: the planner's drill is in bone. */
@@ -192,6 +282,13 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
       NODELET_WARN("StateRecognizer: %s", response.message.c_str());
       return true;
     }
+    if (rate_check_->verdict() == core::RateVerdict::kMismatch) {
+      // The planner calls ~reset to start a trial: no trial on a filter of the wrong length.
+      response.success = false;
+      response.message = "reset refused, no trial starts: sensor rate mismatch: " + rateText();
+      NODELET_ERROR("StateRecognizer: %s", response.message.c_str());
+      return true;
+    }
     recognizer_->reset();
     // Say at once that the latch is cleared (a planner refuses to feed while the latest state
     // reports a stop).
@@ -206,11 +303,20 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   RecognizerLoader loader_;  // before recognizer_: outlives the instance it made
   std::unique_ptr<core::RecognizerInterface> recognizer_;
   std::unique_ptr<LockstepParticipant> lockstep_;
+  std::unique_ptr<core::SampleRateCheck> rate_check_;  ///< ft_sensor/wrench against sensor_rate_hz
+  std::string wrench_topic_;                           ///< its resolved name, for the messages
+  int block_samples_ = 0;                              ///< the paper recognizer's block
+  double pre_average_s_ = 0.0;
+  bool rate_logged_ = false;           ///< a verdict was logged
+  bool rate_mismatch_logged_ = false;  ///< the latest verdict logged was a mismatch
+  bool trial_running_ = false;         ///< compensation/status running
+  bool rate_stop_sent_ = false;        ///< this trial was stopped for its sensor rate
   int axis_index_ = 2;
   double axis_sign_ = 1.0;
   std::size_t non_finite_count_ = 0;
   ros::Publisher state_pub_;
   ros::Publisher stop_pub_;
+  ros::Publisher diagnostics_pub_;
   ros::Subscriber wrench_sub_;
   ros::ServiceServer reset_srv_;
   ros::Subscriber tare_sub_;

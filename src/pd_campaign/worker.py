@@ -586,6 +586,9 @@ def _wait_sim_until(recorder, stamp):
 PAPER_CLASSES = {'recognizer': 'pedicle_drilling/PaperRecognizer',
                  'compensator': 'pedicle_drilling/PaperCompensator'}
 NODE_CONFIGS = {'recognizer': 'recognizer.yaml', 'compensator': 'compensation_planner.yaml'}
+# The StateRecognizer's own settings in recognizer.yaml, no parameter of the recognizer class;
+# its sensor_rate_hz is the simulated sensor's (launch_arguments: force_rate_hz).
+NODE_ONLY_SETTINGS = ('axis', 'queue_size', 'rate_tolerance', 'rate_window_s', 'sensor_rate_hz')
 
 
 def typed_setting(name, text, like):
@@ -629,7 +632,7 @@ def plugin_config(kind, class_name, settings, package_root, out_path):
         pairs.append((name, value))
     if class_name == PAPER_CLASSES[kind]:
         for name, value in pairs:
-            if kind != 'recognizer' or name not in config or name in ('axis', 'queue_size'):
+            if kind != 'recognizer' or name not in config or name in NODE_ONLY_SETTINGS:
                 raise ValueError('--%s-param %s: not a parameter of %s' % (kind, name, class_name))
             config[name] = typed_setting(name, value, config[name])
     else:
@@ -642,7 +645,11 @@ def plugin_config(kind, class_name, settings, package_root, out_path):
 def launch_arguments(args):
     """The pipeline launch's NAME:=VALUE arguments of a worker (besides the nodelets' parameter
     files). roslaunch takes an argument the launch file does not declare without a word:
-    test_worker_config checks each against campaign_pipeline.launch."""
+    test_worker_config checks each against campaign_pipeline.launch. A simulated sensor rate
+    (--simulator-param force_sensor_rate_hz) is the launch's force_rate_hz: the recognizer and
+    the monitor are declared at it, as the core engine declares it to its recognizer."""
+    rates = [setting.split('=', 1)[1] for setting in getattr(args, 'simulator_param', None) or ()
+             if setting.split('=', 1)[0] == 'force_sensor_rate_hz']
     return ['patient_model:=%s' % args.default_model,
             'real_time_factor:=%g' % args.real_time_factor,
             'clock_period_ms:=%d' % (10 if args.bags else 100),
@@ -650,7 +657,8 @@ def launch_arguments(args):
             'depth_limit:=%s' % args.depth_limit,
             'recognizer:=%s' % args.recognizer, 'compensator:=%s' % args.compensator,
             # ~identify writes only there (the trials' models, model_path below)
-            'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))]
+            'model_folder:=%s' % os.path.abspath(os.path.join(args.out, 'models'))] + [
+                'force_rate_hz:=%s' % rate for rate in rates[-1:]]
 
 
 class PipelineDown(RuntimeError):

@@ -179,6 +179,8 @@ const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() 
          "axis", forceAxes(), "", [](const P& v) { return v.axis; },
          [](P& v, const std::string& x) { v.axis = x; })
         .include(core::RecognizerParams::table(), &P::recognizer)
+        .number("rate_tolerance", &P::rate_tolerance, Range::open(0, 1))
+        .number("rate_window_s", &P::rate_window_s, Range::aboveUpTo(0, 60), "s")
         .integer("queue_size", &P::queue_size, Range::closed(1, 100000))
         .text("recognizer", &P::recognizer_class)
         .pairs("recognizer_params", &P::recognizer_params)
@@ -207,7 +209,7 @@ void StateRecognizerNodeParams::validate() const {
   if (recognizer_class == "pedicle_drilling/PaperRecognizer" && !recognizer_params.empty()) {
     throw std::invalid_argument(
         "recognizer_params is for other recognizer classes; the paper recognizer's parameters "
-        "are this node's own (~pre_average, ~window, ...)");
+        "are this node's own (~pre_average_s, ~window, ...)");
   }
 }
 

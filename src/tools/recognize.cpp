@@ -182,8 +182,9 @@ void addOptions(CLI::App* app, Options* o) {
                   "any pluginlib class of base pedicle_drilling::core::RecognizerInterface");
   app->add_option("--param", o->params,
                   "name=value for the recognizer (repeatable, each name once). The paper "
-                  "recognizer's: pre_average window k_ratio f_th gain h_g c1 c2 c3 "
-                  "cancellous_confirm cancellous_deadline inner_confirm "
+                  "recognizer's: pre_average_s sensor_rate_hz (the trace's rate: its block is "
+                  "round(pre_average_s x sensor_rate_hz) samples) window k_ratio f_th gain h_g "
+                  "c1 c2 c3 cancellous_confirm cancellous_deadline inner_confirm "
                   "stop_delay normalize_feature")
       ->allow_extra_args(false)
       ->check(pedicle_drilling::tools::accepting(

@@ -161,6 +161,25 @@ PluginSettings parseSettings(const std::vector<std::string>& items, const std::s
   return out;
 }
 
+const char* const kPaperRecognizer = "pedicle_drilling/PaperRecognizer";
+
+/**
+ * @brief The engine declares the simulated sensor's rate to the paper recognizer, as a launch
+ *        line's force_rate_hz does for the nodelets: its own sensor_rate_hz is no setting here.
+ * @throws std::invalid_argument naming sensor_rate_hz and the setting to use instead.
+ */
+void refuseDeclaredRate(const std::string& recognizer_class, const PluginSettings& settings) {
+  if (recognizer_class != kPaperRecognizer) return;
+  for (const auto& [name, value] : settings) {
+    if (name == "sensor_rate_hz") {
+      throw std::invalid_argument(
+          "sensor_rate_hz: the core engine declares the simulated sensor's rate to the "
+          "recognizer; set force_sensor_rate_hz (--simulator-param, the scenario's "
+          "simulator_params) instead");
+    }
+  }
+}
+
 }  // namespace
 
 namespace {
@@ -350,7 +369,8 @@ void addOptions(CLI::App* app, Options* o, pd::EngineConfig* config) {
                   "drilling-state recognizer class (built-in or pluginlib; doc/plugins.md)");
   app->add_option("--recognizer-param", o->recognizer_params,
                   "name=value for the recognizer (repeatable; the paper recognizer's default: "
-                  "config/recognizer.yaml's values are its defaults)");
+                  "config/recognizer.yaml's values are its defaults; its sensor_rate_hz is the "
+                  "simulated sensor's, --simulator-param force_sensor_rate_hz)");
   app->add_option("--compensator", o->compensator_class,
                   "motion compensator class (built-in or pluginlib; doc/plugins.md)");
   app->add_option("--compensator-param", o->compensator_params,
@@ -397,6 +417,7 @@ int checkPlugin(int argc, char** argv) {
     const PluginSettings settings =
         parseSettings(std::vector<std::string>(argv + 3, argv + argc), "parameter");
     if (recognizer) {
+      refuseDeclaredRate(argv[2], settings);
       pedicle_drilling::RecognizerLoader loader;
       std::cout << loader.create(argv[2], settings)->describe() << "\n";
     } else {
@@ -584,6 +605,49 @@ void runStreamedTrials(const Options& o, const pd::EngineConfig& config,
   }
 }
 
+/**
+ * @brief The classes of --recognizer and --compensator with their settings, loaded and
+ *        configured once: the paper recognizer into config->recognizer, declared at the simulated
+ *        sensor's rate; another class as the factory of each trial's instance (the loaders must
+ *        outlive the engine). @return false, the refusal printed, when a class or a setting is
+ *        refused.
+ */
+bool configureClasses(const Options& o, pd::EngineConfig* config,
+                      pedicle_drilling::RecognizerLoader* recognizer_loader,
+                      pedicle_drilling::CompensatorLoader* compensator_loader) {
+  PluginSettings recognizer_settings;
+  PluginSettings compensator_settings;
+  std::string option = "--recognizer " + o.recognizer_class;
+  try {
+    recognizer_settings = parseSettings(o.recognizer_params, "--recognizer-param");
+    refuseDeclaredRate(o.recognizer_class, recognizer_settings);
+    if (o.recognizer_class == kPaperRecognizer) {
+      for (const auto& [name, value] : recognizer_settings) config->recognizer.set(name, value);
+      config->recognizer.sensor_rate_hz = config->simulation.sensor.output_rate_hz;
+      config->recognizer.validate();
+    } else {
+      recognizer_loader->create(o.recognizer_class, recognizer_settings);
+    }
+    option = "--compensator " + o.compensator_class;
+    compensator_settings = parseSettings(o.compensator_params, "--compensator-param");
+    compensator_loader->create(o.compensator_class, compensator_settings);
+  } catch (const std::exception& e) {
+    std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";
+    return false;
+  }
+  if (o.recognizer_class != kPaperRecognizer) {
+    config->make_recognizer = [recognizer_loader, &o, recognizer_settings]() {
+      return recognizer_loader->create(o.recognizer_class, recognizer_settings);
+    };
+  }
+  if (o.compensator_class != "pedicle_drilling/PaperCompensator") {
+    config->make_compensator = [compensator_loader, &o, compensator_settings]() {
+      return compensator_loader->create(o.compensator_class, compensator_settings);
+    };
+  }
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -645,32 +709,10 @@ int main(int argc, char** argv) {
     return tools::usageError(app, std::string("--planner-param: ") + e.what());
   }
   // The recognizer and compensator classes, loaded and configured once here so that a bad one is
-  // exit 2 before any trial; each trial then gets fresh instances.
+  // exit 2 before any trial; each trial then gets fresh instances (the loaders outlive them).
   pedicle_drilling::RecognizerLoader recognizer_loader;
   pedicle_drilling::CompensatorLoader compensator_loader;
-  PluginSettings recognizer_settings;
-  PluginSettings compensator_settings;
-  std::string option = "--recognizer " + o.recognizer_class;
-  try {
-    recognizer_settings = parseSettings(o.recognizer_params, "--recognizer-param");
-    recognizer_loader.create(o.recognizer_class, recognizer_settings);
-    option = "--compensator " + o.compensator_class;
-    compensator_settings = parseSettings(o.compensator_params, "--compensator-param");
-    compensator_loader.create(o.compensator_class, compensator_settings);
-  } catch (const std::exception& e) {
-    std::cerr << "trial_engine: " << option << ": " << e.what() << "\n";
-    return 2;
-  }
-  if (o.recognizer_class != "pedicle_drilling/PaperRecognizer" || !recognizer_settings.empty()) {
-    config.make_recognizer = [&recognizer_loader, &o, recognizer_settings]() {
-      return recognizer_loader.create(o.recognizer_class, recognizer_settings);
-    };
-  }
-  if (o.compensator_class != "pedicle_drilling/PaperCompensator") {
-    config.make_compensator = [&compensator_loader, &o, compensator_settings]() {
-      return compensator_loader.create(o.compensator_class, compensator_settings);
-    };
-  }
+  if (!configureClasses(o, &config, &recognizer_loader, &compensator_loader)) return 2;
   pd::ComponentProfile profile;
   if (!o.profile_path.empty()) config.profile = &profile;
   std::unique_ptr<pd::ClosedLoopEngine> engine;

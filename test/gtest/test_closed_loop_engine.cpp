@@ -93,10 +93,10 @@ TEST(ClosedLoopEngine, StationaryTrialStopsInsideTheInnerLayer) {
   EXPECT_GT(r.last_truth.max_depth_cut_m, r.last_truth.inner_cortical_start_m);
   EXPECT_GT(r.last_truth.residual_inner_cortical_m, 0.0);
   EXPECT_LE(r.last_truth.residual_inner_cortical_m, 2e-3);
-  // One recognizer state per 50 force samples (at the sensor's DAQ rate), key points in order.
+  // One recognizer state per block of pre_average_s (50 samples of the 1000/3 Hz DAQ), key
+  // points in order.
   ASSERT_GT(r.states.size(), 30u);
-  EXPECT_NEAR(r.states[1].t - r.states[0].t,
-              50.0 / pd::DrillingSimulationParams().sensor.output_rate_hz, 1e-9);
+  EXPECT_NEAR(r.states[1].t - r.states[0].t, pd::RecognizerParams().pre_average_s, 1e-9);
   ASSERT_GE(r.key_points.size(), 4u);
   for (std::size_t i = 0; i < r.key_points.size(); ++i) {
     EXPECT_EQ(r.key_points[i].first, static_cast<int>(i) + 1);
@@ -265,6 +265,35 @@ TEST(ClosedLoopEngine, BadConfigurationNamesTheField) {
   c = config();
   c.tracker_rate_hz = 0.0;
   EXPECT_THROW(pd::ClosedLoopEngine{c}, std::invalid_argument);
+}
+
+TEST(ClosedLoopEngine, TheRecognizerMustBeDeclaredAtTheSimulatedSensorsRate) {
+  // A 1 kHz DAQ with the recognizer still declared at 1000/3 Hz: its block would be 0.05 s.
+  pd::EngineConfig c = config();
+  c.simulation.sensor.output_rate_hz = 1000.0;
+  try {
+    pd::ClosedLoopEngine engine(c);
+    FAIL() << "accepted a recognizer declared at another rate than the simulated sensor's";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("sensor_rate_hz:", 0), 0u) << what;
+    EXPECT_NE(what.find("declared 333.333 Hz"), std::string::npos) << what;
+    EXPECT_NE(what.find("runs at 1000 Hz"), std::string::npos) << what;
+  }
+  // Declared at the sensor's rate: the same 0.15 s, 150 samples a block.
+  c.recognizer.sensor_rate_hz = 1000.0;
+  pd::ClosedLoopEngine engine(c);
+  const pd::EngineTrialRecord r = engine.run(spec("stationary", 5));
+  ASSERT_GT(r.states.size(), 30u);
+  EXPECT_NEAR(r.states[1].t - r.states[0].t, 0.15, 1e-9);
+  ASSERT_FALSE(r.stops.empty());
+  EXPECT_EQ(r.stops[0].source, "/state_recognizer");
+  EXPECT_FALSE(r.last_truth.breakthrough);
+  // Within 10 % (the nodelet's default tolerance) is accepted.
+  c.recognizer.sensor_rate_hz = 1080.0;
+  EXPECT_NO_THROW(pd::checkSensorRate(c));
+  c.recognizer.sensor_rate_hz = 1120.0;
+  EXPECT_THROW(pd::checkSensorRate(c), std::invalid_argument);
 }
 
 TEST(ClosedLoopEngine, ARefusedTrialIsAnErrorNamingTheReason) {

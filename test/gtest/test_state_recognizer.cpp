@@ -6,6 +6,7 @@
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
@@ -63,7 +64,15 @@ struct RunResult {
   std::vector<DrillingState> states;  // distinct consecutive layer states visited
 };
 
-RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = RecognizerParams()) {
+// The synthetic profiles' recognizer: declared at their 1 kHz, blocks of 50 samples (0.05 s).
+RecognizerParams profileParams() {
+  RecognizerParams p;
+  p.sensor_rate_hz = kRate;
+  p.pre_average_s = 0.05;
+  return p;
+}
+
+RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = profileParams()) {
   StateRecognizer rec(p);
   RunResult r;
   r.states.push_back(DrillingState::kIdle);
@@ -75,14 +84,34 @@ RunResult runProfile(const std::vector<double>& f, const RecognizerParams& p = R
   return r;
 }
 
-// Direct-drive helper: pre_average = window = 1 so each pushed value is fbar itself.
-// One averaged sample per pushed sample (the tests push one per second, t = 0, 1, 2, ...).
+// Direct-drive helper: blocks of 2 raw samples (the least a block may hold: 2 s at a declared
+// 1 Hz) and window 1, and Direct pushes each value twice, so that each value is fbar itself.
+// One averaged sample per value (the tests push one per second, t = 0, 1, 2, ...); the value
+// pushed i-th ends at raw index rawIndex(i).
 RecognizerParams directParams() {
   RecognizerParams p;
-  p.pre_average = 1;
+  p.sensor_rate_hz = 1.0;
+  p.pre_average_s = 2.0;
   p.window = 1;
   return p;
 }
+
+std::size_t rawIndex(int i) { return static_cast<std::size_t>(2 * i + 1); }
+
+// A recognizer fed one averaged value per push (both samples of a block at time t).
+class Direct {
+ public:
+  explicit Direct(const RecognizerParams& p) : rec_(p) {}
+  const RecognizerOutput& push(double t, double f) {
+    rec_.push(t, f);
+    return rec_.push(t, f);
+  }
+  const RecognizerOutput& output() const { return rec_.output(); }
+  void reset() { rec_.reset(); }
+
+ private:
+  StateRecognizer rec_;
+};
 
 TEST(StateRecognizerFeature, Eq14And15) {
   RecognizerParams p;
@@ -98,7 +127,7 @@ TEST(StateRecognizerFeature, Eq14And15) {
 }
 
 TEST(StateRecognizerFilter, PreAverageAndMovingAverageIndices) {
-  RecognizerParams p;  // 50 x 10
+  RecognizerParams p;  // 0.15 s at 1000/3 Hz = 50 samples, x 10
   StateRecognizer rec(p);
   // 10 blocks of 50 raw samples are needed: raw index 499 gives the first fbar.
   for (int i = 0; i < 499; ++i) {
@@ -113,7 +142,8 @@ TEST(StateRecognizerFilter, PreAverageAndMovingAverageIndices) {
 
 TEST(StateRecognizerFilter, MovingAverageValue) {
   RecognizerParams p;
-  p.pre_average = 2;
+  p.sensor_rate_hz = 1.0;
+  p.pre_average_s = 2.0;  // blocks of 2 samples
   p.window = 3;
   StateRecognizer rec(p);
   const double raw[] = {1, 3, 5, 7, 0, 2, 10, 20};  // blocks: 2, 6, 1, 15
@@ -128,7 +158,7 @@ TEST(StateRecognizerFilter, MovingAverageValue) {
 }
 
 TEST(StateRecognizerTransitions, IdleToOuterCorticalNeedsFth) {
-  StateRecognizer rec(directParams());
+  Direct rec(directParams());
   EXPECT_EQ(rec.push(0, 0.5).state, DrillingState::kIdle);
   EXPECT_EQ(rec.push(1, 1.0).state, DrillingState::kIdle);  // F_max must exceed F_th strictly
   EXPECT_EQ(rec.push(2, 1.01).state, DrillingState::kOuterCortical);
@@ -137,7 +167,7 @@ TEST(StateRecognizerTransitions, IdleToOuterCorticalNeedsFth) {
 }
 
 TEST(StateRecognizerTransitions, Algorithm2FixesKAndD) {
-  StateRecognizer rec(directParams());
+  Direct rec(directParams());
   const double f[] = {0.2, 0.1, 2.0, 3.0, 1.6, 1.4};
   for (int i = 0; i < 5; ++i) {
     rec.push(i, f[i]);
@@ -152,14 +182,14 @@ TEST(StateRecognizerTransitions, Algorithm2FixesKAndD) {
   ASSERT_EQ(o.num_key_points, 2);
   EXPECT_EQ(o.key_points[0].id, 1);
   // KP1: first sample whose A* >= C1: fbar = 2.0 -> f* = 1.9/2.9, A = 2.9 f*^3 = 0.815 -> A* 0.98.
-  EXPECT_EQ(o.key_points[0].index, 2u);
-  EXPECT_EQ(o.key_points[0].recognized_index, 5u);
+  EXPECT_EQ(o.key_points[0].index, rawIndex(2));
+  EXPECT_EQ(o.key_points[0].recognized_index, rawIndex(5));
   EXPECT_EQ(o.key_points[1].id, 2);
-  EXPECT_EQ(o.key_points[1].index, 5u);
+  EXPECT_EQ(o.key_points[1].index, rawIndex(5));
 }
 
 TEST(StateRecognizerTransitions, NoKeyPoint2WhileFmaxBelowFth) {
-  StateRecognizer rec(directParams());
+  Direct rec(directParams());
   // Drops by more than K but F_max never exceeds F_th: soft tissue, not bone.
   for (double f : {0.2, 0.9, 0.3, 0.0, 0.95, 0.1}) rec.push(0, f);
   EXPECT_EQ(rec.output().state, DrillingState::kIdle);
@@ -169,7 +199,7 @@ TEST(StateRecognizerTransitions, NoKeyPoint2WhileFmaxBelowFth) {
 TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
   RecognizerParams p = directParams();
   p.cancellous_confirm = 3;
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 at i = 2 (A* = 0.111 < C1)
   ASSERT_EQ(rec.output().last_key_point, 2);
@@ -183,8 +213,8 @@ TEST(StateRecognizerTransitions, CancellousNeedsConfirmedDwellBelowC1) {
   const RecognizerOutput& o = rec.push(i++, 0.7);  // i = 8, run 3: confirmed
   EXPECT_EQ(o.state, DrillingState::kCancellous);
   EXPECT_EQ(o.last_key_point, 3);
-  EXPECT_EQ(o.key_points[2].index, 8u);
-  EXPECT_EQ(o.key_points[2].recognized_index, 8u);
+  EXPECT_EQ(o.key_points[2].index, rawIndex(8));
+  EXPECT_EQ(o.key_points[2].recognized_index, rawIndex(8));
   EXPECT_FALSE(o.stop);
 }
 
@@ -192,7 +222,7 @@ TEST(StateRecognizerTransitions, NoCancellousWithinTheDeadlineIsAnImplausibleFor
   RecognizerParams p = directParams();
   p.cancellous_confirm = 3;
   p.cancellous_deadline = 6;  // averaged samples after key point 2
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);  // KP2 on the third sample
   ASSERT_EQ(rec.output().last_key_point, 2);
@@ -211,7 +241,7 @@ TEST(StateRecognizerTransitions, CancellousConfirmedOnTheDeadlineSampleIsNotASto
   RecognizerParams p = directParams();
   p.cancellous_confirm = 3;
   p.cancellous_deadline = 6;
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);                 // KP2
   for (double f : {2.5, 2.5, 2.5, 0.5, 0.5, 0.5}) rec.push(i++, f);  // confirmed on the 6th
@@ -227,7 +257,7 @@ TEST(StateRecognizerTransitions, CancellousDeadlineIsCountedInSamplesWhateverThe
   for (double period : {0.05, 0.15}) {
     SCOPED_TRACE(period);
     RecognizerParams p = directParams();  // cancellous_deadline 25 (the default)
-    StateRecognizer rec(p);
+    Direct rec(p);
     int i = 0;
     for (double f : {0.0, 3.0, 1.0}) rec.push(period * i++, f);
     ASSERT_EQ(rec.output().last_key_point, 2);
@@ -243,7 +273,7 @@ TEST(StateRecognizerTransitions, CancellousDeadlineIsCountedInSamplesWhateverThe
 TEST(StateRecognizerTransitions, CancellousDeadlineZeroDisablesIt) {
   RecognizerParams p = directParams();
   p.cancellous_deadline = 0;
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = 0;
   for (double f : {0.0, 3.0, 1.0}) rec.push(i++, f);
   for (int k = 0; k < 1000; ++k) rec.push(i++, 2.5);
@@ -255,7 +285,7 @@ TEST(StateRecognizerTransitions, TheOuterLayerHasNoTimeInTheRecognizer) {
   // The outer layer's bound is geometric and lives in the planner (outer_cortical_max_mm, mm
   // of feed relative to the bone): the recognizer alone waits for Algorithm 2.
   RecognizerParams p = directParams();
-  StateRecognizer rec(p);
+  Direct rec(p);
   double f = 1.5;
   for (int k = 0; k < 1000; ++k, f += 0.01) rec.push(k, f);
   EXPECT_FALSE(rec.output().stop);
@@ -263,7 +293,7 @@ TEST(StateRecognizerTransitions, TheOuterLayerHasNoTimeInTheRecognizer) {
 }
 
 // Drive to the cancellous state with direct parameters; returns next time index.
-int toCancellous(StateRecognizer& rec) {
+int toCancellous(Direct& rec) {
   int i = 0;
   for (double f : {0.0, 3.0, 1.0, 0.7, 0.7, 0.7, 0.7, 0.7, 0.7}) rec.push(i++, f);
   EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
@@ -271,7 +301,7 @@ int toCancellous(StateRecognizer& rec) {
 }
 
 TEST(StateRecognizerTransitions, InnerCorticalNeedsConfirmationAboveC2) {
-  StateRecognizer rec(directParams());  // inner_confirm = 2, stop_delay = 0
+  Direct rec(directParams());  // inner_confirm = 2, stop_delay = 0
   int i = toCancellous(rec);
   // A* for fbar = 1.7 (D = 3): 3 (0.567)^3 = 0.546 -> 0.655 < C2; for 1.8: 0.583*1.2 = 0.700 ~
   rec.push(i++, 1.7);
@@ -287,16 +317,16 @@ TEST(StateRecognizerTransitions, InnerCorticalNeedsConfirmationAboveC2) {
   EXPECT_EQ(o.layer_state, DrillingState::kInnerCortical);
   EXPECT_EQ(o.state, DrillingState::kStopped);  // stopped at once (stop_delay = 0)
   EXPECT_EQ(o.last_key_point, 4);
-  EXPECT_EQ(o.key_points[3].index, static_cast<std::size_t>(first));
+  EXPECT_EQ(o.key_points[3].index, rawIndex(first));
   EXPECT_TRUE(o.stop);
-  EXPECT_EQ(o.stop_index, static_cast<std::size_t>(first + 1));
+  EXPECT_EQ(o.stop_index, rawIndex(first + 1));
   EXPECT_DOUBLE_EQ(o.stop_t, first + 1.0);
 }
 
 TEST(StateRecognizerTransitions, StopDelayCountsAveragedSamples) {
   RecognizerParams p = directParams();
   p.stop_delay = 3;
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = toCancellous(rec);
   rec.push(i++, 2.5);
   rec.push(i++, 2.6);  // KP4 confirmed at i-1
@@ -308,13 +338,13 @@ TEST(StateRecognizerTransitions, StopDelayCountsAveragedSamples) {
   EXPECT_FALSE(rec.output().stop);
   rec.push(i++, 2.9);
   EXPECT_TRUE(rec.output().stop);
-  EXPECT_EQ(rec.output().stop_index, static_cast<std::size_t>(kp4 + 3));
+  EXPECT_EQ(rec.output().stop_index, rawIndex(kp4 + 3));
 }
 
 TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
   RecognizerParams p = directParams();
   p.stop_delay = 100;  // so that the KP5 fail-safe is what stops
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = toCancellous(rec);
   rec.push(i++, 2.5);
   rec.push(i++, 2.8);
@@ -325,9 +355,9 @@ TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
   EXPECT_FALSE(rec.output().stop);
   rec.push(i++, 2.6);  // A* = 2.35 < 2.52: puncturing starts
   EXPECT_EQ(rec.output().last_key_point, 5);
-  EXPECT_EQ(rec.output().key_points[4].index, static_cast<std::size_t>(peak));
+  EXPECT_EQ(rec.output().key_points[4].index, rawIndex(peak));
   EXPECT_TRUE(rec.output().stop);  // fail-safe stop at KP5
-  EXPECT_EQ(rec.output().stop_index, static_cast<std::size_t>(i - 1));
+  EXPECT_EQ(rec.output().stop_index, rawIndex(i - 1));
   EXPECT_EQ(rec.output().stop_key_point, 5);
   EXPECT_EQ(rec.output().state, DrillingState::kStopped);
   EXPECT_EQ(rec.output().layer_state, DrillingState::kInnerCortical);
@@ -340,7 +370,7 @@ TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
   EXPECT_EQ(rec.output().state, DrillingState::kStopped);
   EXPECT_EQ(rec.output().last_key_point, 5);
   ASSERT_EQ(rec.output().num_key_points, 6);
-  EXPECT_EQ(rec.output().key_points[5].index, static_cast<std::size_t>(i - 1));
+  EXPECT_EQ(rec.output().key_points[5].index, rawIndex(i - 1));
   // Nothing more happens afterwards.
   for (int j = 0; j < 20; ++j) rec.push(i++, j % 2 ? 3.0 : 0.0);
   EXPECT_EQ(rec.output().num_key_points, 6);
@@ -350,7 +380,7 @@ TEST(StateRecognizerTransitions, PeakDropAndBreakthrough) {
 
 TEST(StateRecognizerTransitions, StateSaysStoppedFromTheStopUntilReset) {
   RecognizerParams p = directParams();
-  StateRecognizer rec(p);
+  Direct rec(p);
   int i = toCancellous(rec);
   EXPECT_EQ(rec.output().state, DrillingState::kCancellous);
   while (!rec.output().stop && i < 10000) rec.push(i++, 3.0);
@@ -467,7 +497,7 @@ TEST(StateRecognizerProfile, NormalisedFeatureMissesWeakerInnerLayer) {
   prof.f_in = 3.0;
   prof.noise = 0.0;
   prof.canc_ripple = 0.0;
-  RecognizerParams p;
+  RecognizerParams p = profileParams();
   p.normalize_feature = true;
   const RunResult r = runProfile(prof.samples(), p);
   EXPECT_FALSE(r.out.stop);
@@ -477,7 +507,7 @@ TEST(StateRecognizerProfile, NormalisedFeatureMissesWeakerInnerLayer) {
 TEST(StateRecognizerProfile, ResetForgetsEverything) {
   Profile prof;
   const std::vector<double> f = prof.samples();
-  StateRecognizer rec;
+  StateRecognizer rec(profileParams());
   for (std::size_t i = 0; i < f.size(); ++i) rec.push(i / kRate, f[i]);
   ASSERT_TRUE(rec.output().stop);
   rec.reset();
@@ -509,7 +539,9 @@ void expectInvalid(const RecognizerParams& p, const std::string& name) {
 TEST(RecognizerParamsTest, DefaultsAreValidAndFromPaper) {
   RecognizerParams p;
   EXPECT_NO_THROW(p.validate());
-  EXPECT_EQ(p.pre_average, 50);
+  EXPECT_DOUBLE_EQ(p.pre_average_s, 0.15);
+  EXPECT_DOUBLE_EQ(p.sensor_rate_hz, 1000.0 / 3.0);
+  EXPECT_EQ(p.blockSamples(), 50);  // the paper's fifty (Sec. V-E) at the simulated DAQ
   EXPECT_EQ(p.window, 10);
   EXPECT_DOUBLE_EQ(p.gain, 1.2);
   EXPECT_DOUBLE_EQ(p.h_g, 0.5);
@@ -525,7 +557,12 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
     mutate(p);
     expectInvalid(p, name);
   };
-  bad("pre_average", [](RecognizerParams& p) { p.pre_average = 0; });
+  bad("pre_average_s", [](RecognizerParams& p) { p.pre_average_s = 0.0; });
+  bad("pre_average_s", [nan](RecognizerParams& p) { p.pre_average_s = nan; });
+  bad("pre_average_s", [](RecognizerParams& p) { p.pre_average_s = 11.0; });
+  bad("sensor_rate_hz", [](RecognizerParams& p) { p.sensor_rate_hz = 0.0; });
+  bad("sensor_rate_hz", [](RecognizerParams& p) { p.sensor_rate_hz = -1000.0; });
+  bad("sensor_rate_hz", [](RecognizerParams& p) { p.sensor_rate_hz = 2e5; });
   bad("window", [](RecognizerParams& p) { p.window = 0; });
   bad("k_ratio", [](RecognizerParams& p) { p.k_ratio = 1.0; });
   bad("k_ratio", [](RecognizerParams& p) { p.k_ratio = 0.0; });
@@ -543,6 +580,115 @@ TEST(RecognizerParamsTest, EachBadParameterIsNamed) {
   bad("cancellous_deadline", [](RecognizerParams& p) { p.cancellous_deadline = 14; });
   bad("inner_confirm", [](RecognizerParams& p) { p.inner_confirm = 0; });
   bad("stop_delay", [](RecognizerParams& p) { p.stop_delay = -1; });
+}
+
+TEST(RecognizerBlock, TheBlockIsItsDurationAtTheDeclaredRateRoundedToTheNearestSample) {
+  RecognizerParams p;
+  const auto samples = [&p](double seconds, double rate_hz) {
+    p.pre_average_s = seconds;
+    p.sensor_rate_hz = rate_hz;
+    return p.blockSamples();
+  };
+  // The paper's fifty: 0.15 s at the simulated 1000/3 Hz, and at the rates a launch line or a
+  // parameter file writes for it.
+  EXPECT_EQ(samples(0.15, 1000.0 / 3.0), 50);
+  EXPECT_EQ(samples(0.15, 333.3333333), 50);
+  EXPECT_EQ(samples(0.15, 333.333), 50);
+  // A lab's sensors: the same 0.15 s.
+  EXPECT_EQ(samples(0.15, 1000.0), 150);
+  EXPECT_EQ(samples(0.15, 7000.0), 1050);
+  EXPECT_EQ(samples(0.15, 100.0), 15);
+  // To the nearest sample, halves away from zero (0.125 s x 100 Hz = 12.5 exactly).
+  EXPECT_EQ(samples(0.125, 100.0), 13);
+  EXPECT_EQ(samples(0.124, 100.0), 12);
+  EXPECT_EQ(samples(0.126, 100.0), 13);
+}
+
+TEST(RecognizerBlock, ABlockTooShortOrTooRoundedAtTheDeclaredRateIsRefusedNamingIt) {
+  const auto error = [](double seconds, double rate_hz) {
+    RecognizerParams p;
+    p.pre_average_s = seconds;
+    p.sensor_rate_hz = rate_hz;
+    try {
+      p.validate();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  };
+  // Fewer than 2 samples: 0.003 s at 1000/3 Hz is 1 sample.
+  const std::string one = error(0.003, 1000.0 / 3.0);
+  EXPECT_EQ(one.rfind("pre_average_s: ", 0), 0u) << one;
+  EXPECT_NE(one.find("sensor_rate_hz 333.333 Hz"), std::string::npos) << one;
+  EXPECT_NE(one.find("at least 2 samples"), std::string::npos) << one;
+  EXPECT_NE(error(0.0045, 1000.0 / 3.0), "");  // 1.5 rounds to 2, but 33 % longer
+  EXPECT_EQ(error(0.006, 1000.0 / 3.0), "");   // 2 samples exactly
+  // The rounded block more than 10 % from the duration: 2.4 samples -> 2 (0.2 s for 0.24 s).
+  const std::string rounded = error(0.24, 10.0);
+  EXPECT_EQ(rounded.rfind("pre_average_s: ", 0), 0u) << rounded;
+  EXPECT_NE(rounded.find("more than 10 %"), std::string::npos) << rounded;
+  EXPECT_NE(error(0.45, 10.0), "");  // 4.5 -> 5: 11 % longer
+  EXPECT_EQ(error(0.55, 10.0), "");  // 5.5 -> 6: 9 % longer
+  // At most 100000 samples.
+  EXPECT_NE(error(10.0, 100000.0).find("at most 100000"), std::string::npos);
+  EXPECT_EQ(error(1.0, 100000.0), "");
+  // A bad rate is named as the rate.
+  EXPECT_EQ(error(0.15, 0.0).rfind("sensor_rate_hz", 0), 0u);
+}
+
+TEST(RecognizerBlock, TheOldSampleCountIsRefusedNamingTheNewParameters) {
+  RecognizerParams p;
+  try {
+    p.set("pre_average", "50");
+    ADD_FAILURE() << "pre_average accepted";
+  } catch (const std::invalid_argument& e) {
+    const std::string what = e.what();
+    EXPECT_EQ(what.rfind("pre_average is retired: ", 0), 0u) << what;
+    EXPECT_NE(what.find("pre_average_s"), std::string::npos) << what;
+    EXPECT_NE(what.find("sensor_rate_hz"), std::string::npos) << what;
+  }
+  // Not a declared parameter (the documents list the new ones only).
+  EXPECT_EQ(RecognizerParams::table().find("pre_average"), nullptr);
+  ASSERT_NE(RecognizerParams::table().retiredWhy("pre_average"), nullptr);
+  p.set("pre_average_s", "0.3");
+  p.set("sensor_rate_hz", "1000");
+  EXPECT_EQ(p.blockSamples(), 300);
+}
+
+TEST(RecognizerBlock, TheSameFilterInTimeAtEveryDeclaredRate) {
+  // One noise-free profile sampled at 1000/3 Hz and at 1 kHz, each recognizer declared at its
+  // rate with the default 0.15 s: the blocks end at the same times (every 0.15 s), and the key
+  // points and the stop come within one block of each other (the block means differ a little:
+  // other samples of the same force).
+  Profile prof;
+  prof.noise = 0.0;
+  const auto run = [&prof](double rate_hz) {
+    RecognizerParams p;
+    p.sensor_rate_hz = rate_hz;
+    StateRecognizer rec(p);
+    const int n = static_cast<int>(Profile::kEnd * rate_hz);
+    std::vector<double> block_ends;
+    for (int i = 0; i < n; ++i) {
+      const double t = (i + 1) / rate_hz;
+      if (rec.push(t, prof.clean(t)).new_average) block_ends.push_back(t);
+    }
+    return std::make_pair(rec.output(), block_ends);
+  };
+  const auto [slow, slow_ends] = run(1000.0 / 3.0);
+  const auto [fast, fast_ends] = run(1000.0);
+  ASSERT_GE(slow_ends.size(), 100u);
+  ASSERT_EQ(slow_ends.size(), fast_ends.size());
+  for (std::size_t i = 0; i < slow_ends.size(); ++i) {
+    EXPECT_NEAR(slow_ends[i], 0.15 * static_cast<double>(i + 1), 1e-9) << i;
+    EXPECT_NEAR(fast_ends[i], slow_ends[i], 1e-9) << i;
+  }
+  ASSERT_TRUE(slow.stop);
+  ASSERT_TRUE(fast.stop);
+  EXPECT_NEAR(fast.stop_t, slow.stop_t, 0.15 + 1e-9);
+  ASSERT_EQ(fast.num_key_points, slow.num_key_points);
+  for (int j = 0; j < slow.num_key_points; ++j) {
+    EXPECT_NEAR(fast.key_points[j].t, slow.key_points[j].t, 0.15 + 1e-9) << "key point " << j + 1;
+  }
 }
 
 TEST(RecognizerParamsTest, SetByName) {

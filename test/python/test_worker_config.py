@@ -19,11 +19,15 @@ def written(tmp_path, kind, class_name, settings):
         return yaml.safe_load(handle)
 
 
+CHANGED = ('inner_confirm', 'f_th', 'window', 'normalize_feature', 'gain', 'pre_average_s')
+
+
 def test_the_paper_recognizers_settings_are_typed_as_the_core_reads_them(tmp_path):
     config = written(tmp_path, 'recognizer', PAPER,
-                     ['pre_average=010', 'f_th=1e-3', 'window=12.0', 'normalize_feature=1',
-                      'gain=2'])
-    assert config['pre_average'] == 10 and isinstance(config['pre_average'], int)
+                     ['inner_confirm=010', 'f_th=1e-3', 'window=12.0', 'normalize_feature=1',
+                      'gain=2', 'pre_average_s=0.3'])
+    assert config['inner_confirm'] == 10 and isinstance(config['inner_confirm'], int)
+    assert config['pre_average_s'] == pytest.approx(0.3)
     assert config['f_th'] == pytest.approx(1e-3) and isinstance(config['f_th'], float)
     assert config['window'] == 12 and isinstance(config['window'], int)
     assert config['normalize_feature'] is True
@@ -32,9 +36,7 @@ def test_the_paper_recognizers_settings_are_typed_as_the_core_reads_them(tmp_pat
     with open(os.path.join(ROOT, 'config', 'recognizer.yaml')) as handle:
         package = yaml.safe_load(handle)
     assert {k: v for k, v in config.items()
-            if k not in ('pre_average', 'f_th', 'window', 'normalize_feature', 'gain')} == \
-        {k: v for k, v in package.items()
-         if k not in ('pre_average', 'f_th', 'window', 'normalize_feature', 'gain')}
+            if k not in CHANGED} == {k: v for k, v in package.items() if k not in CHANGED}
 
 
 def test_another_class_gets_its_settings_as_text(tmp_path):
@@ -58,6 +60,10 @@ def test_no_settings_no_file(tmp_path):
     ('recognizer', PAPER, 'f_th=0x10', 'f_th'),
     ('recognizer', PAPER, 'nonsense=1', 'nonsense'),
     ('recognizer', PAPER, 'queue_size=10', 'queue_size'),  # the node's, not the recognizer's
+    ('recognizer', PAPER, 'rate_tolerance=0.2', 'rate_tolerance'),
+    # the simulated sensor's rate, set with it (launch_arguments: force_rate_hz)
+    ('recognizer', PAPER, 'sensor_rate_hz=1000', 'sensor_rate_hz'),
+    ('recognizer', PAPER, 'pre_average=50', 'pre_average'),  # retired: pre_average_s
     ('recognizer', PAPER, 'window', 'window'),
     ('compensator', 'pedicle_drilling/PaperCompensator', 'latency_s=1', 'latency_s'),
 ])
@@ -77,7 +83,11 @@ def test_every_launch_argument_of_a_worker_is_declared_by_its_launch_file():
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
     launch = ET.parse(os.path.join(root, 'launch_scripts', 'campaign_pipeline.launch')).getroot()
     declared = {arg.get('name') for arg in launch.findall('arg')}
-    for item in worker.launch_arguments(args):
+    args.simulator_param = ['lockstep_every_step=true', 'force_sensor_rate_hz=1000']
+    items = worker.launch_arguments(args)
+    # A simulated sensor rate declares the recognizer's and the monitor's rates with it.
+    assert 'force_rate_hz:=1000' in items
+    for item in items:
         name = item.split(':=', 1)[0]
         assert name in declared, '%s is not an argument of campaign_pipeline.launch' % name
     for kind, launch_arg in (('recognizer', 'recognizer_config'), ('compensator', 'planner_config')):

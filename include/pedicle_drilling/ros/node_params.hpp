@@ -19,6 +19,7 @@
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
 #include "pedicle_drilling/core/sim/fault_injector.hpp"
@@ -161,8 +162,13 @@ double forceAxisSign(const std::string& axis);
 /** @brief pedicle_drilling/StateRecognizer. */
 struct StateRecognizerNodeParams {
   std::string axis = "z";             ///< thrust component of the wrench, with sign
-  core::RecognizerParams recognizer;  ///< the paper's recognizer (core)
-  int queue_size = 1000;              ///< ft_sensor/wrench subscriber queue
+  core::RecognizerParams recognizer;  ///< the paper's recognizer (core), its sensor_rate_hz
+  /// The measured rate of ft_sensor/wrench may differ from recognizer.sensor_rate_hz by this
+  /// fraction (core::SampleRateCheck); more: ERROR on /diagnostics, ~reset refused, and a
+  /// running trial stopped.
+  double rate_tolerance = core::kDefaultRateTolerance;
+  double rate_window_s = 1.0;  ///< the window the rate is measured over [s]
+  int queue_size = 1000;       ///< ft_sensor/wrench subscriber queue
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";  ///< plugin class
   core::TextPairs recognizer_params;  ///< another class's own parameters
   /// Allows the parameters that switch a watchdog off (disabledWatchdogs()); else refused.

@@ -228,11 +228,15 @@ class ParamLoader {
    * @brief Every parameter declared in @p table, read into @p out (whose values are the
    *        defaults of the absent ones), each checked against its declaration: type, range,
    *        choices. Then the struct's own validate() (the checks between fields) runs, its error
-   *        becoming a ParameterError under this node's namespace.
+   *        becoming a ParameterError under this node's namespace. A retired name set on the
+   *        server (core::ParamTable::retired()) is refused, naming what replaced it.
    * @throws ParameterError naming the first bad parameter.
    */
   template <class T>
   void load(const core::ParamTable<T>& table, T* out) const {
+    for (const auto& [name, why] : table.retiredNames()) {
+      if (has(name)) fail(name, "is retired: " + why);
+    }
     for (const auto& e : table.entries()) loadEntry(e, out);
     try {
       out->validate();

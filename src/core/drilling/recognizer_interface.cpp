@@ -32,27 +32,17 @@ std::string PaperRecognizer::describe() const {
   const RecognizerParams& p = recognizer_.params();
   char text[300];
   std::snprintf(text, sizeof(text),
-                "paper recognizer (Sec. IV-C/D): pre-average %d, window %d, K %.2f, F_th %.2f N, "
-                "G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
-                p.pre_average, p.window, p.k_ratio, p.f_th, p.gain, p.h_g, p.c1, p.c2, p.c3);
+                "paper recognizer (Sec. IV-C/D): pre-average %.6g s = %d samples at %.6g Hz, "
+                "window %d, K %.2f, F_th %.2f N, G %.2f, H_g %.2f, C1 %.2f, C2 %.2f, C3 %.2f",
+                p.pre_average_s, p.blockSamples(), p.sensor_rate_hz, p.window, p.k_ratio, p.f_th,
+                p.gain, p.h_g, p.c1, p.c2, p.c3);
   return text;
 }
 
 std::vector<std::string> PaperRecognizer::parameterNames() const {
-  return {"pre_average",
-          "window",
-          "k_ratio",
-          "f_th",
-          "gain",
-          "h_g",
-          "c1",
-          "c2",
-          "c3",
-          "cancellous_confirm",
-          "cancellous_deadline",
-          "inner_confirm",
-          "stop_delay",
-          "normalize_feature"};
+  std::vector<std::string> names;
+  for (const auto& e : RecognizerParams::table().entries()) names.push_back(e.info.name);
+  return names;
 }
 
 // ------------------------------------------------------------- ForceDifferenceRecognizer

@@ -56,7 +56,8 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
     const Range count = Range::closed(1, 100000);
     const Range count_or_off = Range::closed(0, 100000);
     ParamTable<P> d;
-    d.integer("pre_average", &P::pre_average, count, "samples")
+    d.number("pre_average_s", &P::pre_average_s, Range::aboveUpTo(0, 10), "s")
+        .number("sensor_rate_hz", &P::sensor_rate_hz, Range::aboveUpTo(0, 100000), "Hz")
         .integer("window", &P::window, count, "samples")
         .number("k_ratio", &P::k_ratio, Range::open(0, 1))
         .number("f_th", &P::f_th, Range::aboveUpTo(0, 1000), "N")
@@ -69,14 +70,42 @@ const ParamTable<RecognizerParams>& RecognizerParams::table() {
         .integer("cancellous_deadline", &P::cancellous_deadline, count_or_off, "samples")
         .integer("inner_confirm", &P::inner_confirm, count, "samples")
         .integer("stop_delay", &P::stop_delay, count_or_off, "samples")
-        .flag("normalize_feature", &P::normalize_feature);
+        .flag("normalize_feature", &P::normalize_feature)
+        .retired("pre_average",
+                 "the block is a duration: pre_average_s [s] at the force sensor's declared "
+                 "rate sensor_rate_hz [Hz], round(pre_average_s x sensor_rate_hz) samples; N "
+                 "samples at R Hz is pre_average_s N / R (50 at 1000/3 Hz: 0.15)");
     return d;
   }();
   return t;
 }
 
+int RecognizerParams::blockSamples() const {
+  const double samples = pre_average_s * sensor_rate_hz;
+  // Out of int's range only for parameters validate() refuses anyway.
+  if (!(samples < 2e9)) return std::numeric_limits<int>::max();
+  return static_cast<int>(std::lround(samples));
+}
+
 void RecognizerParams::validate() const {
   table().validate(*this);
+  const double exact = pre_average_s * sensor_rate_hz;
+  const int n = blockSamples();
+  const auto blockFail = [&](const std::string& why) {
+    std::ostringstream os;
+    os << "pre_average_s: " << pre_average_s << " s at sensor_rate_hz " << sensor_rate_hz
+       << " Hz is a block of " << n << " sample(s) (" << exact << " to the nearest): " << why;
+    throw std::invalid_argument(os.str());
+  };
+  if (n < 2) blockFail("a block needs at least 2 samples (pre_average_s >= 2 / sensor_rate_hz)");
+  if (n > 100000) blockFail("a block holds at most 100000 samples");
+  if (std::fabs(n - exact) > 0.1 * exact) {
+    std::ostringstream os;
+    os << "the block would last " << n / sensor_rate_hz
+       << " s, more than 10 % from pre_average_s (give a duration nearer a whole number of "
+          "samples)";
+    blockFail(os.str());
+  }
   if (!(c2 >= c1)) fail("c2", "must be >= c1 (hysteresis between cancellous and cortical)", c2);
   if (cancellous_deadline != 0 && cancellous_deadline < window + cancellous_confirm) {
     fail("cancellous_deadline",
@@ -87,7 +116,7 @@ void RecognizerParams::validate() const {
 }
 
 void RecognizerParams::set(const std::string& name, const std::string& value) {
-  if (table().find(name) == nullptr) {
+  if (table().find(name) == nullptr && table().retiredWhy(name) == nullptr) {
     throw std::invalid_argument(name + ": unknown recognizer parameter");
   }
   table().set(*this, name, value);
@@ -140,6 +169,7 @@ void StateRecognizer::reset() {
   out_ = Output();
   raw_count_ = 0;
   t_last_ = 0.0;
+  block_samples_ = params_.blockSamples();
   block_sum_ = 0.0;
   block_n_ = 0;
   ring_.assign(static_cast<std::size_t>(params_.window), 0.0);
@@ -184,8 +214,8 @@ const StateRecognizer::Output& StateRecognizer::push(double t, double raw_force)
   t_last_ = t;
   ++raw_count_;
   block_sum_ += raw_force;
-  if (++block_n_ == params_.pre_average) {
-    const double f_block = block_sum_ / params_.pre_average;
+  if (++block_n_ == block_samples_) {
+    const double f_block = block_sum_ / block_samples_;
     block_sum_ = 0.0;
     block_n_ = 0;
     cur_raw_index_ = raw_count_ - 1;

@@ -12,6 +12,7 @@
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
 
@@ -55,6 +56,20 @@ double startPhaseFraction(std::uint64_t seed) {
 }
 
 }  // namespace
+
+void checkSensorRate(const EngineConfig& config) {
+  const RecognizerParams& r = config.recognizer;
+  const double simulated = config.simulation.sensor.output_rate_hz;
+  if (ratesAgree(r.sensor_rate_hz, simulated, kDefaultRateTolerance)) return;
+  std::ostringstream os;
+  os << "sensor_rate_hz: the recognizer is declared " << r.sensor_rate_hz
+     << " Hz, the simulated force sensor runs at " << simulated
+     << " Hz (force_sensor_rate_hz): more than " << 100.0 * kDefaultRateTolerance
+     << " % apart, its block of " << r.blockSamples() << " samples would last "
+     << r.blockSamples() / simulated << " s instead of pre_average_s " << r.pre_average_s
+     << " s (trial_engine declares the simulated rate)";
+  throw std::invalid_argument(os.str());
+}
 
 double commandJitterFraction(std::uint64_t seed, std::uint64_t index) {
   return uniformFromSeed((seed + 0x9e3779b97f4a7c15ULL) * 0xbf58476d1ce4e5b9ULL + index);
@@ -155,13 +170,12 @@ struct ClosedLoopEngine::Impl {
   bool protocol_stopped = false;  // kPeakForces: the stop after the breakthrough was sent
   double truth_block_sum = 0.0;   // true thrust over the current pre-average block
   int truth_block_count = 0;
-  int sensor_decimation = 1;  // physics steps per force-sensor sample
+  int truth_block_steps = 1;  // the recognizer's block in physics steps
 
   /** @brief Block means of the true thrust, their peaks per layer up to the first stop. */
   void updateTruthPeaks(double thrust) {
     truth_block_sum += thrust;
-    // The recognizer's block: pre_average sensor samples, in physics steps.
-    if (++truth_block_count < config.recognizer.pre_average * sensor_decimation) return;
+    if (++truth_block_count < truth_block_steps) return;
     const double mean = truth_block_sum / truth_block_count;
     truth_block_sum = 0.0;
     truth_block_count = 0;
@@ -632,6 +646,7 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   s.config = config;
   config.delays.validate();
   config.recognizer.validate();
+  checkSensorRate(config);
   config.safety.validate();
   config.guard.validate();
   config.faults.validate();
@@ -641,6 +656,10 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
   s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
   s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");
+  // The recognizer's block: its blockSamples() sensor samples, in physics steps.
+  const long decimation =
+      std::lround(config.simulation.physics_rate_hz / config.simulation.sensor.output_rate_hz);
+  s.truth_block_steps = static_cast<int>(config.recognizer.blockSamples() * decimation);
   if (!(config.pre_trial_s >= 0.0 && config.pre_trial_s <= 60.0)) {
     throw std::invalid_argument("pre_trial_s: must be in [0, 60] s");
   }
@@ -729,8 +748,6 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.protocol_stopped = false;
   s.truth_block_sum = 0.0;
   s.truth_block_count = 0;
-  s.sensor_decimation = static_cast<int>(
-      std::lround(s.config.simulation.physics_rate_hz / s.config.simulation.sensor.output_rate_hz));
   s.now = s.sim->time();
   const double sim_start = s.now;
   const BoneSpecimen& specimen = s.sim->process().specimen();

@@ -315,8 +315,33 @@ class ParamTable {
         e.set_map = [f = s.set_map, member](T& v, const TextPairs& x) { f(v.*member, x); };
       add(std::move(e));
     }
+    for (const auto& [name, why] : sub.retiredNames()) retired(prefix + name, why);
     return *this;
   }
+
+  /**
+   * @brief A name no longer accepted: set() refuses it, and so does ParamLoader::load() when the
+   *        parameter is on the server, with @p why (what replaced it). Not a declared parameter:
+   *        not in entries(), describe() or the documents.
+   */
+  ParamTable& retired(const std::string& name, const std::string& why) {
+    if (find(name) != nullptr || retiredWhy(name) != nullptr) {
+      throw std::logic_error("parameter '" + name + "' declared twice");
+    }
+    retired_.emplace_back(name, why);
+    return *this;
+  }
+
+  /** @brief Why @p name is retired (what replaced it), or nullptr when it is not. */
+  const std::string* retiredWhy(const std::string& name) const {
+    for (const auto& [n, why] : retired_) {
+      if (n == name) return &why;
+    }
+    return nullptr;
+  }
+
+  /** @brief Every retired name with what replaced it, in order. */
+  const std::vector<std::pair<std::string, std::string>>& retiredNames() const { return retired_; }
 
   /** @brief The declared parameters in order. */
   const std::vector<Entry>& entries() const { return entries_; }
@@ -352,9 +377,13 @@ class ParamTable {
   /**
    * @brief Sets the parameter @p name of @p v from text (a number, true/false, a list "3,4,5"
    *        or the text itself), range-checked.
-   * @throws std::invalid_argument naming the parameter (unknown name, bad text, out of range).
+   * @throws std::invalid_argument naming the parameter (unknown or retired name, bad text, out
+   *         of range).
    */
   void set(T& v, const std::string& name, const std::string& value) const {
+    if (const std::string* why = retiredWhy(name)) {
+      throw std::invalid_argument(name + " is retired: " + *why);
+    }
     const Entry* e = find(name);
     if (e == nullptr) throw std::invalid_argument("unknown parameter '" + name + "'");
     switch (e->info.kind) {
@@ -453,6 +482,7 @@ class ParamTable {
   }
 
   std::vector<Entry> entries_;
+  std::vector<std::pair<std::string, std::string>> retired_;  // name, what replaced it
 };
 
 }  // namespace core

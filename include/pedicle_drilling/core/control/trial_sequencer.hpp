@@ -127,8 +127,8 @@ struct TrialSequencerParams {
   double cancellous_max_mm = 8.3;
   /**
    * @brief The recognizer's averaging delay [s]: how long after the force changes its
-   *        averaged force shows it (window x pre_average / sensor rate; 10 x 50 / (1000/3 Hz) =
-   *        1.5 s with the shipped recognizer and simulated sensor). [0, 60].
+   *        averaged force shows it (window x pre_average_s; 10 x 0.15 s = 1.5 s with the
+   *        shipped recognizer, at any sensor rate). [0, 60].
    */
   double recognizer_delay_s = 1.5;
   RetreatParams retreat;  ///< retreat along the drill axis

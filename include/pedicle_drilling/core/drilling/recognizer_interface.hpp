@@ -78,7 +78,9 @@ class PaperRecognizer : public RecognizerInterface {
 
 /** @brief Parameters of the force-difference breakthrough baseline (ForceDifferenceRecognizer). */
 struct ForceDifferenceParams {
-  int pre_average = 50;             ///< raw samples per block mean (as the paper recognizer's)
+  /// Raw samples per block mean: a count, not a duration (50: the paper recognizer's block of
+  /// 0.15 s at the simulated 1000/3 Hz sensor; at another rate, set it from the rate).
+  int pre_average = 50;
   double contact_force_n = 1.0;     ///< block mean above this: the drill is in bone [N]
   double process_noise = 0.001;     ///< Kalman q: variance of the FDSS's change per block [N^2]
   double measurement_noise = 0.01;  ///< Kalman r: variance of one FDSS [N^2]

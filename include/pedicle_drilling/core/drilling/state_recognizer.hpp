@@ -1,7 +1,8 @@
 // Force-based drilling-state recognizer (paper Sec. IV-C, IV-D, V-E).
 //
 // Pipeline per raw thrust sample:
-//   raw f  --(block mean of `pre_average` raw samples, Sec. V-E)-->  f_j
+//   raw f  --(block mean of blockSamples() raw samples: `pre_average_s` at the declared
+//             `sensor_rate_hz`, Sec. V-E)-->                       f_j
 //   f_j    --(moving average of `window` values, Eq. 13)-->          fbar_i
 //   fbar_i --(Algorithm 2: k, D, f_min)-->  f*_i = (fbar_i - f_min) / D
 //   f*_i   --(Eq. 14, Eq. 15)-->            A*_i
@@ -27,12 +28,24 @@ namespace pedicle_drilling::core {
  * Units: forces in N. When `normalize_feature` is false (default, literal Eq. 14) the feature
  * A_i = D (f*)^3 is in N and so are `h_g`, `c1`, `c2`. When it is true, A_i = (f*)^3 is
  * dimensionless in [0, 1] and `h_g`, `c1`, `c2` are dimensionless too. `c3` is always a ratio.
- * Counts (`*_confirm`, `stop_delay`) are in averaged samples (one averaged sample = `pre_average`
- * raw samples).
+ * The block of the pre-average is a duration, `pre_average_s`, turned into a count of raw
+ * samples at the force sensor's declared rate `sensor_rate_hz` (blockSamples()). Counts
+ * (`window`, `*_confirm`, `cancellous_deadline`, `stop_delay`) are in averaged samples, one
+ * averaged sample being one block: their durations follow from `pre_average_s` at any rate.
  */
 struct RecognizerParams {
-  /** @brief Raw samples per block mean (Sec. V-E: "the mean of each fifty raw data"). */
-  int pre_average = 50;
+  /**
+   * @brief Duration of one block mean [s], (0, 10]. Sec. V-E: "the mean of each fifty raw data";
+   *        0.15 s is fifty samples of the simulated DAQ at 1000/3 Hz, the rate calibrated
+   *        against Fig. 16 (doc/simulator_physics.md, "Measurement chain").
+   */
+  double pre_average_s = 0.15;
+  /**
+   * @brief The force sensor's declared sample rate [Hz], (0, 100000]: what the block's count of
+   *        samples is computed at. The StateRecognizer nodelet checks it against the stamps of
+   *        `ft_sensor/wrench`; the core engine declares the simulated sensor's rate.
+   */
+  double sensor_rate_hz = 1000.0 / 3.0;
   /** @brief Moving-average length n of Eq. 13. */
   int window = 10;
   /** @brief Algorithm 2 ratio K: layer 1 ends when fbar < K * F_max. Must be in (0, 1). */
@@ -61,10 +74,11 @@ struct RecognizerParams {
    *        window + cancellous_confirm also lets the confirmation restart once after one rebound
    *        of the force (a bone lagging its prediction); chosen on calibration seeds (base seed
    *        1: 15 stopped 3 of 100 fault-free virtual-patient trials, doc/state_machine.md).
-   *        3.75 s at the simulated 1000/3 Hz sensor. A force sensor whose bias drifts upwards
-   *        keeps A* above C1, so key point 3, and with it the inner-layer stop, would never come.
-   *        The outer layer's bound is the planner's `outer_cortical_max_mm`, in mm of feed
-   *        relative to the bone (the recognizer does not know the feed).
+   *        3.75 s (25 blocks of 0.15 s) at any sensor rate. A force sensor whose bias
+   *        drifts upwards keeps A* above C1, so key point 3, and with it the inner-layer stop,
+   *        would never come. The outer layer's bound is the planner's
+   *        `outer_cortical_max_mm`, in mm of feed relative to the bone (the recognizer does not
+   *        know the feed).
    */
   int cancellous_deadline = 25;
   /** @brief Consecutive averaged samples with A* > C2 needed to confirm key point 4. */
@@ -75,7 +89,15 @@ struct RecognizerParams {
   bool normalize_feature = false;
 
   /**
-   * @brief Check every field.
+   * @brief Raw samples per block mean: pre_average_s x sensor_rate_hz rounded to the nearest
+   *        integer, halves away from zero (std::lround): 50 at 0.15 s and 1000/3 Hz, 150 at
+   *        1 kHz, 1050 at 7 kHz.
+   */
+  int blockSamples() const;
+
+  /**
+   * @brief Check every field. The block must hold at least 2 samples at the declared rate, at
+   *        most 100000, and its rounded count must last within 10 % of pre_average_s.
    * @throws std::invalid_argument whose message starts with the offending field name.
    */
   void validate() const;
@@ -85,7 +107,8 @@ struct RecognizerParams {
 
   /**
    * @brief Set one field from text, e.g. set("k_ratio", "0.5"). Does not call validate().
-   * @throws std::invalid_argument for an unknown name or unparsable value (message names it).
+   * @throws std::invalid_argument for an unknown or retired name (`pre_average`: the message
+   *         names pre_average_s and sensor_rate_hz) or an unparsable value (message names it).
    */
   void set(const std::string& name, const std::string& value);
 };
@@ -210,6 +233,7 @@ class StateRecognizer {
   // Raw accumulation.
   std::size_t raw_count_ = 0;
   double t_last_ = 0.0;
+  int block_samples_ = 0;  // params_.blockSamples()
   double block_sum_ = 0.0;
   int block_n_ = 0;
 

@@ -108,7 +108,12 @@ struct EngineConfig {
   double controller_state_rate_hz = 50.0;
   double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume stream
   double ground_truth_rate_hz = 20.0;  ///< recorded ground truth (plus every layer change)
-  RecognizerParams recognizer;         ///< config/recognizer.yaml (thrust = +z of the sensor)
+  /**
+   * @brief config/recognizer.yaml (thrust = +z of the sensor). Its `sensor_rate_hz` must be the
+   *        simulated sensor's `simulation.sensor.output_rate_hz` within 10 % (checkSensorRate;
+   *        trial_engine declares that rate); its block also sizes the truth peaks' blocks.
+   */
+  RecognizerParams recognizer;
   /**
    * @brief The recognizer of each trial: empty = the paper's (PaperRecognizer with
    *        `recognizer`); trial_engine --recognizer sets a built-in or a pluginlib class.
@@ -145,6 +150,15 @@ struct EngineConfig {
   /** @brief Sizes of the faults a trial may inject (EngineTrialSpec::fault). */
   FaultParams faults;
 };
+
+/**
+ * @brief The recognizer's declared rate against the simulated sensor's: the engine's form of
+ *        the StateRecognizer nodelet's check of the measured rate (the same 10 % tolerance).
+ * @throws std::invalid_argument, its message starting with "sensor_rate_hz" and naming both
+ *         rates, when config.recognizer.sensor_rate_hz is more than 10 % from
+ *         config.simulation.sensor.output_rate_hz.
+ */
+void checkSensorRate(const EngineConfig& config);
 
 /** @brief How a trial ends (EngineTrialSpec::protocol). */
 enum class TrialProtocol {
@@ -267,8 +281,9 @@ struct EngineTrialRecord {
   /**
    * @brief Ground-truth peak thrust [N] before / after the tip's deepest cut enters the inner
    *        cortical layer, up to the first stop command: the simulator's true thrust (no sensor,
-   *        no noise) averaged in blocks of the recognizer's pre-average (50 samples at 1 kHz),
-   *        the quantity the recognizer's averaged force estimates. 0 when the layer was not
+   *        no noise) averaged in blocks of EngineConfig::recognizer's pre-average (its
+   *        blockSamples() sensor samples, in 1 ms physics steps: 150 for 0.15 s), the quantity
+   *        the recognizer's averaged force estimates. 0 when the layer was not
    *        reached. The sensor chain's effect is the difference to the recognizer's peaks.
    */
   double truth_peak_outer_n = 0.0;
