@@ -125,6 +125,7 @@ BLOCKS = {
     'paper_design': paper_design,
     'paper_metrics': paper_metrics,
     'population': population_block,
+    'three_benches': lambda archive: captured(population_tables.benches_table, archive),
     'population_identification': lambda archive: captured(
         population_tables.identification_table,
         population_tables.rows(os.path.join(archive, 'campaign_population')),

@@ -50,6 +50,34 @@ def kinds_table(summary, trials):
                                     quartiles(r.get('tracking_rms_mm') for r in group)))
 
 
+BENCHES = (('the paper\'s', 'campaign'), ('realistic', 'campaign_realistic'),
+           ('population', 'campaign_population'))
+
+
+def benches_table(results):
+    """The three benches on the same evaluation seeds: successes per case at 12000 rpm, the
+    compensated case at the higher speeds, its H1 stops and breakthroughs (by the trials'
+    breakthrough flag) and its median tip-bone tracking RMS at 12000 rpm."""
+    print('| bench | stationary | uncompensated | compensated | compensated, 16000 / 20000 rpm '
+          '| compensated: H1 stops, breakthroughs | compensated tracking RMS, median [mm] |')
+    print('|---|---|---|---|---|---|---|')
+    for name, folder in BENCHES:
+        groups = {(g['case'], g['rpm']): g
+                  for g in results_tables.load(os.path.join(results, folder))['groups']}
+        trials = [r for r in rows(os.path.join(results, folder))
+                  if r['case'] == 'compensated' and r['rpm'] == 12000.0]
+        compensated = groups[('compensated', 12000.0)]
+        print('| %s | %s | %s | %s | %s | %d, %d | %.3f |' % (
+            name, *('%d/%d' % (groups[(c, 12000.0)]['successes'], groups[(c, 12000.0)]['trials'])
+                    for c in ('stationary', 'uncompensated', 'compensated')),
+            ', '.join('%d/%d' % (groups[('compensated', rpm)]['successes'],
+                                 groups[('compensated', rpm)]['trials'])
+                      for rpm in (16000.0, 20000.0)),
+            compensated['failure_kinds'].get('safety_h1', 0),
+            sum(1 for r in trials if r['breakthrough']),
+            compensated['median_tracking_rms_mm']))
+
+
 def number(text):
     return float(text) if text not in (None, '') else None
 
