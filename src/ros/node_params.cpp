@@ -98,6 +98,24 @@ void TfPoseRelayNodeParams::validate() const {
 
 // ---------------------------------------------------------------------------------------------
 
+const ParamTable<TrialActionNodeParams>& TrialActionNodeParams::table() {
+  static const ParamTable<TrialActionNodeParams> t = [] {
+    using P = TrialActionNodeParams;
+    ParamTable<P> d;
+    d.text("start_service", &P::start_service)
+        .number("service_timeout_s", &P::service_timeout_s, Range::aboveUpTo(0, 600), "s")
+        .text("feed_joint", &P::feed_joint)
+        .number("feedback_period_s", &P::feedback_period_s, Range::aboveUpTo(0, 10), "s")
+        .number("planner_lost_s", &P::planner_lost_s, Range::aboveUpTo(0, 60), "s");
+    return d;
+  }();
+  return t;
+}
+
+void TrialActionNodeParams::validate() const { table().validate(*this); }
+
+// ---------------------------------------------------------------------------------------------
+
 const ParamTable<ForceTareNodeParams>& ForceTareNodeParams::table() {
   static const ParamTable<ForceTareNodeParams> t = [] {
     using P = ForceTareNodeParams;
@@ -377,6 +395,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
   const FaultInjectorNodeParams faults;
   const TfPoseRelayNodeParams relay;
   const ForceTareNodeParams tare;
+  const TrialActionNodeParams action;
   return {
       {"pedicle_drilling/Ventilator", VentilatorNodeParams::table().describe(ventilator)},
       {"pedicle_drilling/Simulator", SimulatorNodeParams::table().describe(simulator)},
@@ -388,6 +407,7 @@ std::vector<std::pair<std::string, std::vector<core::ParamInfo>>> nodeParameterD
       {"pedicle_drilling/FaultInjector", FaultInjectorNodeParams::table().describe(faults)},
       {"pedicle_drilling/TfPoseRelay", TfPoseRelayNodeParams::table().describe(relay)},
       {"pedicle_drilling/ForceTare", ForceTareNodeParams::table().describe(tare)},
+      {"pedicle_drilling/TrialAction", TrialActionNodeParams::table().describe(action)},
   };
 }
 

@@ -165,8 +165,9 @@ TEST(NodeParams, EveryDeclarationAcceptsItsDefaults) {
   EXPECT_NO_THROW(pd::FaultInjectorNodeParams().validate());
   EXPECT_NO_THROW(pd::TfPoseRelayNodeParams().validate());
   EXPECT_NO_THROW(pd::ForceTareNodeParams().validate());
+  EXPECT_NO_THROW(pd::TrialActionNodeParams().validate());
   const auto docs = pd::nodeParameterDocs();
-  ASSERT_EQ(docs.size(), 9u);
+  ASSERT_EQ(docs.size(), 10u);
   for (const auto& [node, params] : docs) EXPECT_FALSE(params.empty()) << node;
 }
 

@@ -28,6 +28,7 @@ CONFIGS = {
     'pedicle_drilling/FaultInjector': 'fault_injector.yaml',
     'pedicle_drilling/TfPoseRelay': 'tf_pose_relay.yaml',
     'pedicle_drilling/ForceTare': 'force_tare.yaml',
+    'pedicle_drilling/TrialAction': 'trial_action.yaml',
 }
 
 

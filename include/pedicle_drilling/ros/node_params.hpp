@@ -129,6 +129,26 @@ struct TfPoseRelayNodeParams {
   static const core::ParamTable<TfPoseRelayNodeParams>& table();
 };
 
+/** @brief pedicle_drilling/TrialAction: a trial as the `drill_trial` action. */
+struct TrialActionNodeParams {
+  /// The CompensationPlanner's start service (StartTrial), called for each goal.
+  std::string start_service = "compensation_planner/start_trial";
+  /// How long [s] a goal waits for the start service to exist before it is rejected.
+  double service_timeout_s = 5.0;
+  /// The feed joint whose position (joint_states) the feedback reports.
+  std::string feed_joint = "feed_joint";
+  /// Feedback period [s] between the status changes (each change is sent at once).
+  double feedback_period_s = 0.1;
+  /// A running goal whose planner has published no compensation/status for this long while
+  /// the status topic has no publisher [s] is aborted ("planner lost"); the trial is the
+  /// planner's, the drill guard stops the drives of a lost planner.
+  double planner_lost_s = 1.0;
+  /** @brief Checks the declared ranges. @throws std::invalid_argument naming the parameter. */
+  void validate() const;
+  /** @brief The declaration of every parameter. */
+  static const core::ParamTable<TrialActionNodeParams>& table();
+};
+
 /**
  * @brief pedicle_drilling/ForceTare: the tare for a sensor driver that does not speak our
  *        TareRequest/TareResult: our own bias (relay), or the driver's zero service, checked.
