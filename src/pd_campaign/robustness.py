@@ -27,9 +27,10 @@ import types
 
 import yaml
 
-from . import cli, report, sensitivity, tools
+from . import arguments, report, sensitivity, tools
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
+from .scenario import BONE_MOTIONS, PACKAGE_ROOT, UsageError
 
 CONFIG_VERSION = 1
 CONFIG_KEYS = ('version', 'scenario', 'case', 'rpm', 'trials', 'compensators', 'errors')
@@ -37,7 +38,7 @@ ERROR_KEYS = ('name', 'parameter', 'unit', 'label', 'points', 'offset', 'needs_b
 REQUIRED_ERROR_KEYS = ('name', 'parameter', 'unit', 'label', 'points')
 DEFAULTS = {'scenario': 'config/scenario_realistic.yaml', 'case': 'compensated', 'rpm': 12000.0,
             'trials': 100}
-DEFAULT_SWEEP = os.path.join(cli.PACKAGE_ROOT, 'config', 'robustness.yaml')
+DEFAULT_SWEEP = os.path.join(PACKAGE_ROOT, 'config', 'robustness.yaml')
 # The range's rule: success count / trials >= 95 %, in integers (19/20 is in it, exactly).
 TARGET_NUMERATOR, TARGET_DENOMINATOR = 95, 100
 NAME = re.compile(r'^[A-Za-z0-9_-]+$')  # an error's name: a part of file and folder names
@@ -98,10 +99,10 @@ def _scenario_path(where, value):
     """The scenario's path: absolute, or relative to the package (config/...)."""
     if not isinstance(value, str) or not value.strip():
         raise ConfigError('%s: scenario must be a path' % where)
-    path = value if os.path.isabs(value) else os.path.join(cli.PACKAGE_ROOT, value)
+    path = value if os.path.isabs(value) else os.path.join(PACKAGE_ROOT, value)
     if not os.path.isfile(path):
         raise ConfigError('%s: scenario %s: no such file (a relative path is taken from the '
-                          'package, %s)' % (where, value, cli.PACKAGE_ROOT))
+                          'package, %s)' % (where, value, PACKAGE_ROOT))
     return path
 
 
@@ -142,9 +143,9 @@ def _error(where, index, raw):
     if not isinstance(raw.get('offset', False), bool):
         raise ConfigError('%s: offset must be true or false' % where)
     needs = raw.get('needs_bone_motion')
-    if needs is not None and needs not in cli.BONE_MOTIONS:
+    if needs is not None and needs not in BONE_MOTIONS:
         raise ConfigError('%s: needs_bone_motion %r is not one of %s'
-                          % (where, needs, ', '.join(cli.BONE_MOTIONS)))
+                          % (where, needs, ', '.join(BONE_MOTIONS)))
     return {'name': raw['name'], 'parameter': raw['parameter'].strip(), 'unit': raw['unit'],
             'label': raw['label'].strip(), 'points': sorted(float(p) for p in points),
             'offset': raw.get('offset', False), 'needs_bone_motion': needs}
@@ -165,7 +166,7 @@ def select(errors, only):
 def check_compensator(name, scenario):
     """None if trial_engine loads the compensator class with the scenario's compensator_params
     (the campaign's own check), else its message."""
-    params = cli.class_params(None, scenario.get('compensator_params'), '--compensator-param')
+    params = arguments.class_params(None, scenario.get('compensator_params'), '--compensator-param')
     result = subprocess.run(tools.tool('trial_engine') + ['--check-compensator', name] +
                             ['%s=%s' % kv for kv in sorted(params.items())],
                             capture_output=True, text=True)
@@ -559,7 +560,7 @@ def main(argv=None):
         sys.stderr.flush()
         statuses = sensitivity.run_all(points, campaign, expected, setup['scenario'],
                                        sys.stderr, args.jobs, setup['out'])
-    except (sensitivity.SweepError, cli.UsageError) as error:
+    except (sensitivity.SweepError, UsageError) as error:
         sys.stderr.write('%s: %s\n' % (TOOL, error))
         return 2
     except sensitivity.IdentificationError as error:

@@ -32,9 +32,11 @@ import time
 
 import yaml
 
-from . import campaign_process, cli, engine_core, report, stats, tools
+from . import arguments, campaign_process, engine_core, report, stats, tools
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
+from .progress import clock
+from .scenario import DEFAULT_SCENARIO, PACKAGE_ROOT, UsageError
 
 KINDS = ('simulator_params', 'engine_delays')
 ENTRY_KEYS = ('name', 'kind', 'low', 'high', 'nominal', 'unit', 'source', 'with')
@@ -47,7 +49,7 @@ ENDS = ('low', 'high')
 ALPHA = 0.05  # every verdict: two-sided exact tests at 5 %, no correction for multiplicity
 BEST_RPM = 12000.0  # the paper's chosen speed (Sec. V-C)
 SPEED_CASE = 'compensated'  # the case whose success the paper compares across speeds (Fig. 15)
-DEFAULT_SWEEP = os.path.join(cli.PACKAGE_ROOT, 'config', 'sensitivity.yaml')
+DEFAULT_SWEEP = os.path.join(PACKAGE_ROOT, 'config', 'sensitivity.yaml')
 DELAY_RANGE = (0.0, 1.0)  # engine_delays, s (the campaign's scenario check)
 
 TOOL = 'campaign_sensitivity'  # the progress lines' and derived scenarios' prefix
@@ -516,11 +518,11 @@ def run_all(benches, argv, expected, base_path, stream, jobs=1, out=None):
                     ran += how == 'ran'
                     elapsed = time.time() - start
                     eta = elapsed / ran * (len(todo) - done_count) if ran else 0
-                    what = ('finished in %s (exit %d)' % (cli._clock(took), status)
+                    what = ('finished in %s (exit %d)' % (clock(took), status)
                             if how == 'ran' else 'complete already, kept')
                     stream.write('%s: [%d/%d] %s: %s; elapsed %s, ETA %s\n' % (
                         condition.get('tool', TOOL), done_count, len(todo), label(condition),
-                        what, cli._clock(elapsed), cli._clock(eta)))
+                        what, clock(elapsed), clock(eta)))
                     stream.flush()
                     if status == 130:
                         raise KeyboardInterrupt()
@@ -833,8 +835,8 @@ def conclusions_markdown(found):
 def _shown(path):
     """A path as the report names it: relative to the package for its own files."""
     absolute = os.path.abspath(path)
-    inside = absolute.startswith(cli.PACKAGE_ROOT + os.sep)
-    return os.path.relpath(absolute, cli.PACKAGE_ROOT) if inside else path
+    inside = absolute.startswith(PACKAGE_ROOT + os.sep)
+    return os.path.relpath(absolute, PACKAGE_ROOT) if inside else path
 
 
 def design_markdown(setup):
@@ -996,7 +998,7 @@ def parse_args(argv):
     """The command line."""
     parser = tools.argument_parser(prog='campaign_sensitivity', description=__doc__.split(
         '\n')[0])
-    parser.add_argument('--scenario', default=cli.DEFAULT_SCENARIO,
+    parser.add_argument('--scenario', default=DEFAULT_SCENARIO,
                         help='the nominal bench (default: config/scenario_paper.yaml)')
     parser.add_argument('--sweep', default=DEFAULT_SWEEP,
                         help='the constants and their ranges (default: config/sensitivity.yaml)')
@@ -1031,7 +1033,7 @@ def campaign_argv(args):
         if value is not None:
             argv += ['--' + option.replace('_', '-'), str(value)]
     try:
-        parsed, scenario, cases, rpms, trials, seed, _ = cli.parse_args(
+        parsed, scenario, cases, rpms, trials, seed, _ = arguments.parse_args(
             argv + ['--scenario', args.scenario])
     except SystemExit as error:  # argparse's own refusal (e.g. --seed x), already printed
         raise SweepError('bad campaign option (exit %s)' % error.code)
@@ -1081,7 +1083,7 @@ def main(argv=None):
         sys.stdout.flush()
         statuses = run_all(benches, campaign, expected, args.scenario, sys.stdout, args.jobs,
                            setup['out'])
-    except (SweepError, cli.UsageError) as error:
+    except (SweepError, UsageError) as error:
         sys.stderr.write('campaign_sensitivity: %s\n' % error)
         return 2
     except IdentificationError as error:

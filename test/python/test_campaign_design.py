@@ -274,8 +274,8 @@ def test_a_scenario_of_this_version_is_accepted(tmp_path):
     scenario = tmp_path / 'v1.yaml'
     scenario.write_text('version: 1\ncases: [stationary]\nrpms: [12000]\ntrials: 1\n')
     sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
-    from pd_campaign import cli
-    assert cli.load_scenario(str(scenario))['trials'] == 1
+    from pd_campaign.scenario import load_scenario
+    assert load_scenario(str(scenario))['trials'] == 1
 
 
 @pytest.mark.parametrize('section, named', [
@@ -299,9 +299,9 @@ def test_scenario_simulator_section_is_checked_against_the_simulator_keys(tmp_pa
 @pytest.mark.parametrize('name', sorted(n for n in os.listdir(os.path.join(ROOT, 'config'))
                                          if n.startswith('scenario_')))
 def test_shipped_scenarios_pass_the_campaign_checks(name):
-    from pd_campaign import cli
-    scenario = cli.load_scenario(os.path.join(ROOT, 'config', name))
-    assert scenario.get('bone_motion') in cli.BONE_MOTIONS, name
+    from pd_campaign.scenario import BONE_MOTIONS, load_scenario
+    scenario = load_scenario(os.path.join(ROOT, 'config', name))
+    assert scenario.get('bone_motion') in BONE_MOTIONS, name
 
 
 def _row(trial_id, success, residual, depth=8.0, inner=7.0, breakthrough=False):
@@ -484,18 +484,19 @@ def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_pat
     ('seed_space: tuning\n', 'seed_space'),
 ])
 def test_a_bad_seed_space_in_a_scenario_is_refused_naming_the_key(tmp_path, text, named):
-    from pd_campaign import cli
+    from pd_campaign.scenario import UsageError, load_scenario
     path = tmp_path / 'scenario.yaml'
     path.write_text('cases: [stationary]\n' + text)
-    with pytest.raises(cli.UsageError, match=named):
-        cli.load_scenario(str(path))
+    with pytest.raises(UsageError, match=named):
+        load_scenario(str(path))
 
 
 def test_a_bad_seed_space_option_is_refused():
-    from pd_campaign import cli
-    with pytest.raises(cli.UsageError, match='--seed-space'):
-        cli.parse_args(['--seed-space', 'tuning'])
-    args = cli.parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    with pytest.raises(UsageError, match='--seed-space'):
+        parse_args(['--seed-space', 'tuning'])
+    args = parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
     assert args.seed_space == 'calibration'
 
 
@@ -552,7 +553,7 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
     """ResetSimulation.time_zero from the trial's place in the campaign's design (whole seconds:
     on the simulator's 0.1 s grid), not from the worker that runs it; the bench's second reset of
     a trial half a spacing later; none without a place (the simulator's default)."""
-    from pd_campaign.cli import SCENARIO_KEYS
+    from pd_campaign.scenario import SCENARIO_KEYS
     from pd_campaign.worker import TRIAL_SPACING_S, time_zero
     assert time_zero({'design_position': 0}) == TRIAL_SPACING_S
     assert time_zero({'design_position': 7}) == 8 * TRIAL_SPACING_S
@@ -563,7 +564,7 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
     # 60 s, ResetSimulation's bound), a breath (60 s at 1 bpm; slower still, the simulator falls
     # back to the next 0.1 s), the longest trial a scenario may ask for, and two minutes of
     # run-on after DONE.
-    longest_trial_s = SCENARIO_KEYS['max_duration_s'][2]
+    longest_trial_s = SCENARIO_KEYS['max_duration_s'].high
     assert TRIAL_SPACING_S // 2 > 60 + 60 + longest_trial_s + 120
 
 
@@ -571,23 +572,25 @@ def test_the_ros_pipelines_pace_and_lockstep_options():
     """--engine ros runs as fast as the lockstep lets it unless a bag is recorded;
     --lockstep-every-step is the ROS pipeline's, refused with the core engine; a bad real-time
     factor is refused naming the option."""
-    from pd_campaign import cli
-    assert cli.parse_args(['--engine', 'ros'])[0].real_time_factor == 0.0
-    assert cli.parse_args(['--engine', 'ros', '--bags'])[0].real_time_factor == 5.0
-    assert cli.parse_args(['--engine', 'ros', '--real-time-factor', '2'])[0].real_time_factor == 2
-    assert cli.parse_args(['--engine', 'ros', '--lockstep-every-step'])[0].lockstep_every_step
-    with pytest.raises(cli.UsageError, match='--lockstep-every-step'):
-        cli.parse_args(['--lockstep-every-step'])
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    assert parse_args(['--engine', 'ros'])[0].real_time_factor == 0.0
+    assert parse_args(['--engine', 'ros', '--bags'])[0].real_time_factor == 5.0
+    assert parse_args(['--engine', 'ros', '--real-time-factor', '2'])[0].real_time_factor == 2
+    assert parse_args(['--engine', 'ros', '--lockstep-every-step'])[0].lockstep_every_step
+    with pytest.raises(UsageError, match='--lockstep-every-step'):
+        parse_args(['--lockstep-every-step'])
     for bad in ['-1', 'nan', '1001']:
-        with pytest.raises(cli.UsageError, match='--real-time-factor'):
-            cli.parse_args(['--engine', 'ros', '--real-time-factor', bad])
+        with pytest.raises(UsageError, match='--real-time-factor'):
+            parse_args(['--engine', 'ros', '--real-time-factor', bad])
 
 
 def test_the_profile_is_the_core_engines():
-    from pd_campaign import cli
-    assert cli.parse_args(['--profile'])[0].profile
-    with pytest.raises(cli.UsageError, match='--profile'):
-        cli.parse_args(['--engine', 'ros', '--profile'])
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    assert parse_args(['--profile'])[0].profile
+    with pytest.raises(UsageError, match='--profile'):
+        parse_args(['--engine', 'ros', '--profile'])
 
 
 class _Pipe:

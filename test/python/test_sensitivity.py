@@ -183,15 +183,15 @@ def test_the_shipped_sweep_names_declared_constants_with_sourced_ranges():
     """config/sensitivity.yaml against the real declarations (the built tools): every name is a
     Simulator parameter or an engine delay, every end is taken, the nominal of the paper's bench
     lies in every range, every source names a document."""
-    from pd_campaign import cli
+    from pd_campaign.scenario import DEFAULT_SCENARIO, load_scenario
     entries = sensitivity.load_sweep(sensitivity.DEFAULT_SWEEP)
-    scenario = cli.load_scenario(cli.DEFAULT_SCENARIO)
+    scenario = load_scenario(DEFAULT_SCENARIO)
     sensitivity.resolve(entries, scenario, sensitivity.declared_defaults())
     assert len(entries) >= 8
     for entry in entries:
         assert entry['source'].startswith(('doc/simulator_physics.md', 'doc/bench_sources.md')), \
             entry
-    realistic = cli.load_scenario(os.path.join(ROOT, 'config', 'scenario_realistic.yaml'))
+    realistic = load_scenario(os.path.join(ROOT, 'config', 'scenario_realistic.yaml'))
     sensitivity.resolve(sensitivity.load_sweep(sensitivity.DEFAULT_SWEEP), realistic,
                         sensitivity.declared_defaults())
     # The realistic bench's own sweep: its imperfections around the scenario's values.
@@ -202,7 +202,7 @@ def test_the_shipped_sweep_names_declared_constants_with_sourced_ranges():
         assert entry['source'].startswith(('doc/simulator_physics.md', 'doc/bench_sources.md')), \
             entry
     # The population bench's distributions around the scenario's (the Simulator's defaults).
-    population = cli.load_scenario(os.path.join(ROOT, 'config', 'scenario_population.yaml'))
+    population = load_scenario(os.path.join(ROOT, 'config', 'scenario_population.yaml'))
     own = sensitivity.load_sweep(os.path.join(ROOT, 'config', 'sensitivity_population.yaml'))
     sensitivity.resolve(own, population, sensitivity.declared_defaults())
     assert len(own) >= 6
