@@ -196,7 +196,7 @@ def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
                '--compensator', setup.compensator,
                '--depth-limit', 'true' if scenario.depth_limit else 'false']
     # The classes' parameters as the core engine takes them (NAME=VALUE text); the worker
-    # puts them in the nodelets' parameter files (worker.plugin_config).
+    # puts them in the nodelets' parameter files (worker_config.plugin_config).
     for kind in ('recognizer', 'compensator'):
         for name, value in sorted(params[kind].items()):
             command += ['--%s-param' % kind, '%s=%s' % (name, value)]

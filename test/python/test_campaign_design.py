@@ -375,7 +375,7 @@ def test_core_engine_settings_and_bad_simulator_params_are_refused_by_the_ros_en
 def test_peak_forces_are_read_up_to_the_stop():
     """F_out before the inner layer's entry, F_in after it, both up to the first stop (the
     recognizer's averaged force after the stop is not the paper's reading)."""
-    from pd_campaign.worker import peak_forces
+    from pd_campaign.analysis import peak_forces
     truth = [(0.0, 'outer_cortical'), (1.0, 'cancellous'), (2.0, 'inner_cortical')]
     states = [(0.5, 3.0), (1.5, 1.0), (2.5, 2.5), (3.0, 2.8), (3.5, 9.0)]
     assert peak_forces(states, truth) == (3.0, 9.0)
@@ -505,7 +505,8 @@ def test_the_retare_check_is_recorded_apart_from_the_stops():
     recorder keeps it apart from the trial's stops (the outcome is the drilling's), and the row
     has it as drift_detected with the offset."""
     import types
-    from pd_campaign.worker import TrialRecorder, retare_columns
+    from pd_campaign.analysis import retare_columns
+    from pd_campaign.recorder import TrialRecorder
 
     def check(t, offset, drift, done=True):
         stamp = types.SimpleNamespace(to_sec=lambda: t)
@@ -528,7 +529,7 @@ def test_the_record_of_a_trial_ends_at_done_whatever_arrives_after():
     end_at() closed the record, what rospy's threads deliver later is not added (before, a
     ground truth appended after the cut moved sim_duration_s and the last truth run to run)."""
     import types
-    from pd_campaign.worker import TrialRecorder
+    from pd_campaign.recorder import TrialRecorder
 
     def truth(t):
         stamp = types.SimpleNamespace(to_sec=lambda: t)
