@@ -32,8 +32,9 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import baselines, campaign_process, compare, report, sensitivity, stats, tools
+from . import baselines, campaign_process, compare, report, stats, tools
 from .atomic import atomic_savefig, atomic_write
+from .identification import IdentificationError, identify
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
@@ -415,7 +416,7 @@ def tune_all(entries, traces, args):
         learned = {entry['name']: beside.submit(
             train_entry, entry, args.dataset, args.out, traces['train'], traces['validation'])
             for entry in entries if entry.get('train') == 'learned'}
-        identification = beside.submit(sensitivity.identify, args.out, args.jobs)
+        identification = beside.submit(identify, args.out, args.jobs)
         tuned = {}
         for entry in entries:
             sys.stderr.write('leaderboard: tuning %s\n' % entry['name'])
@@ -426,7 +427,7 @@ def tune_all(entries, traces, args):
                                   else tuned[entry['name']]) for entry in entries}
         try:
             return tuning, identification.result()
-        except sensitivity.IdentificationError as e:
+        except IdentificationError as e:
             sys.stderr.write('leaderboard: %s\n' % e)
             return tuning, None
 

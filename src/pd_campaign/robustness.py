@@ -30,6 +30,7 @@ import yaml
 from . import arguments, report, sensitivity, tools
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
+from .identification import IdentificationError
 from .scenario import BONE_MOTIONS, PACKAGE_ROOT, UsageError
 
 CONFIG_VERSION = 1
@@ -425,7 +426,7 @@ def design_markdown(setup):
         'breakthroughs: trials that perforated the inner cortex; the tracking RMS is the '
         'median over the trials of the tip-bone AP tracking RMS. The campaigns are in '
         '`<compensator>/<error>_<size>/`.' % (
-            sensitivity._shown(setup['scenario']), sensitivity._shown(setup['sweep']),
+            sensitivity.shown(setup['scenario']), sensitivity.shown(setup['sweep']),
             setup['case'], setup['rpm'], setup['trials'], setup['seed'], setup['seed_space'])])
 
 
@@ -563,7 +564,7 @@ def main(argv=None):
     except (sensitivity.SweepError, UsageError) as error:
         sys.stderr.write('%s: %s\n' % (TOOL, error))
         return 2
-    except sensitivity.IdentificationError as error:
+    except IdentificationError as error:
         sys.stderr.write('%s: %s\n' % (TOOL, error))
         return 1
     except (OSError, RuntimeError, ValueError, subprocess.CalledProcessError) as error:

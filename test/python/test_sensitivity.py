@@ -13,7 +13,7 @@ from scipy.stats import binomtest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import design, sensitivity, tools  # noqa: E402
-from pd_campaign.sensitivity import SweepError  # noqa: E402
+from pd_campaign.sensitivity import SweepError, runner, sweep  # noqa: E402
 import test_atomic_outputs as atomic_checks  # noqa: E402  (its audit hook, not its tests)
 
 TOOL = os.path.join(ROOT, 'scripts', 'campaign_sensitivity')
@@ -99,7 +99,7 @@ def _entries(*changes):
     out = []
     for change in changes:
         raw = dict(GOOD, **change)
-        out.append(sensitivity._entry('sweep.yaml', len(out) + 1, raw))
+        out.append(sweep._entry('sweep.yaml', len(out) + 1, raw))
     return out
 
 
@@ -659,10 +659,10 @@ def test_a_refusal_starts_no_further_campaign_and_is_a_sweep_error(monkeypatch):
         gate.wait(5)  # b0 runs until the refusal has been seen
         return 'ran', 0
 
-    monkeypatch.setattr(sensitivity, 'run_condition', fake)
-    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
-    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
-    monkeypatch.setattr(sensitivity, '_log_tail', lambda directory: 'refused: bad scenario')
+    monkeypatch.setattr(runner, 'run_condition', fake)
+    monkeypatch.setattr(runner, 'built_by', lambda directory: None)
+    monkeypatch.setattr(runner, 'label', lambda condition: condition['id'])
+    monkeypatch.setattr(runner, '_log_tail', lambda directory: 'refused: bad scenario')
     lines = []
 
     class Stream:
@@ -681,10 +681,10 @@ def test_a_refusal_starts_no_further_campaign_and_is_a_sweep_error(monkeypatch):
 
 
 def test_a_stopped_campaign_stops_the_sweep(monkeypatch):
-    monkeypatch.setattr(sensitivity, 'run_condition',
+    monkeypatch.setattr(runner, 'run_condition',
                         lambda c, *a, **k: ('ran', 130 if c['id'] == 'b0' else 0))
-    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
-    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
+    monkeypatch.setattr(runner, 'built_by', lambda directory: None)
+    monkeypatch.setattr(runner, 'label', lambda condition: condition['id'])
 
     class Stream:
         def write(self, text):
