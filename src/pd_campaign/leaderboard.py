@@ -8,7 +8,7 @@
    trials), for every grid point; a stop whose sample is labelled inner cortical is correct. The
    best TOP_ON_TRAIN points on the training split are re-scored on the validation split and the
    best there is chosen (select()). The learned entry is fitted on the training split
-   (pd_campaign.baselines.train_learned). Nothing looks at the test split.
+   (pd_campaign.learned.train_learned). Nothing looks at the test split.
 2. **Closed loop, on the test split's specimens**: each entry drills the same evaluation-seed
    trials (the dataset's base seed, evaluation space: the test split's specimens and patients,
    extended by further evaluation seeds when more trials are asked for) on both benches.
@@ -32,9 +32,11 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import baselines, campaign_process, compare, report, stats, tools
+from . import campaign_process, compare, report, stats, tools
 from .atomic import atomic_savefig, atomic_write
 from .identification import IdentificationError, identify
+from .learned import train_learned
+from .offline import MAX_RESIDUAL_MM, outcome_of
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
@@ -102,14 +104,14 @@ def outcome_of(stop_index, labels, residual_mm=None):
     """correct | shallow | early | late | none, from the stop's sample: its label, and the inner
     cortex left below the deepest cut then (`residual_mm`, per sample; None: not judged).
     Correct is the paper's success band: in the inner cortex with at most
-    baselines.MAX_RESIDUAL_MM of it left (baselines.outcome_of judges the label); shallow: in
+    offline.MAX_RESIDUAL_MM of it left (offline.outcome_of judges the label); shallow: in
     it with more left (a failure in closed loop, as an early stop)."""
     if stop_index is not None and stop_index >= len(labels):
         raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
             stop_index, len(labels)))
-    outcome = baselines.outcome_of(None if stop_index is None else int(labels[stop_index]))
+    outcome = outcome_of(None if stop_index is None else int(labels[stop_index]))
     if (outcome == 'correct' and residual_mm is not None
-            and residual_mm[stop_index] > baselines.MAX_RESIDUAL_MM):
+            and residual_mm[stop_index] > MAX_RESIDUAL_MM):
         return 'shallow'
     return outcome
 
@@ -228,8 +230,8 @@ def tune_entry(entry, train, validation, log=sys.stderr, jobs=1):
 def train_entry(entry, dataset_dir, out_dir, train, validation):
     """The learned entry: fitted on train (its threshold chosen on validation), then scored."""
     model = os.path.join(out_dir, '%s_model.json' % entry['name'])
-    baselines.train_learned(os.path.join(dataset_dir, 'train.npz'),
-                            os.path.join(dataset_dir, 'validation.npz'), model)
+    train_learned(os.path.join(dataset_dir, 'train.npz'),
+                  os.path.join(dataset_dir, 'validation.npz'), model)
     params = dict({k: str(v) for k, v in (entry.get('params') or {}).items()}, model=model)
     return {'params': params, 'train': offline_score(entry['recognizer'], params, train),
             'validation': offline_score(entry['recognizer'], params, validation),
