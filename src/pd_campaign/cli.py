@@ -10,7 +10,7 @@ import sys
 import threading
 import time
 
-from . import engine_core, profile, report, resume, reuse, tools
+from . import aggregate, engine_core, profile, report, resume, reuse, tools, trials_csv
 from .arguments import prepare
 from .atomic import atomic_path, atomic_write, remove_temporaries
 from .design import build_design, shard
@@ -41,14 +41,14 @@ def worker_cpus(jobs, mode, allowed):
 def write_outputs(rows, meta, out_dir, notes='', figures=True):
     """trials.csv, summary.json, report.md and (`figures`) the figures from the finished
     rows."""
-    report.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
+    trials_csv.write_trials_csv(rows, os.path.join(out_dir, 'trials.csv'))
     # Everything below from the rows as trials.csv keeps them (6 significant digits), so that a
     # merge of shards, which can only read trials.csv, gives the very same summary and report.
-    rows = report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
-    summary = report.summarise(rows)
-    faults = report.fault_summary(rows)
+    rows = trials_csv.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
+    summary = aggregate.summarise(rows)
+    faults = aggregate.fault_summary(rows)
     rows = [r for r in rows if r['fault'] == 'none']  # the paper's figures: fault-free trials
-    report.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'), faults)
+    aggregate.write_summary_json(summary, meta, os.path.join(out_dir, 'summary.json'), faults)
     drawn = draw_figures(summary, rows, meta, out_dir) if figures else []
     table2 = os.path.join(out_dir, 'table2.md')
     if os.path.exists(table2):
@@ -260,7 +260,7 @@ class _Collector:
     def __init__(self, total, first, out_dir, engine, feed):
         self.out_dir, self.engine, self.feed = out_dir, engine, feed
         self.lock = threading.Lock()
-        self.appender = report.TrialsAppender(os.path.join(out_dir, 'trials.csv'), first)
+        self.appender = trials_csv.TrialsAppender(os.path.join(out_dir, 'trials.csv'), first)
         self.rows = list(first)
         self.progress = Progress(total)
         for row in first:
@@ -281,7 +281,8 @@ class _Collector:
                     self.feed.next(worker)  # before the analysis: the engine is not kept waiting
                 raw = (engine_core.row_from_line(line, os.path.join(self.out_dir, 'traces'))
                        if self.engine == 'core' else json.loads(line))
-                row = report.normalise_row({k: ('' if v is None else v) for k, v in raw.items()})
+                row = trials_csv.normalise_row({k: ('' if v is None else v)
+                                                for k, v in raw.items()})
                 with self.lock:
                     self.appender.append(row)
                     self.rows.append(row)
@@ -488,7 +489,7 @@ def run_merge(argv=None):
         try:
             with open(os.path.join(directory, 'design.json')) as handle:
                 metas.append(json.load(handle)['meta'])
-            shard_rows = report.read_trials_csv(os.path.join(directory, 'trials.csv'))
+            shard_rows = trials_csv.read_trials_csv(os.path.join(directory, 'trials.csv'))
         except (OSError, ValueError, KeyError) as error:
             sys.stderr.write('campaign_merge: %s: %s\n' % (directory, error))
             return 2

@@ -32,7 +32,7 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import campaign_process, compare, report, stats, tools
+from . import campaign_process, compare, design, stats, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 from .identification import IdentificationError, identify
 from .learned import train_learned
@@ -252,7 +252,7 @@ def run_campaign(entry, params, scenario, meta, args, out_dir, identification):
     if campaign_process.run(argv) != 0:
         raise LeaderboardError('the campaign of %s on %s failed (%s)' % (
             entry['name'], scenario, out_dir))
-    return report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
+    return trials_csv.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
 
 
 def scenario_with_depth_limit(scenario, out_dir):
@@ -384,7 +384,7 @@ def figure(boards, config, path):
     names = [e['name'] for e in config['entries']]
     fig, axes = plt.subplots(1, len(boards), figsize=(6.5 * len(boards), 4.2), squeeze=False)
     for ax, (bench, rows) in zip(axes[0], boards.items()):
-        cases = [c for c in report.CASES if any(r['case'] == c for r in rows)]
+        cases = [c for c in design.CASES if any(r['case'] == c for r in rows)]
         width = 0.8 / max(1, len(names))
         for k, name in enumerate(names):
             mine = {r['case']: r for r in rows if r['entry'] == name}
@@ -463,7 +463,7 @@ def main(argv=None):
             set(test['trial_rpm'])))
     except (OSError, ValueError) as e:
         parser.error(str(e))
-    args.cases = config.get('cases') or list(report.CASES)
+    args.cases = config.get('cases') or list(design.CASES)
     args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
     args.trials = args.trials or test_per_case
     benches = args.bench or list(config['benches'])

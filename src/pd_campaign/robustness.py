@@ -27,7 +27,7 @@ import types
 
 import yaml
 
-from . import arguments, report, sensitivity, tools
+from . import aggregate, arguments, sensitivity, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
 from .identification import IdentificationError
@@ -271,19 +271,19 @@ def benches(config, errors, scenario, design, out_dir):
 # --- the results ----------------------------------------------------------------------------------
 
 def cell(rows, case, rpm):
-    """A point's numbers from its campaign's trial rows (report.read_trials_csv) of the case and
+    """A point's numbers from its campaign's trial rows (trials_csv.read_trials_csv) of the case and
     speed, trials without a fault: the trials that did not error, their successes with the Wilson
     95 % interval, the H1 stops, the breakthroughs, the median tracking RMS and the errored
-    trials (report.summarise and report.h1_by_volunteer, as the campaign's report counts
+    trials (aggregate.summarise and aggregate.h1_by_volunteer, as the campaign's report counts
     them)."""
     rows = [r for r in rows if r['case'] == case and r['rpm'] == rpm]
-    group = next(iter(report.summarise(rows)), None)
+    group = next(iter(aggregate.summarise(rows)), None)
     if group is None:
         return {'trials': 0, 'successes': 0, 'wilson95': [0.0, 1.0], 'h1_stops': 0,
                 'breakthroughs': 0, 'median_tracking_rms_mm': None, 'errors': 0}
     return {'trials': group['trials'], 'successes': group['successes'],
             'wilson95': list(group['wilson95']),
-            'h1_stops': sum(g['h1_stops'] for g in report.h1_by_volunteer(rows)),
+            'h1_stops': sum(g['h1_stops'] for g in aggregate.h1_by_volunteer(rows)),
             'breakthroughs': group['trials'] - group['no_penetration'],
             'median_tracking_rms_mm': group['median_tracking_rms_mm'],
             'errors': group['errors']}
@@ -294,7 +294,7 @@ def read_results(points, case, rpm):
     order of the errors and the compensators, by size."""
     out = []
     for c in sorted(points, key=lambda c: c['order']):
-        rows = report.read_trials_csv(os.path.join(c['dir'], 'trials.csv'))
+        rows = trials_csv.read_trials_csv(os.path.join(c['dir'], 'trials.csv'))
         error = c['error']
         out.append(dict(cell(rows, case, rpm), compensator=c['compensator'],
                         error=error['name'], parameter=error['parameter'], value=c['point'],

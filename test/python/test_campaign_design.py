@@ -10,7 +10,7 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
-from pd_campaign import cli, design, report, stats  # noqa: E402
+from pd_campaign import aggregate, cli, design, report, stats, trials_csv  # noqa: E402
 
 
 def test_wilson_interval_known_values():
@@ -83,7 +83,7 @@ def _rows(d):
         row.update(success=(i % 3 != 1), residual_mm=0.5 + 0.1 * (i % 7), f_out_n=3.0 + 0.01 * i,
                    f_in_n=2.8, stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.1, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
     return rows
 
 
@@ -156,8 +156,8 @@ def test_report_counts_errored_trials_and_states_the_shortfall(tmp_path):
                    stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.3 if compensated else 0.04,
                    error='timeout' if compensated and trial['index'] == 9 else '')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     compensated = [g for g in summary if g['case'] == 'compensated'][0]
     assert compensated['trials'] == 9 and compensated['errors'] == 1
     path = tmp_path / 'report.md'
@@ -174,18 +174,18 @@ def test_report_counts_errored_trials_and_states_the_shortfall(tmp_path):
 def test_summary_counts_and_schema(tmp_path):
     d = design.build_design(['stationary'], [12000], 6, 1)
     rows = _rows(d)
-    summary = report.summarise(rows)
+    summary = aggregate.summarise(rows)
     assert len(summary) == 1
     group = summary[0]
     assert group['trials'] == 6 and group['successes'] == sum(r['success'] for r in rows)
     low, high = group['wilson95']
     assert 0 <= low <= group['success_rate'] <= high <= 1
     path = tmp_path / 'trials.csv'
-    report.write_trials_csv(rows, str(path))
+    trials_csv.write_trials_csv(rows, str(path))
     with open(path) as handle:
         header = next(csv.reader(handle))
-    assert header == report.TRIAL_COLUMNS
-    assert len(report.read_trials_csv(str(path))) == 6
+    assert header == trials_csv.TRIAL_COLUMNS
+    assert len(trials_csv.read_trials_csv(str(path))) == 6
 
 
 def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_file(tmp_path):
@@ -195,17 +195,17 @@ def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_fi
     d = design.build_design(['stationary', 'compensated'], [12000], 4, 3)
     rows = _rows(d)
     path = tmp_path / 'trials.csv'
-    appender = report.TrialsAppender(str(path))
+    appender = trials_csv.TrialsAppender(str(path))
     for n, row in enumerate(reversed(rows), start=1):
         appender.append(row)
-        read = report.read_trials_csv(str(path))
+        read = trials_csv.read_trials_csv(str(path))
         assert len(read) == n
         assert read[-1]['trial_id'] == row['trial_id']
     appender.close()
-    appended = sorted(report.read_trials_csv(str(path)), key=report.sort_key)
+    appended = sorted(trials_csv.read_trials_csv(str(path)), key=trials_csv.sort_key)
     final = tmp_path / 'final.csv'
-    report.write_trials_csv(rows, str(final))
-    assert appended == report.read_trials_csv(str(final))
+    trials_csv.write_trials_csv(rows, str(final))
+    assert appended == trials_csv.read_trials_csv(str(final))
 
 
 @pytest.mark.parametrize('args, named', [
@@ -396,8 +396,8 @@ def test_report_tests_the_compensated_counts_against_fig15_at_every_speed(tmp_pa
                    residual_mm=1.0, f_out_n=3.0, f_in_n=2.8, max_depth_mm=4.0,
                    inner_start_mm=3.0, stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.04, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     path = tmp_path / 'report.md'
     meta = {'cases': ['compensated'], 'rpms': [12000.0, 16000.0], 'trials': 20, 'seed': 5}
     report.write_report_md(summary, meta, [], str(path))
@@ -457,13 +457,13 @@ def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_pat
                    stop_residual_mm=1.2, overshoot_mm=0.9, detection_latency_ms=1800.0,
                    volunteer_id=1 + trial['index'] % 2, stop_reason='x', stop_source='x',
                    f_out_n=3.0, f_in_n=2.8, tracking_rms_mm=0.1, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     compensated = [g for g in summary if g['case'] == 'compensated'][0]
     assert compensated['failure_kinds'] == {'safety_h1': 2, 'success': 2}
     assert compensated['no_penetration'] == 4
     assert compensated['quartiles_detection_latency_ms'][1] == pytest.approx(1800.0)
-    groups = report.h1_by_volunteer(rows)
+    groups = aggregate.h1_by_volunteer(rows)
     by_volunteer = {g['volunteer_id']: g for g in groups if g['case'] == 'compensated'}
     # Index 2 is volunteer 1 (error 1.45 mm), index 3 volunteer 2 (1.55 mm).
     assert by_volunteer['1']['h1_stops'] == 1 and by_volunteer['2']['h1_stops'] == 1

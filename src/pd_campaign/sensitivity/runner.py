@@ -7,7 +7,7 @@ import signal
 import threading
 import time
 
-from .. import campaign_process, report, tools
+from .. import campaign_process, tools, trials_csv
 from ..atomic import atomic_write
 from ..identification import identify
 from ..progress import clock
@@ -27,7 +27,7 @@ def is_complete(directory, text, expected):
             meta = json.load(handle)['meta']
         if any(meta.get(key) != value for key, value in expected.items()):
             return False
-        rows = report.read_trials_csv(os.path.join(directory, 'trials.csv'))
+        rows = trials_csv.read_trials_csv(os.path.join(directory, 'trials.csv'))
         return os.path.isfile(os.path.join(directory, 'summary.json')) \
             and len(rows) == meta['design_size']
     except (OSError, ValueError, KeyError, TypeError):
@@ -191,6 +191,6 @@ def read_results(benches):
     nominal's rows."""
     out = {}
     for condition in benches:
-        rows = report.read_trials_csv(os.path.join(condition['dir'], 'trials.csv'))
+        rows = trials_csv.read_trials_csv(os.path.join(condition['dir'], 'trials.csv'))
         out[condition['id']] = [r for r in rows if (r.get('fault') or 'none') == 'none']
     return out
