@@ -32,11 +32,10 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import campaign_process, compare, design, stats, tools, trials_csv
+from . import campaign_process, compare, design, offline, stats, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 from .identification import IdentificationError, identify
 from .learned import train_learned
-from .offline import MAX_RESIDUAL_MM, outcome_of
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
@@ -109,9 +108,9 @@ def outcome_of(stop_index, labels, residual_mm=None):
     if stop_index is not None and stop_index >= len(labels):
         raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
             stop_index, len(labels)))
-    outcome = outcome_of(None if stop_index is None else int(labels[stop_index]))
+    outcome = offline.outcome_of(None if stop_index is None else int(labels[stop_index]))
     if (outcome == 'correct' and residual_mm is not None
-            and residual_mm[stop_index] > MAX_RESIDUAL_MM):
+            and residual_mm[stop_index] > offline.MAX_RESIDUAL_MM):
         return 'shallow'
     return outcome
 
