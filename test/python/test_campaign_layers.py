@@ -74,7 +74,8 @@ def graph(known):
     for name, path in known.items():
         found, uses = imports(name, path, known)
         edges[name] = {target for _, target in found if target != name}
-        private += ['%s:%d %s' % (os.path.relpath(path, ROOT), line, text) for line, text in uses]
+        private += ['%s:%d %s' % (os.path.relpath(path, ROOT), line, text)
+                    for line, text in sorted(set(uses))]
     return edges, private
 
 
