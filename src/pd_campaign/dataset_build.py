@@ -17,6 +17,7 @@ from pd_campaign.dataset import (FORMAT_VERSION, PACKAGE_ROOT, SAMPLE_COLUMNS, S
                                  TRIAL_FIELDS, VALIDATION_MODULUS, columns_markdown, convert,
                                  split_of)
 from pd_campaign.design import SEED_SPACE_BIT
+from pd_campaign.scenario import Scenario
 
 
 def _trial_rows(run_dirs):
@@ -169,7 +170,7 @@ def metadata(args, scenario, scenario_text, base_seed, argv):
     """What the files say of how the dataset was made."""
     return {'command': command_line(argv if argv is not None else sys.argv[1:]),
             'scenario': os.path.basename(args.scenario), 'scenario_yaml': scenario_text,
-            'protocol': scenario.get('protocol', 'recognition'), 'base_seed': base_seed,
+            'protocol': Scenario(scenario).protocol, 'base_seed': base_seed,
             'seed_space_bit': SEED_SPACE_BIT.bit_length() - 1,
             'package': dataset_files.package_info()}
 
@@ -231,7 +232,7 @@ def run_campaigns(args, base_seed):
 
 def main(argv=None):
     args, scenario, scenario_text = parse_args(argv)
-    base_seed = args.seed if args.seed is not None else int(scenario.get('seed', 1))
+    base_seed = args.seed if args.seed is not None else int(Scenario(scenario).seed)
     meta = metadata(args, scenario, scenario_text, base_seed, argv)
     os.makedirs(args.out, exist_ok=True)
     run_dirs = run_campaigns(args, base_seed)

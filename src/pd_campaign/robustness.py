@@ -31,7 +31,7 @@ from . import aggregate, arguments, sensitivity, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
 from .identification import IdentificationError
-from .scenario import BONE_MOTIONS, PACKAGE_ROOT, UsageError
+from .scenario import BONE_MOTIONS, PACKAGE_ROOT, Scenario, UsageError
 
 CONFIG_VERSION = 1
 CONFIG_KEYS = ('version', 'scenario', 'case', 'rpm', 'trials', 'compensators', 'errors')
@@ -167,7 +167,8 @@ def select(errors, only):
 def check_compensator(name, scenario):
     """None if trial_engine loads the compensator class with the scenario's compensator_params
     (the campaign's own check), else its message."""
-    params = arguments.class_params(None, scenario.get('compensator_params'), '--compensator-param')
+    params = arguments.class_params(None, Scenario(scenario).compensator_params,
+                                    '--compensator-param')
     result = subprocess.run(tools.tool('trial_engine') + ['--check-compensator', name] +
                             ['%s=%s' % kv for kv in sorted(params.items())],
                             capture_output=True, text=True)
@@ -195,7 +196,7 @@ def resolve(config, errors, scenario, defaults, check=sensitivity.check_simulato
         if message:
             raise ConfigError('--sweep %s: compensators: %s: %s' % (config['path'], name,
                                                                   message))
-    bone_motion = scenario.get('bone_motion', 'virtual_patient')
+    bone_motion = Scenario(scenario).bone_motion
     for error in errors:
         where = '--sweep %s: errors, %s (%s)' % (config['path'], error['name'],
                                                  error['parameter'])
