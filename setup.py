@@ -5,4 +5,5 @@
 from catkin_pkg.python_setup import generate_distutils_setup
 from setuptools import setup
 
-setup(**generate_distutils_setup(packages=['pd_campaign'], package_dir={'': 'src'}))
+setup(**generate_distutils_setup(packages=['pd_campaign', 'pd_campaign.sensitivity'],
+                                 package_dir={'': 'src'}))

@@ -87,7 +87,7 @@ def plot(fit_csvs, vid, png):
         plt.close(fig)
 
 
-def main(argv):
+def parse_args(argv):
     parser = argument_parser(description='Table II for the virtual volunteers')
     parser.add_argument('--out', default='table2_out')
     parser.add_argument('--method', default='ceres', choices=['ceres', 'pso'])
@@ -98,27 +98,15 @@ def main(argv):
     parser.add_argument('--no-figure', action='store_true',
                         help='no table2_fig14.png (the campaign\'s identification: it needs the '
                         'models and the table only; matplotlib is half of this tool\'s time)')
-    args = parser.parse_args(argv)
+    return parser.parse_args(argv)
 
-    data_dir = os.path.join(args.out, 'data')
-    model_dir = os.path.join(args.out, 'models')
-    try:
-        os.makedirs(model_dir, exist_ok=True)
-    except OSError as e:
-        sys.stderr.write('table2: --out %r cannot be created: %s\n' % (args.out, e.strerror))
-        return 2
-    run(tool('generate_volunteers') + ['--out', data_dir, '--ids', ','.join(map(str, IDS))])
 
-    if not 1 <= args.jobs <= 64:
-        sys.stderr.write('table2: --jobs must be in 1..64\n')
-        return 2
-    rows, fit_csvs = [], {}
-    results = {}  # (vid, model) -> axes
-    truths = {}
-    commands = []  # ((vid, model), output yaml, command)
+def identify_commands(args, data_dir, model_dir):
+    """([((vid, model), output yaml, identify command)], {model: fit csv of the plotted
+    volunteer})."""
+    commands, fit_csvs = [], {}
     for vid in IDS:
         stem = os.path.join(data_dir, 'volunteer_%d' % vid)
-        truths[vid] = load_axes(stem + '_truth.yaml')
         for model in MODELS:
             out_yaml = os.path.join(model_dir, 'volunteer_%d_%s.yaml' % (vid, model))
             cmd = tool('identify') + ['--input', stem + '.csv', '--output', out_yaml,
@@ -130,9 +118,12 @@ def main(argv):
                 fit_csvs[model] = os.path.join(model_dir, 'volunteer_%d_%s_fit.csv' % (vid, model))
                 cmd += ['--fit-csv', fit_csvs[model]]
             commands.append(((vid, model), out_yaml, cmd))
-    # The identifications are independent processes: run them side by side, read them in order.
-    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
-        list(pool.map(run, [cmd for _, _, cmd in commands]))
+    return commands, fit_csvs
+
+
+def table_rows(commands, truths):
+    """(table2.csv's rows, {(vid, model): identified axes}) from the identifications' files."""
+    rows, results = [], {}
     for (vid, model), out_yaml, _ in commands:
         axes = load_axes(out_yaml)
         results[(vid, model)] = axes
@@ -143,13 +134,19 @@ def main(argv):
                          'q0': a['q0'], 'r2': a['r2'], 'rmse': a['rmse'],
                          'q1_true': t['q1'], 'q2_true': t['q2'],
                          'q1_rel_err': a['q1'] / t['q1'] - 1.0})
+    return rows, results
 
-    with atomic_write(os.path.join(args.out, 'table2.csv'), newline='') as f:
+
+def write_csv(rows, path):
+    with atomic_write(path, newline='') as f:
         w = csv.DictWriter(f, fieldnames=CSV_FIELDS)
         w.writeheader()
         for r in rows:
             w.writerow({k: ('%.10g' % v if isinstance(v, float) else v) for k, v in r.items()})
 
+
+def table_markdown(args, results, truths):
+    """table2.md: R² per volunteer, axis and model, and the recovered slopes against the truth."""
     den = 'Tv and displacement de-noised' if not args.paper_denoising else \
         'displacement de-noised (paper)'
     md = ['### Table II (virtual volunteers, %s, %s)' % (args.method, den), '',
@@ -177,7 +174,32 @@ def main(argv):
             q1t = truths[vid][axis]['q1']
             cells += ['%.6f' % q1, '%.6f' % q1t, '%+.1f %%' % (100.0 * (q1 / q1t - 1.0))]
         md.append('| %d | %s |' % (vid, ' | '.join(cells)))
-    text = '\n'.join(md) + '\n'
+    return '\n'.join(md) + '\n'
+
+
+def main(argv):
+    args = parse_args(argv)
+    data_dir = os.path.join(args.out, 'data')
+    model_dir = os.path.join(args.out, 'models')
+    try:
+        os.makedirs(model_dir, exist_ok=True)
+    except OSError as e:
+        sys.stderr.write('table2: --out %r cannot be created: %s\n' % (args.out, e.strerror))
+        return 2
+    run(tool('generate_volunteers') + ['--out', data_dir, '--ids', ','.join(map(str, IDS))])
+
+    if not 1 <= args.jobs <= 64:
+        sys.stderr.write('table2: --jobs must be in 1..64\n')
+        return 2
+    truths = {vid: load_axes(os.path.join(data_dir, 'volunteer_%d_truth.yaml' % vid))
+              for vid in IDS}
+    commands, fit_csvs = identify_commands(args, data_dir, model_dir)
+    # The identifications are independent processes: run them side by side, read them in order.
+    with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+        list(pool.map(run, [cmd for _, _, cmd in commands]))
+    rows, results = table_rows(commands, truths)
+    write_csv(rows, os.path.join(args.out, 'table2.csv'))
+    text = table_markdown(args, results, truths)
     with atomic_write(os.path.join(args.out, 'table2.md')) as f:
         f.write(text)
     print(text)

@@ -21,7 +21,7 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 
-from pd_campaign import agreement, report, stats  # noqa: E402
+from pd_campaign import agreement, stats, trials_csv  # noqa: E402
 
 # Non-inferiority margin on the success rate (percentage points): a compensator "not worse" than
 # the paper's loses at most this many successes in a hundred, at 95 % confidence.
@@ -30,7 +30,7 @@ NONINFERIORITY_MARGIN = 5.0
 
 def rows(directory):
     with open(os.path.join(directory, 'trials.csv')) as handle:
-        return [report.normalise_row(r) for r in csv.DictReader(handle)]
+        return [trials_csv.normalise_row(r) for r in csv.DictReader(handle)]
 
 
 def compensated(directory):

@@ -19,17 +19,17 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 
-from pd_campaign import report  # noqa: E402
+from pd_campaign import aggregate, trials_csv  # noqa: E402
 
 
 def rows(directory):
     with open(os.path.join(directory, 'trials.csv')) as handle:
-        return [report.normalise_row(r) for r in csv.DictReader(handle) if not r.get('error')]
+        return [trials_csv.normalise_row(r) for r in csv.DictReader(handle) if not r.get('error')]
 
 
 def in_layer(row):
     """Stopped in the inner layer by the recognizer or the depth limit (residual (0, 2 mm])."""
-    line = report.stop_line(row)
+    line = aggregate.stop_line(row)
     depth, start, residual = row.get('max_depth_mm'), row.get('inner_start_mm'), \
         row.get('residual_mm')
     return (line in ('recognizer', 'depth limit') and not row['breakthrough']
@@ -53,7 +53,7 @@ def design_table(out):
         print('| %s | %d | %d / %d | %d / %d | %d | %d / %d | %d |' % (
             case, len(new), sum(r['success'] for r in old), sum(r['success'] for r in new),
             sum(in_layer(r) for r in old), sum(in_layer(r) for r in new),
-            sum(report.stop_line(r) == 'depth limit' for r in new),
+            sum(aggregate.stop_line(r) == 'depth limit' for r in new),
             sum(r['breakthrough'] for r in old), sum(r['breakthrough'] for r in new), prevented))
 
 
@@ -88,7 +88,7 @@ def amplitude_table(out):
         data = rows(os.path.join(out, 'depth_limit_amplitude', name))
         for fault in ('none', 'breathing_amplitude'):
             group = [r for r in data if r['fault'] == fault]
-            lines = [report.stop_line(r) for r in group]
+            lines = [aggregate.stop_line(r) for r in group]
             print('| %s | %s | %d | %d | %d | %s |' % (
                 name.replace('_', ' + '), fault, len(group), sum(r['breakthrough'] for r in group),
                 sum(in_layer(r) for r in group), ' / '.join(

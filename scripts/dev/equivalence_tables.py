@@ -26,7 +26,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 
-from pd_campaign import compare, report, stats  # noqa: E402
+from pd_campaign import compare, stats, trials_csv  # noqa: E402
 
 MARGIN_POINTS = 5.0
 ALPHA = 0.025  # one-sided
@@ -38,7 +38,7 @@ BENCHES = (('paper\'s bench', 'campaign'), ('realistic bench', 'campaign_realist
 
 def rows(directory):
     with open(os.path.join(directory, 'trials.csv')) as handle:
-        return [report.normalise_row(r) for r in csv.DictReader(handle)]
+        return [trials_csv.normalise_row(r) for r in csv.DictReader(handle)]
 
 
 def tests(out):

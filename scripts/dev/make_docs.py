@@ -39,7 +39,7 @@ ARCHIVE = os.path.join(ROOT, 'doc', 'results')
 DOCUMENTS = tuple(['README.md'] + sorted(
     os.path.relpath(path, ROOT) for path in glob.glob(os.path.join(ROOT, 'doc', '*.md'))))
 BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
-# The trial columns the generated tables read (report.normalise_row needs the first five).
+# The trial columns the generated tables read (trials_csv.normalise_row needs the first five).
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',

@@ -19,20 +19,20 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import report  # noqa: E402
+from pd_campaign import aggregate, trials_csv  # noqa: E402
 import results_tables  # noqa: E402
 
 
 def rows(directory):
     with open(os.path.join(directory, 'trials.csv')) as handle:
-        return [report.normalise_row(r) for r in csv.DictReader(handle) if not r.get('error')]
+        return [trials_csv.normalise_row(r) for r in csv.DictReader(handle) if not r.get('error')]
 
 
 def quartiles(values):
     values = sorted(v for v in values if v is not None)
     if not values:
         return '-'
-    q = report._quartile_values(values)
+    q = aggregate.quartile_values(values)
     return '%.3g [%.3g, %.3g]' % (q[1], q[0], q[2])
 
 

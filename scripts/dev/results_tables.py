@@ -11,7 +11,7 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 
-from pd_campaign import report, stats  # noqa: E402
+from pd_campaign import design, report, stats  # noqa: E402
 
 
 def pct(x):
@@ -29,7 +29,7 @@ def design_table(summary):
     print('| case | %s | paper, 12000 rpm | Fisher p vs paper |' % ' | '.join(
         '%.0f rpm' % r for r in rpms))
     print('|---|%s---|---|' % ('---|' * len(rpms)))
-    for case in report.CASES:
+    for case in design.CASES:
         cells = []
         for rpm in rpms:
             g = groups.get((case, rpm))

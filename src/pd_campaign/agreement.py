@@ -6,7 +6,7 @@ engine beside the ROS pipeline, and the ROS pipeline beside a second run of itse
 """
 import sys
 
-from . import report, tools
+from . import tools, trials_csv
 
 
 def outcome(row):
@@ -70,8 +70,8 @@ def main(argv=None):
     parser.add_argument('--label-b', default='B')
     args = parser.parse_args(argv)
     try:
-        rows_a = report.read_trials_csv(args.dir_a + '/trials.csv')
-        rows_b = report.read_trials_csv(args.dir_b + '/trials.csv')
+        rows_a = trials_csv.read_trials_csv(args.dir_a + '/trials.csv')
+        rows_b = trials_csv.read_trials_csv(args.dir_b + '/trials.csv')
         pairs, figures = compare(rows_a, rows_b)
     except (OSError, ValueError) as error:
         sys.stderr.write('agreement: %s\n' % error)

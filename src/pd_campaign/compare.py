@@ -18,7 +18,7 @@ import math
 import os
 import sys
 
-from . import report, stats, tools
+from . import design, stats, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 
 # Design keys (design.json "meta") that name the algorithm under comparison: they may differ.
@@ -99,7 +99,7 @@ def read_campaign(directory):
         raise ValueError('%s: not a campaign design (%s)' % (design_path, error))
     if not isinstance(meta, dict):
         raise ValueError('%s: no "meta" object' % design_path)
-    return meta, report.read_trials_csv(trials_path)
+    return meta, trials_csv.read_trials_csv(trials_path)
 
 
 def check_same_design(meta_a, meta_b, rows_a, rows_b, may_differ=()):
@@ -127,8 +127,8 @@ def compare(rows_a, rows_b):
     """Per (case, rpm): the paired counts, McNemar's p, the paired difference and medians."""
     groups = []
     for case, rpm in sorted({(r['case'], r['rpm']) for r in rows_a},
-                            key=lambda g: (report.CASES.index(g[0])
-                                           if g[0] in report.CASES else 99, g[1])):
+                            key=lambda g: (design.CASES.index(g[0])
+                                           if g[0] in design.CASES else 99, g[1])):
         in_a = [r for r in rows_a if r['case'] == case and r['rpm'] == rpm]
         in_b = [r for r in rows_b if r['case'] == case and r['rpm'] == rpm]
         n, both, only_a, only_b, neither = stats.paired_counts(

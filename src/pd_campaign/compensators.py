@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 
+from pd_campaign.checks import at_least
 from pd_campaign.plugin_params import Configurable
 
 
@@ -70,10 +71,6 @@ class Compensator(Configurable):
         return None if self.ventilator is None else 60.0 / self.ventilator['rate_bpm']
 
 
-def _at_least(low):
-    return lambda value: value >= low
-
-
 class PhaseTemplateCompensator(Compensator):
     """Breath-phase template of the tracked marker: a prediction without the patient model.
 
@@ -88,8 +85,8 @@ class PhaseTemplateCompensator(Compensator):
     compensator, as the C++ TrackedMarkerCompensator)."""
 
     PARAMETERS = {
-        'bins': (int, 20, _at_least(4)),
-        'min_samples': (int, 1, _at_least(1)),
+        'bins': (int, 20, at_least(4)),
+        'min_samples': (int, 1, at_least(1)),
     }
 
     def configured(self):

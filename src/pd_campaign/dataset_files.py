@@ -201,7 +201,7 @@ def layer_labels():
 
 def root_attributes(meta):
     """The root group's attributes before the data: what the dataset is, what made it, how it is
-    split, its frames and labels (`meta`: dataset.main's)."""
+    split, its frames and labels (`meta`: dataset_build.main's)."""
     package = meta['package']
     return {
         'title': TITLE, 'description': DESCRIPTION, 'format_version': dataset.FORMAT_VERSION,

@@ -1,6 +1,6 @@
 """The campaign's core engine: trials run by `trial_engine` (core::ClosedLoopEngine, no ROS),
 one process per job. Each process prints one JSON line per trial with what the ROS worker
-records from the topics; the same analysis (worker.analyse_trial) turns it into a trials.csv row.
+records from the topics; the same analysis (analysis.analyse_trial) turns it into a trials.csv row.
 A trial's record depends on its seed only, so the rows do not depend on --jobs or --shard."""
 import collections
 import json
@@ -9,7 +9,7 @@ import subprocess
 import threading
 import types
 
-from pd_campaign import worker
+from pd_campaign.analysis import analyse_trial
 from pd_campaign.tools import tool
 
 CONDITION_COLUMNS = ('volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
@@ -18,7 +18,7 @@ CONDITION_COLUMNS = ('volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm', '
 
 
 class RecordedTrial:
-    """A trial record of trial_engine, with the interface of worker.TrialRecorder."""
+    """A trial record of trial_engine, with the interface of recorder.TrialRecorder."""
 
     def __init__(self, record):
         self.states = [tuple(s) for s in record['states']]
@@ -27,7 +27,7 @@ class RecordedTrial:
         self.stops = [tuple(s) for s in record['stops']]
         self.status = [tuple(s) for s in record['status']]
         self.last_truth = types.SimpleNamespace(**record['last_truth'])
-        # Ground-truth peaks (the core engine computes them at 1 kHz; see worker.peak_forces).
+        # Ground-truth peaks (the core engine computes them at 1 kHz; see analysis.peak_forces).
         self.truth_peaks = record.get('truth_peaks_n')
         self.protocol = record.get('protocol', 'recognition')
         # The monitor's re-tare check when the retreat ended (SafetyMonitor::retareCheck).
@@ -153,7 +153,7 @@ def row_from_line(line, trace_dir):
     row['depth_window_errors_mm'] = ';'.join(
         '%.4f' % (e * 1e3) for e in limit.get('window_errors_m') or []) or None
     try:
-        row = worker.analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
+        row = analyse_trial(RecordedTrial(record), row, result['trial'], trace_dir)
         return fault_columns(row, record)
     except RuntimeError as error:
         row['success'] = False

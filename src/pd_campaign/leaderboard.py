@@ -8,7 +8,7 @@
    trials), for every grid point; a stop whose sample is labelled inner cortical is correct. The
    best TOP_ON_TRAIN points on the training split are re-scored on the validation split and the
    best there is chosen (select()). The learned entry is fitted on the training split
-   (pd_campaign.baselines.train_learned). Nothing looks at the test split.
+   (pd_campaign.learned.train_learned). Nothing looks at the test split.
 2. **Closed loop, on the test split's specimens**: each entry drills the same evaluation-seed
    trials (the dataset's base seed, evaluation space: the test split's specimens and patients,
    extended by further evaluation seeds when more trials are asked for) on both benches.
@@ -32,8 +32,10 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import baselines, campaign_process, compare, report, sensitivity, stats, tools
+from . import campaign_process, compare, design, offline, stats, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
+from .identification import IdentificationError, identify
+from .learned import train_learned
 
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
@@ -101,14 +103,14 @@ def outcome_of(stop_index, labels, residual_mm=None):
     """correct | shallow | early | late | none, from the stop's sample: its label, and the inner
     cortex left below the deepest cut then (`residual_mm`, per sample; None: not judged).
     Correct is the paper's success band: in the inner cortex with at most
-    baselines.MAX_RESIDUAL_MM of it left (baselines.outcome_of judges the label); shallow: in
+    offline.MAX_RESIDUAL_MM of it left (offline.outcome_of judges the label); shallow: in
     it with more left (a failure in closed loop, as an early stop)."""
     if stop_index is not None and stop_index >= len(labels):
         raise LeaderboardError('stop index %d beyond the trace (%d samples)' % (
             stop_index, len(labels)))
-    outcome = baselines.outcome_of(None if stop_index is None else int(labels[stop_index]))
+    outcome = offline.outcome_of(None if stop_index is None else int(labels[stop_index]))
     if (outcome == 'correct' and residual_mm is not None
-            and residual_mm[stop_index] > baselines.MAX_RESIDUAL_MM):
+            and residual_mm[stop_index] > offline.MAX_RESIDUAL_MM):
         return 'shallow'
     return outcome
 
@@ -227,8 +229,8 @@ def tune_entry(entry, train, validation, log=sys.stderr, jobs=1):
 def train_entry(entry, dataset_dir, out_dir, train, validation):
     """The learned entry: fitted on train (its threshold chosen on validation), then scored."""
     model = os.path.join(out_dir, '%s_model.json' % entry['name'])
-    baselines.train_learned(os.path.join(dataset_dir, 'train.npz'),
-                            os.path.join(dataset_dir, 'validation.npz'), model)
+    train_learned(os.path.join(dataset_dir, 'train.npz'),
+                  os.path.join(dataset_dir, 'validation.npz'), model)
     params = dict({k: str(v) for k, v in (entry.get('params') or {}).items()}, model=model)
     return {'params': params, 'train': offline_score(entry['recognizer'], params, train),
             'validation': offline_score(entry['recognizer'], params, validation),
@@ -249,7 +251,7 @@ def run_campaign(entry, params, scenario, meta, args, out_dir, identification):
     if campaign_process.run(argv) != 0:
         raise LeaderboardError('the campaign of %s on %s failed (%s)' % (
             entry['name'], scenario, out_dir))
-    return report.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
+    return trials_csv.read_trials_csv(os.path.join(out_dir, 'trials.csv'))
 
 
 def scenario_with_depth_limit(scenario, out_dir):
@@ -381,7 +383,7 @@ def figure(boards, config, path):
     names = [e['name'] for e in config['entries']]
     fig, axes = plt.subplots(1, len(boards), figsize=(6.5 * len(boards), 4.2), squeeze=False)
     for ax, (bench, rows) in zip(axes[0], boards.items()):
-        cases = [c for c in report.CASES if any(r['case'] == c for r in rows)]
+        cases = [c for c in design.CASES if any(r['case'] == c for r in rows)]
         width = 0.8 / max(1, len(names))
         for k, name in enumerate(names):
             mine = {r['case']: r for r in rows if r['entry'] == name}
@@ -415,7 +417,7 @@ def tune_all(entries, traces, args):
         learned = {entry['name']: beside.submit(
             train_entry, entry, args.dataset, args.out, traces['train'], traces['validation'])
             for entry in entries if entry.get('train') == 'learned'}
-        identification = beside.submit(sensitivity.identify, args.out, args.jobs)
+        identification = beside.submit(identify, args.out, args.jobs)
         tuned = {}
         for entry in entries:
             sys.stderr.write('leaderboard: tuning %s\n' % entry['name'])
@@ -426,7 +428,7 @@ def tune_all(entries, traces, args):
                                   else tuned[entry['name']]) for entry in entries}
         try:
             return tuning, identification.result()
-        except sensitivity.IdentificationError as e:
+        except IdentificationError as e:
             sys.stderr.write('leaderboard: %s\n' % e)
             return tuning, None
 
@@ -460,7 +462,7 @@ def main(argv=None):
             set(test['trial_rpm'])))
     except (OSError, ValueError) as e:
         parser.error(str(e))
-    args.cases = config.get('cases') or list(report.CASES)
+    args.cases = config.get('cases') or list(design.CASES)
     args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
     args.trials = args.trials or test_per_case
     benches = args.bench or list(config['benches'])

@@ -18,6 +18,7 @@ from the Python path, makes it with no arguments and calls:
 Recognizer is the base class with that contract and the parameter handling; ThresholdRecognizer
 is a force-threshold baseline written with it."""
 
+from pd_campaign.checks import positive
 from pd_campaign.plugin_params import Configurable
 
 
@@ -41,10 +42,6 @@ class Recognizer(Configurable):
         raise NotImplementedError
 
 
-def _positive(value):
-    return value > 0
-
-
 class ThresholdRecognizer(Recognizer):
     """A force-threshold baseline: block means of `pre_average` raw samples; the outer cortex
     is a block mean above `cortical_n`, the cancellous bone a later one below `cancellous_n`,
@@ -55,10 +52,10 @@ class ThresholdRecognizer(Recognizer):
     12000 rpm, 0.5 mm/s: doc/simulator_physics.md); tune them on training data."""
 
     PARAMETERS = {
-        'pre_average': (int, 50, _positive),
-        'cortical_n': (float, 2.2, _positive),
-        'cancellous_n': (float, 1.7, _positive),
-        'confirm': (int, 2, _positive),
+        'pre_average': (int, 50, positive),
+        'cortical_n': (float, 2.2, positive),
+        'cancellous_n': (float, 1.7, positive),
+        'confirm': (int, 2, positive),
     }
 
     def reset(self):

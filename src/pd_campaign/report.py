@@ -1,35 +1,11 @@
-"""Outputs of a campaign: trials.csv, summary.json, report.md and the PNG figures.
+"""A campaign's report.md (and the peak-force protocol's), from the aggregated rows (aggregate.py);
+the paper's numbers it compares against. The trial rows are trials_csv.py's, the figures plots.py's.
 
 Everything here is computed from the trial rows (and per-trial traces) alone, so a merge of
 shard directories produces the same report as a single run with the same design."""
-import csv
-import io
-import json
-import math
-import os
-
 from . import stats
-from .atomic import atomic_write, named
-from .design import CASES, FAULTS
-
-TRIAL_COLUMNS = [
-    'trial_id', 'case', 'rpm', 'index', 'seed', 'seed_space', 'fault', 'engine', 'success',
-    'residual_mm',
-    'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'protocol', 'stop_reason', 'stop_source', 'fault_time_s', 'stop_delay_s',
-    'retreat_delay_s', 'breakthrough', 'failure_kind', 'stop_depth_mm', 'stop_residual_mm',
-    'overshoot_mm', 'rundown_mm', 'detection_latency_ms', 'first_stop_kind', 'h1_error_mm',
-    'max_depth_mm',
-    'inner_start_mm',
-    'inner_cortical_mm', 'volunteer_id', 'amplitude_scale', 'ventilator_rate_bpm',
-    'tidal_volume_ml', 'force_noise_sd_n', 'arm_stiffness_scale', 'patient_ap_slope_mm_per_ml',
-    'patient_lag_s', 'patient_gain_change', 'model_ap_slope_mm_per_ml',
-    'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
-    'sim_duration_s', 'wall_s', 'late_commands', 'max_command_lateness_ms', 'command_waits',
-    'command_wait_wall_s', 'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-    'watch_desired_ratio', 'watch_following_ratio', 'depth_estimate_error_mm',
-    'plan_far_side_error_mm', 'depth_window_errors_mm', 'force_delay_max_ms', 'force_samples_missing', 'tracker_delay_max_ms', 'tracker_samples_missing', 'retare_offset_n',
-    'drift_detected', 'bag_lost', 'error',
-]
+from .aggregate import STOP_LINES, h1_by_volunteer, stop_line
+from .atomic import atomic_write
 
 PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensated': (19, 20)}
 # Fig. 15 (Sec. V-C), compensated case: "from 90 % to 50 % ... 40 %". The paper ran 96
@@ -39,221 +15,6 @@ PAPER_TABLE_III = {'stationary': (19, 20), 'uncompensated': (13, 20), 'compensat
 PAPER_FIG15_COUNTS = {'compensated': {12000.0: (9, 10), 16000.0: (5, 10), 20000.0: (4, 10)}}
 # Paper Sec. V-D (Fig. 16, 12000 rpm): median peak force of a case minus the stationary one, N.
 PAPER_PEAK_DIFFERENCES = {'uncompensated': (-1.2, -1.43), 'compensated': (-0.43, -0.01)}
-
-
-def _number(value):
-    if value in (None, ''):
-        return None
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        return None
-    return None if math.isnan(number) else number
-
-
-def normalise_row(row):
-    """Types of a trials.csv row (strings from csv) as the report uses them."""
-    out = dict(row)
-    out['rpm'] = float(row['rpm'])
-    out['index'] = int(row['index'])
-    out['seed'] = int(row['seed'])
-    out['success'] = str(row['success']).lower() in ('1', 'true')
-    out['breakthrough'] = str(row.get('breakthrough', '')).lower() in ('1', 'true')
-    out['drift_detected'] = str(row.get('drift_detected', '')).lower() in ('1', 'true')
-    out['fault'] = row.get('fault') or 'none'
-    for key in ('fault_time_s', 'stop_delay_s', 'retreat_delay_s', 'residual_mm', 'f_out_n', 'f_in_n', 'f_out_truth_n', 'f_in_truth_n', 'max_depth_mm', 'inner_start_mm',
-                'inner_cortical_mm', 'amplitude_scale', 'ventilator_rate_bpm', 'tidal_volume_ml',
-                'force_noise_sd_n', 'arm_stiffness_scale', 'patient_ap_slope_mm_per_ml',
-                'patient_lag_s', 'patient_gain_change', 'model_ap_slope_mm_per_ml',
-                'tracking_rms_mm', 'tracking_max_mm', 'contact_loss_count', 'identification_r2_ap',
-                'sim_duration_s', 'wall_s', 'stop_depth_mm', 'stop_residual_mm', 'overshoot_mm',
-                'rundown_mm', 'detection_latency_ms', 'h1_error_mm', 'late_commands',
-                'max_command_lateness_ms', 'command_waits', 'command_wait_wall_s',
-                'command_wait_expired', 'lockstep_timeouts', 'rejected_commands',
-                'watch_desired_ratio', 'watch_following_ratio', 'depth_estimate_error_mm',
-                'plan_far_side_error_mm', 'force_delay_max_ms', 'force_samples_missing',
-                'tracker_delay_max_ms',
-                'tracker_samples_missing', 'retare_offset_n'):
-        out[key] = _number(row.get(key))
-    out['failure_kind'] = row.get('failure_kind') or None
-    out['first_stop_kind'] = row.get('first_stop_kind') or None
-    return out
-
-
-def sort_key(row):
-    fault = row.get('fault') or 'none'
-    return (row['rpm'], row['index'], CASES.index(row['case']) if row['case'] in CASES else 9,
-            FAULTS.index(fault) if fault in FAULTS else len(FAULTS))
-
-
-def _format(value):
-    if isinstance(value, bool):
-        return 'true' if value else 'false'
-    if isinstance(value, float):
-        return '' if math.isnan(value) else '%.6g' % value
-    return '' if value is None else str(value)
-
-
-def _csv_text(rows, header=False):
-    """`rows` as trials.csv lines (csv's \\r\\n endings), with the header first if `header`."""
-    text = io.StringIO(newline='')
-    writer = csv.DictWriter(text, fieldnames=TRIAL_COLUMNS, extrasaction='ignore')
-    if header:
-        writer.writeheader()
-    for row in rows:
-        writer.writerow({k: _format(row.get(k)) for k in TRIAL_COLUMNS})
-    return text.getvalue()
-
-
-def write_trials_csv(rows, path):
-    """trials.csv of `rows`, sorted, written to a temporary file and renamed."""
-    with atomic_write(path, newline='') as handle:
-        handle.write(_csv_text(sorted(rows, key=sort_key), header=True))
-
-
-class TrialsAppender:
-    """trials.csv while a campaign runs: the header and `rows` (the trials it has before it runs
-    any: taken, or kept by --resume) written atomically, then one complete line per finished
-    trial, appended with one write as it arrives (nothing finished is lost if the campaign is
-    killed). Appending keeps the cost per trial constant; write_trials_csv rewrites the file
-    sorted, atomically, when the campaign ends. A line that cannot be written whole (a full
-    disk) is cut off again, and the OSError raised names the file: the lines before it stay."""
-
-    def __init__(self, path, rows=()):
-        self.path = path
-        self._fd = -1
-        with atomic_write(path, newline='') as handle:
-            handle.write(_csv_text(rows, header=True))
-            self._encoding = handle.encoding
-        flags = os.O_WRONLY | os.O_APPEND | os.O_CLOEXEC
-        self._fd = os.open(path, flags)  # not atomic: the live file, appended while running
-
-    def append(self, row):
-        data = _csv_text([row]).encode(self._encoding)
-        size = os.fstat(self._fd).st_size
-        try:
-            while data:
-                data = data[os.write(self._fd, data):]
-        except OSError as error:
-            try:
-                os.ftruncate(self._fd, size)  # no half line after the whole ones
-            except OSError:
-                pass
-            raise named(error, self.path)
-
-    def close(self):
-        if self._fd >= 0:
-            os.close(self._fd)
-            self._fd = -1
-
-
-def read_trials_csv(path, whole_lines=False):
-    """The rows of trials.csv at `path`. `whole_lines`: a campaign's live file, which a campaign
-    killed while appending (or a full disk) can leave with its last line cut: a line without
-    its line ending, or without every column, is left out."""
-    with open(path, newline='') as handle:
-        text = handle.read()
-    if whole_lines:
-        text = text[:text.rfind('\n') + 1]
-    reader = csv.DictReader(io.StringIO(text, newline=''))
-    missing = [c for c in ('trial_id', 'case', 'rpm', 'index', 'seed', 'success')
-               if c not in (reader.fieldnames or [])]
-    if missing:
-        raise ValueError('%s: missing columns %s' % (path, ', '.join(missing)))
-    return [normalise_row(r) for r in reader
-            if not whole_lines or (None not in r and None not in r.values())]
-
-
-def _quartile_values(values):
-    """[first quartile, median, third quartile] (linear interpolation), None if empty."""
-    values = sorted(v for v in values if v is not None)
-    if not values:
-        return None
-
-    def q(p):
-        x = p * (len(values) - 1)
-        i = int(x)
-        return values[i] + (values[min(i + 1, len(values) - 1)] - values[i]) * (x - i)
-    return [q(0.25), q(0.5), q(0.75)]
-
-
-def summarise(rows):
-    """Per case and rpm: trials, successes, success rate with its Wilson 95 % interval, medians.
-    Trials with an injected fault are left out (fault_summary reports them)."""
-    groups = {}
-    for row in rows:
-        if (row.get('fault') or 'none') != 'none':
-            continue
-        groups.setdefault((row['case'], row['rpm']), []).append(row)
-    summary = []
-    for (case, rpm), group in sorted(groups.items(),
-                                     key=lambda kv: (kv[0][1], CASES.index(kv[0][0])
-                                                     if kv[0][0] in CASES else 9)):
-        valid = [r for r in group if not r.get('error')]
-        successes = sum(1 for r in valid if r['success'])
-        low, high = stats.wilson_interval(successes, len(valid))
-        summary.append({
-            'case': case,
-            'rpm': rpm,
-            'trials': len(valid),
-            'errors': len(group) - len(valid),
-            'successes': successes,
-            'success_rate': successes / len(valid) if valid else None,
-            'wilson95': [low, high],
-            'median_f_out_n': stats.median([r['f_out_n'] for r in valid]),
-            'median_f_in_n': stats.median([r['f_in_n'] for r in valid]),
-            'quartiles_f_out_n': _quartile_values([r['f_out_n'] for r in valid]),
-            'quartiles_f_in_n': _quartile_values([r['f_in_n'] for r in valid]),
-            'defined_f_in': sum(1 for r in valid if r['f_in_n'] is not None),
-            'median_f_out_truth_n': stats.median([r.get('f_out_truth_n') for r in valid]),
-            'median_f_in_truth_n': stats.median([r.get('f_in_truth_n') for r in valid]),
-            'median_residual_mm_successful': stats.median(
-                [r['residual_mm'] for r in valid if r['success']]),
-            'median_tracking_rms_mm': stats.median([r['tracking_rms_mm'] for r in valid]),
-            'median_contact_loss_count': stats.median(
-                [r.get('contact_loss_count') for r in valid]),
-            'stop_reasons': _count(stop_category(r) for r in valid),
-            'outcomes': _count(outcome(r) for r in valid),
-            'median_tracking_rms_mm_failures': stats.median(
-                [r['tracking_rms_mm'] for r in valid if not r['success']]),
-        })
-        summary[-1].update(field_metrics(valid))
-    # Moving cases against the stationary case on the same specimens (seeds are paired across
-    # cases, design.py): McNemar's exact test on the discordant pairs.
-    for g in summary:
-        base = groups.get(('stationary', g['rpm']))
-        if g['case'] == 'stationary' or base is None:
-            continue
-        n, both, only_case, only_stationary, neither = stats.paired_counts(
-            groups[(g['case'], g['rpm'])], base, key=lambda r: r['seed'])
-        g['paired_vs_stationary'] = {
-            'pairs': n, 'both': both, 'only_this_case': only_case,
-            'only_stationary': only_stationary, 'neither': neither,
-            'mcnemar_p': stats.mcnemar_exact(only_case, only_stationary)}
-    return summary
-
-
-def field_metrics(valid):
-    """The field's metrics of a group of trials (Xia et al. 2024 report correct stops
-    and no penetration separately): correct-stop and no-penetration rates with Wilson 95 %
-    intervals, the failure kinds, and the medians (with quartiles) of the stop's distance from
-    the inner layer's end, the overshoot past the layer's entry and the detection latency
-    (pd_campaign.outcome defines each)."""
-    n = len(valid)
-    correct = sum(1 for r in valid if r['success'])
-    intact = sum(1 for r in valid if not r['breakthrough'])
-    return {
-        'correct_stop_rate': correct / n if n else None,
-        'correct_stop_wilson95': list(stats.wilson_interval(correct, n)),
-        'no_penetration': intact,
-        'no_penetration_rate': intact / n if n else None,
-        'no_penetration_wilson95': list(stats.wilson_interval(intact, n)),
-        'failure_kinds': _count(r.get('failure_kind') or outcome(r) for r in valid),
-        'quartiles_stop_residual_mm': _quartile_values([r.get('stop_residual_mm') for r in valid]),
-        'quartiles_overshoot_mm': _quartile_values([r.get('overshoot_mm') for r in valid]),
-        'quartiles_detection_latency_ms': _quartile_values(
-            [r.get('detection_latency_ms') for r in valid]),
-    }
 
 
 def metrics_table(summary):
@@ -272,27 +33,6 @@ def metrics_table(summary):
             ', '.join('%s %d' % kv for kv in g['failure_kinds'].items() if kv[0] != 'success')
             or '-'))
     return '\n'.join(lines)
-
-
-def h1_by_volunteer(rows):
-    """The monitor's H1 stops (bone position error) per case and virtual volunteer, with the
-    prediction error they reported (trials without a fault). Empty when there was none."""
-    groups = {}
-    for row in rows:
-        if (row.get('fault') or 'none') != 'none' or row.get('error'):
-            continue
-        key = (row['case'], row['rpm'], row.get('volunteer_id'))
-        groups.setdefault(key, []).append(row)
-    out = []
-    for (case, rpm, volunteer), group in sorted(groups.items(), key=lambda kv: (
-            kv[0][1], CASES.index(kv[0][0]) if kv[0][0] in CASES else 9, str(kv[0][2]))):
-        h1 = [r for r in group if (r.get('first_stop_kind') or r.get('failure_kind'))
-              == 'safety_h1']
-        out.append({'case': case, 'rpm': rpm, 'volunteer_id': volunteer, 'trials': len(group),
-                    'h1_stops': len(h1),
-                    'quartiles_h1_error_mm': _quartile_values([r.get('h1_error_mm') for r in h1]),
-                    'max_h1_error_mm': _maximum([r.get('h1_error_mm') for r in h1])})
-    return out if any(g['h1_stops'] for g in out) else []
 
 
 def h1_table(groups):
@@ -330,56 +70,6 @@ def _volunteer_label(value):
         return str(value)
 
 
-def _maximum(values):
-    values = [v for v in values if v is not None]
-    return max(values) if values else None
-
-
-def _minimum(values):
-    values = [v for v in values if v is not None]
-    return min(values) if values else None
-
-
-def fault_summary(rows):
-    """Per case, rpm and fault (fault campaigns): trials, the faults injected, breakthroughs of
-    the inner cortical layer, who stopped the drill, fault-to-stop and fault-to-retreat delays,
-    and the residual thickness left. Empty when no trial had a fault."""
-    if all((r.get('fault') or 'none') == 'none' for r in rows):
-        return []
-    groups = {}
-    for row in rows:
-        groups.setdefault((row['case'], row['rpm'], row.get('fault') or 'none'), []).append(row)
-    out = []
-    for (case, rpm, fault), group in sorted(groups.items(), key=lambda kv: (
-            kv[0][1], CASES.index(kv[0][0]) if kv[0][0] in CASES else 9,
-            FAULTS.index(kv[0][2]) if kv[0][2] in FAULTS else len(FAULTS))):
-        valid = [r for r in group if not r.get('error')]
-        injected = [r for r in valid if fault == 'none' or r.get('fault_time_s') is not None]
-        stopped = [r for r in injected if r.get('stop_delay_s') is not None]
-        retreated = [r for r in injected if r.get('retreat_delay_s') is not None]
-        breakthroughs = sum(1 for r in valid if r['breakthrough'])
-        low, high = stats.wilson_interval(breakthroughs, len(valid))
-        out.append({
-            'case': case, 'rpm': rpm, 'fault': fault,
-            'trials': len(valid), 'errors': len(group) - len(valid),
-            'injected': len(injected) if fault != 'none' else None,
-            'breakthroughs': breakthroughs, 'breakthrough_wilson95': [low, high],
-            'successes': sum(1 for r in valid if r['success']),
-            'stopped_after_fault': len(stopped) if fault != 'none' else None,
-            'retreated_after_fault': len(retreated) if fault != 'none' else None,
-            'median_stop_delay_s': stats.median([r['stop_delay_s'] for r in stopped]),
-            'max_stop_delay_s': _maximum([r['stop_delay_s'] for r in stopped]),
-            'median_retreat_delay_s': stats.median([r['retreat_delay_s'] for r in retreated]),
-            'max_retreat_delay_s': _maximum([r['retreat_delay_s'] for r in retreated]),
-            'median_residual_mm': stats.median([r['residual_mm'] for r in valid]),
-            'min_residual_mm': _minimum([r['residual_mm'] for r in valid]),
-            'stop_reasons': _count(stop_category(r) for r in injected),
-            'failure_kinds': _count(r.get('failure_kind') or outcome(r) for r in valid),
-            'drift_detected': sum(1 for r in valid if r.get('drift_detected')),
-        })
-    return out
-
-
 def fault_table(faults):
     """The fault campaign's table (doc/experiments.md, "Fault campaign")."""
     lines = ['| case | rpm | fault | trials | injected | breakthroughs (Wilson 95 % upper) '
@@ -408,47 +98,6 @@ def fault_table(faults):
     return '\n'.join(lines)
 
 
-def stop_category(row):
-    """Who stopped the drill and why, without the per-trial details of the message."""
-    source = (row.get('stop_source') or '').rsplit('/', 1)[-1]
-    reason = row.get('stop_reason') or ''
-    if source == 'state_recognizer':
-        return 'recognizer'
-    if source == 'safety_monitor':
-        return 'safety: ' + reason.split(':', 1)[0]
-    if source == 'compensation_planner':
-        return 'planner: ' + reason.split(':', 1)[0]
-    if source == 'protocol':
-        return 'protocol'
-    if source in ('drill_guard', 'drive_guard'):  # a lost process: the drives hold
-        return source.replace('_', ' ') + ': ' + reason.split(':', 1)[0]
-    return 'no stop (%s)' % (reason or 'max_duration')
-
-
-STOP_LINES = ('recognizer', 'plausibility bound', 'depth limit', 'safety monitor', 'other',
-              'no stop')
-
-
-def stop_line(row):
-    """Which line of defence made the trial's first stop: the recognizer (the primary stop), the
-    planner's plausibility bound on the recognizer's layers, the plan's depth limit, the safety
-    monitor (its checks and its drill guard), another stop (a silent component, the protocol),
-    or none."""
-    source = (row.get('stop_source') or '').rsplit('/', 1)[-1]
-    reason = row.get('stop_reason') or ''
-    if source == 'state_recognizer':
-        return 'recognizer'
-    if reason.startswith('depth_limit'):
-        return 'depth limit'
-    if 'implausible' in reason:
-        return 'plausibility bound'
-    if source in ('safety_monitor', 'drill_guard', 'drive_guard'):
-        return 'safety monitor'
-    if source in ('', 'none'):
-        return 'no stop'
-    return 'other'
-
-
 def stop_line_table(rows):
     """Per case and speed, how many trials each line of defence stopped first (stop_line)."""
     groups = {}
@@ -463,37 +112,6 @@ def stop_line_table(rows):
         lines.append('| %s | %.0f | %s |' % (case, rpm,
                                              ' | '.join(str(counts[l]) for l in STOP_LINES)))
     return '\n'.join(lines)
-
-
-def outcome(row):
-    """Where the drill ended relative to the inner cortical layer (simulator ground truth)."""
-    if row['success']:
-        return 'success'
-    if row.get('breakthrough'):
-        return 'breakthrough'
-    depth, inner_start = row.get('max_depth_mm'), row.get('inner_start_mm')
-    if depth is not None and inner_start is not None and depth <= inner_start:
-        return 'stopped before the inner cortical layer'
-    residual = row.get('residual_mm')
-    if residual is not None and residual > 2.0:
-        return 'inside the inner layer, residual > 2 mm'
-    return 'other'
-
-
-def _count(items):
-    counts = {}
-    for item in items:
-        counts[item] = counts.get(item, 0) + 1
-    return dict(sorted(counts.items()))
-
-
-def write_summary_json(summary, meta, path, faults=None):
-    content = {'meta': meta, 'groups': summary}
-    if faults:
-        content['faults'] = faults
-    with atomic_write(path) as handle:
-        json.dump(content, handle, indent=2, sort_keys=True)
-        handle.write('\n')
 
 
 def _pct(x):

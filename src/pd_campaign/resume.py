@@ -19,7 +19,7 @@ import json
 import os
 import time
 
-from . import report, reuse
+from . import reuse, trials_csv
 from .atomic import atomic_write
 
 LOCK_FILE = 'campaign.lock'
@@ -144,7 +144,7 @@ def kept(folder, trials, samples=False):
     if not os.path.exists(path):
         return {}
     rows = reuse.finished(folder, reuse.entries(trials),
-                          report.read_trials_csv(path, whole_lines=True))
+                          trials_csv.read_trials_csv(path, whole_lines=True))
     if samples:
         rows = [r for r in rows
                 if os.path.isfile(os.path.join(folder, 'samples', r['trial_id'] + '.npy'))]

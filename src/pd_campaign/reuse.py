@@ -18,7 +18,7 @@ import hashlib
 import json
 import os
 
-from . import report, tools
+from . import tools, trials_csv
 from .atomic import atomic_write
 
 SOURCE_FILE = 'trial_source.json'
@@ -164,7 +164,7 @@ def _read_source(folder, wanted):
     """{trial_id: (row, trace bytes)} of the `wanted` trials {trial_id: entry text} that the
     campaign in `folder` ran without an error and with its trace."""
     found = {}
-    rows = report.read_trials_csv(os.path.join(folder, 'trials.csv'))
+    rows = trials_csv.read_trials_csv(os.path.join(folder, 'trials.csv'))
     for row in finished(folder, wanted, rows):
         trial_id = row['trial_id']
         try:

@@ -27,9 +27,11 @@ import types
 
 import yaml
 
-from . import cli, report, sensitivity, tools
+from . import aggregate, arguments, sensitivity, tools, trials_csv
 from .atomic import atomic_savefig, atomic_write
 from .design import CASES
+from .identification import IdentificationError
+from .scenario import BONE_MOTIONS, PACKAGE_ROOT, Scenario, UsageError
 
 CONFIG_VERSION = 1
 CONFIG_KEYS = ('version', 'scenario', 'case', 'rpm', 'trials', 'compensators', 'errors')
@@ -37,7 +39,7 @@ ERROR_KEYS = ('name', 'parameter', 'unit', 'label', 'points', 'offset', 'needs_b
 REQUIRED_ERROR_KEYS = ('name', 'parameter', 'unit', 'label', 'points')
 DEFAULTS = {'scenario': 'config/scenario_realistic.yaml', 'case': 'compensated', 'rpm': 12000.0,
             'trials': 100}
-DEFAULT_SWEEP = os.path.join(cli.PACKAGE_ROOT, 'config', 'robustness.yaml')
+DEFAULT_SWEEP = os.path.join(PACKAGE_ROOT, 'config', 'robustness.yaml')
 # The range's rule: success count / trials >= 95 %, in integers (19/20 is in it, exactly).
 TARGET_NUMERATOR, TARGET_DENOMINATOR = 95, 100
 NAME = re.compile(r'^[A-Za-z0-9_-]+$')  # an error's name: a part of file and folder names
@@ -98,10 +100,10 @@ def _scenario_path(where, value):
     """The scenario's path: absolute, or relative to the package (config/...)."""
     if not isinstance(value, str) or not value.strip():
         raise ConfigError('%s: scenario must be a path' % where)
-    path = value if os.path.isabs(value) else os.path.join(cli.PACKAGE_ROOT, value)
+    path = value if os.path.isabs(value) else os.path.join(PACKAGE_ROOT, value)
     if not os.path.isfile(path):
         raise ConfigError('%s: scenario %s: no such file (a relative path is taken from the '
-                          'package, %s)' % (where, value, cli.PACKAGE_ROOT))
+                          'package, %s)' % (where, value, PACKAGE_ROOT))
     return path
 
 
@@ -142,9 +144,9 @@ def _error(where, index, raw):
     if not isinstance(raw.get('offset', False), bool):
         raise ConfigError('%s: offset must be true or false' % where)
     needs = raw.get('needs_bone_motion')
-    if needs is not None and needs not in cli.BONE_MOTIONS:
+    if needs is not None and needs not in BONE_MOTIONS:
         raise ConfigError('%s: needs_bone_motion %r is not one of %s'
-                          % (where, needs, ', '.join(cli.BONE_MOTIONS)))
+                          % (where, needs, ', '.join(BONE_MOTIONS)))
     return {'name': raw['name'], 'parameter': raw['parameter'].strip(), 'unit': raw['unit'],
             'label': raw['label'].strip(), 'points': sorted(float(p) for p in points),
             'offset': raw.get('offset', False), 'needs_bone_motion': needs}
@@ -165,7 +167,8 @@ def select(errors, only):
 def check_compensator(name, scenario):
     """None if trial_engine loads the compensator class with the scenario's compensator_params
     (the campaign's own check), else its message."""
-    params = cli.class_params(None, scenario.get('compensator_params'), '--compensator-param')
+    params = arguments.class_params(None, Scenario(scenario).compensator_params,
+                                    '--compensator-param')
     result = subprocess.run(tools.tool('trial_engine') + ['--check-compensator', name] +
                             ['%s=%s' % kv for kv in sorted(params.items())],
                             capture_output=True, text=True)
@@ -193,7 +196,7 @@ def resolve(config, errors, scenario, defaults, check=sensitivity.check_simulato
         if message:
             raise ConfigError('--sweep %s: compensators: %s: %s' % (config['path'], name,
                                                                   message))
-    bone_motion = scenario.get('bone_motion', 'virtual_patient')
+    bone_motion = Scenario(scenario).bone_motion
     for error in errors:
         where = '--sweep %s: errors, %s (%s)' % (config['path'], error['name'],
                                                  error['parameter'])
@@ -269,19 +272,19 @@ def benches(config, errors, scenario, design, out_dir):
 # --- the results ----------------------------------------------------------------------------------
 
 def cell(rows, case, rpm):
-    """A point's numbers from its campaign's trial rows (report.read_trials_csv) of the case and
+    """A point's numbers from its campaign's trial rows (trials_csv.read_trials_csv) of the case and
     speed, trials without a fault: the trials that did not error, their successes with the Wilson
     95 % interval, the H1 stops, the breakthroughs, the median tracking RMS and the errored
-    trials (report.summarise and report.h1_by_volunteer, as the campaign's report counts
+    trials (aggregate.summarise and aggregate.h1_by_volunteer, as the campaign's report counts
     them)."""
     rows = [r for r in rows if r['case'] == case and r['rpm'] == rpm]
-    group = next(iter(report.summarise(rows)), None)
+    group = next(iter(aggregate.summarise(rows)), None)
     if group is None:
         return {'trials': 0, 'successes': 0, 'wilson95': [0.0, 1.0], 'h1_stops': 0,
                 'breakthroughs': 0, 'median_tracking_rms_mm': None, 'errors': 0}
     return {'trials': group['trials'], 'successes': group['successes'],
             'wilson95': list(group['wilson95']),
-            'h1_stops': sum(g['h1_stops'] for g in report.h1_by_volunteer(rows)),
+            'h1_stops': sum(g['h1_stops'] for g in aggregate.h1_by_volunteer(rows)),
             'breakthroughs': group['trials'] - group['no_penetration'],
             'median_tracking_rms_mm': group['median_tracking_rms_mm'],
             'errors': group['errors']}
@@ -292,7 +295,7 @@ def read_results(points, case, rpm):
     order of the errors and the compensators, by size."""
     out = []
     for c in sorted(points, key=lambda c: c['order']):
-        rows = report.read_trials_csv(os.path.join(c['dir'], 'trials.csv'))
+        rows = trials_csv.read_trials_csv(os.path.join(c['dir'], 'trials.csv'))
         error = c['error']
         out.append(dict(cell(rows, case, rpm), compensator=c['compensator'],
                         error=error['name'], parameter=error['parameter'], value=c['point'],
@@ -424,7 +427,7 @@ def design_markdown(setup):
         'breakthroughs: trials that perforated the inner cortex; the tracking RMS is the '
         'median over the trials of the tip-bone AP tracking RMS. The campaigns are in '
         '`<compensator>/<error>_<size>/`.' % (
-            sensitivity._shown(setup['scenario']), sensitivity._shown(setup['sweep']),
+            sensitivity.shown(setup['scenario']), sensitivity.shown(setup['sweep']),
             setup['case'], setup['rpm'], setup['trials'], setup['seed'], setup['seed_space'])])
 
 
@@ -559,10 +562,10 @@ def main(argv=None):
         sys.stderr.flush()
         statuses = sensitivity.run_all(points, campaign, expected, setup['scenario'],
                                        sys.stderr, args.jobs, setup['out'])
-    except (sensitivity.SweepError, cli.UsageError) as error:
+    except (sensitivity.SweepError, UsageError) as error:
         sys.stderr.write('%s: %s\n' % (TOOL, error))
         return 2
-    except sensitivity.IdentificationError as error:
+    except IdentificationError as error:
         sys.stderr.write('%s: %s\n' % (TOOL, error))
         return 1
     except (OSError, RuntimeError, ValueError, subprocess.CalledProcessError) as error:

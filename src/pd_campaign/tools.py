@@ -44,12 +44,18 @@ def build_id():
     if len(command) != 1:
         return None
     lib_dir = os.path.dirname(os.path.dirname(command[0]))  # devel/lib/pedicle_drilling -> lib
-    paths = [command[0]] + sorted(glob.glob(os.path.join(lib_dir, 'libpedicle_drilling*.so'))) \
-        + sorted(glob.glob(os.path.join(os.path.dirname(os.path.realpath(__file__)), '*.py')))
+    package = os.path.dirname(os.path.realpath(__file__))
+    paths = [command[0]] + sorted(glob.glob(os.path.join(lib_dir, 'libpedicle_drilling*.so')))
+    # The package's sources, its sub-packages' included, each named by its path in it.
+    sources = sorted(os.path.relpath(path, package) for path in
+                     glob.glob(os.path.join(glob.escape(package), '**', '*.py'), recursive=True))
     digest = hashlib.sha256()
     for path in paths:
         digest.update(os.path.basename(path).encode() + b'\0')
         update_digest(digest, path)
+    for name in sources:
+        digest.update(name.encode() + b'\0')
+        update_digest(digest, os.path.join(package, name))
     return digest.hexdigest()[:16]
 
 

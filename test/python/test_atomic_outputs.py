@@ -241,7 +241,8 @@ def python_scripts():
     paths = []
     for path in sorted(glob.glob(os.path.join(SCRIPTS, '*')) +
                        glob.glob(os.path.join(SCRIPTS, 'dev', '*')) +
-                       glob.glob(os.path.join(PACKAGE_SRC, 'pd_campaign', '*.py'))):
+                       glob.glob(os.path.join(PACKAGE_SRC, 'pd_campaign', '**', '*.py'),
+                                 recursive=True)):
         if not os.path.isfile(path) or path.endswith(os.path.join('pd_campaign', 'atomic.py')):
             continue
         with open(path, errors='replace') as handle:
@@ -305,7 +306,8 @@ def test_the_check_covers_the_scripts_named_by_the_issue():
     for name in ('table2.py', 'plot_tidal_volume.py', 'volunteers_to_bag.py', 'campaign',
                  'campaign_merge', 'campaign_compare', 'pd_campaign/cli.py',
                  'pd_campaign/report.py', 'pd_campaign/plots.py', 'pd_campaign/compare.py',
-                 'pd_campaign/worker.py'):
+                 'pd_campaign/worker.py', 'pd_campaign/trials_csv.py', 'pd_campaign/aggregate.py',
+                 'pd_campaign/sensitivity/outputs.py'):
         assert name in names
 
 

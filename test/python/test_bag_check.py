@@ -1,4 +1,4 @@
-"""A kept recording says what it lost: pd_campaign.worker.check_bag counts every
+"""A kept recording says what it lost: pd_campaign.bags.check_bag counts every
 topic of a campaign bag, names the required topics that have no message and finds the samples
 missing from the force stream (gaps against its own median period). Checked on bags written
 here, with known losses. And the worker names a dead process of its launch from roslaunch's log
@@ -16,7 +16,7 @@ import rospy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 from geometry_msgs.msg import WrenchStamped  # noqa: E402
 
-from pd_campaign import worker  # noqa: E402
+from pd_campaign import bags, worker  # noqa: E402
 
 
 def write_bag(path, force_times, topics=()):
@@ -32,7 +32,7 @@ def write_bag(path, force_times, topics=()):
 def test_a_complete_force_stream_loses_nothing_but_silent_required_topics_are_named(tmp_path):
     path = tmp_path / 'complete.bag'
     write_bag(path, [1.0 + 1e-3 * i for i in range(2000)], topics=['/diagnostics'])
-    check = worker.check_bag(str(path))
+    check = bags.check_bag(str(path))
     assert check['force_samples'] == 2000
     assert check['force_samples_lost'] == 0 and check['force_gaps'] == []
     assert check['messages']['/diagnostics'] == 1
@@ -47,7 +47,7 @@ def test_dropped_force_samples_are_counted_with_the_longest_gap(tmp_path):
     kept = [t for i, t in enumerate(times) if not 1000 <= i < 1150 and i != 2000]  # 151 lost
     path = tmp_path / 'gaps.bag'
     write_bag(path, kept)
-    check = worker.check_bag(str(path))
+    check = bags.check_bag(str(path))
     assert check['force_samples'] == 3000 - 151
     assert check['force_samples_lost'] == 151
     assert len(check['force_gaps']) == 2
@@ -61,19 +61,19 @@ def test_the_period_is_the_streams_own_so_the_default_daq_rate_loses_nothing(tmp
     times = [1.0 + 3e-3 * i for i in range(1000)]
     path = tmp_path / 'daq.bag'
     write_bag(path, times)
-    assert worker.check_bag(str(path))['force_samples_lost'] == 0
+    assert bags.check_bag(str(path))['force_samples_lost'] == 0
     kept = [t for i, t in enumerate(times) if not 500 <= i < 509]
     path = tmp_path / 'daq_gap.bag'
     write_bag(path, kept)
-    check = worker.check_bag(str(path))
+    check = bags.check_bag(str(path))
     assert check['force_samples_lost'] == 9 and len(check['force_gaps']) == 1
 
 
 def test_every_required_topic_is_recorded():
-    assert set(worker.BAG_REQUIRED) <= set(worker.BAG_TOPICS)
+    assert set(bags.BAG_REQUIRED) <= set(bags.BAG_TOPICS)
     for topic in ('/spindle/command', '/ventilator/settings', '/diagnostics'):
-        assert topic in worker.BAG_REQUIRED
-    assert '/clock' not in worker.BAG_TOPICS  # rosbag play --clock makes the clock
+        assert topic in bags.BAG_REQUIRED
+    assert '/clock' not in bags.BAG_TOPICS  # rosbag play --clock makes the clock
 
 
 def test_a_dead_process_of_the_launch_is_named_from_roslaunchs_log(tmp_path):

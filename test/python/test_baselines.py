@@ -11,9 +11,10 @@ import sys
 import numpy as np
 import pytest
 
-from pd_campaign import baselines
-from pd_campaign.baselines import (ChangePointRecognizer, LearnedRecognizer, evaluate_offline,
-                                   offline_stop, train_learned, tune)
+from pd_campaign.change_point import ChangePointRecognizer
+from pd_campaign.dataset import INNER_CORTICAL
+from pd_campaign.learned import CONFIRMS, THRESHOLDS, LearnedRecognizer, train_learned
+from pd_campaign.offline import evaluate_offline, offline_stop, plausibility_stop, tune
 from pd_campaign.recognizers import Recognizer, ThresholdRecognizer
 
 RATE_HZ = 1000.0 / 3.0  # the simulated DAQ's rate
@@ -141,7 +142,7 @@ def test_the_residual_of_a_correct_stop_is_read_from_the_depths():
 def test_the_planner_plausibility_bound_is_replayed_offline():
     # 100 samples per second; the cut goes 0.01 mm deeper per sample (1 mm/s).
     t, depth = np.arange(1000) / 100.0, np.arange(1000) * 0.01
-    bound = baselines.plausibility_stop
+    bound = plausibility_stop
     # The outer layer left after 2.9 mm, the cancellous bone's 8.3 mm never reached: no trip.
     assert bound([(10, 'outer_cortical'), (300, 'cancellous')], t, depth) is None
     # Outer for 5.9 mm: its 3.5 mm bound passed at sample 360, the trip 1.5 s later.
@@ -163,7 +164,7 @@ def test_the_change_point_recognizer_stops_inside_the_inner_cortex(scale):
     recognizer.configure({})
     for seed in range(3):
         trial = synthetic_trial(scale, np.random.default_rng(seed))
-        assert stop_label(recognizer, trial) == baselines.INNER_CORTICAL, (scale, seed)
+        assert stop_label(recognizer, trial) == INNER_CORTICAL, (scale, seed)
 
 
 @pytest.mark.parametrize('scale', [1.0, 0.5])
@@ -172,7 +173,7 @@ def test_the_learned_recognizer_stops_inside_the_inner_cortex(synthetic_model, s
     recognizer.configure({'model': synthetic_model})
     for seed in range(10, 13):
         trial = synthetic_trial(scale, np.random.default_rng(seed))
-        assert stop_label(recognizer, trial) == baselines.INNER_CORTICAL, (scale, seed)
+        assert stop_label(recognizer, trial) == INNER_CORTICAL, (scale, seed)
 
 
 def test_a_profile_with_no_inner_cortex_brings_no_stop(synthetic_model):
@@ -271,7 +272,7 @@ def test_train_learned_writes_a_deterministic_model_that_runs_without_sklearn(sm
     with open(first) as a, open(second) as b:
         assert a.read() == b.read(), 'the same seed writes the same model'
     assert json.loads(result.stdout)['threshold'] == spec['threshold']
-    assert spec['threshold'] in baselines.THRESHOLDS and spec['confirm'] in baselines.CONFIRMS
+    assert spec['threshold'] in THRESHOLDS and spec['confirm'] in CONFIRMS
     assert spec['training']['train_trials'] == 9 and spec['training']['validation_trials'] == 3
     # In a fresh interpreter (as the C++ side embeds one): the model loads, runs and gives the
     # same outputs twice, with scikit-learn never imported.
@@ -342,3 +343,15 @@ def test_tune_on_synthetic_profiles_finds_the_thresholds_that_work():
     assert [counts['correct'] for _, counts in result['train']] == [0, 0, 0, 0, 3, 3]
     assert result['chosen'] == {'cortical_n': '2.2', 'cancellous_n': '1.6', 'confirm': '1'}
     assert result['top'][0]['validation']['correct'] == 2
+
+
+def test_one_positive_check_refuses_inf_and_nan():
+    """The plugins' one `positive` check (pd_campaign.checks): a finite number above 0, for the
+    threshold baseline as for the change-point one."""
+    from pd_campaign.checks import positive
+    assert positive(0.5) and positive(3)
+    assert not any(positive(v) for v in (0, -1.0, float('inf'), float('nan')))
+    for recognizer in (ThresholdRecognizer(), ChangePointRecognizer()):
+        name = 'cortical_n' if isinstance(recognizer, ThresholdRecognizer) else 'sigma'
+        with pytest.raises(ValueError, match=name):
+            recognizer.configure({name: 'inf'})

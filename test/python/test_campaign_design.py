@@ -10,7 +10,7 @@ import pytest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
-from pd_campaign import cli, design, report, stats  # noqa: E402
+from pd_campaign import aggregate, cli, design, report, stats, trials_csv  # noqa: E402
 
 
 def test_wilson_interval_known_values():
@@ -83,7 +83,7 @@ def _rows(d):
         row.update(success=(i % 3 != 1), residual_mm=0.5 + 0.1 * (i % 7), f_out_n=3.0 + 0.01 * i,
                    f_in_n=2.8, stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.1, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
     return rows
 
 
@@ -156,8 +156,8 @@ def test_report_counts_errored_trials_and_states_the_shortfall(tmp_path):
                    stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.3 if compensated else 0.04,
                    error='timeout' if compensated and trial['index'] == 9 else '')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     compensated = [g for g in summary if g['case'] == 'compensated'][0]
     assert compensated['trials'] == 9 and compensated['errors'] == 1
     path = tmp_path / 'report.md'
@@ -174,18 +174,18 @@ def test_report_counts_errored_trials_and_states_the_shortfall(tmp_path):
 def test_summary_counts_and_schema(tmp_path):
     d = design.build_design(['stationary'], [12000], 6, 1)
     rows = _rows(d)
-    summary = report.summarise(rows)
+    summary = aggregate.summarise(rows)
     assert len(summary) == 1
     group = summary[0]
     assert group['trials'] == 6 and group['successes'] == sum(r['success'] for r in rows)
     low, high = group['wilson95']
     assert 0 <= low <= group['success_rate'] <= high <= 1
     path = tmp_path / 'trials.csv'
-    report.write_trials_csv(rows, str(path))
+    trials_csv.write_trials_csv(rows, str(path))
     with open(path) as handle:
         header = next(csv.reader(handle))
-    assert header == report.TRIAL_COLUMNS
-    assert len(report.read_trials_csv(str(path))) == 6
+    assert header == trials_csv.TRIAL_COLUMNS
+    assert len(trials_csv.read_trials_csv(str(path))) == 6
 
 
 def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_file(tmp_path):
@@ -195,17 +195,17 @@ def test_appended_trials_csv_is_complete_after_each_row_and_matches_the_final_fi
     d = design.build_design(['stationary', 'compensated'], [12000], 4, 3)
     rows = _rows(d)
     path = tmp_path / 'trials.csv'
-    appender = report.TrialsAppender(str(path))
+    appender = trials_csv.TrialsAppender(str(path))
     for n, row in enumerate(reversed(rows), start=1):
         appender.append(row)
-        read = report.read_trials_csv(str(path))
+        read = trials_csv.read_trials_csv(str(path))
         assert len(read) == n
         assert read[-1]['trial_id'] == row['trial_id']
     appender.close()
-    appended = sorted(report.read_trials_csv(str(path)), key=report.sort_key)
+    appended = sorted(trials_csv.read_trials_csv(str(path)), key=trials_csv.sort_key)
     final = tmp_path / 'final.csv'
-    report.write_trials_csv(rows, str(final))
-    assert appended == report.read_trials_csv(str(final))
+    trials_csv.write_trials_csv(rows, str(final))
+    assert appended == trials_csv.read_trials_csv(str(final))
 
 
 @pytest.mark.parametrize('args, named', [
@@ -274,8 +274,8 @@ def test_a_scenario_of_this_version_is_accepted(tmp_path):
     scenario = tmp_path / 'v1.yaml'
     scenario.write_text('version: 1\ncases: [stationary]\nrpms: [12000]\ntrials: 1\n')
     sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
-    from pd_campaign import cli
-    assert cli.load_scenario(str(scenario))['trials'] == 1
+    from pd_campaign.scenario import load_scenario
+    assert load_scenario(str(scenario))['trials'] == 1
 
 
 @pytest.mark.parametrize('section, named', [
@@ -299,9 +299,9 @@ def test_scenario_simulator_section_is_checked_against_the_simulator_keys(tmp_pa
 @pytest.mark.parametrize('name', sorted(n for n in os.listdir(os.path.join(ROOT, 'config'))
                                          if n.startswith('scenario_')))
 def test_shipped_scenarios_pass_the_campaign_checks(name):
-    from pd_campaign import cli
-    scenario = cli.load_scenario(os.path.join(ROOT, 'config', name))
-    assert scenario.get('bone_motion') in cli.BONE_MOTIONS, name
+    from pd_campaign.scenario import BONE_MOTIONS, load_scenario
+    scenario = load_scenario(os.path.join(ROOT, 'config', name))
+    assert scenario.get('bone_motion') in BONE_MOTIONS, name
 
 
 def _row(trial_id, success, residual, depth=8.0, inner=7.0, breakthrough=False):
@@ -375,7 +375,7 @@ def test_core_engine_settings_and_bad_simulator_params_are_refused_by_the_ros_en
 def test_peak_forces_are_read_up_to_the_stop():
     """F_out before the inner layer's entry, F_in after it, both up to the first stop (the
     recognizer's averaged force after the stop is not the paper's reading)."""
-    from pd_campaign.worker import peak_forces
+    from pd_campaign.analysis import peak_forces
     truth = [(0.0, 'outer_cortical'), (1.0, 'cancellous'), (2.0, 'inner_cortical')]
     states = [(0.5, 3.0), (1.5, 1.0), (2.5, 2.5), (3.0, 2.8), (3.5, 9.0)]
     assert peak_forces(states, truth) == (3.0, 9.0)
@@ -396,8 +396,8 @@ def test_report_tests_the_compensated_counts_against_fig15_at_every_speed(tmp_pa
                    residual_mm=1.0, f_out_n=3.0, f_in_n=2.8, max_depth_mm=4.0,
                    inner_start_mm=3.0, stop_reason='key_point_4', stop_source='state_recognizer',
                    tracking_rms_mm=0.04, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     path = tmp_path / 'report.md'
     meta = {'cases': ['compensated'], 'rpms': [12000.0, 16000.0], 'trials': 20, 'seed': 5}
     report.write_report_md(summary, meta, [], str(path))
@@ -457,13 +457,13 @@ def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_pat
                    stop_residual_mm=1.2, overshoot_mm=0.9, detection_latency_ms=1800.0,
                    volunteer_id=1 + trial['index'] % 2, stop_reason='x', stop_source='x',
                    f_out_n=3.0, f_in_n=2.8, tracking_rms_mm=0.1, error='')
-        rows.append(report.normalise_row({k: str(v) for k, v in row.items()}))
-    summary = report.summarise(rows)
+        rows.append(trials_csv.normalise_row({k: str(v) for k, v in row.items()}))
+    summary = aggregate.summarise(rows)
     compensated = [g for g in summary if g['case'] == 'compensated'][0]
     assert compensated['failure_kinds'] == {'safety_h1': 2, 'success': 2}
     assert compensated['no_penetration'] == 4
     assert compensated['quartiles_detection_latency_ms'][1] == pytest.approx(1800.0)
-    groups = report.h1_by_volunteer(rows)
+    groups = aggregate.h1_by_volunteer(rows)
     by_volunteer = {g['volunteer_id']: g for g in groups if g['case'] == 'compensated'}
     # Index 2 is volunteer 1 (error 1.45 mm), index 3 volunteer 2 (1.55 mm).
     assert by_volunteer['1']['h1_stops'] == 1 and by_volunteer['2']['h1_stops'] == 1
@@ -484,18 +484,19 @@ def test_report_has_the_failure_kinds_metrics_and_h1_stops_per_volunteer(tmp_pat
     ('seed_space: tuning\n', 'seed_space'),
 ])
 def test_a_bad_seed_space_in_a_scenario_is_refused_naming_the_key(tmp_path, text, named):
-    from pd_campaign import cli
+    from pd_campaign.scenario import UsageError, load_scenario
     path = tmp_path / 'scenario.yaml'
     path.write_text('cases: [stationary]\n' + text)
-    with pytest.raises(cli.UsageError, match=named):
-        cli.load_scenario(str(path))
+    with pytest.raises(UsageError, match=named):
+        load_scenario(str(path))
 
 
 def test_a_bad_seed_space_option_is_refused():
-    from pd_campaign import cli
-    with pytest.raises(cli.UsageError, match='--seed-space'):
-        cli.parse_args(['--seed-space', 'tuning'])
-    args = cli.parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    with pytest.raises(UsageError, match='--seed-space'):
+        parse_args(['--seed-space', 'tuning'])
+    args = parse_args(['--seed-space', 'calibration', '--trials', '2'])[0]
     assert args.seed_space == 'calibration'
 
 
@@ -504,7 +505,8 @@ def test_the_retare_check_is_recorded_apart_from_the_stops():
     recorder keeps it apart from the trial's stops (the outcome is the drilling's), and the row
     has it as drift_detected with the offset."""
     import types
-    from pd_campaign.worker import TrialRecorder, retare_columns
+    from pd_campaign.analysis import retare_columns
+    from pd_campaign.recorder import TrialRecorder
 
     def check(t, offset, drift, done=True):
         stamp = types.SimpleNamespace(to_sec=lambda: t)
@@ -527,7 +529,7 @@ def test_the_record_of_a_trial_ends_at_done_whatever_arrives_after():
     end_at() closed the record, what rospy's threads deliver later is not added (before, a
     ground truth appended after the cut moved sim_duration_s and the last truth run to run)."""
     import types
-    from pd_campaign.worker import TrialRecorder
+    from pd_campaign.recorder import TrialRecorder
 
     def truth(t):
         stamp = types.SimpleNamespace(to_sec=lambda: t)
@@ -552,7 +554,7 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
     """ResetSimulation.time_zero from the trial's place in the campaign's design (whole seconds:
     on the simulator's 0.1 s grid), not from the worker that runs it; the bench's second reset of
     a trial half a spacing later; none without a place (the simulator's default)."""
-    from pd_campaign.cli import SCENARIO_KEYS
+    from pd_campaign.scenario import SCENARIO_KEYS
     from pd_campaign.worker import TRIAL_SPACING_S, time_zero
     assert time_zero({'design_position': 0}) == TRIAL_SPACING_S
     assert time_zero({'design_position': 7}) == 8 * TRIAL_SPACING_S
@@ -563,7 +565,7 @@ def test_a_ros_trials_time_zero_is_its_place_in_the_design():
     # 60 s, ResetSimulation's bound), a breath (60 s at 1 bpm; slower still, the simulator falls
     # back to the next 0.1 s), the longest trial a scenario may ask for, and two minutes of
     # run-on after DONE.
-    longest_trial_s = SCENARIO_KEYS['max_duration_s'][2]
+    longest_trial_s = SCENARIO_KEYS['max_duration_s'].high
     assert TRIAL_SPACING_S // 2 > 60 + 60 + longest_trial_s + 120
 
 
@@ -571,23 +573,25 @@ def test_the_ros_pipelines_pace_and_lockstep_options():
     """--engine ros runs as fast as the lockstep lets it unless a bag is recorded;
     --lockstep-every-step is the ROS pipeline's, refused with the core engine; a bad real-time
     factor is refused naming the option."""
-    from pd_campaign import cli
-    assert cli.parse_args(['--engine', 'ros'])[0].real_time_factor == 0.0
-    assert cli.parse_args(['--engine', 'ros', '--bags'])[0].real_time_factor == 5.0
-    assert cli.parse_args(['--engine', 'ros', '--real-time-factor', '2'])[0].real_time_factor == 2
-    assert cli.parse_args(['--engine', 'ros', '--lockstep-every-step'])[0].lockstep_every_step
-    with pytest.raises(cli.UsageError, match='--lockstep-every-step'):
-        cli.parse_args(['--lockstep-every-step'])
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    assert parse_args(['--engine', 'ros'])[0].real_time_factor == 0.0
+    assert parse_args(['--engine', 'ros', '--bags'])[0].real_time_factor == 5.0
+    assert parse_args(['--engine', 'ros', '--real-time-factor', '2'])[0].real_time_factor == 2
+    assert parse_args(['--engine', 'ros', '--lockstep-every-step'])[0].lockstep_every_step
+    with pytest.raises(UsageError, match='--lockstep-every-step'):
+        parse_args(['--lockstep-every-step'])
     for bad in ['-1', 'nan', '1001']:
-        with pytest.raises(cli.UsageError, match='--real-time-factor'):
-            cli.parse_args(['--engine', 'ros', '--real-time-factor', bad])
+        with pytest.raises(UsageError, match='--real-time-factor'):
+            parse_args(['--engine', 'ros', '--real-time-factor', bad])
 
 
 def test_the_profile_is_the_core_engines():
-    from pd_campaign import cli
-    assert cli.parse_args(['--profile'])[0].profile
-    with pytest.raises(cli.UsageError, match='--profile'):
-        cli.parse_args(['--engine', 'ros', '--profile'])
+    from pd_campaign.arguments import parse_args
+    from pd_campaign.scenario import UsageError
+    assert parse_args(['--profile'])[0].profile
+    with pytest.raises(UsageError, match='--profile'):
+        parse_args(['--engine', 'ros', '--profile'])
 
 
 class _Pipe:

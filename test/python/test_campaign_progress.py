@@ -7,12 +7,12 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
-from pd_campaign import cli  # noqa: E402
+from pd_campaign.progress import Progress  # noqa: E402
 
 
 def test_progress_writes_lines_when_not_a_terminal():
     out = io.StringIO()  # isatty() is False, as for a log file
-    progress = cli.Progress(600, stream=out)
+    progress = Progress(600, stream=out)
     for k in range(600):
         progress.update({'error': 'x' if k == 3 else ''})
     text = out.getvalue()
@@ -27,17 +27,17 @@ def test_progress_writes_lines_when_not_a_terminal():
 
 def test_progress_writes_a_line_every_30_s_between_tenths():
     out = io.StringIO()
-    progress = cli.Progress(1000, stream=out)
+    progress = Progress(1000, stream=out)
     progress.update({})
     assert out.getvalue() == ''
-    progress.last_line -= cli.Progress.LINE_EVERY_S  # 30 s went by
+    progress.last_line -= Progress.LINE_EVERY_S  # 30 s went by
     progress.update({})
     assert out.getvalue().startswith('campaign: 2/1000 trials (0 errors)')
 
 
 def test_progress_redraws_one_line_on_a_terminal():
     out = io.StringIO()
-    progress = cli.Progress(3, stream=out, interactive=True)
+    progress = Progress(3, stream=out, interactive=True)
     for _ in range(3):
         progress.update({})
     text = out.getvalue()

@@ -17,7 +17,7 @@ import time
 
 import pytest
 
-from pd_campaign import cli, report, resume, reuse
+from pd_campaign import cli, resume, reuse, trials_csv
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 CAMPAIGN = os.path.join(ROOT, 'scripts', 'campaign')
@@ -65,7 +65,7 @@ def _run(out, *extra, args=ARGS):
 def _rows_on_disk(out):
     """The whole rows of the live trials.csv (0 before it exists)."""
     try:
-        return report.read_trials_csv(str(out / 'trials.csv'), whole_lines=True)
+        return trials_csv.read_trials_csv(str(out / 'trials.csv'), whole_lines=True)
     except (OSError, ValueError):
         return []
 

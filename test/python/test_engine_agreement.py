@@ -13,7 +13,7 @@ import os
 import re
 import subprocess
 
-from pd_campaign import agreement, report
+from pd_campaign import agreement, trials_csv
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 # The ground truth's sampling: the residual at the ROS side's last 20 Hz sample after the stop.
@@ -31,7 +31,7 @@ def campaign(out, engine, port):
              '--base-port', str(port)],
             capture_output=True, text=True, timeout=1800)
         assert result.returncode == 0, result.stderr[-3000:]
-        for row in report.read_trials_csv(str(out / name / 'trials.csv')):
+        for row in trials_csv.read_trials_csv(str(out / name / 'trials.csv')):
             row['trial_id'] = name + '/' + row['trial_id']
             rows.append(row)
     return rows
@@ -96,7 +96,7 @@ def test_waiting_at_every_step_changes_no_ros_trial(tmp_path):
              '--trials', '2', '--seed', '33', '--engine', 'ros', '--out', str(out),
              '--base-port', '14500'] + extra, capture_output=True, text=True, timeout=1800)
         assert result.returncode == 0, result.stderr[-3000:]
-        rows = report.read_trials_csv(str(out / 'trials.csv'))
+        rows = trials_csv.read_trials_csv(str(out / 'trials.csv'))
         assert all(not row.get('error') for row in rows), [row.get('error') for row in rows]
         runs[name] = {row['trial_id']: row for row in rows}
     fewer, every = runs['fewer'], runs['every']
@@ -133,7 +133,7 @@ def test_class_parameters_reach_the_ros_pipeline(tmp_path):
                 extra, capture_output=True, text=True, timeout=1800)
             assert result.returncode == 0, result.stderr[-3000:]
             rows[label] = {row['trial_id']: row
-                           for row in report.read_trials_csv(str(out / 'trials.csv'))}
+                           for row in trials_csv.read_trials_csv(str(out / 'trials.csv'))}
             assert all(not row.get('error') for row in rows[label].values()), rows[label]
         assert len(rows['ros']) == 3 and set(rows['ros']) == set(rows['core'])
         assert any(raw_stop(rows['default'][t]) != raw_stop(rows['core'][t])

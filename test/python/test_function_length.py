@@ -93,17 +93,9 @@ def test_no_function_over_the_limit():
     assert long == [], 'functions over %d lines:\n%s' % (LIMIT, '\n'.join(long))
 
 
-# Python: no function over 80 lines in the package, the tools and the scripts. The ones below
-# were longer when the limit came (argument parsers and a worker's main loop); each may only
-# shrink until it is split, and the list only lose entries.
+# Python: no function over 80 lines in the package, the tools and the scripts.
 PYTHON_LIMIT = 80
 PYTHON_DIRS = ('src', 'scripts')
-PYTHON_PENDING = {
-    ('src/pd_campaign/worker.py', 'main'): 200,
-    ('src/pd_campaign/cli.py', 'parse_args'): 199,
-    ('src/pd_campaign/cli.py', 'load_scenario'): 101,
-    ('scripts/table2.py', 'main'): 101,
-}
 
 
 def python_functions(path):
@@ -123,7 +115,7 @@ def test_the_python_scan_counts_from_the_def_to_the_last_line(tmp_path):
 
 
 def test_no_python_function_over_the_limit():
-    long, seen = [], set()
+    long = []
     for top in PYTHON_DIRS:
         for folder, _, files in os.walk(os.path.join(ROOT, top)):
             for name in sorted(files):
@@ -132,12 +124,6 @@ def test_no_python_function_over_the_limit():
                 path = os.path.join(folder, name)
                 relative = os.path.relpath(path, ROOT)
                 for function, lines in python_functions(path):
-                    cap = PYTHON_PENDING.get((relative, function))
-                    if cap is not None:
-                        seen.add((relative, function))
-                    if lines > (cap if cap is not None else PYTHON_LIMIT):
+                    if lines > PYTHON_LIMIT:
                         long.append('%s: %s, %d lines' % (relative, function, lines))
-    assert long == [], 'Python functions over %d lines (or grown past their pending cap):\n%s' % (
-        PYTHON_LIMIT, '\n'.join(long))
-    gone = sorted(set(PYTHON_PENDING) - seen)
-    assert gone == [], 'split or removed: take them off PYTHON_PENDING: %s' % gone
+    assert long == [], 'Python functions over %d lines:\n%s' % (PYTHON_LIMIT, '\n'.join(long))

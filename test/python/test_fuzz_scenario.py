@@ -12,7 +12,7 @@ import sys
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
-from pd_campaign import cli  # noqa: E402
+from pd_campaign.scenario import SCENARIO_KEYS, UsageError, load_scenario  # noqa: E402
 
 ITERATIONS = int(os.environ.get('FUZZ_SCENARIO_ITERATIONS', '3000'))
 SPECIAL = [b':', b'[', b']', b'{', b'}', b'-', b'\n', b' ', b'#', b'"', b"'", b'&a', b'*a',
@@ -55,8 +55,8 @@ def test_the_scenario_loader_gives_a_scenario_or_a_usage_error(tmp_path):
             rng.randrange(256) for _ in range(rng.randint(0, 200)))
         path.write_bytes(data)
         try:
-            scenario = cli.load_scenario(str(path))
-        except cli.UsageError as error:
+            scenario = load_scenario(str(path))
+        except UsageError as error:
             assert str(error).startswith('--scenario'), (data, error)
             assert '\n' not in str(error), (data, error)
             refused += 1
@@ -64,7 +64,7 @@ def test_the_scenario_loader_gives_a_scenario_or_a_usage_error(tmp_path):
         except Exception as error:  # the finding: print the input that broke it
             raise AssertionError('load_scenario raised %r on input %r' % (error, data))
         assert isinstance(scenario, dict) and scenario, data
-        assert set(scenario) <= set(cli.SCENARIO_KEYS), data
+        assert set(scenario) <= set(SCENARIO_KEYS), data
         accepted += 1
     # Both outcomes occur, so the mutations reach the checks behind the parser.
     assert accepted > ITERATIONS // 20 and refused > ITERATIONS // 20, (accepted, refused)

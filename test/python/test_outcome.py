@@ -122,5 +122,5 @@ def test_h1_error_is_read_from_the_reason():
     ('none', 'max_duration', 'no stop'),
 ])
 def test_the_line_that_stopped_the_drill(source, reason, line):
-    from pd_campaign import report
-    assert report.stop_line({'stop_source': source, 'stop_reason': reason}) == line
+    from pd_campaign import aggregate
+    assert aggregate.stop_line({'stop_source': source, 'stop_reason': reason}) == line

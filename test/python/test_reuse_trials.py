@@ -169,13 +169,13 @@ def test_a_source_rewritten_while_read_gives_nothing(tmp_path, monkeypatch):
     source = results / 'first'
     key = json.loads((source / reuse.SOURCE_FILE).read_text())['engine_key']
     design = json.loads((source / 'design.json').read_text())['trials']
-    read = reuse.report.read_trials_csv
+    read = reuse.trials_csv.read_trials_csv
 
     def restarted(path):
         reuse.unmark(str(source))
         return read(path)
 
-    monkeypatch.setattr(reuse.report, 'read_trials_csv', restarted)
+    monkeypatch.setattr(reuse.trials_csv, 'read_trials_csv', restarted)
     assert reuse.find(str(results), key, design) == {}
 
     def restarted_and_empty(path):
@@ -183,18 +183,18 @@ def test_a_source_rewritten_while_read_gives_nothing(tmp_path, monkeypatch):
         raise ValueError('%s: missing columns trial_id' % path)
 
     reuse.mark(str(source), key)
-    monkeypatch.setattr(reuse.report, 'read_trials_csv', restarted_and_empty)
+    monkeypatch.setattr(reuse.trials_csv, 'read_trials_csv', restarted_and_empty)
     assert reuse.find(str(results), key, design) == {}
 
     def broken(path):
         raise ValueError('%s: missing columns trial_id' % path)
 
     reuse.mark(str(source), key)
-    monkeypatch.setattr(reuse.report, 'read_trials_csv', broken)
+    monkeypatch.setattr(reuse.trials_csv, 'read_trials_csv', broken)
     unreadable = []
     assert reuse.find(str(results), key, design, unreadable=unreadable) == {}
     assert len(unreadable) == 1 and unreadable[0].startswith(str(source) + ': ')
-    monkeypatch.setattr(reuse.report, 'read_trials_csv', read)
+    monkeypatch.setattr(reuse.trials_csv, 'read_trials_csv', read)
     assert len(reuse.find(str(results), key, design)) == 3
 
 

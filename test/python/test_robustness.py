@@ -11,7 +11,7 @@ import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
-from pd_campaign import report, robustness, stats  # noqa: E402
+from pd_campaign import robustness, stats, trials_csv  # noqa: E402
 from pd_campaign.robustness import ConfigError  # noqa: E402
 
 TOOL = os.path.join(ROOT, 'scripts', 'campaign_robustness')
@@ -192,7 +192,7 @@ def test_the_ranges_line():
 # --- the writers on a fake campaign layout --------------------------------------------------------
 
 def _fake_campaign(directory, outcomes):
-    """A trials.csv with the columns report.read_trials_csv and the counts need: one row per
+    """A trials.csv with the columns trials_csv.read_trials_csv and the counts need: one row per
     (success, first stop kind, breakthrough, tracking RMS)."""
     os.makedirs(directory)
     with open(os.path.join(directory, 'trials.csv'), 'w', newline='') as handle:
@@ -307,7 +307,7 @@ def test_the_tiny_run_writes_one_row_per_point_on_the_same_seeds(tiny_run):
     seeds = []
     for value in ('0.8', '1'):
         folder = os.path.join(out, 'pedicle_drilling.PaperCompensator', 'slope_' + value)
-        trials = report.read_trials_csv(os.path.join(folder, 'trials.csv'))
+        trials = trials_csv.read_trials_csv(os.path.join(folder, 'trials.csv'))
         assert {(r['case'], r['rpm'], r['seed_space']) for r in trials} == {
             ('compensated', 12000.0, 'calibration')}
         seeds.append(sorted(r['seed'] for r in trials))

@@ -13,7 +13,7 @@ from scipy.stats import binomtest
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import design, sensitivity, tools  # noqa: E402
-from pd_campaign.sensitivity import SweepError  # noqa: E402
+from pd_campaign.sensitivity import SweepError, runner, sweep  # noqa: E402
 import test_atomic_outputs as atomic_checks  # noqa: E402  (its audit hook, not its tests)
 
 TOOL = os.path.join(ROOT, 'scripts', 'campaign_sensitivity')
@@ -99,7 +99,7 @@ def _entries(*changes):
     out = []
     for change in changes:
         raw = dict(GOOD, **change)
-        out.append(sensitivity._entry('sweep.yaml', len(out) + 1, raw))
+        out.append(sweep._entry('sweep.yaml', len(out) + 1, raw))
     return out
 
 
@@ -183,15 +183,15 @@ def test_the_shipped_sweep_names_declared_constants_with_sourced_ranges():
     """config/sensitivity.yaml against the real declarations (the built tools): every name is a
     Simulator parameter or an engine delay, every end is taken, the nominal of the paper's bench
     lies in every range, every source names a document."""
-    from pd_campaign import cli
+    from pd_campaign.scenario import DEFAULT_SCENARIO, load_scenario
     entries = sensitivity.load_sweep(sensitivity.DEFAULT_SWEEP)
-    scenario = cli.load_scenario(cli.DEFAULT_SCENARIO)
+    scenario = load_scenario(DEFAULT_SCENARIO)
     sensitivity.resolve(entries, scenario, sensitivity.declared_defaults())
     assert len(entries) >= 8
     for entry in entries:
         assert entry['source'].startswith(('doc/simulator_physics.md', 'doc/bench_sources.md')), \
             entry
-    realistic = cli.load_scenario(os.path.join(ROOT, 'config', 'scenario_realistic.yaml'))
+    realistic = load_scenario(os.path.join(ROOT, 'config', 'scenario_realistic.yaml'))
     sensitivity.resolve(sensitivity.load_sweep(sensitivity.DEFAULT_SWEEP), realistic,
                         sensitivity.declared_defaults())
     # The realistic bench's own sweep: its imperfections around the scenario's values.
@@ -202,7 +202,7 @@ def test_the_shipped_sweep_names_declared_constants_with_sourced_ranges():
         assert entry['source'].startswith(('doc/simulator_physics.md', 'doc/bench_sources.md')), \
             entry
     # The population bench's distributions around the scenario's (the Simulator's defaults).
-    population = cli.load_scenario(os.path.join(ROOT, 'config', 'scenario_population.yaml'))
+    population = load_scenario(os.path.join(ROOT, 'config', 'scenario_population.yaml'))
     own = sensitivity.load_sweep(os.path.join(ROOT, 'config', 'sensitivity_population.yaml'))
     sensitivity.resolve(own, population, sensitivity.declared_defaults())
     assert len(own) >= 6
@@ -659,10 +659,10 @@ def test_a_refusal_starts_no_further_campaign_and_is_a_sweep_error(monkeypatch):
         gate.wait(5)  # b0 runs until the refusal has been seen
         return 'ran', 0
 
-    monkeypatch.setattr(sensitivity, 'run_condition', fake)
-    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
-    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
-    monkeypatch.setattr(sensitivity, '_log_tail', lambda directory: 'refused: bad scenario')
+    monkeypatch.setattr(runner, 'run_condition', fake)
+    monkeypatch.setattr(runner, 'built_by', lambda directory: None)
+    monkeypatch.setattr(runner, 'label', lambda condition: condition['id'])
+    monkeypatch.setattr(runner, '_log_tail', lambda directory: 'refused: bad scenario')
     lines = []
 
     class Stream:
@@ -681,10 +681,10 @@ def test_a_refusal_starts_no_further_campaign_and_is_a_sweep_error(monkeypatch):
 
 
 def test_a_stopped_campaign_stops_the_sweep(monkeypatch):
-    monkeypatch.setattr(sensitivity, 'run_condition',
+    monkeypatch.setattr(runner, 'run_condition',
                         lambda c, *a, **k: ('ran', 130 if c['id'] == 'b0' else 0))
-    monkeypatch.setattr(sensitivity, 'built_by', lambda directory: None)
-    monkeypatch.setattr(sensitivity, 'label', lambda condition: condition['id'])
+    monkeypatch.setattr(runner, 'built_by', lambda directory: None)
+    monkeypatch.setattr(runner, 'label', lambda condition: condition['id'])
 
     class Stream:
         def write(self, text):

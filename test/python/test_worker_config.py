@@ -1,5 +1,5 @@
-"""The --engine ros worker's class parameters (pd_campaign.worker.plugin_config): the paper
-recognizer's settings typed as the core engine reads their text (ParamTable::set: 010 is ten,
+"""The --engine ros worker's class parameters (pd_campaign.worker_config.plugin_config): the
+paper recognizer's settings typed as the core engine reads their text (ParamTable::set: 010 is ten,
 1e-3 a number, 40.0 a whole number), not as YAML would (010 octal, 1e-3 a string); another
 class's as text; what the nodelet would not take is a ValueError naming it."""
 import os
@@ -7,14 +7,14 @@ import os
 import pytest
 import yaml
 
-from pd_campaign import worker
+from pd_campaign.worker_config import launch_arguments, plugin_config
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 PAPER = 'pedicle_drilling/PaperRecognizer'
 
 
 def written(tmp_path, kind, class_name, settings):
-    path = worker.plugin_config(kind, class_name, settings, ROOT, str(tmp_path / 'node.yaml'))
+    path = plugin_config(kind, class_name, settings, ROOT, str(tmp_path / 'node.yaml'))
     with open(path) as handle:
         return yaml.safe_load(handle)
 
@@ -50,7 +50,7 @@ def test_another_class_gets_its_settings_as_text(tmp_path):
 
 
 def test_no_settings_no_file(tmp_path):
-    assert worker.plugin_config('recognizer', PAPER, [], ROOT, str(tmp_path / 'x.yaml')) is None
+    assert plugin_config('recognizer', PAPER, [], ROOT, str(tmp_path / 'x.yaml')) is None
     assert not (tmp_path / 'x.yaml').exists()
 
 
@@ -69,7 +69,7 @@ def test_no_settings_no_file(tmp_path):
 ])
 def test_what_the_nodelet_would_not_take_is_named(tmp_path, kind, class_name, setting, named):
     with pytest.raises(ValueError, match=named):
-        worker.plugin_config(kind, class_name, [setting], ROOT, str(tmp_path / 'x.yaml'))
+        plugin_config(kind, class_name, [setting], ROOT, str(tmp_path / 'x.yaml'))
     assert not (tmp_path / 'x.yaml').exists()
 
 
@@ -84,7 +84,7 @@ def test_every_launch_argument_of_a_worker_is_declared_by_its_launch_file():
     launch = ET.parse(os.path.join(root, 'launch_scripts', 'campaign_pipeline.launch')).getroot()
     declared = {arg.get('name') for arg in launch.findall('arg')}
     args.simulator_param = ['lockstep_every_step=true', 'force_sensor_rate_hz=1000']
-    items = worker.launch_arguments(args)
+    items = launch_arguments(args)
     # A simulated sensor rate declares the recognizer's and the monitor's rates with it.
     assert 'force_rate_hz:=1000' in items
     for item in items:
