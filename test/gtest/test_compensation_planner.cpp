@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -240,6 +241,43 @@ TEST(ArmCompensation, BacksOffAlongTheDrillAxisAndMovesLaterally) {
   const Eigen::Vector3d lateral(0.001, -0.002, 0.0);
   const Eigen::VectorXd ql = comp.lateral(lateral, comp.homeJoints());
   EXPECT_NEAR((arm.forward(ql).translation() - home.translation() - lateral).norm(), 0.0, 1e-6);
+}
+
+// The drilling pose aimed at a plan's entry and axis, solved by the arm's IK.
+TEST(ArmCompensation, AimedAtAPlanPutsTheTipBeforeTheEntryOnItsAxis) {
+  const std::string urdf = pedicle_drilling::test::workcellUrdf();
+  const pd::KinematicChain arm = pd::KinematicChain::fromUrdfString(urdf, "world", "device_base");
+  Eigen::VectorXd q(6);
+  q << 0.0, 0.435859, 1.319709, 0.0, 1.386025, 0.0;  // config/drilling_pose.yaml
+  pd::ArmCompensation comp(arm, q, 0.01);
+  std::string why;
+  const Eigen::Vector3d axis = comp.drillAxis();
+  EXPECT_FALSE(comp.aimedAt(Eigen::Vector3d(0.6, 0, 0.2), axis, 0.004, &why));  // no tip yet
+  EXPECT_NE(why.find("tip"), std::string::npos) << why;
+  const Eigen::Vector3d tip =
+      pd::ArmCompensation::tipAt(urdf, "world", "drill_tip", arm.jointNames(), q);
+  comp.setTipAtPose(tip);
+  // The configured axis, the entry 4 mm ahead: the configured pose again.
+  std::optional<pd::ArmCompensation> same = comp.aimedAt(tip + 0.004 * axis, axis, 0.004, &why);
+  ASSERT_TRUE(same) << why;
+  EXPECT_LT((same->drillingJoints() - q).norm(), 1e-5);
+  EXPECT_LT((*same->tipAtPose() - tip).norm(), 1e-6);
+  // Tilted by 10 degrees and moved 5 mm sideways: the axis is the plan's, the tip 4 mm before
+  // the entry on it, and the tip link of the solved joints is there too.
+  const Eigen::Vector3d d = Eigen::AngleAxisd(10.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()) * axis;
+  const Eigen::Vector3d entry = tip + Eigen::Vector3d(0.005, 0.0, 0.0) + 0.01 * d;
+  std::optional<pd::ArmCompensation> tilted = comp.aimedAt(entry, d, 0.004, &why);
+  ASSERT_TRUE(tilted) << why;
+  EXPECT_LT((tilted->drillAxis() - d).norm(), 1e-6);
+  EXPECT_LT((*tilted->tipAtPose() - (entry - 0.004 * d)).norm(), 1e-6);
+  const Eigen::Vector3d solved_tip = pd::ArmCompensation::tipAt(
+      urdf, "world", "drill_tip", arm.jointNames(), tilted->drillingJoints());
+  EXPECT_LT((solved_tip - (entry - 0.004 * d)).norm(), 1e-6);
+  EXPECT_TRUE(arm.withinLimits(tilted->drillingJoints()));
+  // Out of the arm's reach: refused, naming it.
+  EXPECT_FALSE(comp.aimedAt(Eigen::Vector3d(5.0, 0.0, 0.0), axis, 0.004, &why));
+  EXPECT_NE(why.find("cannot reach"), std::string::npos) << why;
+  EXPECT_FALSE(comp.aimedAt(entry, Eigen::Vector3d::Zero(), 0.004, &why));
 }
 
 TEST(CompensationPlanner, HeldFeedStopsProgressButKeepsFollowingTheBone) {

@@ -1175,6 +1175,51 @@ TEST(TrialSequencerDepthLimit, TheSensedContactSetsTheSurfaceWithinTheTolerance)
   EXPECT_NE(run.stop.find("sensed contact"), std::string::npos) << run.stop;
 }
 
+TEST(TrialSequencerTarget, ThePoseAimedAtThePlanByTheTrackedMarker) {
+  const std::string urdf = pedicle_drilling::test::workcellUrdf();
+  pd::ArmCompensation arm = workcellArm();
+  const Eigen::Vector3d tip = pd::ArmCompensation::tipAt(
+      urdf, "world", "drill_tip",
+      pd::KinematicChain::fromUrdfString(urdf, "world", "device_base").jointNames(),
+      arm.drillingJoints());
+  arm.setTipAtPose(tip);
+  pd::TrialSequencerParams p = params();
+  p.target_from_plan = true;
+  pd::TrialSequencer seq(p, arm);
+  // The plan 6 mm ahead of the tip and 3 mm aside, tilted 8 degrees, in the marker's frame.
+  const Eigen::Vector3d d =
+      Eigen::AngleAxisd(8.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) * arm.drillAxis();
+  pd::DrillingPlan plan = planAhead(tip + Eigen::Vector3d(0.0, 0.003, 0.0), d, 6e-3, 3e-3, 0.0);
+  seq.setPlan(plan);
+  // No tracked marker yet: refused, naming it.
+  std::string why = seq.start(request("stationary"), apModel(), 10.0);
+  EXPECT_NE(why.find("tracked marker"), std::string::npos) << why;
+  // The marker heard 0.5 s before the start places the plan (toDrilling's marker pose).
+  seq.onMarker(9.5, 9.5, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+               kNoLookup);
+  ASSERT_EQ(seq.start(request("stationary"), apModel(), 10.0), "");
+  const pd::SequencerOutput out = seq.takeOutput();
+  std::string aimed_why;
+  const std::optional<pd::ArmCompensation> aimed =
+      arm.aimedAt(plan.entry + Eigen::Vector3d(0.6, 0.0, 0.27), d, p.target_standoff_m, &aimed_why);
+  ASSERT_TRUE(aimed) << aimed_why;
+  ASSERT_EQ(out.trajectories.size(), 1u);
+  const std::vector<double>& goal = out.trajectories[0].points.back().positions;
+  for (int i = 0; i < 6; ++i) EXPECT_NEAR(goal[i], aimed->homeJoints()[i], 1e-9) << i;
+  EXPECT_LT((seq.arm().drillAxis() - d).norm(), 1e-6);
+  // The registration then places the depth limit on the plan's own axis (no angle refusal).
+  registerAt(&seq, 12.5);
+  EXPECT_EQ(seq.phase(), pd::TrialPhase::kDrilling);
+  EXPECT_TRUE(seq.depthLimit().active());
+  // A marker too old refuses the next trial.
+  pd::TrialSequencer late(p, arm);
+  late.setPlan(plan);
+  late.onMarker(5.0, 5.0, "world", Eigen::Vector3d(0.6, 0.0, 0.27), Eigen::Quaterniond::Identity(),
+                kNoLookup);
+  EXPECT_NE(late.start(request("stationary"), apModel(), 10.0).find("tracked marker"),
+            std::string::npos);
+}
+
 TEST(TrialSequencerDepthLimit, APlanWithdrawnAfterTheStartFailsTheTrialAtTheRegistration) {
   const Eigen::Vector3d tip(0.6, 0.0, 0.3);
   pd::ArmCompensation arm = armWithTip(tip);

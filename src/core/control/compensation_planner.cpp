@@ -311,6 +311,8 @@ ArmCompensation::ArmCompensation(const KinematicChain& arm, const Eigen::VectorX
   require(drilling_q.size() == static_cast<int>(arm_.numJoints()) && drilling_q.allFinite(),
           "drilling_pose", "needs one finite value per arm joint");
   const Eigen::Isometry3d pose = arm_.forward(drilling_q);
+  drilling_q_ = drilling_q;
+  drilling_pose_ = pose;
   axis_ = pose.linear().col(2).normalized();
   home_pose_ = pose;
   home_pose_.translation() -= feed_home_m * axis_;
@@ -357,6 +359,44 @@ Eigen::VectorXd ArmCompensation::lateral(const Eigen::Vector3d& lateral,
   const IkResult ik = arm_.inverse(target, seed, options);
   if (!ik.success) throw std::runtime_error("lateral compensation IK failed: " + ik.message);
   return ik.q;
+}
+
+std::optional<ArmCompensation> ArmCompensation::aimedAt(const Eigen::Vector3d& entry,
+                                                        const Eigen::Vector3d& direction,
+                                                        double standoff_m, std::string* why) const {
+  if (!entry.allFinite() || !direction.allFinite() || direction.norm() < 1e-9 ||
+      !std::isfinite(standoff_m) || standoff_m < 0.0) {
+    *why = "the target's entry, direction and standoff must be finite (a non-zero direction)";
+    return std::nullopt;
+  }
+  if (!tip_at_pose_) {
+    *why = "the drill tip's position is unknown (tip_link)";
+    return std::nullopt;
+  }
+  const Eigen::Vector3d d = direction.normalized();
+  // The tip rides with the device: its offset in the device frame at the configured pose.
+  const Eigen::Vector3d tip_in_device = drilling_pose_.inverse() * *tip_at_pose_;
+  Eigen::Isometry3d target = Eigen::Isometry3d::Identity();
+  target.linear() =
+      Eigen::Quaterniond::FromTwoVectors(axis_, d).toRotationMatrix() * drilling_pose_.linear();
+  const Eigen::Vector3d tip = entry - standoff_m * d;
+  target.translation() = tip - target.linear() * tip_in_device;
+  const IkResult ik = arm_.inverse(target, drilling_q_);
+  if (!ik.success) {
+    std::ostringstream os;
+    os << "the arm cannot reach the drilling pose aimed at the plan (tip at " << tip.transpose()
+       << " m, axis " << d.transpose() << "): " << ik.message;
+    *why = os.str();
+    return std::nullopt;
+  }
+  try {
+    ArmCompensation aimed(arm_, ik.q, feed_home_);
+    aimed.setTipAtPose(arm_.forward(ik.q) * tip_in_device);
+    return aimed;
+  } catch (const std::exception& e) {
+    *why = e.what();
+    return std::nullopt;
+  }
 }
 
 }  // namespace pedicle_drilling::core

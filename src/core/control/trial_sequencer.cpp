@@ -56,6 +56,9 @@ const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
         .number("move_duration_s", &P::move_duration_s, Range::aboveUpTo(0, 60), "s")
         .number("settle_s", &P::settle_s, Range::closed(0, 60), "s")
         .integer("registration_samples", &P::registration_samples, Range::closed(1, 100))
+        .flag("target_from_plan", &P::target_from_plan)
+        .number("target_standoff_m", &P::target_standoff_m, Range::closed(0, 0.05), "m")
+        .number("target_marker_age_s", &P::target_marker_age_s, Range::aboveUpTo(0, 10), "s")
         .integer("tare_samples", &P::tare_samples, Range::closed(0, 100000))
         .number("tare_max_spread_n", &P::tare_max_spread_n, Range::aboveUpTo(0, 100), "N")
         .number("registration_timeout_s", &P::registration_timeout_s, Range::aboveUpTo(0, 60), "s")
@@ -102,6 +105,7 @@ bool SequencerOutput::empty() const {
 TrialSequencer::TrialSequencer(const TrialSequencerParams& params, const ArmCompensation& arm,
                                std::string world_frame)
     : params_(params),
+      configured_arm_(arm),
       arm_(arm),
       world_frame_(std::move(world_frame)),
       retreat_planner_(params.retreat) {
@@ -306,6 +310,8 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   } else if (params_.depth_limit.require_plan) {
     return "no drilling plan (drilling_plan): the depth limit needs the planned entry and depth";
   }
+  const std::string unaimed = aimAtPlan(now);
+  if (!unaimed.empty()) return unaimed;
   const std::string unwatched = watch_->start(now);
   if (!unwatched.empty()) return unwatched;
   const CompensationMode mode = r.mode;
@@ -313,6 +319,7 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   const double rpm = r.rpm;
   const double max_duration = r.max_duration_s;
   CompensationParams cp = params_.compensation;
+  cp.drill_axis = arm_.drillAxis();
   cp.feed_rate_m_s = feed_mm_s * 1e-3;
   cp.segment_profile = r.profile;
   try {
@@ -351,6 +358,30 @@ std::string TrialSequencer::start(const TrialRequest& request, const MotionModel
   std::ostringstream os;
   os << "trial started: " << toString(mode) << ", feed " << feed_mm_s << " mm/s, spindle " << rpm
      << " rpm";
+  log(SequencerLog::Level::kInfo, os.str());
+  return "";
+}
+
+std::string TrialSequencer::aimAtPlan(double now) {
+  arm_ = configured_arm_;
+  if (!params_.target_from_plan) return "";
+  if (!plan_) return "drilling target from the plan (target_from_plan): no drilling plan";
+  if (!idle_marker_ || now - idle_marker_->first > params_.target_marker_age_s) {
+    std::ostringstream os;
+    os << "drilling target from the plan (target_from_plan): no tracked marker pose in the last "
+       << params_.target_marker_age_s << " s (tracker/marker_pose) to place the plan";
+    return os.str();
+  }
+  const Eigen::Isometry3d& world_from_marker = idle_marker_->second;
+  std::string why;
+  std::optional<ArmCompensation> aimed = configured_arm_.aimedAt(
+      world_from_marker * plan_->entry, world_from_marker.linear() * plan_->direction,
+      params_.target_standoff_m, &why);
+  if (!aimed) return "drilling target from the plan (target_from_plan): " + why;
+  arm_ = *aimed;
+  std::ostringstream os;
+  os << "drilling pose aimed at the plan: joints";
+  for (int i = 0; i < arm_.drillingJoints().size(); ++i) os << " " << arm_.drillingJoints()[i];
   log(SequencerLog::Level::kInfo, os.str());
   return "";
 }
@@ -421,6 +452,15 @@ Eigen::Vector3d TrialSequencer::boneDisplacementSinceMarker(double t) const {
 void TrialSequencer::onMarker(double now, double stamp, const std::string& frame,
                               const Eigen::Vector3d& p, const Eigen::Quaterniond& orientation,
                               const FrameLookup& lookup) {
+  if (!isRunning(phase_) && p.allFinite()) {
+    // Outside a trial: the marker's latest world pose, where a plan-aimed pose is placed.
+    Eigen::Isometry3d frame_from_world = Eigen::Isometry3d::Identity();
+    if (frame.empty() || frame == world_frame_ || (lookup && lookup(frame, &frame_from_world))) {
+      idle_marker_.emplace(
+          stamp, frame_from_world.inverse() * (Eigen::Translation3d(p) * orientation.normalized()));
+    }
+    return;
+  }
   if (phase_ == TrialPhase::kRegistering) {
     if (!registered_) registerSample(now, stamp, frame, p, orientation, lookup);  // else: the tare
     compensatorFailed(now);

@@ -302,8 +302,27 @@ class ArmCompensation {
    */
   Eigen::VectorXd lateral(const Eigen::Vector3d& lateral, const Eigen::VectorXd& seed) const;
 
+  /** @brief Arm joints of the drilling pose this was built with. */
+  const Eigen::VectorXd& drillingJoints() const { return drilling_q_; }
+
+  /**
+   * @brief The drilling pose aimed at a target instead: the drill axis along @p direction and
+   *        the tip (tipAtPose()'s point, carried with the device) @p standoff_m before @p entry
+   *        on that axis, the device turned from this pose by the smallest rotation (its roll
+   *        about the axis kept), solved by the arm's IK from this pose's joints within the
+   *        joint limits. World frame (the chain's base).
+   * @param why set when nothing is returned: the target is not finite, the tip is unknown,
+   *        or the arm cannot reach the pose or back off from it by the feed's home.
+   * @return the aimed arm (its tipAtPose() set), or nullopt.
+   */
+  std::optional<ArmCompensation> aimedAt(const Eigen::Vector3d& entry,
+                                         const Eigen::Vector3d& direction, double standoff_m,
+                                         std::string* why) const;
+
  private:
   KinematicChain arm_;
+  Eigen::VectorXd drilling_q_;
+  Eigen::Isometry3d drilling_pose_;
   Eigen::Isometry3d home_pose_;
   Eigen::Vector3d axis_;
   Eigen::VectorXd home_q_;

@@ -72,6 +72,22 @@ struct TrialSequencerParams {
   double settle_s = 0.5;                  ///< wait before the registration, [0, 60]
   int registration_samples = 4;           ///< tracker samples averaged, [1, 100]
   /**
+   * @brief Where the arm drills from: false, the configured drilling pose (joint values);
+   *        true, a pose aimed at the drilling plan at each start(): the drill axis along the
+   *        plan's direction, the tip target_standoff_m before its entry, both placed in the world
+   *        by the latest tracked marker pose (at most target_marker_age_s old), solved by the
+   *        arm's IK from the configured pose (ArmCompensation::aimedAt). A plan the arm cannot
+   *        reach refuses the trial, naming why.
+   */
+  bool target_from_plan = false;
+  /** @brief With target_from_plan: the tip's distance before the planned entry at the drilling
+   *         pose [m], [0, 0.05]: 5 mm, where the shipped drilling pose leaves the tip above the
+   *         simulated bone's surface. */
+  double target_standoff_m = 0.005;
+  /** @brief With target_from_plan: the oldest tracked marker pose that places the plan [s],
+   *         (0, 10]: 1 s, eight samples of the 8 Hz tracker. */
+  double target_marker_age_s = 1.0;
+  /**
    * @brief The F/T tare before contact, in samples of the sensor [0, 100000]; 0 (the
    *        benches, whose simulated sensor is tared at reset): none. Else, when the arm reached
    *        the drilling pose (spindle running, tool free), a TareRequest goes to the sensor's
@@ -328,6 +344,9 @@ class TrialSequencer {
   void setPlan(std::optional<DrillingPlan> plan) { plan_ = std::move(plan); }
   /** @brief The plan of the next trials. */
   const std::optional<DrillingPlan>& plan() const { return plan_; }
+  /** @brief The arm of the current (or last) trial: the configured drilling pose, or the one
+   *         aimed at the plan (target_from_plan). */
+  const ArmCompensation& arm() const { return arm_; }
   /** @brief The current trial's depth limit (inactive without a plan). */
   const DepthLimit& depthLimit() const { return depth_; }
   /**
@@ -453,7 +472,12 @@ class TrialSequencer {
   void startRetreat(double now, const std::string& why);
 
   TrialSequencerParams params_;
-  ArmCompensation arm_;
+  ArmCompensation configured_arm_;  ///< the configured drilling pose
+  ArmCompensation arm_;             ///< this trial's: the configured one, or aimed at the plan
+  /// The latest tracked marker pose in the world frame, heard outside a trial, and its stamp.
+  std::optional<std::pair<double, Eigen::Isometry3d>> idle_marker_;
+  /** @brief Aims arm_ at the plan (target_from_plan) at @p now: "" or why not. */
+  std::string aimAtPlan(double now);
   std::string world_frame_;
   RetreatPlanner retreat_planner_;
   CompensatorFactory make_compensator_;
