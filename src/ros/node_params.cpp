@@ -194,9 +194,32 @@ int StateRecognizerNodeParams::axisIndex() const { return forceAxisIndex(axis); 
 
 double StateRecognizerNodeParams::axisSign() const { return forceAxisSign(axis); }
 
+bool StateRecognizerNodeParams::paperClass() const {
+  return recognizer_class == "pedicle_drilling/PaperRecognizer";
+}
+
+std::vector<std::string> StateRecognizerNodeParams::paperSettingNames() const {
+  std::vector<std::string> names;
+  if (!paperClass()) return names;
+  for (const auto& [name, value] : recognizer_params) names.push_back(name);
+  return names;
+}
+
+core::RecognizerParams StateRecognizerNodeParams::recognizerInUse() const {
+  core::RecognizerParams p = recognizer;
+  for (const auto& [name, value] : paperClass() ? recognizer_params : core::TextPairs()) {
+    try {
+      p.set(name, value);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("recognizer_params/" + std::string(e.what()));
+    }
+  }
+  return p;
+}
+
 std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
   std::vector<std::string> off;
-  if (recognizer.cancellous_deadline == 0) {
+  if (recognizerInUse().cancellous_deadline == 0) {
     off.push_back("cancellous_deadline = 0 (no bound on the cancellous layer's confirmation)");
   }
   return off;
@@ -204,12 +227,17 @@ std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
 
 void StateRecognizerNodeParams::validate() const {
   table().validate(*this);
+  const core::RecognizerParams in_use = recognizerInUse();
   refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
-  recognizer.validate();
-  if (recognizer_class == "pedicle_drilling/PaperRecognizer" && !recognizer_params.empty()) {
-    throw std::invalid_argument(
-        "recognizer_params is for other recognizer classes; the paper recognizer's parameters "
-        "are this node's own (~pre_average_s, ~window, ...)");
+  try {
+    in_use.validate();
+  } catch (const std::invalid_argument& e) {
+    // A check between fields names the first field: its key in recognizer_params if set there.
+    const std::string what = e.what();
+    const std::string field = what.substr(0, what.find_first_of(" :="));
+    const std::vector<std::string> mapped = paperSettingNames();
+    if (std::find(mapped.begin(), mapped.end(), field) == mapped.end()) throw;
+    throw std::invalid_argument("recognizer_params/" + what);
   }
 }
 
