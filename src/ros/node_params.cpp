@@ -246,12 +246,8 @@ void StateRecognizerNodeParams::validate() const {
 const ParamTable<SafetyMonitorNodeParams>& SafetyMonitorNodeParams::table() {
   static const ParamTable<SafetyMonitorNodeParams> t = [] {
     using P = SafetyMonitorNodeParams;
-    ParamTable<core::SupervisorParams> pairing;
-    pairing.include(core::SafetyParams::table(), &core::SupervisorParams::safety)
-        .number("pair_tolerance_s", &core::SupervisorParams::pair_tolerance_s, Range::closed(0, 1),
-                "s");
     ParamTable<P> d;
-    d.include(pairing, &P::supervisor)
+    d.include(core::SupervisorParams::table(), &P::supervisor)
         .number("check_rate_hz", &P::check_rate_hz, Range::aboveUpTo(0, 10000), "Hz")
         .number("diagnostic_period_s", &P::diagnostic_period_s, Range::aboveUpTo(0, 60), "s")
         .number("expected_force_rate_hz", &P::expected_force_rate_hz, Range::aboveUpTo(0, 100000),
