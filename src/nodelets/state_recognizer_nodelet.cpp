@@ -62,29 +62,19 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     StateRecognizerNodeParams params;
     try {
       const ParamLoader loader(pnh);
-      loader.load(StateRecognizerNodeParams::table(), &params);
+      const core::RecognizerParams paper = loadParams(loader, &params);
       axis_index_ = params.axisIndex();
       axis_sign_ = params.axisSign();
-      std::unique_ptr<core::RecognizerInterface> recognizer;
-      if (params.recognizer_class == "pedicle_drilling/PaperRecognizer") {
-        recognizer = std::make_unique<core::PaperRecognizer>(params.recognizer);
-      } else {
-        try {
-          recognizer = loader_.create(params.recognizer_class, params.recognizer_params);
-        } catch (const std::exception& e) {
-          loader.fail("recognizer", "= '" + params.recognizer_class + "': " + e.what());
-        }
-      }
       // What the class throws while running is a stop naming it, never an escaped exception
       // (which would end the manager and every nodelet in it).
-      recognizer_ = std::make_unique<core::GuardedRecognizer>(std::move(recognizer));
+      recognizer_ = std::make_unique<core::GuardedRecognizer>(makeRecognizer(loader, params));
       core::SampleRateCheckParams rate;
-      rate.declared_hz = params.recognizer.sensor_rate_hz;
+      rate.declared_hz = paper.sensor_rate_hz;
       rate.tolerance = params.rate_tolerance;
       rate.window_s = params.rate_window_s;
       rate_check_ = std::make_unique<core::SampleRateCheck>(rate);
-      block_samples_ = params.recognizer.blockSamples();
-      pre_average_s_ = params.recognizer.pre_average_s;
+      block_samples_ = paper.blockSamples();
+      pre_average_s_ = paper.pre_average_s;
       // Under the simulator's lockstep it answers each step after the step's force samples.
       // No timers: it needs a step only after it published (its states and stops are handled
       // at the next step); the force samples' steps are stepped anyway.
@@ -117,6 +107,38 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
         nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
                      ros::TransportHints().tcpNoDelay());
     lockstep_->start();  // last
+  }
+
+  /**
+   * @brief Reads and checks the parameters into @p params; returns the paper recognizer's in use
+   *        (its own keys with ~recognizer_params over them for the paper class). A paper
+   *        recognizer's parameter is given one way: a key both the node's own (~window) and in
+   *        ~recognizer_params is refused naming it.
+   */
+  static core::RecognizerParams loadParams(const ParamLoader& loader,
+                                           StateRecognizerNodeParams* params) {
+    loader.read(StateRecognizerNodeParams::table(), params);
+    for (const std::string& name : params->paperSettingNames()) {
+      if (!loader.has(name)) continue;
+      const std::string why = "is set as ~" + name + " too: give the paper recognizer's " +
+                              "parameter once, as ~" + name + " or in ~recognizer_params";
+      loader.fail("recognizer_params/" + name, why);
+    }
+    loader.check(*params);
+    return params->recognizerInUse();
+  }
+
+  /** @brief The class of @p params, configured with its settings. @throws ParameterError. */
+  std::unique_ptr<core::RecognizerInterface> makeRecognizer(
+      const ParamLoader& loader, const StateRecognizerNodeParams& params) {
+    if (params.paperClass()) {
+      return std::make_unique<core::PaperRecognizer>(params.recognizerInUse());
+    }
+    try {
+      return loader_.create(params.recognizer_class, params.recognizer_params);
+    } catch (const std::exception& e) {
+      loader.fail("recognizer", "= '" + params.recognizer_class + "': " + e.what());
+    }
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {

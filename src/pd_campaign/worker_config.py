@@ -1,5 +1,5 @@
 """The --engine ros worker's pipeline settings: the nodelets' parameter files with the campaign's
-class parameters (plugin_config, typed as the core engine reads them) and the pipeline launch's
+class parameters (plugin_config, as text the classes read) and the pipeline launch's
 arguments (launch_arguments)."""
 import os
 
@@ -13,34 +13,15 @@ NODE_CONFIGS = {'recognizer': 'recognizer.yaml', 'compensator': 'compensation_pl
 NODE_ONLY_SETTINGS = ('axis', 'queue_size', 'rate_tolerance', 'rate_window_s', 'sensor_rate_hz')
 
 
-def typed_setting(name, text, like):
-    """A paper recognizer's setting `text` as the core engine reads it (ParamTable::set), typed
-    like `like`, the package file's value: a bool from true/false/1/0, an int from a whole
-    number (010 is ten, 40.0 forty), a float from any number strtod reads in decimal. Not YAML's
-    reading (010 octal, 1e-3 a string). ValueError naming the setting when the text is not one."""
-    if isinstance(like, bool):
-        if text not in ('true', 'false', '1', '0'):
-            raise ValueError('%s = %r is not true or false' % (name, text))
-        return text in ('true', '1')
-    try:
-        number = float(text)
-    except ValueError:
-        raise ValueError('%s = %r is not a number' % (name, text)) from None
-    if isinstance(like, int):
-        if not number.is_integer():
-            raise ValueError('%s = %r is not a whole number' % (name, text))
-        return int(number)
-    return number
-
-
 def plugin_config(kind, class_name, settings, package_root, out_path):
     """The nodelet's parameter file with a class's NAME=VALUE settings (campaign
     --recognizer-param / --compensator-param, as the core engine takes them), written to
-    `out_path`; None when there are none (the launch then loads the package's file). The paper
-    recognizer's parameters are the StateRecognizer's own (~window, ~f_th, ...), typed as the
-    core engine reads the text (typed_setting); another class gets them as text in
-    ~recognizer_params / ~compensator_params and parses them itself, as in the core engine.
-    ValueError naming a setting the nodelet would not take (the paper compensator has none)."""
+    `out_path`; None when there are none (the launch then loads the package's file). Every
+    class gets them as text in ~recognizer_params / ~compensator_params and reads them itself,
+    as in the core engine (the paper recognizer with its ParamTable); a paper recognizer's
+    setting leaves the node's own key of the package file (~window, ...): the node refuses a
+    parameter given both ways. ValueError naming a setting the nodelet would not take (the
+    paper compensator has none; the node's own settings are not the recognizer's)."""
     if not settings:
         return None
     import yaml
@@ -53,12 +34,11 @@ def plugin_config(kind, class_name, settings, package_root, out_path):
             raise ValueError('--%s-param %r is not NAME=VALUE' % (kind, item))
         pairs.append((name, value))
     if class_name == PAPER_CLASSES[kind]:
-        for name, value in pairs:
+        for name, _ in pairs:
             if kind != 'recognizer' or name not in config or name in NODE_ONLY_SETTINGS:
                 raise ValueError('--%s-param %s: not a parameter of %s' % (kind, name, class_name))
-            config[name] = typed_setting(name, value, config[name])
-    else:
-        config[kind + '_params'] = dict(pairs)
+            del config[name]  # given once, in ~recognizer_params
+    config[kind + '_params'] = dict(pairs)
     with atomic_write(out_path) as handle:
         yaml.safe_dump(config, handle, default_flow_style=False)
     return out_path

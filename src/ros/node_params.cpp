@@ -212,9 +212,32 @@ int StateRecognizerNodeParams::axisIndex() const { return forceAxisIndex(axis); 
 
 double StateRecognizerNodeParams::axisSign() const { return forceAxisSign(axis); }
 
+bool StateRecognizerNodeParams::paperClass() const {
+  return recognizer_class == "pedicle_drilling/PaperRecognizer";
+}
+
+std::vector<std::string> StateRecognizerNodeParams::paperSettingNames() const {
+  std::vector<std::string> names;
+  if (!paperClass()) return names;
+  for (const auto& [name, value] : recognizer_params) names.push_back(name);
+  return names;
+}
+
+core::RecognizerParams StateRecognizerNodeParams::recognizerInUse() const {
+  core::RecognizerParams p = recognizer;
+  for (const auto& [name, value] : paperClass() ? recognizer_params : core::TextPairs()) {
+    try {
+      p.set(name, value);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument("recognizer_params/" + std::string(e.what()));
+    }
+  }
+  return p;
+}
+
 std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
   std::vector<std::string> off;
-  if (recognizer.cancellous_deadline == 0) {
+  if (recognizerInUse().cancellous_deadline == 0) {
     off.push_back("cancellous_deadline = 0 (no bound on the cancellous layer's confirmation)");
   }
   return off;
@@ -222,12 +245,17 @@ std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
 
 void StateRecognizerNodeParams::validate() const {
   table().validate(*this);
+  const core::RecognizerParams in_use = recognizerInUse();
   refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
-  recognizer.validate();
-  if (recognizer_class == "pedicle_drilling/PaperRecognizer" && !recognizer_params.empty()) {
-    throw std::invalid_argument(
-        "recognizer_params is for other recognizer classes; the paper recognizer's parameters "
-        "are this node's own (~pre_average_s, ~window, ...)");
+  try {
+    in_use.validate();
+  } catch (const std::invalid_argument& e) {
+    // A check between fields names the first field: its key in recognizer_params if set there.
+    const std::string what = e.what();
+    const std::string field = what.substr(0, what.find_first_of(" :="));
+    const std::vector<std::string> mapped = paperSettingNames();
+    if (std::find(mapped.begin(), mapped.end(), field) == mapped.end()) throw;
+    throw std::invalid_argument("recognizer_params/" + what);
   }
 }
 
@@ -236,12 +264,8 @@ void StateRecognizerNodeParams::validate() const {
 const ParamTable<SafetyMonitorNodeParams>& SafetyMonitorNodeParams::table() {
   static const ParamTable<SafetyMonitorNodeParams> t = [] {
     using P = SafetyMonitorNodeParams;
-    ParamTable<core::SupervisorParams> pairing;
-    pairing.include(core::SafetyParams::table(), &core::SupervisorParams::safety)
-        .number("pair_tolerance_s", &core::SupervisorParams::pair_tolerance_s, Range::closed(0, 1),
-                "s");
     ParamTable<P> d;
-    d.include(pairing, &P::supervisor)
+    d.include(core::SupervisorParams::table(), &P::supervisor)
         .number("check_rate_hz", &P::check_rate_hz, Range::aboveUpTo(0, 10000), "Hz")
         .number("diagnostic_period_s", &P::diagnostic_period_s, Range::aboveUpTo(0, 60), "s")
         .number("expected_force_rate_hz", &P::expected_force_rate_hz, Range::aboveUpTo(0, 100000),

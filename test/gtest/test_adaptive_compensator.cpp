@@ -12,6 +12,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 
 namespace pd = pedicle_drilling::core;
@@ -225,6 +226,25 @@ TEST(AdaptiveModelCompensator, BadSettingsNameTheParameter) {
   EXPECT_EQ(error({{"gate_mm", "nan"}}).rfind("gate_mm", 0), 0u);
   EXPECT_NE(error({{"no_such", "1"}}).find("no_such"), std::string::npos);
   EXPECT_NE(pd::makeBuiltinCompensator("pedicle_drilling/AdaptiveModelCompensator", {}), nullptr);
+}
+
+TEST(AdaptiveModelParams, TheTableDeclaresEveryFieldWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(pd::AdaptiveModelParams::table(),
+                                                 {{"forgetting_time_s", "2"},
+                                                  {"lag_forgetting_time_s", "20"},
+                                                  {"gain_min", "0.5"},
+                                                  {"gain_max", "2"},
+                                                  {"gain_agreement", "0.05"},
+                                                  {"lag_switch_margin", "0.2"},
+                                                  {"gain_prior_mm2", "1"},
+                                                  {"lag_max_s", "0.1"},
+                                                  {"lag_step_s", "0.01"},
+                                                  {"max_correction_mm", "2"},
+                                                  {"gate_mm", "1.2"},
+                                                  {"disagree_samples", "3"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::AdaptiveModelParams::table());
+  EXPECT_EQ(pd::AdaptiveModelCompensator().parameterNames(),
+            pd::AdaptiveModelParams::table().declaredNames());
 }
 
 TEST(AdaptiveModelCompensator, VelocityStepsIncludeTheLaggedOnes) {

@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/breathing/motion_model_io.hpp"
 #include "support.hpp"
 
@@ -257,7 +258,7 @@ TEST(ClosedLoopEngine, BadConfigurationNamesTheField) {
     pd::ClosedLoopEngine engine(c);
     FAIL() << "accepted a negative delay";
   } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()).rfind("stop_to_planner_s:", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).rfind("stop_to_planner_s = -1", 0), 0u) << e.what();
   }
   c = config();
   c.drilling_pose.pop_back();
@@ -597,4 +598,18 @@ TEST(ClosedLoopEngine, AKilledProcessHaltsTheDrivesWithinTheGuardsBoundsWithoutA
     ASSERT_FALSE(r.truth.empty());
     EXPECT_GE(r.truth.back().t - r.fault.t, pd::kProcessKillWatchS - 1e-9);
   }
+}
+
+TEST(EngineDelays, TheTableDeclaresEveryDelayWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(pd::EngineDelays::table(),
+                                                 {{"force_to_recognizer_s", "0"},
+                                                  {"stop_to_planner_s", "0.001"},
+                                                  {"command_to_arm_s", "0.001"},
+                                                  {"command_jitter_s", "0"},
+                                                  {"tracker_to_pipeline_s", "0"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::EngineDelays::table());
+  pd::EngineDelays d;
+  d.command_jitter_s = 2.0;
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&d] { d.validate(); }),
+            "command_jitter_s = 2 is out of range [0, 1] s");
 }

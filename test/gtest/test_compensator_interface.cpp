@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 
 namespace pd = pedicle_drilling::core;
@@ -129,6 +130,14 @@ TEST(TrackedMarkerCompensator, BadSettingsNameTheParameter) {
   EXPECT_EQ(errorOf(&c, {{"extrapolate", "yes"}}).rfind("extrapolate", 0), 0u);
   EXPECT_EQ(errorOf(&c, {{"gain", "2"}}), "unknown parameter 'gain'");  // as every ParamTable
   EXPECT_EQ(c.parameterNames(), (std::vector<std::string>{"extrapolate", "max_horizon_s"}));
+}
+
+TEST(TrackedMarkerParams, TheTableDeclaresEveryFieldWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(
+      pd::TrackedMarkerParams::table(), {{"extrapolate", "false"}, {"max_horizon_s", "0.5"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::TrackedMarkerParams::table());
+  EXPECT_EQ(pd::TrackedMarkerCompensator().parameterNames(),
+            pd::TrackedMarkerParams::table().declaredNames());
 }
 
 TEST(CompensatorFactory, MakesTheBuiltInsAndNamesTheKnownOnesOtherwise) {

@@ -1,4 +1,5 @@
 // Tests of core::ForceTare: the F/T sensor's tare before contact.
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
 
 #include <gtest/gtest.h>
@@ -160,4 +161,14 @@ TEST(ForceTare, AZeroCheckRefusesABadTolerance) {
   EXPECT_THROW(tare.checkZero({2, 0.5}, std::nan(""), 0.0), std::invalid_argument);
   EXPECT_THROW(tare.checkZero({0, 0.5}, 0.3, 0.0), std::invalid_argument);
   EXPECT_FALSE(tare.collecting());
+}
+
+TEST(TareRequest, TheTableDeclaresBothFieldsWithTheirDefaultsAndRanges) {
+  pedicle_drilling::test::expectDeclaredDefaults(pd::TareRequest::table(),
+                                                 {{"samples", "100"}, {"max_spread_n", "0.5"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::TareRequest::table());
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([] {
+              pd::TareRequest{0, 0.5}.validate();
+            }),
+            "samples = 0 is out of range [1, 100000] samples");
 }

@@ -178,9 +178,6 @@ TEST(NodeParams, ChecksBetweenFieldsNameTheParameter) {
   pd::StateRecognizerNodeParams recognizer;
   recognizer.recognizer.c2 = 0.3;  // below c1 = 0.4
   EXPECT_EQ(errorOf([&] { recognizer.validate(); }).rfind("c2", 0), 0u);
-  recognizer = pd::StateRecognizerNodeParams();
-  recognizer.recognizer_params = {{"window", "3"}};
-  EXPECT_EQ(errorOf([&] { recognizer.validate(); }).rfind("recognizer_params", 0), 0u);
   pd::MotionIdentificationParams identification;
   identification.si_axis = "+z";  // the same axis as AP
   EXPECT_EQ(errorOf([&] { identification.validate(); }).rfind("si_axis", 0), 0u);
@@ -230,6 +227,39 @@ TEST(NodeParams, AParameterThatSwitchesAWatchdogOffIsRefusedUnlessAllowedExplici
   recognizer.unsafe_allow_disabled_watchdogs = true;
   EXPECT_NO_THROW(recognizer.validate());
   EXPECT_EQ(recognizer.disabledWatchdogs().size(), 1u);
+}
+
+// The paper recognizer takes its settings as text in ~recognizer_params like any class, over
+// the node's own keys (the nodelet refuses a key given both ways: paperSettingNames()).
+TEST(NodeParams, ThePaperRecognizerTakesRecognizerParamsAsTextCheckedByItsTable) {
+  pd::StateRecognizerNodeParams node;
+  node.recognizer_params = {{"window", "3"}, {"inner_confirm", "4.0"}};
+  EXPECT_NO_THROW(node.validate());
+  EXPECT_EQ(node.recognizerInUse().window, 3);
+  EXPECT_EQ(node.recognizerInUse().inner_confirm, 4);
+  EXPECT_EQ(node.recognizer.window, 10);  // the node's own key keeps its value
+  EXPECT_EQ(node.paperSettingNames(), (std::vector<std::string>{"window", "inner_confirm"}));
+  const std::vector<std::pair<std::string, std::string>> refused{
+      {"window", "recognizer_params/window = '4.5' is not an integer"},
+      {"nonsense", "recognizer_params/nonsense: unknown recognizer parameter"},
+      {"c3", "recognizer_params/c3 = 1.5 is out of range (0, 1)"},
+      {"pre_average", "recognizer_params/pre_average is retired: "},
+      {"c2", "recognizer_params/c2: must be >= c1"},  // a check between fields, named as set
+      {"cancellous_deadline", "cancellous_deadline = 0 (no bound"}};  // a watchdog switched off
+  const std::vector<std::string> values{"4.5", "1", "1.5", "50", "0.3", "0"};
+  for (std::size_t i = 0; i < refused.size(); ++i) {
+    node.recognizer_params = {{refused[i].first, values[i]}};
+    const std::string error = errorOf([&] { node.validate(); });
+    EXPECT_EQ(error.rfind(refused[i].second, 0), 0u) << error;
+  }
+  // The node's own key, checked between fields with the mapping's: named as the node's.
+  node.recognizer_params = {{"window", "30"}};
+  EXPECT_EQ(errorOf([&] { node.validate(); }).rfind("cancellous_deadline: ", 0), 0u);
+  // Another class reads its own settings: the paper recognizer's stay the node's keys.
+  node.recognizer_class = "pedicle_drilling/ForceDifferenceRecognizer";
+  EXPECT_NO_THROW(node.validate());
+  EXPECT_EQ(node.recognizerInUse().window, 10);
+  EXPECT_TRUE(node.paperSettingNames().empty());
 }
 
 TEST(NodeParams, TheRecognizerTableServesPluginSettingsToo) {

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 
 namespace pd = pedicle_drilling::core;
@@ -145,6 +146,34 @@ TEST(ForceDifferenceRecognizer, SettingsAreCheckedNamingThem) {
   }
   pd::ForceDifferenceRecognizer r;
   EXPECT_THROW(r.push(0.0, std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+}
+
+TEST(ForceDifferenceParams, TheTableDeclaresEveryFieldWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(pd::ForceDifferenceParams::table(),
+                                                 {{"pre_average", "50"},
+                                                  {"contact_force_n", "1"},
+                                                  {"process_noise", "0.001"},
+                                                  {"measurement_noise", "0.01"},
+                                                  {"drop_threshold_n", "0.05"},
+                                                  {"drop_confirm", "3"},
+                                                  {"stop_at_breakthrough", "2"},
+                                                  {"rearm_rise_n", "0.015"},
+                                                  {"rise_confirm", "1"},
+                                                  {"stop_at_entry", "0"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::ForceDifferenceParams::table());
+  EXPECT_EQ(pd::ForceDifferenceRecognizer().parameterNames(),
+            pd::ForceDifferenceParams::table().declaredNames());
+  EXPECT_EQ(pd::PaperRecognizer().parameterNames(), pd::RecognizerParams::table().declaredNames());
+  // The texts as every table writes them.
+  pd::ForceDifferenceRecognizer r;
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&] {
+              r.configure({{"drop_confirm", "0"}});
+            }),
+            "drop_confirm = 0 is out of range [1, 10000] blocks");
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&] {
+              r.configure({{"gain", "2"}});
+            }),
+            "gain: not a parameter of pedicle_drilling/ForceDifferenceRecognizer");
 }
 
 namespace {

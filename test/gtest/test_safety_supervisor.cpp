@@ -6,6 +6,7 @@
 #include <random>
 #include <stdexcept>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 
 namespace pedicle_drilling::core {
@@ -230,6 +231,23 @@ TEST(SafetySupervisorTest, RejectsBadParametersNamingThem) {
   p = SupervisorParams();
   p.safety.force_threshold_N = 0.0;
   EXPECT_THROW(SafetySupervisor s(p), std::invalid_argument);
+}
+
+TEST(SupervisorParamsTest, TheTableIsTheMonitorsThenThePairing) {
+  const ParamTable<SupervisorParams>& table = SupervisorParams::table();
+  const std::vector<std::string> safety = SafetyParams::table().declaredNames();
+  std::vector<std::string> names = safety;
+  names.insert(names.end(), {"pair_tolerance_s", "history"});
+  EXPECT_EQ(table.declaredNames(), names);
+  const std::vector<ParamInfo> described = table.describe(SupervisorParams());
+  ASSERT_EQ(described.size(), names.size());
+  EXPECT_EQ(described[safety.size()].default_text, "0.02");
+  EXPECT_EQ(described[safety.size() + 1].default_text, "64");
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(table);
+  SupervisorParams p;
+  p.history = 0;
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&p] { p.validate(); }),
+            "history = 0 is out of range [1, 10000] samples");
 }
 
 TEST(SafetySupervisorTest, QuietUntilBoundsWhatACheckCanChange) {

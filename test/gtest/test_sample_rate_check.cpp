@@ -5,6 +5,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 
 namespace pedicle_drilling::core {
@@ -111,6 +112,13 @@ TEST(SampleRateCheck, BadSettingsAreRefusedNamingThem) {
   p = SampleRateCheckParams();
   p.window_s = 0.0;
   EXPECT_EQ(error(p).rfind("window_s", 0), 0u);
+}
+
+TEST(SampleRateCheckParamsTest, TheTableDeclaresEveryFieldWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(
+      SampleRateCheckParams::table(),
+      {{"declared_hz", "333.3333333"}, {"tolerance", "0.1"}, {"window_s", "1"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(SampleRateCheckParams::table());
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Tests of core::StageAxis: a lead-screw drive's position loop with velocity feed-forward,
 // speed and acceleration limits (the SPMS sliders and the drill device's feed).
+#include "param_table_checks.hpp"
 #include "pedicle_drilling/core/robot/stage_axis.hpp"
 
 #include <gtest/gtest.h>
@@ -101,4 +102,15 @@ TEST(StageAxis, BadParametersAreRefusedNamingThem) {
       }
     }
   }
+}
+
+TEST(StageAxisParams, TheTableDeclaresEveryFieldWithItsDefaultAndRange) {
+  pedicle_drilling::test::expectDeclaredDefaults(
+      pd::StageAxisParams::table(),
+      {{"max_speed_m_s", "0.05"}, {"max_accel_m_s2", "2"}, {"bandwidth_hz", "20"}});
+  pedicle_drilling::test::expectRangesRefusedNamingTheField(pd::StageAxisParams::table());
+  pd::StageAxisParams p;
+  p.bandwidth_hz = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&p] { p.validate(); }),
+            "bandwidth_hz = inf is out of range (0, inf) Hz");
 }

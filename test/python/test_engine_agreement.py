@@ -111,8 +111,8 @@ def test_waiting_at_every_step_changes_no_ros_trial(tmp_path):
 def test_class_parameters_reach_the_ros_pipeline(tmp_path):
     """--recognizer-param / --compensator-param on --engine ros (before: core engine only): the
     worker writes them into the StateRecognizer's and the CompensationPlanner's parameter files
-    (the paper recognizer's as its own ~pre_average_s, ~f_th, ...; another class's as text in
-    ~recognizer_params / ~compensator_params) and the pipeline runs the core engine's trial of
+    (every class's as text in ~recognizer_params / ~compensator_params, the paper recognizer's
+    too, read by its table) and the pipeline runs the core engine's trial of
     each seed with them. Each setting changes a stop here (core engine with and without it), so
     a setting lost on the way fails the test."""
     cases = [('paper', ['--case', 'stationary'], ['--recognizer-param', 'pre_average_s=0.12']),

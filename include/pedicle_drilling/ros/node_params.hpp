@@ -190,16 +190,34 @@ struct StateRecognizerNodeParams {
   double rate_window_s = 1.0;  ///< the window the rate is measured over [s]
   int queue_size = 1000;       ///< ft_sensor/wrench subscriber queue
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";  ///< plugin class
-  core::TextPairs recognizer_params;  ///< another class's own parameters
+  /// The class's parameters as text, checked by it: another class's own, or the paper
+  /// recognizer's (RecognizerParams by name, set over `recognizer`: recognizerInUse()).
+  core::TextPairs recognizer_params;
   /// Allows the parameters that switch a watchdog off (disabledWatchdogs()); else refused.
   bool unsafe_allow_disabled_watchdogs = false;
+  /** @brief True when the class is the paper recognizer (PaperRecognizer). */
+  bool paperClass() const;
+  /**
+   * @brief The keys of recognizer_params that set the paper recognizer's parameters: every key
+   *        with the paper class, none with another. Each may not be set as the node's own key
+   *        too (`~window` and `~recognizer_params/window`): the nodelet refuses that naming it.
+   */
+  std::vector<std::string> paperSettingNames() const;
+  /**
+   * @brief The paper recognizer's parameters in use: `recognizer` (the node's own keys
+   *        ~pre_average_s, ~window, ...) with, for the paper class, recognizer_params set over
+   *        it from text (RecognizerParams::set). Another class runs with its own parameters; the
+   *        node's sensor_rate_hz (the rate check) and block are taken from these for any class.
+   * @throws std::invalid_argument "recognizer_params/<name> ..." for a setting it refuses.
+   */
+  core::RecognizerParams recognizerInUse() const;
   /** @brief The watchdogs the parameters switch off, one "name = value (what)" each. */
   std::vector<std::string> disabledWatchdogs() const;
   /** @brief Component index (0..2) of axis. */
   int axisIndex() const;
   /** @brief Sign (+1 or -1) of axis. */
   double axisSign() const;
-  /** @brief Checks the declared ranges and the recognizer's own checks. */
+  /** @brief Checks the declared ranges and the recognizer's own checks (recognizerInUse()). */
   void validate() const;
   /** @brief The declaration of every parameter. */
   static const core::ParamTable<StateRecognizerNodeParams>& table();

@@ -234,12 +234,31 @@ class ParamLoader {
    */
   template <class T>
   void load(const core::ParamTable<T>& table, T* out) const {
+    read(table, out);
+    check(*out);
+  }
+
+  /**
+   * @brief load()'s first step: every declared parameter read into @p out, each checked against
+   *        its declaration, a retired name refused; not the struct's validate() (check()).
+   * @throws ParameterError naming the first bad parameter.
+   */
+  template <class T>
+  void read(const core::ParamTable<T>& table, T* out) const {
     for (const auto& [name, why] : table.retiredNames()) {
       if (has(name)) fail(name, "is retired: " + why);
     }
     for (const auto& e : table.entries()) loadEntry(e, out);
+  }
+
+  /**
+   * @brief load()'s second step: @p v's validate() (the checks between fields), its error a
+   *        ParameterError naming the parameter its message starts with, under this namespace.
+   */
+  template <class T>
+  void check(const T& v) const {
     try {
-      out->validate();
+      v.validate();
     } catch (const std::invalid_argument& err) {
       throw ParameterError("parameter '" + nh_.resolveName(firstWord(err.what())) +
                            "': " + err.what());

@@ -43,8 +43,7 @@ AdaptiveModelCompensator::AdaptiveModelCompensator() = default;
 AdaptiveModelCompensator::~AdaptiveModelCompensator() = default;
 
 void AdaptiveModelCompensator::configure(const CompensatorSettings& settings) {
-  AdaptiveModelParams p;
-  for (const auto& [name, value] : settings) AdaptiveModelParams::table().set(p, name, value);
+  const AdaptiveModelParams p = AdaptiveModelParams::table().withSettings(settings);
   p.validate();
   p_ = p;
   // Candidates in order of |lag|: a tie keeps the smaller lag.
@@ -249,9 +248,7 @@ std::string AdaptiveModelCompensator::describe() const {
 }
 
 std::vector<std::string> AdaptiveModelCompensator::parameterNames() const {
-  std::vector<std::string> names;
-  for (const auto& e : AdaptiveModelParams::table().entries()) names.push_back(e.info.name);
-  return names;
+  return AdaptiveModelParams::table().declaredNames();
 }
 
 }  // namespace pedicle_drilling::core

@@ -83,8 +83,7 @@ const ParamTable<TrackedMarkerParams>& TrackedMarkerParams::table() {
 void TrackedMarkerParams::validate() const { table().validate(*this); }
 
 void TrackedMarkerCompensator::configure(const CompensatorSettings& settings) {
-  TrackedMarkerParams p;
-  for (const auto& [name, value] : settings) TrackedMarkerParams::table().set(p, name, value);
+  const TrackedMarkerParams p = TrackedMarkerParams::table().withSettings(settings);
   p.validate();
   p_ = p;
 }
@@ -115,9 +114,7 @@ std::string TrackedMarkerCompensator::describe() const {
 }
 
 std::vector<std::string> TrackedMarkerCompensator::parameterNames() const {
-  std::vector<std::string> names;
-  for (const auto& e : TrackedMarkerParams::table().entries()) names.push_back(e.info.name);
-  return names;
+  return TrackedMarkerParams::table().declaredNames();
 }
 
 // ----------------------------------------------------------------------------- guard

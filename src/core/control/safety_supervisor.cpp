@@ -7,14 +7,21 @@
 
 namespace pedicle_drilling::core {
 
+const ParamTable<SupervisorParams>& SupervisorParams::table() {
+  static const ParamTable<SupervisorParams> t = [] {
+    using P = SupervisorParams;
+    ParamTable<P> d;
+    d.include(SafetyParams::table(), &P::safety)
+        .number("pair_tolerance_s", &P::pair_tolerance_s, Range::closed(0, 1), "s")
+        .integer("history", &P::history, Range::closed(1, 10000), "samples");
+    return d;
+  }();
+  return t;
+}
+
 void SupervisorParams::validate() const {
+  table().validate(*this);
   safety.validate();
-  if (!(pair_tolerance_s >= 0.0 && pair_tolerance_s <= 1.0)) {
-    throw std::invalid_argument("pair_tolerance_s: must be in [0, 1] s");
-  }
-  if (!(history >= 1 && history <= 10000)) {
-    throw std::invalid_argument("history: must be in [1, 10000]");
-  }
 }
 
 const StampedPosition* StampPairer::add(const StampedPosition& sample, bool is_predicted) {

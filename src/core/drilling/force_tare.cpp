@@ -1,20 +1,24 @@
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
 
 #include <cmath>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
 namespace pedicle_drilling::core {
 
-void TareRequest::validate() const {
-  if (samples < 1 || samples > 100000) {
-    throw std::invalid_argument("tare samples must be in [1, 100000], got " +
-                                std::to_string(samples));
-  }
-  if (!(std::isfinite(max_spread_n) && max_spread_n > 0.0)) {
-    throw std::invalid_argument("tare max_spread_n must be positive and finite");
-  }
+const ParamTable<TareRequest>& TareRequest::table() {
+  static const ParamTable<TareRequest> t = [] {
+    ParamTable<TareRequest> d;
+    d.integer("samples", &TareRequest::samples, Range::closed(1, 100000), "samples")
+        .number("max_spread_n", &TareRequest::max_spread_n,
+                Range::open(0, std::numeric_limits<double>::infinity()), "N");
+    return d;
+  }();
+  return t;
 }
+
+void TareRequest::validate() const { table().validate(*this); }
 
 void ForceTare::request(const TareRequest& request) {
   request.validate();

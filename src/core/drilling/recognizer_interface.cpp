@@ -40,67 +40,43 @@ std::string PaperRecognizer::describe() const {
 }
 
 std::vector<std::string> PaperRecognizer::parameterNames() const {
-  std::vector<std::string> names;
-  for (const auto& e : RecognizerParams::table().entries()) names.push_back(e.info.name);
-  return names;
+  return RecognizerParams::table().declaredNames();
 }
 
 // ------------------------------------------------------------- ForceDifferenceRecognizer
 
-void ForceDifferenceParams::validate() const {
-  const auto fail = [](const char* name, const std::string& rule) {
-    throw std::invalid_argument(std::string(name) + ": " + rule);
-  };
-  if (pre_average < 1 || pre_average > 100000) fail("pre_average", "must be in [1, 100000]");
-  if (!(contact_force_n > 0.0 && contact_force_n <= 1000.0)) {
-    fail("contact_force_n", "must be in (0, 1000] N");
-  }
-  if (!(process_noise > 0.0 && process_noise <= 1e3)) fail("process_noise", "must be in (0, 1e3]");
-  if (!(measurement_noise > 0.0 && measurement_noise <= 1e3)) {
-    fail("measurement_noise", "must be in (0, 1e3]");
-  }
-  if (!(drop_threshold_n > 0.0 && drop_threshold_n <= 100.0)) {
-    fail("drop_threshold_n", "must be in (0, 100] N per block");
-  }
-  if (drop_confirm < 1 || drop_confirm > 10000) fail("drop_confirm", "must be in [1, 10000]");
-  if (stop_at_breakthrough < 1 || stop_at_breakthrough > 10) {
-    fail("stop_at_breakthrough", "must be in [1, 10]");
-  }
-  if (!(rearm_rise_n > 0.0 && rearm_rise_n <= 100.0)) {
-    fail("rearm_rise_n", "must be in (0, 100] N per block");
-  }
-  if (rise_confirm < 1 || rise_confirm > 10000) fail("rise_confirm", "must be in [1, 10000]");
-  if (stop_at_entry < 0 || stop_at_entry > 10) fail("stop_at_entry", "must be in [0, 10]");
+const ParamTable<ForceDifferenceParams>& ForceDifferenceParams::table() {
+  static const ParamTable<ForceDifferenceParams> t = [] {
+    using P = ForceDifferenceParams;
+    const Range count = Range::closed(1, 10000);
+    const Range per_block = Range::aboveUpTo(0, 100);
+    ParamTable<P> d;
+    d.integer("pre_average", &P::pre_average, Range::closed(1, 100000), "samples")
+        .number("contact_force_n", &P::contact_force_n, Range::aboveUpTo(0, 1000), "N")
+        .number("process_noise", &P::process_noise, Range::aboveUpTo(0, 1e3), "N^2")
+        .number("measurement_noise", &P::measurement_noise, Range::aboveUpTo(0, 1e3), "N^2")
+        .number("drop_threshold_n", &P::drop_threshold_n, per_block, "N/block")
+        .integer("drop_confirm", &P::drop_confirm, count, "blocks")
+        .integer("stop_at_breakthrough", &P::stop_at_breakthrough, Range::closed(1, 10))
+        .number("rearm_rise_n", &P::rearm_rise_n, per_block, "N/block")
+        .integer("rise_confirm", &P::rise_confirm, count, "blocks")
+        .integer("stop_at_entry", &P::stop_at_entry, Range::closed(0, 10));
+    return d;
+  }();
+  return t;
 }
 
+void ForceDifferenceParams::validate() const { table().validate(*this); }
+
 void ForceDifferenceRecognizer::configure(const RecognizerSettings& settings) {
-  ForceDifferenceParams p;
+  const ParamTable<ForceDifferenceParams>& table = ForceDifferenceParams::table();
   for (const auto& [name, value] : settings) {
-    if (name == "pre_average") {
-      p.pre_average = parseSettingInt(name, value);
-    } else if (name == "contact_force_n") {
-      p.contact_force_n = parseSettingDouble(name, value);
-    } else if (name == "process_noise") {
-      p.process_noise = parseSettingDouble(name, value);
-    } else if (name == "measurement_noise") {
-      p.measurement_noise = parseSettingDouble(name, value);
-    } else if (name == "drop_threshold_n") {
-      p.drop_threshold_n = parseSettingDouble(name, value);
-    } else if (name == "drop_confirm") {
-      p.drop_confirm = parseSettingInt(name, value);
-    } else if (name == "stop_at_breakthrough") {
-      p.stop_at_breakthrough = parseSettingInt(name, value);
-    } else if (name == "rearm_rise_n") {
-      p.rearm_rise_n = parseSettingDouble(name, value);
-    } else if (name == "rise_confirm") {
-      p.rise_confirm = parseSettingInt(name, value);
-    } else if (name == "stop_at_entry") {
-      p.stop_at_entry = parseSettingInt(name, value);
-    } else {
+    if (table.find(name) == nullptr) {
       throw std::invalid_argument(name + ": not a parameter of " +
                                   std::string(kForceDifferenceRecognizer));
     }
   }
+  const ForceDifferenceParams p = table.withSettings(settings);
   p.validate();
   p_ = p;
   reset();
@@ -227,9 +203,7 @@ std::string ForceDifferenceRecognizer::describe() const {
 }
 
 std::vector<std::string> ForceDifferenceRecognizer::parameterNames() const {
-  return {"pre_average",      "contact_force_n", "process_noise",        "measurement_noise",
-          "drop_threshold_n", "drop_confirm",    "stop_at_breakthrough", "rearm_rise_n",
-          "rise_confirm",     "stop_at_entry"};
+  return ForceDifferenceParams::table().declaredNames();
 }
 
 // ---------------------------------------------------------------------------- guard

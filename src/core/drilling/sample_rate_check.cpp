@@ -2,21 +2,25 @@
 
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <stdexcept>
 
 namespace pedicle_drilling::core {
 
-void SampleRateCheckParams::validate() const {
-  if (!(std::isfinite(declared_hz) && declared_hz > 0.0)) {
-    throw std::invalid_argument("declared_hz: must be a positive rate [Hz]");
-  }
-  if (!(tolerance > 0.0 && tolerance < 1.0)) {
-    throw std::invalid_argument("tolerance: must be in (0, 1)");
-  }
-  if (!(window_s > 0.0 && window_s <= 60.0)) {
-    throw std::invalid_argument("window_s: must be in (0, 60] s");
-  }
+const ParamTable<SampleRateCheckParams>& SampleRateCheckParams::table() {
+  static const ParamTable<SampleRateCheckParams> t = [] {
+    using P = SampleRateCheckParams;
+    ParamTable<P> d;
+    d.number("declared_hz", &P::declared_hz,
+             Range::open(0, std::numeric_limits<double>::infinity()), "Hz")
+        .number("tolerance", &P::tolerance, Range::open(0, 1))
+        .number("window_s", &P::window_s, Range::aboveUpTo(0, 60), "s");
+    return d;
+  }();
+  return t;
 }
+
+void SampleRateCheckParams::validate() const { table().validate(*this); }
 
 SampleRateCheck::SampleRateCheck(const SampleRateCheckParams& params) : params_(params) {
   params_.validate();

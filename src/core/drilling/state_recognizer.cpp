@@ -1,10 +1,8 @@
 // Force-based drilling-state recognizer. See doc/state_machine.md for the state machine.
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
-#include <cerrno>
 #include <cmath>
 #include <cstdio>
-#include <cstdlib>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -20,35 +18,6 @@ namespace {
 }
 
 }  // namespace
-
-double parseSettingDouble(const std::string& name, const std::string& text) {
-  const char* begin = text.c_str();
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(begin, &end);
-  if (text.empty() || end == begin || *end != '\0' || errno == ERANGE) {
-    throw std::invalid_argument(name + ": cannot parse number '" + text + "'");
-  }
-  return v;
-}
-
-bool parseSettingBool(const std::string& name, const std::string& text) {
-  if (text == "1" || text == "true") return true;
-  if (text == "0" || text == "false") return false;
-  throw std::invalid_argument(name + ": cannot parse boolean '" + text + "' (use true/false)");
-}
-
-int parseSettingInt(const std::string& name, const std::string& text) {
-  const char* begin = text.c_str();
-  char* end = nullptr;
-  errno = 0;
-  const long v = std::strtol(begin, &end, 10);
-  if (text.empty() || end == begin || *end != '\0' || errno == ERANGE ||
-      v > std::numeric_limits<int>::max() || v < std::numeric_limits<int>::min()) {
-    throw std::invalid_argument(name + ": cannot parse integer '" + text + "'");
-  }
-  return static_cast<int>(v);
-}
 
 const ParamTable<RecognizerParams>& RecognizerParams::table() {
   static const ParamTable<RecognizerParams> t = [] {

@@ -2,7 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
+#include <limits>
 #include <stdexcept>
 
 namespace pedicle_drilling::core {
@@ -11,18 +11,20 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 }
 
-void StageAxisParams::validate() const {
-  const auto check = [](double value, const char* name) {
-    if (!(std::isfinite(value) && value > 0.0)) {
-      std::ostringstream os;
-      os << name << ": must be finite and > 0, got " << value;
-      throw std::invalid_argument(os.str());
-    }
-  };
-  check(max_speed_m_s, "max_speed_m_s");
-  check(max_accel_m_s2, "max_accel_m_s2");
-  check(bandwidth_hz, "bandwidth_hz");
+const ParamTable<StageAxisParams>& StageAxisParams::table() {
+  static const ParamTable<StageAxisParams> t = [] {
+    using P = StageAxisParams;
+    const Range positive = Range::open(0, std::numeric_limits<double>::infinity());
+    ParamTable<P> d;
+    d.number("max_speed_m_s", &P::max_speed_m_s, positive, "m/s")
+        .number("max_accel_m_s2", &P::max_accel_m_s2, positive, "m/s^2")
+        .number("bandwidth_hz", &P::bandwidth_hz, positive, "Hz");
+    return d;
+  }();
+  return t;
 }
+
+void StageAxisParams::validate() const { table().validate(*this); }
 
 StageAxis::StageAxis(const StageAxisParams& params, double position) : params_(params) {
   params_.validate();

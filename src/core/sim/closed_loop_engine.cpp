@@ -18,18 +18,22 @@
 
 namespace pedicle_drilling::core {
 
-void EngineDelays::validate() const {
-  const auto check = [](double v, const char* name) {
-    if (!(std::isfinite(v) && v >= 0.0 && v <= 1.0)) {
-      throw std::invalid_argument(std::string(name) + ": must be in [0, 1] s");
-    }
-  };
-  check(force_to_recognizer_s, "force_to_recognizer_s");
-  check(stop_to_planner_s, "stop_to_planner_s");
-  check(command_to_arm_s, "command_to_arm_s");
-  check(command_jitter_s, "command_jitter_s");
-  check(tracker_to_pipeline_s, "tracker_to_pipeline_s");
+const ParamTable<EngineDelays>& EngineDelays::table() {
+  static const ParamTable<EngineDelays> t = [] {
+    using P = EngineDelays;
+    const Range delay = Range::closed(0, 1);
+    ParamTable<P> d;
+    d.number("force_to_recognizer_s", &P::force_to_recognizer_s, delay, "s")
+        .number("stop_to_planner_s", &P::stop_to_planner_s, delay, "s")
+        .number("command_to_arm_s", &P::command_to_arm_s, delay, "s")
+        .number("command_jitter_s", &P::command_jitter_s, delay, "s")
+        .number("tracker_to_pipeline_s", &P::tracker_to_pipeline_s, delay, "s");
+    return d;
+  }();
+  return t;
 }
+
+void EngineDelays::validate() const { table().validate(*this); }
 
 namespace {
 

@@ -346,6 +346,23 @@ class ParamTable {
   /** @brief The declared parameters in order. */
   const std::vector<Entry>& entries() const { return entries_; }
 
+  /** @brief The declared names in declaration order (a plugin class's parameterNames()). */
+  std::vector<std::string> declaredNames() const {
+    std::vector<std::string> out;
+    for (const Entry& e : entries_) out.push_back(e.info.name);
+    return out;
+  }
+
+  /**
+   * @brief @p start with each of @p settings set from text by set(), in order: a plugin class's
+   *        configure(). The checks between fields (the struct's validate()) are the caller's.
+   * @throws std::invalid_argument as set() does, naming the parameter.
+   */
+  T withSettings(const TextPairs& settings, T start = T()) const {
+    for (const auto& [name, value] : settings) set(start, name, value);
+    return start;
+  }
+
   /** @brief The entry named @p name, or nullptr. */
   const Entry* find(const std::string& name) const {
     for (const Entry& e : entries_) {

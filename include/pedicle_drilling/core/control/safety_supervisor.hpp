@@ -13,6 +13,7 @@
 #include <optional>
 #include <string>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/control/safety_monitor.hpp"
 
 namespace pedicle_drilling::core {
@@ -32,6 +33,8 @@ struct SupervisorParams {
 
   /** @brief Check all fields. @throws std::invalid_argument whose message starts with the field. */
   void validate() const;
+  /** @brief The declaration of every field (the SafetyMonitor's parameters include it). */
+  static const ParamTable<SupervisorParams>& table();
 };
 
 /** @brief A position of one stream with its stamp [s] and frame. */

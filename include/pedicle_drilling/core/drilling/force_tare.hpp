@@ -16,6 +16,8 @@
 #include <sstream>
 #include <string>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief A tare request: how many samples, and the largest force spread accepted. */
@@ -23,10 +25,12 @@ struct TareRequest {
   int samples = 100;          ///< samples averaged, [1, 100000]
   double max_spread_n = 0.5;  ///< largest SD of the force norm over the window [N], > 0
   /**
-   * @brief @throws std::invalid_argument when samples is outside [1, 100000] or max_spread_n is
-   *        not positive and finite.
+   * @brief @throws std::invalid_argument naming the field when samples is outside [1, 100000] or
+   *        max_spread_n is not positive and finite.
    */
   void validate() const;
+  /** @brief The declaration of both fields. */
+  static const ParamTable<TareRequest>& table();
 };
 
 /** @brief The outcome of a tare window. */

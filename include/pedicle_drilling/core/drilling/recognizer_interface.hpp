@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 
 namespace pedicle_drilling::core {
@@ -95,8 +96,10 @@ struct ForceDifferenceParams {
    *        layer, where the breakthrough detector alone can only stop at its exit.
    */
   int stop_at_entry = 0;
-  /** @throws std::invalid_argument naming the field. */
+  /** @brief Checks every field against its declaration. @throws std::invalid_argument naming it. */
   void validate() const;
+  /** @brief The declaration of the fields (the class's settings, by these names). */
+  static const ParamTable<ForceDifferenceParams>& table();
 };
 
 /**

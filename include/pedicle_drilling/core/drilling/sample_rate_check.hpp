@@ -16,6 +16,8 @@
 #include <cstdint>
 #include <string>
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief The default tolerance of a rate against its declaration: 10 %. */
@@ -33,6 +35,8 @@ struct SampleRateCheckParams {
   double window_s = 1.0;                     ///< length of one measurement window [s], in (0, 60]
   /** @brief @throws std::invalid_argument naming the first field out of its range. */
   void validate() const;
+  /** @brief The declaration of every field. */
+  static const ParamTable<SampleRateCheckParams>& table();
 };
 
 /** @brief What the latest complete window says. */

@@ -113,17 +113,6 @@ struct RecognizerParams {
   void set(const std::string& name, const std::string& value);
 };
 
-/**
- * @brief One recognizer setting's text as a number (RecognizerParams::set, and the settings of
- *        other recognizer classes). @throws std::invalid_argument whose message starts with
- *        @p name for text that is not entirely a number (or out of the type's range).
- */
-double parseSettingDouble(const std::string& name, const std::string& text);
-/** @brief As parseSettingDouble, for an integer (int range). */
-int parseSettingInt(const std::string& name, const std::string& text);
-/** @brief As parseSettingDouble, for a boolean: true/1 or false/0. */
-bool parseSettingBool(const std::string& name, const std::string& text);
-
 /** @brief Drilling state as seen by the recognizer. */
 enum class DrillingState {
   kIdle,            ///< No bone contact yet (F_max has not exceeded F_th).

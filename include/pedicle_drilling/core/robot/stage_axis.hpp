@@ -16,6 +16,8 @@
 #ifndef PEDICLE_DRILLING_CORE_STAGE_AXIS_HPP
 #define PEDICLE_DRILLING_CORE_STAGE_AXIS_HPP
 
+#include "pedicle_drilling/core/common/param_table.hpp"
+
 namespace pedicle_drilling::core {
 
 /** @brief Limits and loop bandwidth of a lead-screw axis. */
@@ -25,6 +27,8 @@ struct StageAxisParams {
   double bandwidth_hz = 20.0;   ///< position-loop bandwidth [Hz]
   /** @brief Every field finite and > 0. @throws std::invalid_argument naming the field. */
   void validate() const;
+  /** @brief The declaration of every field. */
+  static const ParamTable<StageAxisParams>& table();
 };
 
 /** @brief The axis (StageAxisParams, file comment). */

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "pedicle_drilling/core/breathing/motion_model.hpp"
+#include "pedicle_drilling/core/common/param_table.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
@@ -44,6 +45,8 @@ struct EngineDelays {
   double tracker_to_pipeline_s = 0.0;
   /** @brief Check every field (finite, in [0, 1] s). @throws std::invalid_argument naming it. */
   void validate() const;
+  /** @brief The declaration of every field (the campaign's scenario key engine_delays). */
+  static const ParamTable<EngineDelays>& table();
 };
 
 /**
