@@ -138,6 +138,27 @@ TEST(DepthLimit, ABoneNearerThanPredictedLowersTheLimitByTheMeanResidual) {
   EXPECT_NEAR(limit.entry(), 5.4e-3, 1e-12);
 }
 
+TEST(DepthLimit, AConstantPredictionOffsetCancelsBetweenTheContactAndNow) {
+  // The tracker shows the bone 0.7 mm nearer than predicted all along: the contact is sensed
+  // 0.7 mm of predicted advance early, and the limit is lowered by the same 0.7 mm, so that the
+  // tip's depth below the sensed surface, (advance - e) - (contact - e), is the plan's.
+  pd::DepthLimitParams params;
+  params.residual_samples = 4;
+  pd::DepthLimit offset = begun(params);
+  pd::DepthLimit exact = begun(params);
+  for (int i = 0; i < 4; ++i) offset.onResidual(7e-4);
+  for (int i = 0; i < 3; ++i) {
+    offset.onThrust(5.3e-3 + i * 1e-5, 1.0);  // the true surface at 6.0 mm, seen 0.7 mm early
+    exact.onThrust(6.0e-3 + i * 1e-5, 1.0);
+  }
+  ASSERT_TRUE(offset.contact() && exact.contact());
+  EXPECT_NEAR(offset.entry(), 6.0e-3, 1e-12);  // the surface in true advance
+  // The deepest predicted advance allowed: 0.7 mm short of the exact one's, i.e. the same true
+  // depth below the surface (8 mm).
+  EXPECT_NEAR(offset.limit(), exact.limit() - 7e-4, 1e-12);
+  EXPECT_NEAR(offset.limit() + offset.correction() - offset.entry(), 8e-3, 1e-12);
+}
+
 TEST(ImagingPlan, ThePlanIsTheMeasuredFarSideLessTheMarginInTheMarkersFrame) {
   const pd::BoneSpecimen specimen = pd::BoneSpecimen::uniform(2e-3, 4e-3, 2e-3, 0.9, 0.3, 0.85);
   Eigen::Isometry3d marker_from_bone = Eigen::Isometry3d::Identity();

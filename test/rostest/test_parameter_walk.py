@@ -39,6 +39,7 @@ NODES = {
     'pedicle_drilling/FaultInjector': ('fault_injector.launch', 'fault_injector', []),
     'pedicle_drilling/TfPoseRelay': ('tf_pose_relay.launch', 'tf_pose_relay', []),
     'pedicle_drilling/ForceTare': ('force_tare.launch', 'force_tare', []),
+    'pedicle_drilling/TrialAction': ('trial_action.launch', 'trial_action', []),
 }
 
 # Parameters whose every value of the right type is valid (no range to leave), with the reason.
@@ -56,6 +57,8 @@ NOT_RANGED = {
     'urdf_path': 'a path; a missing file is its own rostest (simulator_bad_urdf)',
     'patient_model_path': 'a path; a broken file is its own rostest (planner_bad_model_file)',
     'trial_start_services': 'any service names',
+    'start_service': 'any service name (a missing one rejects each goal, naming it)',
+    'target_from_plan': 'bool',
 }
 # Parameters not walked one by one here, with the reason.
 SKIPPED = {
