@@ -26,7 +26,7 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import dataset  # noqa: E402
+from pd_campaign import compare, dataset, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import equivalence_tables  # noqa: E402
@@ -52,6 +52,7 @@ CAMPAIGNS = {
     'adaptive_amplitude': False, 'adaptive_amplitude_paper': False,
     'campaign_realistic': True, 'campaign_realistic_adaptive': False,
     'campaign_population': True, 'campaign_population_adaptive': False,
+    'campaign_sensor_1khz': True,
 }
 
 
@@ -118,6 +119,23 @@ def equivalence_summary(archive):
     return equivalence_block(archive).strip().splitlines()[-1] + '\n'
 
 
+def sensor_rate_block(archive):
+    """doc/experiments.md's table: the paper's bench with a 1 kHz F/T sensor against the 333 Hz
+    one (the paper campaign's 12000 rpm trials), paired seed for seed."""
+    def rows(name):
+        return [r for r in trials_csv.read_trials_csv(os.path.join(archive, name, 'trials.csv'))
+                if r['rpm'] == 12000.0]
+    lines = ['| case (12000 rpm) | 1 kHz | 333 Hz | both / only 1 kHz / only 333 Hz / neither | '
+             'McNemar p | 1 kHz - 333 Hz [95 %] |', '|---|---|---|---|---|---|']
+    for g in compare.compare(rows('campaign_sensor_1khz'), rows('campaign')):
+        low, high = g['difference_ci95']
+        lines.append('| %s | %d/%d | %d/%d | %d / %d / %d / %d | %.3g | %+.1f points [%+.1f, %+.1f] |'
+                     % (g['case'], g['successes_a'], g['pairs'], g['successes_b'], g['pairs'],
+                        g['both'], g['only_a'], g['only_b'], g['neither'], g['mcnemar_p'],
+                        100 * g['difference'], 100 * low, 100 * high))
+    return '\n'.join(lines) + '\n'
+
+
 BLOCKS = {
     'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
     'equivalence': equivalence_block,
@@ -131,6 +149,7 @@ BLOCKS = {
         population_tables.rows(os.path.join(archive, 'campaign_population')),
         os.path.join(archive, 'campaign', 'table2.csv')),
     'robustness': robustness_table,
+    'sensor_rate': sensor_rate_block,
     # doc/dataset.md's column tables: from the dataset's declaration, not the archive.
     'dataset_columns': lambda archive: dataset.columns_markdown(),
 }

@@ -48,6 +48,10 @@ for scenario in exact virtual_patient hysteresis; do
     --trials 200 --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" \
     --out "${OUT}/campaign_${scenario}"
 done
+# 2a. A 1 kHz F/T sensor on the paper's bench (scenario_sensor_1khz.yaml), paired with the
+#     333 Hz campaign above (doc/experiments.md, "A 1 kHz force sensor").
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_sensor_1khz.yaml" \
+  --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_sensor_1khz"
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_faults"
