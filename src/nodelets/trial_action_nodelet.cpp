@@ -107,7 +107,8 @@ class TrialActionNodelet : public nodelet::Nodelet {
     std::string why;
     if (!start_client_.waitForExistence(ros::Duration(params_.service_timeout_s))) {
       why = "no start service " + start_client_.getService() + " within " +
-            std::to_string(params_.service_timeout_s) + " s (is the CompensationPlanner running?)";
+            core::Range::format(params_.service_timeout_s) +
+            " s (is the CompensationPlanner running?)";
     } else if (!start_client_.call(call)) {
       why = "the call of " + start_client_.getService() + " failed";
     } else if (!call.response.success) {
@@ -221,7 +222,7 @@ class TrialActionNodelet : public nodelet::Nodelet {
     if (status_sub_.getNumPublishers() == 0 && silent > params_.planner_lost_s) {
       DrillTrialResult result = resultNow();
       result.message = "planner lost: no publisher of " + status_sub_.getTopic() + " for " +
-                       std::to_string(silent) + " s (the drill guard stops the drives)";
+                       core::Range::format(silent) + " s (the drill guard stops the drives)";
       goal_->setAborted(result, result.message);
       NODELET_ERROR("TrialAction: %s", result.message.c_str());
       goal_.reset();

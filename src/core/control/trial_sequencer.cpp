@@ -40,6 +40,19 @@ void require(bool ok, const std::string& field, const std::string& rule) {
   if (!ok) throw std::invalid_argument(field + ": " + rule);
 }
 
+/**
+ * @brief *frame_from_world for a marker sample's frame: the identity for the world frame (or
+ *        no frame), else the lookup's; false while the lookup does not know it.
+ */
+bool frameFromWorld(const std::string& frame, const std::string& world_frame,
+                    const FrameLookup& lookup, Eigen::Isometry3d* frame_from_world) {
+  if (frame.empty() || frame == world_frame) {
+    *frame_from_world = Eigen::Isometry3d::Identity();
+    return true;
+  }
+  return lookup && lookup(frame, frame_from_world);
+}
+
 }  // namespace
 
 const ParamTable<TrialSequencerParams>& TrialSequencerParams::table() {
@@ -452,10 +465,11 @@ Eigen::Vector3d TrialSequencer::boneDisplacementSinceMarker(double t) const {
 void TrialSequencer::onMarker(double now, double stamp, const std::string& frame,
                               const Eigen::Vector3d& p, const Eigen::Quaterniond& orientation,
                               const FrameLookup& lookup) {
-  if (!isRunning(phase_) && p.allFinite()) {
-    // Outside a trial: the marker's latest world pose, where a plan-aimed pose is placed.
-    Eigen::Isometry3d frame_from_world = Eigen::Isometry3d::Identity();
-    if (frame.empty() || frame == world_frame_ || (lookup && lookup(frame, &frame_from_world))) {
+  if (!isRunning(phase_)) {
+    // Outside a trial, only for a pose aimed at the plan: the marker's latest world pose.
+    Eigen::Isometry3d frame_from_world;
+    if (params_.target_from_plan && p.allFinite() &&
+        frameFromWorld(frame, world_frame_, lookup, &frame_from_world)) {
       idle_marker_.emplace(
           stamp, frame_from_world.inverse() * (Eigen::Translation3d(p) * orientation.normalized()));
     }
@@ -504,16 +518,12 @@ void TrialSequencer::registerSample(double now, double stamp, const std::string&
   }
   if (reg_count_ == 0) {
     marker_frame_ = frame;
-    if (marker_frame_.empty() || marker_frame_ == world_frame_) {
-      rotation_ = Eigen::Matrix3d::Identity();
-      frame_from_world_ = Eigen::Isometry3d::Identity();
-    } else if (!lookup || !lookup(marker_frame_, &frame_from_world_)) {
+    if (!frameFromWorld(marker_frame_, world_frame_, lookup, &frame_from_world_)) {
       log(SequencerLog::Level::kWarn,
           "waiting for the transform " + world_frame_ + " -> " + marker_frame_);
       return;
-    } else {
-      rotation_ = frame_from_world_.linear();
     }
+    rotation_ = frame_from_world_.linear();
     planner_->compensator().observeMarker(stamp, rotation_.transpose() * pos);
     if (mode_ != CompensationMode::kStationary && !planner_->compensator().ready()) {
       fail("the compensator is not ready at the registration (" +
