@@ -29,6 +29,19 @@ OUT="${PEDICLE_DRILLING_OUT:-${ROOT}/results}"
 JOBS="${JOBS:-2}"
 mkdir -p "${OUT}"
 start=$(date +%s)
+# Where make run's time goes: `section NAME` closes the running section and opens NAME; the end
+# prints each section's wall time (and writes it to ${OUT}/timings.tsv).
+SECTIONS=()
+section_start=${start}
+section_name=""
+section() {
+  local now
+  now=$(date +%s)
+  [ -z "${section_name}" ] || SECTIONS+=("${section_name}"$'\t'"$(( now - section_start ))")
+  section_name="$1"
+  section_start=${now}
+}
+section "1 paper design"
 # 1. The paper's design on the core engine (deterministic, all cores): 200 trials per case at
 #    12000 rpm, 100 at 16000 and 20000 rpm, so that the Wilson intervals span a few points.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
@@ -41,6 +54,7 @@ IDENT=(--identification "${OUT}/campaign/identification")
 # (--reuse-trials; doc/experiments.md, "Reusing trials"): the sweeps' nominal benches repeat the
 # main campaigns' first trials, the speed sweep repeats the paper bench's sweep at 12000 rpm.
 REUSE=(--reuse-trials "${OUT}")
+section "2 exact, virtual patient, hysteresis"
 # 2. Beyond the paper: the exact profile on the paper's bench; the bone moving as the virtual
 #    patient, linear vs hysteresis model.
 for scenario in exact virtual_patient hysteresis; do
@@ -48,13 +62,16 @@ for scenario in exact virtual_patient hysteresis; do
     --trials 200 --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" \
     --out "${OUT}/campaign_${scenario}"
 done
+section "2a 1 kHz sensor"
 # 2a. A 1 kHz F/T sensor on the paper's bench (scenario_sensor_1khz.yaml), paired with the
 #     333 Hz campaign above (doc/experiments.md, "A 1 kHz force sensor").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_sensor_1khz.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_sensor_1khz"
+section "2b fault campaign"
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_faults"
+section "2b' depth limit"
 # 2b'. The plan's depth limit (scenario_depth_limit*.yaml): the paper's design at 12000 rpm with
 #      the limit on; every shipped compensator (with the paper's recognizer) and every shipped
 #      recognizer (with the paper's compensator; the learned one needs a training run, see
@@ -88,11 +105,13 @@ rosrun pedicle_drilling campaign --scenario "${OUT}/depth_limit_amplitude_withou
   --compensator pedicle_drilling/TrackedMarkerCompensator --jobs "${JOBS}" "${IDENT[@]}" \
   "${REUSE[@]}" --no-figures --out "${OUT}/depth_limit_amplitude_without_plan"
 python3 "${ROOT}/scripts/dev/depth_limit_tables.py" "${OUT}" > "${OUT}/depth_limit.md"
+section "2c Fig. 16 peak forces"
 # 2c. Fig. 16's protocol (scenario_peak_forces.yaml): the recognizer observes, every trial goes
 #     through the inner layer; the force sensor at the DAQ rate calibrated against Fig. 16
 #     (doc/simulator_physics.md, "Measurement chain").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_peak_forces.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_peak_forces"
+section "2d realistic bench"
 # 2d. The realistic bench (scenario_realistic.yaml): the paper's design
 #     on the same specimens with the imperfections the simulator can express at sourced values
 #     (doc/bench_sources.md), beside the paper's bench trial by trial (campaign_compare
@@ -101,6 +120,7 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
+section "2d-1 population bench"
 # 2d-1. The population bench (scenario_population.yaml): a patient per seed who is not their
 #     model, the paper's design with the paper's compensator, and the adaptive one compensated
 #     at 12000 rpm on the same seeds (population.md; its row in adaptive.md below).
@@ -111,6 +131,7 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_population.
   --compensator pedicle_drilling/AdaptiveModelCompensator --jobs "${JOBS}" "${IDENT[@]}" \
   "${REUSE[@]}" --no-figures --out "${OUT}/campaign_population_adaptive"
 python3 "${ROOT}/scripts/dev/population_tables.py" "${OUT}" > "${OUT}/population.md"
+section "2d-2 adaptive compensator"
 # 2d-2. The AdaptiveModelCompensator beside the paper's compensator, seed for seed at 12000 rpm:
 #     the x1.3 amplitude fault (scenario_adaptive_amplitude.yaml), no fault on the paper's and the
 #     realistic bench, and 30 trials through the ROS pipeline: adaptive.md.
@@ -130,11 +151,13 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml"
   --rpm 12000 --trials 30 --engine ros "${ADAPTIVE[@]}" --jobs "${JOBS}" "${IDENT[@]}" \
   --no-figures --out "${OUT}/campaign_adaptive_ros"
 python3 "${ROOT}/scripts/dev/adaptive_tables.py" "${OUT}" > "${OUT}/adaptive.md"
+section "2d-3 robustness curves"
 # 2d-3. Robustness curves (config/robustness.yaml): both compensators against the size of the
 #     model's error in slope, lag and breathing rate, 100 trials per point on the realistic
 #     bench, paired seeds (robustness/robustness.md and its figures).
 rosrun pedicle_drilling campaign_robustness --sweep "${ROOT}/config/robustness.yaml" \
   --jobs "${JOBS}" --out "${OUT}/robustness"
+section "2e sensitivity"
 # 2e. Sensitivity of the conclusions: every uncertain constant of
 #     config/sensitivity.yaml at each end of its documented range on the paper's bench, and the
 #     realistic bench's own imperfections (config/sensitivity_realistic.yaml) on that bench, the
@@ -153,11 +176,13 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
   --sweep "${ROOT}/config/sensitivity_population.yaml" --rpm 12000 \
   --trials "${SENSITIVITY_TRIALS:-20}" --jobs "${JOBS}" "${REUSE[@]}" \
   --out "${OUT}/sensitivity_population" > /dev/null
+section "2f Fig. 15 speed sweep"
 # 2f. Fig. 15's question: the compensated case at 12000/16000/20000 rpm, 50 trials per speed,
 #     over every speed-dependent candidate (config/sensitivity_speed.yaml).
 rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario_speed.yaml" \
   --sweep "${ROOT}/config/sensitivity_speed.yaml" --jobs "${JOBS}" "${REUSE[@]}" \
   --out "${OUT}/sensitivity_speed" > /dev/null
+section "2g dataset and leaderboard"
 # 2g. The open benchmark: a small labelled dataset (doc/dataset.md; `--large` for the
 #     full one) and the leaderboard of literature baselines tuned on its training split, run in
 #     closed loop on its test split's specimens on both benches (doc/leaderboard.md; 10 trials
@@ -165,6 +190,7 @@ rosrun pedicle_drilling campaign_sensitivity --scenario "${ROOT}/config/scenario
 rosrun pedicle_drilling campaign_dataset --out "${OUT}/dataset" --jobs "${JOBS}"
 rosrun pedicle_drilling campaign_leaderboard --dataset "${OUT}/dataset" \
   --trials "${LEADERBOARD_TRIALS:-10}" --jobs "${JOBS}" --out "${OUT}/leaderboard"
+section "3 ROS pipeline agreement"
 # 3. The integration check: the first 30 trials per case of the paper's design through the full
 #    ROS pipeline, twice, trial by trial beside the core engine (the same seeds: the first 30 of
 #    the core campaign's 200). test_engine_agreement.py checks 8 such trials in make test.
@@ -208,7 +234,16 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit
     --label-a ros --label-b core
 } > "${OUT}/engine_agreement.md.tmp"
 mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
-echo "main job: done in $(( $(date +%s) - start )) s"
+section ""
+echo "main job: done in $(( $(date +%s) - start )) s; where the time went:"
+{
+  printf 'section\tseconds\n'
+  printf '%s\n' "${SECTIONS[@]}"
+} > "${OUT}/timings.tsv.tmp" && mv "${OUT}/timings.tsv.tmp" "${OUT}/timings.tsv"
+for entry in "${SECTIONS[@]}"; do
+  printf '  %-40s %6s s\n' "${entry%%$'\t'*}" "${entry##*$'\t'}"
+done
+echo "reports:"
 echo "  ${OUT}/campaign/report.md"
 echo "  ${OUT}/campaign_exact/report.md"
 echo "  ${OUT}/campaign_peak_forces/report.md"
