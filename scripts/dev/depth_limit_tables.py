@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """The plan's depth limit in a `make run` output directory (default results/): markdown tables
-on stdout, copied into doc/results.md's "The plan's depth limit" from the run, not typed.
+on stdout (make run's depth_limit.md). doc/results.md's "The plan's depth limit" has the same
+tables as generated blocks of scripts/dev/make_docs.py, from the archive in doc/results/, whose
+folders are laid out as a make run output's.
   1. the paper's design at 12000 rpm on the same seeds without the plan (campaign/, the paper's
      system as published) and with it (campaign_depth_limit/): the paper's successes (the
      recognizer's stop in the inner layer), the drill stopped in the inner layer by either line
@@ -103,7 +105,6 @@ def control_table(out):
     if not os.path.isdir(directory):
         return
     data = rows(directory)
-    print('\n## The same seeds without the plan (TrackedMarkerCompensator + PaperRecognizer)\n')
     print('| fault | trials | breakthroughs |')
     print('|---|---|---|')
     for fault in ('none', 'breathing_amplitude'):
@@ -118,7 +119,9 @@ def main(out):
     faults_table(out)
     print('\n## Fault-free and x1.3 amplitude, with the plan\n')
     amplitude_table(out)
-    control_table(out)
+    if os.path.isdir(os.path.join(out, 'depth_limit_amplitude_without_plan')):
+        print('\n## The same seeds without the plan (TrackedMarkerCompensator + PaperRecognizer)\n')
+        control_table(out)
 
 
 if __name__ == '__main__':

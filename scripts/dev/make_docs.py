@@ -26,9 +26,10 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import compare, dataset, trials_csv  # noqa: E402
+from pd_campaign import compare, dataset, report, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
+import depth_limit_tables  # noqa: E402
 import equivalence_tables  # noqa: E402
 import population_tables  # noqa: E402
 import results_tables  # noqa: E402
@@ -39,20 +40,28 @@ ARCHIVE = os.path.join(ROOT, 'doc', 'results')
 DOCUMENTS = tuple(['README.md'] + sorted(
     os.path.relpath(path, ROOT) for path in glob.glob(os.path.join(ROOT, 'doc', '*.md'))))
 BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -->)', re.S)
-# The trial columns the generated tables read (trials_csv.normalise_row needs the first five).
+# The trial columns the generated tables read (trials_csv.normalise_row needs the first five;
+# aggregate.stop_line the stop's source and reason). The reason is archived as its kind, the
+# text before its first colon ("depth_limit", "implausible force", "inner cortical layer
+# reached"), which is what stop_line reads of it.
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
-           'error')
-# The campaigns of a `make run` output the blocks read: True for the paper's design on the three
-# benches, whose summary.json and every row are read; the others give only their compensated
-# 12000 rpm rows.
+           'fault', 'stop_source', 'stop_reason', 'error')
+# The campaigns of a `make run` output the blocks read, and what of each: 'summary' (every row
+# and summary.json: the paper's design on the three benches), 'summary_only' (summary.json: the
+# fault campaign's per-fault table), 'rows' (every row) or 'compensated' (the compensated
+# 12000 rpm rows). A name ending in /* is every campaign folder
+# inside that folder (one per class pair).
 CAMPAIGNS = {
-    'campaign': True, 'campaign_adaptive': False, 'campaign_adaptive_ros': False,
-    'adaptive_amplitude': False, 'adaptive_amplitude_paper': False,
-    'campaign_realistic': True, 'campaign_realistic_adaptive': False,
-    'campaign_population': True, 'campaign_population_adaptive': False,
-    'campaign_sensor_1khz': True,
+    'campaign': 'summary', 'campaign_adaptive': 'compensated',
+    'campaign_adaptive_ros': 'compensated',
+    'adaptive_amplitude': 'compensated', 'adaptive_amplitude_paper': 'compensated',
+    'campaign_realistic': 'summary', 'campaign_realistic_adaptive': 'compensated',
+    'campaign_population': 'summary', 'campaign_population_adaptive': 'compensated',
+    'campaign_sensor_1khz': 'summary', 'campaign_faults': 'summary_only',
+    'campaign_depth_limit': 'rows', 'depth_limit_faults/*': 'rows',
+    'depth_limit_amplitude/*': 'rows', 'depth_limit_amplitude_without_plan': 'rows',
 }
 
 
@@ -150,40 +159,81 @@ BLOCKS = {
         os.path.join(archive, 'campaign', 'table2.csv')),
     'robustness': robustness_table,
     'sensor_rate': sensor_rate_block,
+    'fault_campaign': lambda archive: report.fault_table(
+        results_tables.load(os.path.join(archive, 'campaign_faults'))['faults']) + '\n',
+    'depth_limit_design': lambda archive: captured(depth_limit_tables.design_table, archive),
+    'depth_limit_faults': lambda archive: captured(depth_limit_tables.faults_table, archive),
+    'depth_limit_classes': lambda archive: captured(depth_limit_tables.amplitude_table, archive),
+    'depth_limit_control': lambda archive: captured(depth_limit_tables.control_table, archive),
     # doc/dataset.md's column tables: from the dataset's declaration, not the archive.
     'dataset_columns': lambda archive: dataset.columns_markdown(),
 }
 
 
+def campaign_folders(results):
+    """(folder relative to `results`, what to keep) for every campaign of CAMPAIGNS found there;
+    a pattern's folders are those holding a trials.csv."""
+    folders = []
+    for name, keep in CAMPAIGNS.items():
+        if name.endswith('/*'):
+            base = os.path.join(results, name[:-2])
+            inner = sorted(d for d in os.listdir(base)) if os.path.isdir(base) else []
+            folders += [(os.path.join(name[:-2], d), keep) for d in inner
+                        if os.path.isfile(os.path.join(base, d, 'trials.csv'))]
+            if not inner:
+                folders.append((name[:-2], keep))  # reported missing below
+        else:
+            folders.append((name, keep))
+    return folders
+
+
 def archive_results(results):
     """Copies what the blocks read from a `make run` output into doc/results/; nothing when a
     file is missing (SystemExit naming it)."""
-    needed = [os.path.join(name, 'trials.csv') for name in CAMPAIGNS] + [
-        os.path.join(name, 'summary.json') for name, whole in CAMPAIGNS.items() if whole] + [
+    folders = campaign_folders(results)
+    needed = [os.path.join(name, 'trials.csv') for name, keep in folders
+              if keep != 'summary_only'] + [
+        os.path.join(name, 'summary.json') for name, keep in folders
+        if keep in ('summary', 'summary_only')] + [
         os.path.join('campaign', 'table2.csv'), os.path.join('robustness', 'robustness.csv')]
     missing = [path for path in needed if not os.path.isfile(os.path.join(results, path))]
     if missing:
         sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'
                  % (results, ', '.join(missing)))
-    for name, with_summary in CAMPAIGNS.items():
-        source, target = os.path.join(results, name), os.path.join(ARCHIVE, name)
-        os.makedirs(target, exist_ok=True)
-        with open(os.path.join(source, 'trials.csv')) as handle:
-            rows = [r for r in csv.DictReader(handle) if with_summary or (
-                r['case'] == 'compensated' and float(r['rpm']) == 12000.0)]
-        with atomic_path(os.path.join(target, 'trials.csv')) as tmp, open(tmp, 'w') as out:
-            writer = csv.DictWriter(out, fieldnames=COLUMNS, extrasaction='ignore',
-                                    lineterminator='\n')
-            writer.writeheader()
-            writer.writerows(rows)
-        files = (['summary.json'] if with_summary else []) + (
-            ['table2.csv'] if name == 'campaign' else [])
-        for file_name in files:
-            with atomic_path(os.path.join(target, file_name)) as tmp:
-                shutil.copyfile(os.path.join(source, file_name), tmp)
+    for name, keep in folders:
+        archive_campaign(os.path.join(results, name), os.path.join(ARCHIVE, name), keep)
     os.makedirs(os.path.join(ARCHIVE, 'robustness'), exist_ok=True)
     with atomic_path(os.path.join(ARCHIVE, 'robustness', 'robustness.csv')) as tmp:
         shutil.copyfile(os.path.join(results, 'robustness', 'robustness.csv'), tmp)
+
+
+def archive_campaign(source, target, keep):
+    """One campaign's trial table, trimmed to the COLUMNS it has (and to its compensated
+    12000 rpm rows for 'compensated'), with its summary.json for 'summary' and 'summary_only'
+    (then alone) and Table II for the paper's campaign."""
+    os.makedirs(target, exist_ok=True)
+    if keep == 'summary_only':
+        with atomic_path(os.path.join(target, 'summary.json')) as tmp:
+            shutil.copyfile(os.path.join(source, 'summary.json'), tmp)
+        return
+    with open(os.path.join(source, 'trials.csv')) as handle:
+        reader = csv.DictReader(handle)
+        rows = [r for r in reader if keep != 'compensated' or (
+            r['case'] == 'compensated' and float(r['rpm']) == 12000.0)]
+        columns = [c for c in COLUMNS if c in reader.fieldnames]
+    for row in rows:
+        if row.get('stop_reason'):
+            row['stop_reason'] = row['stop_reason'].split(':')[0]
+    with atomic_path(os.path.join(target, 'trials.csv')) as tmp, open(tmp, 'w') as out:
+        writer = csv.DictWriter(out, fieldnames=columns, extrasaction='ignore',
+                                lineterminator='\n')
+        writer.writeheader()
+        writer.writerows(rows)
+    files = (['summary.json'] if keep == 'summary' else []) + (
+        ['table2.csv'] if os.path.basename(source) == 'campaign' else [])
+    for file_name in files:
+        with atomic_path(os.path.join(target, file_name)) as tmp:
+            shutil.copyfile(os.path.join(source, file_name), tmp)
 
 
 def regenerate(text, archive):

@@ -4,7 +4,10 @@ makes of the archive, so a number changed by hand, or data archived without `mak
 here."""
 import glob
 import os
+import shutil
 import sys
+
+import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'scripts', 'dev'))
@@ -57,3 +60,34 @@ def test_a_number_changed_by_hand_is_rebuilt_from_the_archive():
     rebuilt, names = make_docs.regenerate(tampered, make_docs.ARCHIVE)
     assert rebuilt == text
     assert 'adaptive' in names
+
+
+def test_archiving_the_archive_gives_the_archive(tmp_path, monkeypatch):
+    """doc/results/ is laid out as a make run output: archiving it again (the nested class
+    folders, the summary-only fault campaign, the trimmed columns and stop reasons included)
+    changes no file."""
+    results = tmp_path / 'results'
+    shutil.copytree(make_docs.ARCHIVE, str(results))
+    target = tmp_path / 'archive'
+    monkeypatch.setattr(make_docs, 'ARCHIVE', str(target))
+    make_docs.archive_results(str(results))
+    archived = sorted(os.path.relpath(p, make_docs.ARCHIVE) for p in glob.glob(
+        os.path.join(make_docs.ARCHIVE, '**', '*.*'), recursive=True))
+    assert archived == sorted(os.path.relpath(p, str(target)) for p in glob.glob(
+        os.path.join(str(target), '**', '*.*'), recursive=True))
+    assert any(path.startswith('depth_limit_faults' + os.sep) for path in archived)
+    for path in archived:
+        with open(os.path.join(make_docs.ARCHIVE, path), 'rb') as a, \
+                open(os.path.join(str(target), path), 'rb') as b:
+            assert a.read() == b.read(), path
+
+
+def test_an_incomplete_output_is_not_archived(tmp_path, monkeypatch):
+    results = tmp_path / 'results'
+    shutil.copytree(make_docs.ARCHIVE, str(results))
+    shutil.rmtree(str(results / 'depth_limit_amplitude'))
+    monkeypatch.setattr(make_docs, 'ARCHIVE', str(tmp_path / 'archive'))
+    with pytest.raises(SystemExit) as stop:
+        make_docs.archive_results(str(results))
+    assert 'depth_limit_amplitude' in str(stop.value)
+    assert not (tmp_path / 'archive').exists()
