@@ -26,7 +26,7 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import compare, dataset, report, trials_csv  # noqa: E402
+from pd_campaign import compare, dataset, report, stats, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import depth_limit_tables  # noqa: E402
@@ -62,6 +62,7 @@ CAMPAIGNS = {
     'campaign_sensor_1khz': 'summary', 'campaign_faults': 'summary_only',
     'campaign_depth_limit': 'rows', 'depth_limit_faults/*': 'rows',
     'depth_limit_amplitude/*': 'rows', 'depth_limit_amplitude_without_plan': 'rows',
+    'uncompensated_row/*': 'summary',
 }
 
 
@@ -145,6 +146,50 @@ def sensor_rate_block(archive):
     return '\n'.join(lines) + '\n'
 
 
+def setting_changed(meta):
+    """What a variant of the uncompensated row changed, from its summary's meta."""
+    names = {'pre_average_s': 'window %s s', 'ventilator/tv_max_ml': 'tidal volume %g ml',
+             'force_sensor_rate_hz': 'sensor %g Hz'}
+    changed = dict(meta.get('simulator_params') or {}, **(meta.get('recognizer_params') or {}))
+    return ', '.join(names.get(k, k + ' %s') % (v,) for k, v in sorted(changed.items()))
+
+
+def uncompensated_row_block(archive):
+    """doc/results.md's table: the paper's bench's 12000 rpm trials with one setting changed,
+    paired seed for seed with the paper campaign's."""
+    def rows(name):
+        return [r for r in trials_csv.read_trials_csv(os.path.join(archive, name, 'trials.csv'))
+                if r['rpm'] == 12000.0]
+    paper = rows('campaign')
+    lines = ['| variant | case | successes | breakthroughs | stopped before the inner layer | '
+             'paper\'s bench, same seeds: successes | only the variant / only the paper\'s | '
+             'McNemar p | Table III | Fisher p vs Table III |',
+             '|---|---|---|---|---|---|---|---|---|---|']
+    base = [r for r in paper if r['case'] == 'uncompensated']
+    row = report.PAPER_TABLE_III['uncompensated']
+    lines.append('| none (the paper\'s bench) | uncompensated | %d/%d | %d | %d | - | - | - | %d/%d | '
+                 '%.2g |' % (sum(r['success'] for r in base), len(base),
+                             sum(r['breakthrough'] for r in base),
+                             sum(r['failure_kind'] == 'stopped_before_inner' for r in base),
+                             row[0], row[1], stats.fisher_exact(
+                                 sum(r['success'] for r in base), len(base), *row)))
+    for folder in sorted(glob.glob(os.path.join(archive, 'uncompensated_row', '*', ''))):
+        name = os.path.basename(os.path.dirname(folder))
+        variant = rows(os.path.join('uncompensated_row', name))
+        changed = setting_changed(results_tables.load(folder)['meta'])
+        for g in compare.compare(variant, paper):
+            group = [r for r in variant if r['case'] == g['case']]
+            paper_row = report.PAPER_TABLE_III[g['case']]
+            lines.append('| %s | %s | %d/%d | %d | %d | %d/%d | %d / %d | %.2g | %d/%d | %.2g |' % (
+                changed, g['case'], g['successes_a'], g['pairs'],
+                sum(r['breakthrough'] for r in group),
+                sum(r['failure_kind'] == 'stopped_before_inner' for r in group),
+                g['successes_b'], g['pairs'], g['only_a'], g['only_b'], g['mcnemar_p'],
+                paper_row[0], paper_row[1],
+                stats.fisher_exact(g['successes_a'], g['pairs'], *paper_row)))
+    return '\n'.join(lines) + '\n'
+
+
 BLOCKS = {
     'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
     'equivalence': equivalence_block,
@@ -161,6 +206,7 @@ BLOCKS = {
     'sensor_rate': sensor_rate_block,
     'fault_campaign': lambda archive: report.fault_table(
         results_tables.load(os.path.join(archive, 'campaign_faults'))['faults']) + '\n',
+    'uncompensated_row': uncompensated_row_block,
     'depth_limit_design': lambda archive: captured(depth_limit_tables.design_table, archive),
     'depth_limit_faults': lambda archive: captured(depth_limit_tables.faults_table, archive),
     'depth_limit_classes': lambda archive: captured(depth_limit_tables.amplitude_table, archive),

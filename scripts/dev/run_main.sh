@@ -7,7 +7,8 @@
 #      and the bone moving as the virtual patient (lag, drift, small movements), compensated
 #      with the paper's linear model (scenario_virtual_patient.yaml) and with the
 #      hysteresis-aware model (scenario_hysteresis.yaml), 12000 rpm, 200 trials each (core);
-#      the fault campaign (200 trials per fault); the plan's depth limit (the paper's design
+#      the 1 kHz sensor; Table III's uncompensated row with one setting changed at a time
+#      (uncompensated_row/); the fault campaign (200 trials per fault); the plan's depth limit (the paper's design
 #      with it, every shipped class through every fault with it: depth_limit.md); Fig. 16's protocol at the calibrated sensor
 #      rate (scenario_peak_forces.yaml, 200 trials per case); the realistic bench
 #      (scenario_realistic.yaml, the paper's design), compared with the paper's bench
@@ -67,6 +68,32 @@ section "2a 1 kHz sensor"
 #     333 Hz campaign above (doc/experiments.md, "A 1 kHz force sensor").
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_sensor_1khz.yaml" \
   --jobs "${JOBS}" "${IDENT[@]}" --out "${OUT}/campaign_sensor_1khz"
+section "2a' uncompensated row"
+# 2a'. Table III's uncompensated row by experiment (scenario_uncompensated_row.yaml): the paper's
+#      bench's uncompensated case on the paper campaign's 200 seeds at 12000 rpm, one setting
+#      changed at a time (each folder's summary.json records it): the recognizer's window in
+#      time, the breathing stroke (the set tidal volume), the 1 kHz sensor with a short window,
+#      and a short window on a smaller stroke (doc/results.md, "The uncompensated row").
+ROW="${OUT}/uncompensated_row"
+mkdir -p "${ROW}"
+row() {  # row NAME SIMULATOR_PARAMS [campaign options]
+  local name="$1" params="$2"
+  shift 2
+  { cat "${ROOT}/config/scenario_uncompensated_row.yaml"; echo "simulator_params: ${params}"; } \
+    > "${ROW}/${name}.yaml"
+  rosrun pedicle_drilling campaign --scenario "${ROW}/${name}.yaml" --jobs "${JOBS}" "${IDENT[@]}" \
+    "${REUSE[@]}" --no-figures --out "${ROW}/${name}" "$@"
+}
+for window in 0.05 0.10 0.30; do
+  row "window_${window}s" "{}" --recognizer-param "pre_average_s=${window}"
+done
+row stroke_x0.8 "{ventilator/tv_max_ml: 400.0}"
+row stroke_x0.6 "{ventilator/tv_max_ml: 300.0}"
+row sensor_1khz_window_0.05s "{force_sensor_rate_hz: 1000.0}" --recognizer-param pre_average_s=0.05
+row stroke_x0.8_window_0.05s "{ventilator/tv_max_ml: 400.0}" --recognizer-param pre_average_s=0.05
+# What the short window costs where the drill follows the bone, or the bone stands still.
+row window_0.05s_stationary_compensated "{}" --recognizer-param pre_average_s=0.05 \
+  --case stationary,compensated
 section "2b fault campaign"
 # 2b. Fail safe: the fault campaign (scenario_faults.yaml), every fault on 200 evaluation seeds.
 rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_faults.yaml" \
