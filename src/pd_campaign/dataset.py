@@ -27,7 +27,8 @@ evaluation seeds (the test split), and writes
 The protocol is the paper's peak-force protocol (Sec. V-D): the recognizer observes and every
 trial drills through the inner cortical layer, so every trial holds every layer. The split: the
 calibration-space trials whose index is 3 modulo 4 form the validation split, the other ones the
-training split; the test split is the evaluation-space trials only."""
+training split; the test split is the evaluation-space trials only. A calibration-space trial
+under a hidden condition (HIDDEN_VOLUNTEERS, SEEN_DENSITY_RANGE) is in neither."""
 
 import hashlib
 import json
@@ -146,6 +147,70 @@ def split_of(seed_space, index):
     if seed_space != 'calibration':
         raise ValueError('seed space %r is neither calibration nor evaluation' % seed_space)
     return 'validation' if int(index) % VALIDATION_MODULUS == VALIDATION_MODULUS - 1 else 'train'
+
+
+# The hidden conditions: specimens whose breathing pattern or bone density the training and
+# validation splits never hold. A calibration-space trial under a hidden condition is left out of
+# both (split.json lists it under `hidden`); an evaluation-space one stays in the test split
+# (listed under `test_hidden`) and the leaderboard's hidden-condition board is made of such
+# trials. The breathing pattern is the virtual volunteer's: volunteer 4, the one whose motion
+# departs most from the linear model (the widest hysteresis loop, Table II: AP R2 0.927 linear,
+# doc/identification.md). The bone density is the specimen's outer-cortex true peak thrust
+# (specimen_densities) over the reference at its speed (the stationary medians of
+# doc/simulator_physics.md, section 2; the BV/TV the simulator draws is not in trials.csv); a
+# ratio outside SEEN_DENSITY_RANGE (about 1.5 sd of the per-specimen cortical BV/TV each way) is
+# hidden. Fixed by the specimen, never by an outcome.
+HIDDEN_VOLUNTEERS = (4,)
+DENSITY_REFERENCE_N = ((12000.0, 3.16), (16000.0, 2.99), (20000.0, 2.88))
+SEEN_DENSITY_RANGE = (0.94, 1.06)
+
+
+def density_reference(rpm):
+    """The reference outer-cortex peak thrust [N] at a spindle speed (linear in between, the
+    ends held outside)."""
+    speeds, forces = zip(*DENSITY_REFERENCE_N)
+    return float(np.interp(float(rpm), speeds, forces))
+
+
+def specimen_densities(rows):
+    """{(rpm, seed): density ratio} of the specimens of trial rows (dicts with rpm, seed, case
+    and f_out_truth_n; a seed is one specimen at a speed, whatever the case): the median outer
+    cortex true peak of its stationary and compensated trials (the uncompensated thrust carries
+    the breathing; all of its trials when it has neither) over density_reference()."""
+    found = {}
+    for row in rows:
+        value = row.get('f_out_truth_n')
+        try:
+            value = float(value)
+        except (TypeError, ValueError):
+            continue
+        if not np.isfinite(value):
+            continue
+        key = (float(row['rpm']), int(row['seed']))
+        still = row.get('case') in ('stationary', 'compensated')
+        found.setdefault(key, ([], []))[0 if still else 1].append(value)
+    return {key: float(np.median(still or moving)) / density_reference(key[0])
+            for key, (still, moving) in found.items()}
+
+
+def hidden_reason(volunteer_id, density):
+    """Why a specimen's conditions are hidden ('breathing ...', 'density ...'), or None."""
+    reasons = []
+    try:
+        if int(volunteer_id) in HIDDEN_VOLUNTEERS:
+            reasons.append('breathing of volunteer %d' % int(volunteer_id))
+    except (TypeError, ValueError):
+        pass
+    low, high = SEEN_DENSITY_RANGE
+    if density is not None and not low <= density <= high:
+        reasons.append('density %.3f x the reference' % density)
+    return '; '.join(reasons) or None
+
+
+def hidden_rule():
+    """The hidden conditions as split.json and the leaderboard record them."""
+    return {'volunteers': list(HIDDEN_VOLUNTEERS), 'seen_density_range': list(SEEN_DENSITY_RANGE),
+            'density_reference_n': [list(pair) for pair in DENSITY_REFERENCE_N]}
 
 
 def convert(kind, text):
