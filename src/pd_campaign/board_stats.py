@@ -89,9 +89,11 @@ def tertile_edges(values):
     return [float(v) for v in np.quantile(values, [1.0 / 3.0, 2.0 / 3.0])]
 
 
-def stratum_edges(train_npz):
+def stratum_edges(train_npz, references=None):
     """The strata's edges, from the training split's trial table (never the test split's):
-    the tertiles of its specimens' density ratios and inner-cortex thicknesses."""
+    the tertiles of its specimens' density ratios (over `references`, the dataset's
+    [[rpm, N]]; default the training specimens' own medians) and inner-cortex thicknesses;
+    and the references under 'references'."""
     with np.load(train_npz) as z:
         rows = [{'rpm': rpm, 'seed': int(seed), 'case': case, 'f_out_truth_n': f,
                  'inner_cortical_mm': thick}
@@ -99,8 +101,11 @@ def stratum_edges(train_npz):
                     z['trial_rpm'], z['trial_seed'], z['trial_case'], z['trial_f_out_truth_n'],
                     z['trial_inner_cortical_mm'])]
     thickness = {specimen_key(r): float(r['inner_cortical_mm']) for r in rows}
-    return {'bone density': tertile_edges(list(dataset.specimen_densities(rows).values())),
-            'inner cortex thickness': tertile_edges(list(thickness.values()))}
+    references = references or dataset.density_references(dataset.specimen_peaks(rows))
+    return {'bone density': tertile_edges(list(dataset.specimen_densities(
+                rows, references).values())),
+            'inner cortex thickness': tertile_edges(list(thickness.values())),
+            'references': references}
 
 
 def _band(value, edges, unit, pattern):
@@ -118,7 +123,7 @@ def strata_of(rows_by_entry, edges):
     dataset.specimen_densities over every entry's trials), inner-cortex thickness band and
     speed; bands cut at `edges` (stratum_edges)."""
     every = [r for rows in rows_by_entry.values() for r in rows if _ok(r)]
-    densities = dataset.specimen_densities(every)
+    densities = dataset.specimen_densities(every, edges.get('references'))
     thickness = {specimen_key(r): r.get('inner_cortical_mm') for r in every}
     out = {}
     for key in {specimen_key(r) for r in every}:
@@ -160,7 +165,7 @@ def hidden_board(rows_by_entry, rule):
     if not rule:
         return None, {}
     every = [r for rows in rows_by_entry.values() for r in rows if _ok(r)]
-    densities = dataset.specimen_densities(every)
+    densities = dataset.specimen_densities(every, rule.get('density_reference_n'))
     low, high = rule['seen_density_range']
     reasons = {}
     for r in every:

@@ -156,32 +156,23 @@ def split_of(seed_space, index):
 # trials. The breathing pattern is the virtual volunteer's: volunteer 4, the one whose motion
 # departs most from the linear model (the widest hysteresis loop, Table II: AP R2 0.927 linear,
 # doc/identification.md). The bone density is the specimen's outer-cortex true peak thrust
-# (specimen_densities) over the reference at its speed (the stationary medians of
-# doc/simulator_physics.md, section 2; the BV/TV the simulator draws is not in trials.csv); a
-# ratio outside SEEN_DENSITY_RANGE (about 1.5 sd of the per-specimen cortical BV/TV each way) is
-# hidden. Fixed by the specimen, never by an outcome.
+# (specimen_peaks; the BV/TV the simulator draws is not in trials.csv) over the reference at its
+# speed: the median of the calibration-space specimens' peaks there (density_references,
+# recorded in split.json's rule); a ratio outside SEEN_DENSITY_RANGE (about 1.8 sd of the
+# specimens' spread each way) is hidden. Fixed by the specimen, never by an outcome.
 HIDDEN_VOLUNTEERS = (4,)
-DENSITY_REFERENCE_N = ((12000.0, 3.16), (16000.0, 2.99), (20000.0, 2.88))
-SEEN_DENSITY_RANGE = (0.94, 1.06)
+SEEN_DENSITY_RANGE = (0.92, 1.08)
 
 
-def density_reference(rpm):
-    """The reference outer-cortex peak thrust [N] at a spindle speed (linear in between, the
-    ends held outside)."""
-    speeds, forces = zip(*DENSITY_REFERENCE_N)
-    return float(np.interp(float(rpm), speeds, forces))
-
-
-def specimen_densities(rows):
-    """{(rpm, seed): density ratio} of the specimens of trial rows (dicts with rpm, seed, case
-    and f_out_truth_n; a seed is one specimen at a speed, whatever the case): the median outer
-    cortex true peak of its stationary and compensated trials (the uncompensated thrust carries
-    the breathing; all of its trials when it has neither) over density_reference()."""
+def specimen_peaks(rows):
+    """{(rpm, seed): outer-cortex true peak [N]} of the specimens of trial rows (dicts with rpm,
+    seed, case and f_out_truth_n; a seed is one specimen at a speed, whatever the case): the
+    median of its stationary and compensated trials' f_out_truth_n (the uncompensated thrust
+    carries the breathing; all of its trials when it has neither)."""
     found = {}
     for row in rows:
-        value = row.get('f_out_truth_n')
         try:
-            value = float(value)
+            value = float(row.get('f_out_truth_n'))
         except (TypeError, ValueError):
             continue
         if not np.isfinite(value):
@@ -189,8 +180,27 @@ def specimen_densities(rows):
         key = (float(row['rpm']), int(row['seed']))
         still = row.get('case') in ('stationary', 'compensated')
         found.setdefault(key, ([], []))[0 if still else 1].append(value)
-    return {key: float(np.median(still or moving)) / density_reference(key[0])
-            for key, (still, moving) in found.items()}
+    return {key: float(np.median(still or moving)) for key, (still, moving) in found.items()}
+
+
+def density_references(peaks):
+    """[[rpm, reference peak N]]: the median specimen peak (specimen_peaks) per speed."""
+    speeds = sorted({rpm for rpm, _ in peaks})
+    return [[rpm, float(np.median([v for (r, _), v in peaks.items() if r == rpm]))]
+            for rpm in speeds]
+
+
+def specimen_densities(rows, references=None):
+    """{(rpm, seed): density ratio}: each specimen's peak over the reference at its speed
+    (`references` [[rpm, N]], linear in between and held beyond the ends; default: the rows'
+    own density_references)."""
+    peaks = specimen_peaks(rows)
+    references = references or density_references(peaks)
+    if not references:
+        return {}
+    speeds, forces = zip(*sorted((float(r), float(f)) for r, f in references))
+    return {key: value / float(np.interp(key[0], speeds, forces))
+            for key, value in peaks.items()}
 
 
 def hidden_reason(volunteer_id, density):
@@ -207,10 +217,11 @@ def hidden_reason(volunteer_id, density):
     return '; '.join(reasons) or None
 
 
-def hidden_rule():
-    """The hidden conditions as split.json and the leaderboard record them."""
+def hidden_rule(references):
+    """The hidden conditions as split.json and the leaderboard record them, with the density
+    references (density_references of the calibration-space specimens)."""
     return {'volunteers': list(HIDDEN_VOLUNTEERS), 'seen_density_range': list(SEEN_DENSITY_RANGE),
-            'density_reference_n': [list(pair) for pair in DENSITY_REFERENCE_N]}
+            'density_reference_n': [list(pair) for pair in references]}
 
 
 def convert(kind, text):

@@ -15,24 +15,30 @@ from pd_campaign import croissant, dataset_files, tools
 from pd_campaign.atomic import atomic_write
 from pd_campaign.dataset import (FORMAT_VERSION, PACKAGE_ROOT, SAMPLE_COLUMNS, SPLITS,
                                  TRIAL_FIELDS, VALIDATION_MODULUS, columns_markdown, convert,
-                                 HIDDEN_VOLUNTEERS, SEEN_DENSITY_RANGE, hidden_reason,
-                                 hidden_rule, specimen_densities, split_of)
+                                 HIDDEN_VOLUNTEERS, SEEN_DENSITY_RANGE, density_references,
+                                 hidden_reason, hidden_rule, specimen_densities, specimen_peaks,
+                                 split_of)
 from pd_campaign.design import SEED_SPACE_BIT
 from pd_campaign.scenario import Scenario
 
 
 def _trial_rows(run_dirs):
     """({split: [(trials.csv row, samples .npy path)]} in (rpm, index, case) order, {'hidden':
-    [(trial id, seed, reason)], 'test_hidden': [...]}). A trial that errored is left out (its
-    row stays in its campaign's trials.csv); so is a calibration-space trial under a hidden
-    condition (dataset.hidden_reason: its specimen's breathing or density), which no training or
-    validation trial may hold; an evaluation-space one stays in the test split, listed."""
+    [(trial id, seed, reason)], 'test_hidden': [...], 'references': [[rpm, N]]}). A trial that
+    errored is left out (its row stays in its campaign's trials.csv); so is a calibration-space
+    trial under a hidden condition (dataset.hidden_reason: its specimen's breathing, or its
+    density against the calibration specimens' references), which no training or validation
+    trial may hold; an evaluation-space one stays in the test split, listed."""
     tables = {split: [] for split in SPLITS}
-    hidden = {'hidden': [], 'test_hidden': []}
+    runs = []
     for run_dir in run_dirs:
         with open(os.path.join(run_dir, 'trials.csv'), newline='') as handle:
-            rows = [row for row in csv.DictReader(handle) if not row.get('error')]
-        densities = specimen_densities(rows)
+            runs.append((run_dir, [row for row in csv.DictReader(handle) if not row.get('error')]))
+    references = density_references(specimen_peaks(
+        [row for _, rows in runs for row in rows if row['seed_space'] == 'calibration']))
+    hidden = {'hidden': [], 'test_hidden': [], 'references': references}
+    for run_dir, rows in runs:
+        densities = specimen_densities(rows, references)
         for row in rows:
             path = os.path.join(run_dir, 'samples', row['trial_id'] + '.npy')
             if not os.path.isfile(path):
@@ -138,9 +144,9 @@ def _datasheet_rest(meta):
             'seed set; doc/experiments.md, "Seed spaces") is the test split; calibration-space '
             'trials whose index is 3 modulo 4 are the validation split, the others the training '
             'split. Hidden conditions: a calibration-space trial whose specimen breathes as '
-            'volunteer %s or whose bone density (its outer cortex\'s true peak over the '
-            'reference at its speed) lies outside %.2f-%.2f is in neither (`split.json`: '
-            '`hidden`); evaluation-space ones stay in the test split (`test_hidden`), for the '
+            'volunteer %s or whose bone density (its outer cortex\'s true peak over the median '
+            'of the calibration specimens at its speed) lies outside %.2f-%.2f is in neither '
+            '(`split.json`: `hidden`); evaluation-space ones stay in the test split (`test_hidden`), for the '
             'leaderboard\'s hidden-condition board. `split.json` lists every split\'s trial ids '
             'and seeds.' % (', '.join(str(v) for v in HIDDEN_VOLUNTEERS),
                            SEEN_DENSITY_RANGE[0], SEEN_DENSITY_RANGE[1]), '',
@@ -265,8 +271,9 @@ def main(argv=None):
                            'validation_modulus': VALIDATION_MODULUS,
                            'protocol': meta['protocol'], 'dataset_version': writer.version,
                            'build_id': meta['package']['build_id'],
-                           'hidden_conditions': hidden_rule()}
-        for name, items in counts['hidden'].items():
+                           'hidden_conditions': hidden_rule(counts['hidden']['references'])}
+        for name in ('hidden', 'test_hidden'):
+            items = counts['hidden'][name]
             listing[name] = [{'trial_id': i, 'seed': s, 'reason': r} for i, s, r in items]
         json.dump(listing, handle, indent=1)
     with atomic_write(os.path.join(args.out, dataset_files.DATASHEET_NAME)) as handle:

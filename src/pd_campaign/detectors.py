@@ -43,9 +43,10 @@ class GaussianProcessRecognizer(Recognizer):
     paper's recognizer averages), each against the feed travelled since contact (`feed_mm_s`
     times the time since the first block above `contact_n`). A GP with a constant mean, a
     squared-exponential kernel (`length_mm`) and white noise is fitted to the last `window`
-    blocks and predicts the next one; the signal and noise sds are estimated from the window
-    itself (model-free: its sd and its successive differences' sd / sqrt 2, the noise at least
-    `min_noise_n`). A block is a surprise when it lies more than `z` predictive sds from the
+    blocks but the newest `lead` and predicts the current one (a rise spread over the drill's
+    cone, a few blocks long, is then a surprise, where a GP fitted up to the block before follows
+    it); the signal and noise sds are estimated from the fitted blocks themselves (model-free:
+    their sd and their successive differences' sd / sqrt 2, the noise at least `min_noise_n`). A block is a surprise when it lies more than `z` predictive sds from the
     prediction. Logic: idle until contact; outer cortex, its level the highest block mean; a
     surprising fall below `cancellous_ratio` x that level: the cancellous bone (the GP
     restarts there); then `confirm` consecutive surprising rises above `inner_ratio` x the outer
@@ -56,7 +57,8 @@ class GaussianProcessRecognizer(Recognizer):
         'contact_n': (float, 0.3, positive),
         'feed_mm_s': (float, 0.5, positive),
         'window': (int, 12, at_least(3)),
-        'length_mm': (float, 0.3, positive),
+        'lead': (int, 4, at_least(0)),
+        'length_mm': (float, 0.5, positive),
         'min_noise_n': (float, 0.03, positive),
         'z': (float, 2.5, positive),
         'cancellous_ratio': (float, 0.6, fraction),
@@ -90,13 +92,15 @@ class GaussianProcessRecognizer(Recognizer):
                 'last_key_point': KEY_POINTS[self.state], 'stop': self.state == 'inner_cortical'}
 
     def _surprise(self, x, y):
-        """The block's standardized residual against the window's GP (0 while too few)."""
-        if len(self.ys) < 3:
+        """The block's standardized residual against the GP of the window but its newest `lead`
+        blocks (0 while fewer than 3 remain)."""
+        kept = len(self.ys) - self.params['lead']
+        if kept < 3:
             return 0.0
-        ys = np.asarray(self.ys)
+        ys = np.asarray(self.ys[:kept])
         noise = max(self.params['min_noise_n'], float(np.std(np.diff(ys))) / math.sqrt(2.0))
         signal = max(float(np.std(ys)), noise)
-        mu, sd = gp_predict(self.xs, ys, x, self.params['length_mm'], signal, noise)
+        mu, sd = gp_predict(self.xs[:kept], ys, x, self.params['length_mm'], signal, noise)
         return (y - mu) / sd
 
     def _block(self, x, y, t):

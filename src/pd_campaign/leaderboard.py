@@ -362,7 +362,7 @@ def extras_markdown(bench, extra, args):
             + ['', '### Strata on the %s bench' % bench, '',
                'Correct stops per band, the cases pooled (Wilson 95 %); the bands\' edges are the '
                'tertiles of the training split\'s specimens (bone density: the outer cortex\'s '
-               'true peak thrust over the reference at its speed).', '']
+               'true peak thrust over the dataset\'s reference at its speed).', '']
             + board_stats.strata_markdown(extra['strata'])
             + ['', '### Hidden-condition board on the %s bench' % bench, '',
                'The specimens whose breathing pattern or bone density the training and '
@@ -538,7 +538,9 @@ def main(argv=None):
     args.cases = config.get('cases') or list(design.CASES)
     args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
     args.trials = args.trials or test_per_case
-    args.strata_edges = board_stats.stratum_edges(os.path.join(args.dataset, 'train.npz'))
+    args.strata_edges = board_stats.stratum_edges(
+        os.path.join(args.dataset, 'train.npz'),
+        (meta.get('hidden_conditions') or {}).get('density_reference_n'))
     args.extras = {}
     benches = args.bench or list(config['benches'])
     for bench in benches:

@@ -12,6 +12,7 @@ import pytest
 from pd_campaign import board_stats, dataset, dataset_build
 
 CASES = ('stationary', 'uncompensated', 'compensated')
+REFERENCES = [[12000.0, 3.16], [16000.0, 2.99], [20000.0, 2.88]]
 
 
 def rows(successes, volunteer=1, density_n=3.16, thickness=2.1, rpm=12000.0, seeds=None):
@@ -69,7 +70,8 @@ def test_the_strata_cut_density_thickness_and_speed_at_the_training_edges():
     by_entry = {'a': rows([(1, 1, 1)], density_n=3.0, thickness=1.8, seeds={0: 1})
                 + rows([(1, 0, 1)], density_n=3.3, thickness=2.5, seeds={0: 2})
                 + rows([(0, 0, 0)], rpm=16000.0, density_n=2.99, seeds={0: 3})}
-    edges = {'bone density': [0.97, 1.02], 'inner cortex thickness': [2.0, 2.2]}
+    edges = {'bone density': [0.97, 1.02], 'inner cortex thickness': [2.0, 2.2],
+             'references': REFERENCES}
     table = board_stats.strata_table(by_entry, edges)
     cell = {(r['stratum'], r['band']): (r['correct'], r['n']) for r in table}
     assert cell[('bone density', '1 low (< 0.970 x the reference)')] == (3, 3)  # 3.0 / 3.16
@@ -82,9 +84,16 @@ def test_the_strata_cut_density_thickness_and_speed_at_the_training_edges():
 
 
 def test_the_density_of_a_specimen_ignores_the_breathing_thrust():
-    found = dataset.specimen_densities(rows([(1, 1, 1)], density_n=3.16 * 1.1))
+    found = dataset.specimen_densities(rows([(1, 1, 1)], density_n=3.16 * 1.1), REFERENCES)
     assert found == {(12000.0, 100): pytest.approx(1.1)}
-    assert dataset.density_reference(14000) == pytest.approx(0.5 * (3.16 + 2.99))
+    found = dataset.specimen_densities(rows([(1, 1, 1)], rpm=14000.0, density_n=3.075),
+                                       REFERENCES)
+    assert found == {(14000.0, 100): pytest.approx(1.0)}  # halfway between 12000 and 16000
+    # Without references: the median of the rows' own specimens per speed.
+    own = rows([(1, 1, 1)], density_n=3.0, seeds={0: 1}) + rows(
+        [(1, 1, 1)], density_n=3.3, seeds={0: 2}) + rows([(1, 1, 1)], density_n=3.2, seeds={0: 3})
+    assert dataset.density_references(dataset.specimen_peaks(own)) == [[12000.0, 3.2]]
+    assert dataset.specimen_densities(own)[(12000.0, 1)] == pytest.approx(3.0 / 3.2)
     assert board_stats.tertile_edges([1.0, 2.0]) is None
 
 
@@ -95,7 +104,7 @@ def test_the_hidden_board_separates_hidden_breathing_and_density():
     breathing = rows([(0, 0, 0)], volunteer=4, seeds={0: 2})
     dense = rows([(1, 0, 0)], density_n=3.5, seeds={0: 3})
     board, reasons = board_stats.hidden_board({'a': seen + breathing + dense},
-                                              dataset.hidden_rule())
+                                              dataset.hidden_rule(REFERENCES))
     assert reasons == {(12000.0, 2): 'breathing of volunteer 4',
                        (12000.0, 3): 'density 1.108 x the reference'}
     uncompensated = [r for r in board if r['case'] == 'uncompensated'][0]
@@ -124,21 +133,23 @@ def _campaign(folder, space, specimens):
 
 def test_hidden_conditions_are_kept_out_of_the_training_and_validation_splits(tmp_path):
     calibration, evaluation = str(tmp_path / 'calibration'), str(tmp_path / 'evaluation')
-    # Calibration: index 0 seen, 1 breathes as volunteer 4, 2 too dense, 3 (validation) seen,
-    # 7 (validation) too light.
+    # Calibration (the reference, their median: 3.16 N): index 0 seen, 1 breathes as volunteer
+    # 4, 2 too dense, 3 (validation) seen, 7 (validation) too light.
     _campaign(calibration, 'calibration', [(0, 1, 3.16), (1, 4, 3.16), (2, 2, 3.5),
                                            (3, 3, 3.1), (7, 5, 2.8)])
-    _campaign(evaluation, 'evaluation', [(0, 4, 3.16), (1, 1, 3.2)])
+    _campaign(evaluation, 'evaluation', [(0, 4, 3.16), (1, 1, 3.2), (2, 1, 3.45)])
     tables, hidden = dataset_build._trial_rows([calibration, evaluation])
     ids = {split: {(row['index'], row['case']) for row, _ in items}
            for split, items in tables.items()}
     assert {index for index, _ in ids['train']} == {'0'}
     assert {index for index, _ in ids['validation']} == {'3'}
-    assert {index for index, _ in ids['test']} == {'0', '1'}  # the test split keeps them
+    assert {index for index, _ in ids['test']} == {'0', '1', '2'}  # the test split keeps them
     assert sorted({(i[-3:], r) for i, _, r in hidden['hidden']}) == [
         ('001', 'breathing of volunteer 4'), ('002', 'density 1.108 x the reference'),
         ('007', 'density 0.886 x the reference')]
     assert {(i[-3:], r) for i, _, r in hidden['test_hidden']} == {
-        ('000', 'breathing of volunteer 4')}
+        ('000', 'breathing of volunteer 4'), ('002', 'density 1.092 x the reference')}
+    assert hidden['references'] == [[12000.0, 3.16]]  # from the calibration specimens only
     # The rule recorded in split.json is the one the leaderboard applies.
-    assert json.loads(json.dumps(dataset.hidden_rule()))['volunteers'] == [4]
+    rule = json.loads(json.dumps(dataset.hidden_rule(hidden['references'])))
+    assert rule['volunteers'] == [4] and rule['density_reference_n'] == [[12000.0, 3.16]]
