@@ -166,9 +166,10 @@ SEEN_DENSITY_RANGE = (0.92, 1.08)
 
 def specimen_peaks(rows):
     """{(rpm, seed): outer-cortex true peak [N]} of the specimens of trial rows (dicts with rpm,
-    seed, case and f_out_truth_n; a seed is one specimen at a speed, whatever the case): the
-    median of its stationary and compensated trials' f_out_truth_n (the uncompensated thrust
-    carries the breathing; all of its trials when it has neither)."""
+    seed, case and f_out_truth_n; a seed is one specimen at a speed, whatever the case or the
+    recognizer): the highest f_out_truth_n of its stationary trials (a trial stopped inside the
+    outer cortex records a lower, partial peak), else of its compensated ones, else the median
+    of its trials (the uncompensated thrust carries the breathing)."""
     found = {}
     for row in rows:
         try:
@@ -178,9 +179,10 @@ def specimen_peaks(rows):
         if not np.isfinite(value):
             continue
         key = (float(row['rpm']), int(row['seed']))
-        still = row.get('case') in ('stationary', 'compensated')
-        found.setdefault(key, ([], []))[0 if still else 1].append(value)
-    return {key: float(np.median(still or moving)) for key, (still, moving) in found.items()}
+        kind = {'stationary': 0, 'compensated': 1}.get(row.get('case'), 2)
+        found.setdefault(key, ([], [], []))[kind].append(value)
+    return {key: float(max(still) if still else max(followed) if followed else np.median(moving))
+            for key, (still, followed, moving) in found.items()}
 
 
 def density_references(peaks):

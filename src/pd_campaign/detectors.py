@@ -132,7 +132,9 @@ class ForceDropRecognizer(Recognizer):
     """Transient force-drop detector on the F/T thrust (Zhu et al. 2026): a moving average of
     `window` raw samples; a transient drop is the average falling by more than `drop_ratio` of
     its running peak (a peak above `contact_n`) within `drop_time_s` of that peak. The first
-    drop is the outer cortex's breakthrough into the cancellous bone. `stop_on`: `drop` stops
+    drop that the average then stays below for `hold` samples is the outer cortex's breakthrough
+    into the cancellous bone (a shorter dip is the compensated drill's ripple in the outer
+    cortex, not a layer). `stop_on`: `drop` stops
     at the next drop, the inner cortex's breakthrough (the detector as published: a
     breakthrough detector, late for this task's stop layer); `recovery` stops when the average
     after the first drop recovers to `recovery_ratio` x the first drop's peak for `confirm`
@@ -144,6 +146,7 @@ class ForceDropRecognizer(Recognizer):
         'contact_n': (float, 0.3, positive),
         'drop_ratio': (float, 0.3, fraction),
         'drop_time_s': (float, 1.0, positive),
+        'hold': (int, 150, at_least(1)),
         'stop_on': (str, 'recovery', lambda v: v in ('drop', 'recovery')),
         'recovery_ratio': (float, 0.8, lambda v: math.isfinite(v) and 0 < v <= 2),
         'confirm': (int, 30, at_least(1)),
@@ -156,6 +159,8 @@ class ForceDropRecognizer(Recognizer):
         self.state = 'idle'
         self.peak, self.peak_t = 0.0, None
         self.first_peak = None
+        self.drop_peak = None  # the peak of a first drop not yet held for `hold` samples
+        self.below = 0
         self.above = 0
         self.average = 0.0
         self.stopped_at = None
@@ -196,10 +201,7 @@ class ForceDropRecognizer(Recognizer):
         if self.state == 'idle' and average > p['contact_n']:
             self.state = 'outer_cortical'
         if self.state == 'outer_cortical':
-            peak = self.peak
-            if self._dropped(t, average):
-                self.state, self.first_peak = 'cancellous', peak
-                self.peak, self.peak_t = average, t
+            self._first_drop(t, average)
         elif self.state == 'cancellous':
             if p['stop_on'] == 'drop':
                 done = self._dropped(t, average) and self.peak > p['recovery_ratio'] * \
@@ -210,6 +212,21 @@ class ForceDropRecognizer(Recognizer):
                 done = self.above >= p['confirm']
             if done:
                 self.state, self.stopped_at = 'inner_cortical', t
+
+    def _first_drop(self, t, average):
+        """The outer cortex: a transient drop, then `hold` samples below its level."""
+        if self.drop_peak is not None:
+            if average < (1.0 - self.params['drop_ratio']) * self.drop_peak:
+                self.below += 1
+            else:
+                self.drop_peak = None  # a dip, not the cancellous bone: the peak goes on
+        else:
+            peak = self.peak
+            if self._dropped(t, average):
+                self.drop_peak, self.below = peak, 1
+        if self.drop_peak is not None and self.below >= self.params['hold']:
+            self.state, self.first_peak = 'cancellous', self.drop_peak
+            self.peak, self.peak_t = average, t
 
     def stop_reason(self):
         what = ('a second transient force drop (the inner cortex\'s breakthrough)'
