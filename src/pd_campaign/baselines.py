@@ -10,6 +10,8 @@ harness that scores any recognizer on the dataset with the very objects the clos
   split, the best of those chosen.
 - ``ChangePointRecognizer``: Bayesian online change-point detection (Adams and MacKay 2007) on
   the logarithm of block means, with a segment logic on relative levels.
+- ``GaussianProcessRecognizer``, ``ForceDropRecognizer``: an online Gaussian-process detector
+  and a transient force-drop detector (pd_campaign.detectors, the two 2026 baselines).
 - ``LearnedRecognizer``: a small classifier (gradient-boosted trees or logistic regression,
   fitted with scikit-learn by ``train_learned``) exported to JSON and evaluated in plain Python.
 
@@ -32,6 +34,7 @@ import sys
 # The baselines by their documented paths (python:pd_campaign.baselines.<Class>, the model
 # format, config/leaderboard.yaml): each lives in its own module.
 from pd_campaign.change_point import ChangePointRecognizer, RunLengthPosterior  # noqa: F401
+from pd_campaign.detectors import ForceDropRecognizer, GaussianProcessRecognizer  # noqa: F401
 from pd_campaign.learned import (FEATURES, LearnedModel, LearnedRecognizer,  # noqa: F401
                                  train_learned)
 from pd_campaign.offline import configured, evaluate_offline, tune

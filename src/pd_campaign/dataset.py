@@ -27,7 +27,8 @@ evaluation seeds (the test split), and writes
 The protocol is the paper's peak-force protocol (Sec. V-D): the recognizer observes and every
 trial drills through the inner cortical layer, so every trial holds every layer. The split: the
 calibration-space trials whose index is 3 modulo 4 form the validation split, the other ones the
-training split; the test split is the evaluation-space trials only."""
+training split; the test split is the evaluation-space trials only. A calibration-space trial
+under a hidden condition (HIDDEN_VOLUNTEERS, SEEN_DENSITY_RANGE) is in neither."""
 
 import hashlib
 import json
@@ -146,6 +147,83 @@ def split_of(seed_space, index):
     if seed_space != 'calibration':
         raise ValueError('seed space %r is neither calibration nor evaluation' % seed_space)
     return 'validation' if int(index) % VALIDATION_MODULUS == VALIDATION_MODULUS - 1 else 'train'
+
+
+# The hidden conditions: specimens whose breathing pattern or bone density the training and
+# validation splits never hold. A calibration-space trial under a hidden condition is left out of
+# both (split.json lists it under `hidden`); an evaluation-space one stays in the test split
+# (listed under `test_hidden`) and the leaderboard's hidden-condition board is made of such
+# trials. The breathing pattern is the virtual volunteer's: volunteer 4, the one whose motion
+# departs most from the linear model (the widest hysteresis loop, Table II: AP R2 0.927 linear,
+# doc/identification.md). The bone density is the specimen's outer-cortex true peak thrust
+# (specimen_peaks; the BV/TV the simulator draws is not in trials.csv) over the reference at its
+# speed: the median of the calibration-space specimens' peaks there (density_references,
+# recorded in split.json's rule); a ratio outside SEEN_DENSITY_RANGE (about 1.8 sd of the
+# specimens' spread each way) is hidden. Fixed by the specimen, never by an outcome.
+HIDDEN_VOLUNTEERS = (4,)
+SEEN_DENSITY_RANGE = (0.92, 1.08)
+
+
+def specimen_peaks(rows):
+    """{(rpm, seed): outer-cortex true peak [N]} of the specimens of trial rows (dicts with rpm,
+    seed, case and f_out_truth_n; a seed is one specimen at a speed, whatever the case or the
+    recognizer): the highest f_out_truth_n of its stationary trials (a trial stopped inside the
+    outer cortex records a lower, partial peak), else of its compensated ones, else the median
+    of its trials (the uncompensated thrust carries the breathing)."""
+    found = {}
+    for row in rows:
+        try:
+            value = float(row.get('f_out_truth_n'))
+        except (TypeError, ValueError):
+            continue
+        if not np.isfinite(value):
+            continue
+        key = (float(row['rpm']), int(row['seed']))
+        kind = {'stationary': 0, 'compensated': 1}.get(row.get('case'), 2)
+        found.setdefault(key, ([], [], []))[kind].append(value)
+    return {key: float(max(still) if still else max(followed) if followed else np.median(moving))
+            for key, (still, followed, moving) in found.items()}
+
+
+def density_references(peaks):
+    """[[rpm, reference peak N]]: the median specimen peak (specimen_peaks) per speed."""
+    speeds = sorted({rpm for rpm, _ in peaks})
+    return [[rpm, float(np.median([v for (r, _), v in peaks.items() if r == rpm]))]
+            for rpm in speeds]
+
+
+def specimen_densities(rows, references=None):
+    """{(rpm, seed): density ratio}: each specimen's peak over the reference at its speed
+    (`references` [[rpm, N]], linear in between and held beyond the ends; default: the rows'
+    own density_references)."""
+    peaks = specimen_peaks(rows)
+    references = references or density_references(peaks)
+    if not references:
+        return {}
+    speeds, forces = zip(*sorted((float(r), float(f)) for r, f in references))
+    return {key: value / float(np.interp(key[0], speeds, forces))
+            for key, value in peaks.items()}
+
+
+def hidden_reason(volunteer_id, density):
+    """Why a specimen's conditions are hidden ('breathing ...', 'density ...'), or None."""
+    reasons = []
+    try:
+        if int(volunteer_id) in HIDDEN_VOLUNTEERS:
+            reasons.append('breathing of volunteer %d' % int(volunteer_id))
+    except (TypeError, ValueError):
+        pass
+    low, high = SEEN_DENSITY_RANGE
+    if density is not None and not low <= density <= high:
+        reasons.append('density %.3f x the reference' % density)
+    return '; '.join(reasons) or None
+
+
+def hidden_rule(references):
+    """The hidden conditions as split.json and the leaderboard record them, with the density
+    references (density_references of the calibration-space specimens)."""
+    return {'volunteers': list(HIDDEN_VOLUNTEERS), 'seen_density_range': list(SEEN_DENSITY_RANGE),
+            'density_reference_n': [list(pair) for pair in references]}
 
 
 def convert(kind, text):

@@ -15,27 +15,46 @@ from pd_campaign import croissant, dataset_files, tools
 from pd_campaign.atomic import atomic_write
 from pd_campaign.dataset import (FORMAT_VERSION, PACKAGE_ROOT, SAMPLE_COLUMNS, SPLITS,
                                  TRIAL_FIELDS, VALIDATION_MODULUS, columns_markdown, convert,
+                                 HIDDEN_VOLUNTEERS, SEEN_DENSITY_RANGE, density_references,
+                                 hidden_reason, hidden_rule, specimen_densities, specimen_peaks,
                                  split_of)
 from pd_campaign.design import SEED_SPACE_BIT
 from pd_campaign.scenario import Scenario
 
 
 def _trial_rows(run_dirs):
-    """{split: [(trials.csv row, samples .npy path)]} in (rpm, index, case) order. A trial that
-    errored is left out (its row stays in its campaign's trials.csv)."""
+    """({split: [(trials.csv row, samples .npy path)]} in (rpm, index, case) order, {'hidden':
+    [(trial id, seed, reason)], 'test_hidden': [...], 'references': [[rpm, N]]}). A trial that
+    errored is left out (its row stays in its campaign's trials.csv); so is a calibration-space
+    trial under a hidden condition (dataset.hidden_reason: its specimen's breathing, or its
+    density against the calibration specimens' references), which no training or validation
+    trial may hold; an evaluation-space one stays in the test split, listed."""
     tables = {split: [] for split in SPLITS}
+    runs = []
     for run_dir in run_dirs:
         with open(os.path.join(run_dir, 'trials.csv'), newline='') as handle:
-            for row in csv.DictReader(handle):
-                if row.get('error'):
+            runs.append((run_dir, [row for row in csv.DictReader(handle) if not row.get('error')]))
+    references = density_references(specimen_peaks(
+        [row for _, rows in runs for row in rows if row['seed_space'] == 'calibration']))
+    hidden = {'hidden': [], 'test_hidden': [], 'references': references}
+    for run_dir, rows in runs:
+        densities = specimen_densities(rows, references)
+        for row in rows:
+            path = os.path.join(run_dir, 'samples', row['trial_id'] + '.npy')
+            if not os.path.isfile(path):
+                raise RuntimeError('%s: no samples file for trial %s' % (path, row['trial_id']))
+            split = split_of(row['seed_space'], row['index'])
+            reason = hidden_reason(row.get('volunteer_id'), densities.get(
+                (float(row['rpm']), int(row['seed']))))
+            if reason:
+                hidden['test_hidden' if split == 'test' else 'hidden'].append(
+                    (row['trial_id'], row['seed'], reason))
+                if split != 'test':
                     continue
-                path = os.path.join(run_dir, 'samples', row['trial_id'] + '.npy')
-                if not os.path.isfile(path):
-                    raise RuntimeError('%s: no samples file for trial %s' % (path, row['trial_id']))
-                tables[split_of(row['seed_space'], row['index'])].append((row, path))
+            tables[split].append((row, path))
     return {split: sorted(rows, key=lambda item: (float(item[0]['rpm']), int(item[0]['index']),
                                                   item[0]['case']))
-            for split, rows in tables.items()}
+            for split, rows in tables.items()}, hidden
 
 
 def _split_arrays(rows):
@@ -65,8 +84,8 @@ def assemble(run_dirs, out_dir, meta):
     the HDF5 file (dataset_files, with `meta`: main's); returns the counts {split: {'trials': n,
     'samples': n, 'cases': {case: n}, 'ids': [(trial id, seed)]}} and the finished
     dataset_files.Hdf5Writer (its version, content hash and columns)."""
-    tables = _trial_rows(run_dirs)
-    counts = {}
+    tables, hidden = _trial_rows(run_dirs)
+    counts = {'hidden': hidden}
     with dataset_files.hdf5_writer(os.path.join(out_dir, dataset_files.HDF5_NAME), meta) as h5:
         for split in SPLITS:
             rows = tables[split]
@@ -124,7 +143,13 @@ def _datasheet_rest(meta):
             'Fixed by the seed, never by an outcome: the evaluation seed space (bit 62 of the '
             'seed set; doc/experiments.md, "Seed spaces") is the test split; calibration-space '
             'trials whose index is 3 modulo 4 are the validation split, the others the training '
-            'split. `split.json` lists every split\'s trial ids and seeds.', '',
+            'split. Hidden conditions: a calibration-space trial whose specimen breathes as '
+            'volunteer %s or whose bone density (its outer cortex\'s true peak over the median '
+            'of the calibration specimens at its speed) lies outside %.2f-%.2f is in neither '
+            '(`split.json`: `hidden`); evaluation-space ones stay in the test split (`test_hidden`), for the '
+            'leaderboard\'s hidden-condition board. `split.json` lists every split\'s trial ids '
+            'and seeds.' % (', '.join(str(v) for v in HIDDEN_VOLUNTEERS),
+                           SEEN_DENSITY_RANGE[0], SEEN_DENSITY_RANGE[1]), '',
             '## Collection process',
             'Simulated closed-loop trials of the core engine (`campaign --samples`, '
             'core::ClosedLoopEngine), the paper\'s peak-force protocol: the recognizer observes '
@@ -245,7 +270,11 @@ def main(argv=None):
         listing['meta'] = {'base_seed': base_seed, 'scenario': meta['scenario'],
                            'validation_modulus': VALIDATION_MODULUS,
                            'protocol': meta['protocol'], 'dataset_version': writer.version,
-                           'build_id': meta['package']['build_id']}
+                           'build_id': meta['package']['build_id'],
+                           'hidden_conditions': hidden_rule(counts['hidden']['references'])}
+        for name in ('hidden', 'test_hidden'):
+            items = counts['hidden'][name]
+            listing[name] = [{'trial_id': i, 'seed': s, 'reason': r} for i, s, r in items]
         json.dump(listing, handle, indent=1)
     with atomic_write(os.path.join(args.out, dataset_files.DATASHEET_NAME)) as handle:
         handle.write(datasheet(counts, meta, writer))

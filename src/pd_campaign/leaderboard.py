@@ -19,6 +19,12 @@
    decides. Each entry drills the same trials a second time with the plan's depth limit on
    (scenario key depth_limit), for the system's no-penetration column: what a recognizer leaves
    to the last line, and how often that line stopped the drill first.
+4. **Uncertainty and strata** (pd_campaign.board_stats), per bench: each entry's rank with its
+   95 % interval bootstrapped over the specimens (paired across entries and cases), its correct
+   stops per bone-density, inner-cortex-thickness and speed band (edges from the training
+   split), and the hidden-condition board (the specimens under the dataset's hidden
+   conditions, which its training and validation splits never hold). Every board is stamped
+   with the dataset's version and build and the board's own build.
 """
 
 import argparse
@@ -32,7 +38,8 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import campaign_process, compare, design, offline, stats, tools, trials_csv
+from . import (board_stats, campaign_process, compare, dataset_files, design, offline, stats,
+               tools, trials_csv)
 from .atomic import atomic_savefig, atomic_write
 from .identification import IdentificationError, identify
 from .learned import train_learned
@@ -321,8 +328,55 @@ def _fmt(value, pattern='%.2f'):
     return '-' if value is None else pattern % value
 
 
+def stamp(meta):
+    """The board's stamp: the dataset's version and the build that made it (split.json's meta),
+    and the build that made the board."""
+    try:
+        board_build = dataset_files.package_info()
+    except (OSError, ValueError) as e:
+        board_build = {'build_id': 'unknown (%s)' % e, 'build_digest': 'unknown'}
+    return {'dataset_version': meta.get('dataset_version', 'unknown'),
+            'dataset_build_id': meta.get('build_id', 'unknown'),
+            'board_build_id': board_build['build_id'],
+            'board_build_digest': board_build['build_digest']}
+
+
+def extras(rows_by_entry, args, meta):
+    """A bench's rank intervals, strata and hidden-condition board (pd_campaign.board_stats)."""
+    hidden, reasons = board_stats.hidden_board(rows_by_entry, meta.get('hidden_conditions'))
+    return {'ranks': board_stats.rank_table(rows_by_entry, args.cases),
+            'strata': board_stats.strata_table(rows_by_entry, args.strata_edges),
+            'hidden': hidden,
+            'hidden_specimens': [{'rpm': k[0], 'seed': k[1], 'reason': v}
+                                 for k, v in sorted(reasons.items())]}
+
+
+def extras_markdown(bench, extra, args):
+    reasons = {(s['rpm'], s['seed']): s['reason'] for s in extra['hidden_specimens']}
+    return (['### Ranks on the %s bench, bootstrapped over specimens' % bench, '',
+             'Each entry\'s rank by correct stops (1: the most; ties share the better rank) and '
+             'its 95 %% percentile interval over %d resamples of the specimens (seed %d), the '
+             'same resample for every entry and case.' % (board_stats.RESAMPLES,
+                                                          board_stats.SEED), '']
+            + board_stats.ranks_markdown(extra['ranks'], args.cases)
+            + ['', '### Strata on the %s bench' % bench, '',
+               'Correct stops per band, the cases pooled (Wilson 95 %); the bands\' edges are the '
+               'tertiles of the training split\'s specimens (bone density: the outer cortex\'s '
+               'true peak thrust over the dataset\'s reference at its speed).', '']
+            + board_stats.strata_markdown(extra['strata'])
+            + ['', '### Hidden-condition board on the %s bench' % bench, '',
+               'The specimens whose breathing pattern or bone density the training and '
+               'validation splits never held (the dataset\'s hidden conditions, doc/dataset.md), '
+               'against the others.', '']
+            + board_stats.hidden_markdown(extra['hidden'], reasons) + [''])
+
+
 def markdown(boards, tuning, config, meta, args):
+    marks = stamp(meta)
     lines = ['# Recognizer leaderboard', '',
+             'Dataset version `%s` (made by build `%s`); board made by build `%s` (digest `%s`).'
+             % (marks['dataset_version'], marks['dataset_build_id'], marks['board_build_id'],
+                marks['board_build_digest']), '',
              'Closed-loop trials on the test split\'s specimens (evaluation seeds of base seed %d, '
              '%d per case and speed), the same trials for every entry; every choice was made on '
              'the training and validation splits (offline, `recognize` over the dataset\'s raw '
@@ -353,6 +407,8 @@ def markdown(boards, tuning, config, meta, args):
                                  limited['no_penetration'], limited['n'],
                                  limited['limit_first'])))
         lines.append('')
+        if bench in args.extras:
+            lines += extras_markdown(bench, args.extras[bench], args)
     lines += ['## Tuning (offline, training and validation splits)', '',
               'Offline stops per trial: correct (inner cortex, at most 2 mm of it left) / shallow '
               '(inner cortex, more left) / early / late (broken through) / none. The planner\'s '
@@ -433,6 +489,23 @@ def tune_all(entries, traces, args):
             return tuning, None
 
 
+def write_board(boards, tuning, config, meta, args):
+    """leaderboard.json, leaderboard.md and the figure, stamped (stamp())."""
+    with atomic_write(os.path.join(args.out, 'leaderboard.json')) as handle:
+        json.dump({'meta': meta, 'stamp': stamp(meta), 'trials': args.trials,
+                   'boards': boards, 'tuning': tuning, 'ranks': {
+                       bench: extra['ranks'] for bench, extra in args.extras.items()},
+                   'strata': {bench: extra['strata'] for bench, extra in args.extras.items()},
+                   'strata_edges': args.strata_edges,
+                   'hidden': {bench: {'board': extra['hidden'],
+                                      'specimens': extra['hidden_specimens']}
+                              for bench, extra in args.extras.items()}},
+                  handle, indent=1)
+    with atomic_write(os.path.join(args.out, 'leaderboard.md')) as handle:
+        handle.write(markdown(boards, tuning, config, meta, args))
+    figure(boards, config, os.path.join(args.out, 'leaderboard.png'))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog='campaign_leaderboard',
@@ -465,6 +538,10 @@ def main(argv=None):
     args.cases = config.get('cases') or list(design.CASES)
     args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
     args.trials = args.trials or test_per_case
+    args.strata_edges = board_stats.stratum_edges(
+        os.path.join(args.dataset, 'train.npz'),
+        (meta.get('hidden_conditions') or {}).get('density_reference_n'))
+    args.extras = {}
     benches = args.bench or list(config['benches'])
     for bench in benches:
         if bench not in config['benches']:
@@ -504,11 +581,7 @@ def main(argv=None):
                 identification)
         boards[bench] = board_rows(rows_by_entry, config['reference'],
                                    limited_rows(limited_by_entry))
-    with atomic_write(os.path.join(args.out, 'leaderboard.json')) as handle:
-        json.dump({'meta': meta, 'trials': args.trials, 'boards': boards, 'tuning': tuning},
-                  handle, indent=1)
-    with atomic_write(os.path.join(args.out, 'leaderboard.md')) as handle:
-        handle.write(markdown(boards, tuning, config, meta, args))
-    figure(boards, config, os.path.join(args.out, 'leaderboard.png'))
+        args.extras[bench] = extras(rows_by_entry, args, meta)
+    write_board(boards, tuning, config, meta, args)
     sys.stderr.write('leaderboard: %s\n' % os.path.join(args.out, 'leaderboard.md'))
     return 0

@@ -42,6 +42,20 @@ def test_the_splits_are_fixed_by_the_seed_space_and_the_index(small_dataset):
         listed = json.load(handle)
     for name, z in splits.items():
         assert [t['trial_id'] for t in listed[name]] == list(z['trial_trial_id'])
+    # No training or validation trial under a hidden condition; the rule is recorded; a test
+    # trial under one is listed.
+    rule = listed['meta']['hidden_conditions']
+    assert rule == dataset.hidden_rule(rule['density_reference_n'])
+    assert [rpm for rpm, _ in rule['density_reference_n']] == [12000.0]
+    for name in ('train', 'validation'):
+        z = splits[name]
+        rows = [{'rpm': r, 'seed': int(s), 'case': c, 'f_out_truth_n': f} for r, s, c, f in zip(
+            z['trial_rpm'], z['trial_seed'], z['trial_case'], z['trial_f_out_truth_n'])]
+        densities = dataset.specimen_densities(rows, rule['density_reference_n'])
+        for row, volunteer in zip(rows, z['trial_volunteer_id']):
+            assert dataset.hidden_reason(volunteer, densities[(row['rpm'], row['seed'])]) is None
+    assert {t['trial_id'] for t in listed['test_hidden']} <= set(splits['test']['trial_trial_id'])
+    assert listed['hidden'] == []  # none of the fixture's calibration specimens
 
 
 def test_the_columns_read_back_with_numpy_and_the_labels_are_the_ground_truth(small_dataset):

@@ -120,3 +120,62 @@ def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(sma
     assert '| kalman | compensated | 12000 |' in text and 'McNemar' in text
     assert 'with the depth limit: no penetration (limit first)' in text
     assert (out / 'leaderboard.png').stat().st_size > 10000
+
+
+def test_the_board_ranks_stratifies_and_shows_the_hidden_conditions_and_new_baselines(
+        small_dataset, tmp_path):
+    """The two 2026 baselines tuned and run beside the paper's recognizer; the board's rank
+    intervals, strata and hidden-condition board, stamped with the dataset's version and build."""
+    config = {
+        'benches': {'paper': 'scenario_paper.yaml'}, 'cases': list(leaderboard.design.CASES),
+        'rpms': [12000], 'reference': 'paper',
+        'entries': [
+            {'name': 'paper', 'recognizer': 'pedicle_drilling/PaperRecognizer'},
+            {'name': 'gaussian_process',
+             'recognizer': 'python:pd_campaign.baselines.GaussianProcessRecognizer',
+             'tune': {'z': ['2.5', '3.5'], 'confirm': ['1', '2']}},
+            {'name': 'force_drop',
+             'recognizer': 'python:pd_campaign.baselines.ForceDropRecognizer',
+             'tune': {'stop_on': ['drop', 'recovery'], 'recovery_ratio': ['0.7', '0.85']}},
+        ]}
+    config_path = tmp_path / 'leaderboard.yaml'
+    config_path.write_text(yaml.safe_dump(config))
+    out = tmp_path / 'board'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign_leaderboard', '--dataset', str(small_dataset),
+         '--out', str(out), '--config', str(config_path), '--jobs', '2'],
+        capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    with open(small_dataset / 'split.json') as handle:
+        split = json.load(handle)
+    with open(out / 'leaderboard.json') as handle:
+        board = json.load(handle)
+    names = ('paper', 'gaussian_process', 'force_drop')
+    assert board['stamp']['dataset_version'] == split['meta']['dataset_version']
+    assert board['stamp']['dataset_build_id'] == split['meta']['build_id']
+    assert board['tuning']['gaussian_process']['grid_size'] == 4
+    assert board['tuning']['force_drop']['params']['stop_on'] in ('drop', 'recovery')
+    ranks = board['ranks']['paper']
+    assert set(ranks) == set(names)
+    for name in names:
+        for key in ('all',) + tuple(leaderboard.design.CASES):
+            low, high = ranks[name][key]['interval']
+            assert 1 <= low <= ranks[name][key]['rank'] <= high <= 3
+        assert ranks[name]['all']['trials'] == 3
+    strata = board['strata']['paper']
+    assert {r['stratum'] for r in strata} == {'bone density', 'inner cortex thickness', 'speed'}
+    assert {r['entry'] for r in strata} == set(names)
+    # The hidden-condition board's specimens are the dataset's hidden test specimens.
+    hidden = board['hidden']['paper']
+    assert {int(s['seed']) for s in hidden['specimens']} == {
+        int(t['seed']) for t in split.get('test_hidden', [])}
+    assert {(r['entry'], r['case']) for r in hidden['board']} == {
+        (e, c) for e in names for c in leaderboard.design.CASES}
+    text = (out / 'leaderboard.md').read_text()
+    for needle in ('Dataset version `%s`' % split['meta']['dataset_version'],
+                   '### Ranks on the paper bench', 'rank (95 % interval)',
+                   '### Strata on the paper bench', '| bone density |',
+                   '| inner cortex thickness |', '| speed | 12000 rpm |',
+                   '### Hidden-condition board on the paper bench',
+                   '| gaussian_process | compensated | 12000 |', '| force_drop | stationary |'):
+        assert needle in text, needle
