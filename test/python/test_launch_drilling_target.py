@@ -1,9 +1,8 @@
 """The launch argument drilling_target (pose or plan) sets the CompensationPlanner's
 ~target_from_plan; any other value reaches the planner as a text naming the argument and its
 values, which the planner refuses at load ("parameter .../target_from_plan must be true or
-false"), so a
-typo fails the launch instead of drilling from the configured pose. Read from roslaunch's own
-loader (--dump-params: no master, nothing started)."""
+false"), so a typo fails the launch instead of drilling from the configured pose. Read from
+roslaunch's own loader (--dump-params: no master, nothing started)."""
 import subprocess
 
 import pytest
