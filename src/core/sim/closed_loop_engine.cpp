@@ -12,6 +12,7 @@
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
@@ -125,7 +126,7 @@ struct ClosedLoopEngine::Impl {
   // Per trial (all rebuilt by run(), so that no trial depends on another).
   std::unique_ptr<DrillingSimulation> sim;
   std::unique_ptr<TrialSequencer> sequencer;
-  std::unique_ptr<RecognizerInterface> recognizer;
+  std::unique_ptr<RecognizerAdapter> recognizer;  ///< the StateRecognizer nodelet's glue
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
@@ -394,13 +395,13 @@ struct ClosedLoopEngine::Impl {
 
   void onRecognizerSample(double t, double thrust) {
     if (!planner_alive) return;  // the recognizer runs in the planner's process
-    const bool was_stopped = recognizer->output().stop;
     ComponentLaps laps(config.profile);
-    const RecognizerOutput& out = recognizer->push(t, thrust);
+    const RecognizerStep pushed = recognizer->push(t, thrust);
+    const RecognizerOutput& out = recognizer->output();
     laps.mark(Component::kRecognizer);
     // Under kPeakForces the recognizer observes: its stop is recorded, never delivered.
     const bool deliver = protocol == TrialProtocol::kRecognition;
-    if (out.new_average) {
+    if (pushed.new_average) {
       record.states.push_back(
           {t, out.averaged_force, out.feature, toString(out.state), out.last_key_point});
       const int previous = record.key_points.empty() ? 0 : record.key_points.back().first;
@@ -413,9 +414,9 @@ struct ClosedLoopEngine::Impl {
         carryOut();
       });
     }
-    if (out.stop && !was_stopped) record.recognizer_stop_t = t;
-    if (out.stop && !was_stopped && deliver) {
-      const std::string text = recognizer->stopReason();
+    if (pushed.new_stop) record.recognizer_stop_t = t;
+    if (pushed.new_stop && deliver) {
+      const std::string text = pushed.stop_reason;
       record.stops.push_back({t, "/state_recognizer", text, false});
       if (!injector.stop()) return;  // stop_lost: drilling_state's stop flag still reaches it
       send(config.delays.stop_to_planner_s, [this, text]() {
@@ -600,14 +601,15 @@ struct ClosedLoopEngine::Impl {
     if (monitor_alive) sequencer->onMonitorAlive(now);  // its /diagnostics, every step
     updateFault();
     if (s.force_sampled && faultyForce(&force)) {
-      const double thrust = force.z();  // config/recognizer.yaml axis: z
+      const double thrust = recognizer->thrust(force);  // config/recognizer.yaml axis: z
       const double t = now;
-      // The StateRecognizer nodelet drops a non-finite sample (counted, warned); the monitor
-      // stops on it.
-      if (std::isfinite(thrust) && config.delays.force_to_recognizer_s > 0.0) {
+      // A non-finite sample is dropped (counted) as the StateRecognizer nodelet drops it; the
+      // monitor stops on it.
+      const bool admitted = recognizer->admit(t, thrust);
+      if (admitted && config.delays.force_to_recognizer_s > 0.0) {
         send(config.delays.force_to_recognizer_s,
              [this, t, thrust]() { onRecognizerSample(t, thrust); });
-      } else if (std::isfinite(thrust)) {
+      } else if (admitted) {
         onRecognizerSample(t, thrust);
       }
       ComponentLaps laps(config.profile);
@@ -715,11 +717,13 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   if (spec.protocol == TrialProtocol::kRecognition && sequencer_params.depth_limit.require_plan) {
     s.sequencer->setPlan(s.sim->imagingPlan().plan);  // the planning step's, as the bench's
   }
-  s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
-                                          : std::make_unique<PaperRecognizer>(s.config.recognizer);
-  if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
-  // What the class throws while running is its stop, naming the error (as on the nodelet).
-  s.recognizer = std::make_unique<GuardedRecognizer>(std::move(s.recognizer));
+  std::unique_ptr<RecognizerInterface> recognizer =
+      s.config.make_recognizer ? s.config.make_recognizer()
+                               : std::make_unique<PaperRecognizer>(s.config.recognizer);
+  if (!recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
+  // What the class throws while running is its stop, naming the error (as on the nodelet):
+  // the adapter guards it.
+  s.recognizer = std::make_unique<RecognizerAdapter>(std::move(recognizer));
   s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;
