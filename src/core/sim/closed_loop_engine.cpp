@@ -16,6 +16,7 @@
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
+#include "pedicle_drilling/core/sim/stream_schedule.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -41,11 +42,6 @@ namespace {
 /** @brief The fault's trigger depth as a fraction of the inner layer's start: its own stream. */
 double faultDepthFraction(std::uint64_t seed) {
   return uniformFromSeed(seed + 0x2545f4914f6cdd1dULL);
-}
-
-/** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
-std::uint64_t periodSteps(double rate_hz, const char* name) {
-  return core::streamPeriodSteps(1000.0, rate_hz, name);
 }
 
 /** @brief A message in transit: handled at the first step at or after `t`. */
@@ -117,11 +113,7 @@ TrialProtocol parseTrialProtocol(const std::string& name) {
 struct ClosedLoopEngine::Impl {
   EngineConfig config;
   std::unique_ptr<ArmCompensation> arm;
-  std::uint64_t tracker_period = 125;
-  std::uint64_t controller_state_period = 20;
-  std::uint64_t tidal_period = 16;
-  std::uint64_t truth_period = 50;
-  std::uint64_t check_period = 5;
+  StreamSchedule streams;  ///< the streams of a step: the Simulator nodelet's schedule
 
   // Per trial (all rebuilt by run(), so that no trial depends on another).
   std::unique_ptr<DrillingSimulation> sim;
@@ -162,13 +154,12 @@ struct ClosedLoopEngine::Impl {
   // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
   // the tracker samples in transit.
   CommandTransport command_transport;
-  struct DelayedMarker {
-    double due;
+  struct TrackedMarker {
     double stamp;
     Eigen::Vector3d position;
     Eigen::Quaterniond orientation;
   };
-  std::deque<DelayedMarker> delayed_markers;
+  DelayLine<TrackedMarker> delayed_markers;  ///< tracker_to_pipeline_s
 
   // The protocol and the ground-truth peaks (record.truth_peak_*).
   TrialProtocol protocol = TrialProtocol::kRecognition;
@@ -434,20 +425,16 @@ struct ClosedLoopEngine::Impl {
     Eigen::Quaterniond orientation(pose.linear());
     double stamp = now;
     if (!injector.trackedPose(&marker, &orientation, &stamp)) return;  // silent tracker
-    if (config.delays.tracker_to_pipeline_s <= 0.0) {
+    if (!delayed_markers.delays()) {
       deliverMarker(stamp, marker, orientation);
       return;
     }
-    delayed_markers.push_back(
-        {now + config.delays.tracker_to_pipeline_s, stamp, marker, orientation});
+    delayed_markers.push(now, {stamp, marker, orientation});
   }
 
   void deliverDelayedMarkers() {
-    while (!delayed_markers.empty() && delayed_markers.front().due <= now + 1e-9) {
-      const DelayedMarker m = delayed_markers.front();
-      delayed_markers.pop_front();
-      deliverMarker(m.stamp, m.position, m.orientation);
-    }
+    delayed_markers.deliverDue(
+        now, [this](const TrackedMarker& m) { deliverMarker(m.stamp, m.position, m.orientation); });
   }
 
   void deliverMarker(double stamp, const Eigen::Vector3d& marker,
@@ -595,12 +582,13 @@ struct ClosedLoopEngine::Impl {
     const ScopedComponentTimer timer(config.profile, Component::kEngineStep);
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
+    const StreamsDue due = streams.at(n, s, *sim);
     updateTruthPeaks(s.force.thrust_N);
     updateProtocol();
     Eigen::Vector3d force = s.measured_wrench.head<3>();
     if (monitor_alive) sequencer->onMonitorAlive(now);  // its /diagnostics, every step
     updateFault();
-    if (s.force_sampled && faultyForce(&force)) {
+    if (due.force && faultyForce(&force)) {
       const double thrust = recognizer->thrust(force);  // config/recognizer.yaml axis: z
       const double t = now;
       // A non-finite sample is dropped (counted) as the StateRecognizer nodelet drops it; the
@@ -623,13 +611,13 @@ struct ClosedLoopEngine::Impl {
       if (s.force.contact) watchDepthEstimate(sim->process().maxDepthCut());
       if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
-    if (s.force_sampled) onTareResult();
-    if (n % truth_period == 0 || s.layer_changed) recordTruth();
-    if (sim->trackerDue(tracker_period)) onMarker();
+    if (due.force) onTareResult();
+    if (due.ground_truth) recordTruth();
+    if (due.tracker) onMarker();
     deliverDelayedMarkers();
-    if (n % tidal_period == 0) onTidalVolume();
-    if (n % controller_state_period == 0) onControllerStates();
-    if (n % check_period == 0 && monitor_alive) {
+    if (due.tidal_volume) onTidalVolume();
+    if (due.controller_states) onControllerStates();
+    if (due.safety_check && monitor_alive) {
       ComponentLaps laps(config.profile);
       monitor->check(now);
       evaluateMonitor();
@@ -656,12 +644,18 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   config.safety.validate();
   config.guard.validate();
   config.faults.validate();
-  s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
-  s.controller_state_period =
-      periodSteps(config.controller_state_rate_hz, "controller_state_rate_hz");
-  s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
-  s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
-  s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");
+  StreamRates rates;
+  rates.tracker_hz = config.tracker_rate_hz;
+  rates.controller_state_hz = config.controller_state_rate_hz;
+  rates.ground_truth_hz = config.ground_truth_rate_hz;
+  rates.tidal_volume_hz = config.tidal_volume_rate_hz;
+  rates.safety_check_hz = config.safety_check_rate_hz;
+  s.streams = StreamSchedule(rates);
+  // The planner needs the breath, the monitor checks: neither stream may be off here.
+  if (!s.streams.tidalVolumeOn() || !s.streams.safetyCheckOn()) {
+    throw std::invalid_argument(
+        "tidal_volume_rate_hz and safety_check_rate_hz: must be > 0 Hz in the engine");
+  }
   // The recognizer's block: its blockSamples() sensor samples, in physics steps.
   const long decimation =
       std::lround(config.simulation.physics_rate_hz / config.simulation.sensor.output_rate_hz);
@@ -742,6 +736,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.command_transport = CommandTransport(s.config.delays.command_to_arm_s,
                                          s.config.delays.command_jitter_s, spec.seed);
   s.delayed_markers.clear();
+  s.delayed_markers.setDelay(s.config.delays.tracker_to_pipeline_s);
   s.injector.arm(spec.fault);
   s.guard = DrillGuard(s.config.guard);
   s.planner_alive = true;
