@@ -5,15 +5,13 @@
  *        positions differ by more than H1, the force exceeds H2, the force or tracker stream
  *        goes silent, or any input is NaN. Reports on /diagnostics (diagnostic_updater: its
  *        status, and the rate and stamps of the F/T and tracker streams); latched until `~reset`.
- *        Thin wrapper of core::SafetySupervisor (pairing, arming and the one stop report) and
- *        of core::DrillGuard: the drives' enable heartbeat `drill_guard/enable` (std_msgs/Bool),
- *        false when the planner's heartbeat (`compensation/heartbeat`) is lost during its trial
- *        or a stop goes unanswered. Runs in a process apart from the planner (the launch files'
- *        guard manager). On hardware its timeouts run on the monotonic clock.
+ *        Thin wrapper of core::MonitorRuntime: core::SafetySupervisor (pairing, arming and the
+ *        one stop report) and core::DrillGuard: the drives' enable heartbeat
+ *        `drill_guard/enable` (std_msgs/Bool), false when the planner's heartbeat
+ *        (`compensation/heartbeat`) is lost during its trial or a stop goes unanswered. Runs in a
+ *        process apart from the planner (the launch files' guard manager). On hardware its
+ *        timeouts run on the monotonic clock.
  */
-#include <diagnostic_msgs/DiagnosticArray.h>
-#include <diagnostic_updater/diagnostic_updater.h>
-#include <diagnostic_updater/publisher.h>
 #include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
@@ -24,63 +22,25 @@
 #include <pluginlib/class_list_macros.hpp>
 
 #include <algorithm>
-#include <cmath>
-#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
-#include <utility>
 
 #include "pedicle_drilling/RetareCheck.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TrialStatus.h"
-#include "pedicle_drilling/core/common/stream_stats.hpp"
-#include "pedicle_drilling/core/control/drill_guard.hpp"
-#include "pedicle_drilling/core/control/safety_supervisor.hpp"
+#include "pedicle_drilling/core/control/monitor_runtime.hpp"
+#include "pedicle_drilling/ros/in_order_updater.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
+#include "pedicle_drilling/ros/monitor_conversions.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/startup_status.hpp"
 
 namespace pedicle_drilling {
 
-/**
- * @brief diagnostic_updater::Updater's tasks (added as to any Updater, the TopicDiagnostics
- *        too), collected into one DiagnosticArray that the monitor publishes itself: in order
- *        (publishInOrder; the Updater publishes by value) and stamped with the monitor's time
- *        (the lockstep's step; the Updater stamps ros::Time::now(), the last /clock).
- */
-class InOrderUpdater : public diagnostic_updater::Updater {
- public:
-  /** @brief @p name: the nodelet's name, the statuses' prefix and hardware id. */
-  InOrderUpdater(const ros::NodeHandle& nh, const ros::NodeHandle& pnh, std::string name)
-      : diagnostic_updater::Updater(nh, pnh, "/" + name), name_(std::move(name)) {
-    setHardwareID(name_);
-  }
-
-  /** @brief Every task's status, named "<nodelet name>: <task>", as force_update() names it. */
-  diagnostic_msgs::DiagnosticArray collect(const ros::Time& stamp) {
-    diagnostic_msgs::DiagnosticArray array;
-    array.header.stamp = stamp;
-    boost::mutex::scoped_lock lock(lock_);  // the Updater's: no task added meanwhile
-    for (const DiagnosticTaskInternal& task : getTasks()) {
-      diagnostic_updater::DiagnosticStatusWrapper status;
-      status.level = diagnostic_msgs::DiagnosticStatus::ERROR;
-      status.message = "No message was set";
-      status.hardware_id = name_;
-      task.run(status);
-      status.name = name_ + ": " + task.getName();
-      array.status.push_back(status);
-    }
-    return array;
-  }
-
- private:
-  std::string name_;
-};
-
-/** @brief Nodelet wrapper of core::SafetySupervisor. */
+/** @brief Nodelet wrapper of core::MonitorRuntime. */
 class SafetyMonitorNodelet : public nodelet::Nodelet {
  public:
   ~SafetyMonitorNodelet() override {
@@ -96,7 +56,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     diagnostic_timer_.stop();
     steady_check_timer_.stop();
     steady_diagnostic_timer_.stop();
-    diagnostics_pub_.shutdown();        // its connection callback (onSubscriber)
+    if (diagnostics_) diagnostics_->shutdown();  // its connection callback
     if (lockstep_) lockstep_->drain();  // a ~reset call or connection callback running ends
   }
 
@@ -108,8 +68,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     try {
       ParamLoader(pnh).load(SafetyMonitorNodeParams::table(), &params);
       if (params.unsafe_allow_disabled_watchdogs) warnDisabledWatchdogs(params);
-      supervisor_ = std::make_unique<core::SafetySupervisor>(params.supervisor);
-      guard_ = std::make_unique<core::DrillGuard>(params.guard);
+      monitor_ = std::make_unique<core::MonitorRuntime>(params.supervisor, params.guard);
       check_rate_hz_ = params.check_rate_hz;
       diagnostic_period_s_ = params.diagnostic_period_s;
       // Under the simulator's lockstep the checks and the diagnostics run on its steps: a check
@@ -144,7 +103,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     heartbeat_sub_ = nh.subscribe("compensation/heartbeat", 10,
                                   &SafetyMonitorNodelet::onPlannerHeartbeat, this, hints);
     if (!lockstep_->enabled()) createTimers(nh, params);
-    const core::SafetyParams& p = supervisor_->params().safety;
+    const core::SafetyParams& p = monitor_->supervisor().params().safety;
     NODELET_INFO(
         "SafetyMonitor: H1 %.2f mm, H2 %.1f N, force timeout %.3f s, tracker timeout "
         "%.3f s, checks at %.0f Hz",
@@ -158,42 +117,25 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   }
 
   /**
-   * @brief /diagnostics through diagnostic_updater's tasks: the monitor's status, named
-   *        "<nodelet name>: monitor" (the planner's ~monitor_status_name and the rviz plugins
-   *        read it by name), and a rate and stamp check of the F/T and the tracker stream as
-   *        their drivers publish them. Published by publishDiagnostics() (InOrderUpdater):
-   *        wherever this nodelet published before, and every diagnostic_period_s (the
-   *        Updater's own ~diagnostic_period is not used: update() is never called).
-   *
-   * The Updater's own publisher is neither latched nor told of new subscribers. roscpp keeps one
-   * publication of /diagnostics per process, latched or not, and with the queue, as its first
-   * advertiser says: advertised here first, latched, it keeps the process's /diagnostics latched
-   * as before (failStartup()'s report relies on it too), so a late subscriber gets the latest
-   * status at once; and a subscriber connecting also gets a fresh one.
+   * @brief /diagnostics (InOrderDiagnostics): the monitor's status, named "<nodelet name>:
+   *        monitor" (the planner's ~monitor_status_name and the rviz plugins read it by name),
+   *        and a rate and stamp check of the F/T and the tracker stream as their drivers publish
+   *        them; published wherever this nodelet published before, and every
+   *        diagnostic_period_s. A new subscriber gets a fresh status (latching, the latest).
    */
   void setupDiagnostics(ros::NodeHandle& nh, const SafetyMonitorNodeParams& params) {
     std::lock_guard<std::mutex> lock(mutex_);  // a subscriber may connect before the end
-    diagnostics_pub_ = nh.advertise<diagnostic_msgs::DiagnosticArray>(
-        "/diagnostics", 10, [this](const ros::SingleSubscriberPublisher&) { onSubscriber(); },
-        ros::SubscriberStatusCallback(), ros::VoidConstPtr(), true);
-    updater_ = std::make_unique<InOrderUpdater>(nh, getPrivateNodeHandle(), getName());
-    updater_->add("monitor", this, &SafetyMonitorNodelet::monitorStatus);
-    force_rate_hz_ = params.expected_force_rate_hz;
-    tracker_rate_hz_ = params.expected_tracker_rate_hz;
-    const auto stream = [&](const std::string& topic, double* rate_hz) {
-      return std::make_unique<diagnostic_updater::TopicDiagnostic>(
-          nh.resolveName(topic), *updater_,
-          diagnostic_updater::FrequencyStatusParam(rate_hz, rate_hz, params.rate_tolerance),
-          diagnostic_updater::TimeStampStatusParam());
-    };
-    force_stream_ = stream("ft_sensor/wrench", &force_rate_hz_);
-    tracker_stream_ = stream("tracker/marker_pose", &tracker_rate_hz_);
-  }
-
-  /** @brief A new /diagnostics subscriber: a fresh status (latching gave it the latest). */
-  void onSubscriber() {
-    std::lock_guard<std::mutex> lock(mutex_);
-    if (updater_) publishDiagnostics();
+    diagnostics_ =
+        std::make_unique<InOrderDiagnostics>(nh, getPrivateNodeHandle(), getName(), [this] {
+          std::lock_guard<std::mutex> lock(mutex_);
+          if (diagnostics_) publishDiagnostics();
+        });
+    diagnostics_->updater().add("monitor", this, &SafetyMonitorNodelet::monitorStatus);
+    force_stream_ = &diagnostics_->addStream(nh.resolveName("ft_sensor/wrench"),
+                                             params.expected_force_rate_hz, params.rate_tolerance);
+    tracker_stream_ =
+        &diagnostics_->addStream(nh.resolveName("tracker/marker_pose"),
+                                 params.expected_tracker_rate_hz, params.rate_tolerance);
   }
 
   /**
@@ -237,7 +179,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void onPlannerHeartbeat(const std_msgs::Header::ConstPtr& msg) {
     lockstep_->deliver(msg->stamp, 2, [this] {
       std::lock_guard<std::mutex> lock(mutex_);
-      guard_->onPlannerHeartbeat(now());
+      monitor_->guard().onPlannerHeartbeat(now());
     });
   }
 
@@ -246,16 +188,14 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
    *        (mutex_ held). The drivers stop feed and spindle when it is false or silent.
    */
   void beat() {
-    const double t = now();
-    const bool enable = guard_->enabled(t);
-    if (enable == last_enable_ && t < next_beat_) return;
-    if (!enable && last_enable_) {
-      NODELET_ERROR("SafetyMonitor: drill guard: drives disabled: %s", guard_->reason().c_str());
+    const std::optional<core::EnableBeat> beat = monitor_->beat(now());
+    if (!beat) return;
+    if (beat->turned_off) {
+      NODELET_ERROR("SafetyMonitor: drill guard: drives disabled: %s",
+                    monitor_->guard().reason().c_str());
     }
-    last_enable_ = enable;
-    next_beat_ = t + guard_->params().heartbeat_period_s;
     std_msgs::Bool msg;
-    msg.data = enable;
+    msg.data = beat->enable;
     // No noteSent(): the simulator takes it when it arrives, at the step it was sent in.
     publishInOrder(enable_pub_, msg);
   }
@@ -264,23 +204,17 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     force_stream_->tick(msg->header.stamp);
-    force_stats_.observe(msg->header.stamp.toSec(), lockstep_->now().toSec());  // ROS time
     const auto& f = msg->wrench.force;
-    supervisor_->onForce(now(), Eigen::Vector3d(f.x, f.y, f.z));
+    monitor_->onForce(now(), msg->header.stamp.toSec(), lockstep_->now().toSec(),  // ROS time
+                      Eigen::Vector3d(f.x, f.y, f.z));
     evaluate();
-  }
-
-  static core::StampedPosition toPosition(const geometry_msgs::PoseStamped& msg) {
-    const auto& p = msg.pose.position;
-    return {msg.header.stamp.toSec(), msg.header.frame_id, Eigen::Vector3d(p.x, p.y, p.z)};
   }
 
   void onTracked(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     lockstep_->observe(msg->header.stamp);
     std::lock_guard<std::mutex> lock(mutex_);
     tracker_stream_->tick(msg->header.stamp);
-    tracker_stats_.observe(msg->header.stamp.toSec(), lockstep_->now().toSec());  // ROS time
-    warnIfMismatch(supervisor_->onTracked(now(), toPosition(*msg)));
+    warnIfMismatch(monitor_->onTracked(now(), lockstep_->now().toSec(), toStamped(*msg)));
     evaluate();
   }
 
@@ -290,7 +224,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   void handlePredicted(const geometry_msgs::PoseStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    warnIfMismatch(supervisor_->onPredicted(now(), toPosition(*msg)));
+    warnIfMismatch(monitor_->supervisor().onPredicted(now(), toStamped(*msg)));
     evaluate();
   }
 
@@ -299,7 +233,7 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
       NODELET_WARN_THROTTLE(1.0,
                             "SafetyMonitor: stale tracker sample (stamp not newer than the last) "
                             "ignored; %ld so far",
-                            supervisor_->staleTrackedCount());
+                            monitor_->supervisor().staleTrackedCount());
       return;
     }
     if (r != core::PairResult::kFrameMismatch) return;
@@ -319,34 +253,21 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   void handlePlannerStatus(const TrialStatus::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
-    supervisor_->setTrialRunning(msg->running);
-    const bool drilling = msg->phase == TrialStatus::DRILLING || msg->phase == TrialStatus::STOPPED;
-    supervisor_->setDrilling(now(), drilling);
-    guard_->onPlannerPhase(now(), msg->running, drilling);
+    const core::PhaseChange change =
+        monitor_->onPlannerPhase(now(), static_cast<core::TrialPhase>(msg->phase), msg->running);
     beat();
-    const bool trial_ended = msg->phase == TrialStatus::DONE && last_phase_ != TrialStatus::DONE;
-    const bool retreat_ended = trial_ended && last_phase_ == TrialStatus::RETREATING;
-    last_phase_ = msg->phase;
-    if (retreat_ended) checkRetare();
+    if (change.retreat_ended) checkRetare();
     // At the trial's end (after the re-tare check when it retreated): the verdict and the
     // trial's inputs as received, complete (the campaign records them).
-    if (trial_ended) publishDiagnostics();
+    if (change.trial_ended) publishDiagnostics();
   }
 
   /** @brief The re-tare check when a retreat ended, on ~retare_check (latched). */
   void checkRetare() {
-    const core::RetareCheck check = supervisor_->retareCheck(now());
-    RetareCheck result;
-    result.header.stamp = lockstep_->now();
-    result.done = check.done;
-    result.samples = check.samples;
-    result.offset_n = check.offset_n;
-    result.limit_n = supervisor_->params().safety.retare_max_offset_n;
-    result.drift = check.drift;
-    result.message = check.message;
-    publishInOrder(retare_pub_, result);
+    const core::RetareCheck check = monitor_->checkRetare(now());
+    const double limit_n = monitor_->supervisor().params().safety.retare_max_offset_n;
+    publishInOrder(retare_pub_, toMsg(check, limit_n, lockstep_->now()));
     lockstep_->noteSent();
-    last_retare_ = result;
     if (!check.done) {
       NODELET_WARN("SafetyMonitor: re-tare check skipped: no force sample in the window");
     } else if (check.drift) {
@@ -365,12 +286,11 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     // more often): a step much later is a new simulation (simulator/reset moved sim time ahead,
     // ResetSimulation.time_zero), not a silent sensor. It starts afresh, as ~reset does,
     // instead of taking the jump for a stream timeout.
-    const double reset_gap_s = std::max(kResetGapS, 2.0 / check_rate_hz_);
+    const double reset_gap_s = core::MonitorRuntime::resetGap(check_rate_hz_);
     if (!last_step_.isZero() && (t - last_step_).toSec() > reset_gap_s) resetLocked();
     last_step_ = t;
-    const double x = t.toSec() * check_rate_hz_;
-    if (std::abs(x - std::round(x)) < 1e-6) {
-      supervisor_->check(now());
+    if (core::MonitorRuntime::onCheckGrid(t.toSec(), check_rate_hz_)) {
+      monitor_->supervisor().check(now());
       evaluate();
     }
     beat();
@@ -380,30 +300,13 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     }
   }
 
-  /**
-   * @brief Under the lockstep: the next step on the check grid at which a check can change
-   *        anything, or of the diagnostics (LockstepParticipant::stepFor; the grid test's
-   *        rounding is 1e-6 of a period). A check before the first stream's timeout is due
-   *        changes nothing (SafetySupervisor::quietUntil): the monitor asks for the grid step
-   *        one period before it, and for every one after it until a sample comes. Its inputs
-   *        only change at steps it sees (the streams' steps, the steps after a participant
-   *        sent), after which this is asked again. Without it the steps waited at for the
-   *        200 Hz checks alone were a sixth of those the simulator waited at (51 % -> 43 % of
-   *        the steps), with nothing to do at almost all of them.
-   */
+  /** @brief Under the lockstep: the step at which the monitor can next change anything
+   *         (core::MonitorRuntime::nextUsefulTime), or of the diagnostics. */
   std::optional<ros::Time> nextStep(const ros::Time& t) {
     std::lock_guard<std::mutex> lock(mutex_);
-    const double tick =
-        core::nextUsefulCheckTick(t.toSec(), check_rate_hz_, supervisor_->quietUntil());
-    std::optional<ros::Time> next;
-    if (std::isfinite(tick)) next = LockstepParticipant::stepFor(tick / check_rate_hz_);
-    // The guard's next heartbeat, and its next deadline (the enable turns false there).
-    const double guard_due = std::min(next_beat_, guard_->quietUntil() + 1e-3);
-    const ros::Time beat_step = LockstepParticipant::stepFor(guard_due);
-    if (!next || beat_step < *next) next = beat_step;
-    if (!next_diagnostics_.isZero() && (!next || next_diagnostics_ < *next)) {
-      next = next_diagnostics_;
-    }
+    ros::Time next =
+        LockstepParticipant::stepFor(monitor_->nextUsefulTime(t.toSec(), check_rate_hz_));
+    if (!next_diagnostics_.isZero() && next_diagnostics_ < next) next = next_diagnostics_;
     return next;
   }
 
@@ -411,29 +314,24 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
   void publishDiagnostics() {
     // lockstep_ exists before /diagnostics is advertised (onInit), so a subscriber that
     // connects while onInit runs finds it.
-    publishInOrder(diagnostics_pub_, updater_->collect(lockstep_->now()));
+    diagnostics_->publish(lockstep_->now());
     lockstep_->noteSent();
   }
 
   void onCheck(const ros::TimerEvent&) {
     std::lock_guard<std::mutex> lock(mutex_);
-    supervisor_->check(now());
+    monitor_->supervisor().check(now());
     evaluate();
     beat();
   }
 
   /** @brief Publish the stop and the ERROR diagnostic once, when the verdict turns to stop. */
   void evaluate() {
-    const std::optional<core::SafetyVerdict> v = supervisor_->takeNewStop();
+    const std::optional<core::SafetyVerdict> v = monitor_->takeNewStop(now());
     if (!v) return;
-    StopCommand stop;
-    stop.header.stamp = lockstep_->now();
-    stop.source = getName();
-    stop.retreat = true;
-    stop.reason = core::describe(*v);
+    const StopCommand stop = toStopMsg(*v, getName(), lockstep_->now());
     publishInOrder(stop_pub_, stop);
     lockstep_->noteSent();
-    guard_->onMonitorStop(now());
     NODELET_ERROR("SafetyMonitor: STOP and retreat: %s", stop.reason.c_str());
     publishDiagnostics();
   }
@@ -443,58 +341,21 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
     publishDiagnostics();
   }
 
-  /**
-   * @brief The monitor's status (the Updater's task "monitor"; run by publishDiagnostics(), always
-   *        called with mutex_ held): OK while fine, ERROR with the reason from the stop on, WARN
-   *        after a re-tare check that found a drift (until ~reset); the verdict's reason and
-   *        each input stream as this monitor received it since ~reset: samples, samples missing
-   *        (gaps in the stamps), the largest delay from stamp to handling.
-   */
+  /** @brief The Updater's task "monitor" (run by publishDiagnostics(), mutex_ held):
+   *         core::MonitorRuntime::status. */
   void monitorStatus(diagnostic_updater::DiagnosticStatusWrapper& status) {
-    const core::SafetyVerdict& v = supervisor_->verdict();
-    if (v.stop) {
-      status.summary(diagnostic_msgs::DiagnosticStatus::ERROR,
-                     "stop and retreat: " + core::describe(v));
-    } else if (last_retare_ && last_retare_->drift) {
-      // Stays until ~reset (the next trial's start): the last trial's force is not trusted.
-      status.summary(diagnostic_msgs::DiagnosticStatus::WARN,
-                     "re-tare check: " + last_retare_->message);
-    } else {
-      status.summary(diagnostic_msgs::DiagnosticStatus::OK,
-                     supervisor_->heardBoth() ? "monitoring" : "waiting for force/tracker");
-    }
-    status.add("reason", core::toString(v.reason));
-    status.add("drives_enabled", last_enable_ ? "true" : "false");
-    if (!guard_->reason().empty()) status.add("drill_guard", guard_->reason());
-    // The planner's trial as this monitor last heard it: the status published when it heard
-    // the trial end is the first "false" after a "true" (a campaign's record of its inputs).
-    status.add("trial_running", supervisor_->trialRunning() ? "true" : "false");
-    for (const auto& [name, stats] :
-         {std::pair<std::string, const core::StreamStats*>("force", &force_stats_),
-          {"tracker", &tracker_stats_}}) {
-      status.add(name + "_samples", std::to_string(stats->count()));
-      status.add(name + "_samples_missing", std::to_string(stats->missing()));
-      status.add(name + "_delay_max_ms", std::to_string(1e3 * stats->maxDelay()));
-    }
-    if (last_retare_ && last_retare_->done) {
-      status.add("retare_offset_n", std::to_string(last_retare_->offset_n));
-    }
+    fillStatus(monitor_->status(), &status);
   }
 
   bool onReset(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response) {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (guard_->plannerRunning()) {
-      // A trial runs (the drill may be in bone, or about to be): a reset would clear a stop,
-      // the guard's latch or the streams' watch mid-trial. Refused; the planner's next trial
-      // start resets it (a restarted planner says IDLE first).
+    response.message = monitor_->resetRefusal();
+    if (!response.message.empty()) {
       response.success = false;
-      response.message =
-          "refused: the planner's trial is running; the monitor resets at the next trial's "
-          "start";
       NODELET_WARN("SafetyMonitor: ~reset %s", response.message.c_str());
       return true;
     }
-    const std::string previous = core::toString(supervisor_->verdict().reason);
+    const std::string previous = core::toString(monitor_->supervisor().verdict().reason);
     resetLocked();
     response.success = true;
     response.message = "monitor reset (previous verdict: " + previous + ")";
@@ -503,46 +364,28 @@ class SafetyMonitorNodelet : public nodelet::Nodelet {
 
   /** @brief ~reset's work (mutex_ held): verdict, retare check and stream statistics. */
   void resetLocked() {
-    supervisor_->reset();
-    supervisor_->setDrilling(now(), guard_->plannerDrilling());  // the planner's phase stays
-    guard_->reset();
-    last_retare_.reset();
-    force_stats_.reset();
-    tracker_stats_.reset();
+    monitor_->reset(now());
     publishDiagnostics();
   }
 
-  /** @brief A gap between two lockstep steps that only a simulator reset makes [s] (at least
-   *         two check periods). */
-  static constexpr double kResetGapS = 1.0;
   ros::Time last_step_;  ///< the latest lockstep step (zero: none yet)
 
   std::mutex mutex_;
-  std::unique_ptr<core::SafetySupervisor> supervisor_;
-  std::unique_ptr<core::DrillGuard> guard_;
-  bool last_enable_ = true;  ///< the latest drill_guard/enable sent
-  double next_beat_ = 0.0;   ///< the next heartbeat's time (now())
+  std::unique_ptr<core::MonitorRuntime> monitor_;
   // Declared before what calls them (the lockstep, the subscribers, the timers): destroyed after.
-  std::unique_ptr<InOrderUpdater> updater_;
-  double force_rate_hz_ = 1000.0 / 3.0;  ///< the F/T stream's check reads it (a pointer)
-  double tracker_rate_hz_ = 8.0;         ///< the tracker stream's check reads it (a pointer)
-  std::unique_ptr<diagnostic_updater::TopicDiagnostic> force_stream_;
-  std::unique_ptr<diagnostic_updater::TopicDiagnostic> tracker_stream_;
+  std::unique_ptr<InOrderDiagnostics> diagnostics_;
+  diagnostic_updater::TopicDiagnostic* force_stream_ = nullptr;    ///< diagnostics_' own
+  diagnostic_updater::TopicDiagnostic* tracker_stream_ = nullptr;  ///< diagnostics_' own
   std::unique_ptr<LockstepParticipant> lockstep_;
   double check_rate_hz_ = 200.0;
   double diagnostic_period_s_ = 1.0;
-  ros::Time next_diagnostics_;                   ///< under the lockstep
-  std::uint8_t last_phase_ = TrialStatus::IDLE;  ///< the planner's phase before the latest
+  ros::Time next_diagnostics_;  ///< under the lockstep
   ros::Publisher retare_pub_;
-  core::StreamStats force_stats_;           ///< the F/T stream since ~reset
-  core::StreamStats tracker_stats_;         ///< the tracker stream since ~reset
-  std::optional<RetareCheck> last_retare_;  ///< the latest re-tare check, until ~reset
   ros::Publisher stop_pub_;
   ros::Publisher enable_pub_;
   ros::Subscriber heartbeat_sub_;
   ros::SteadyTimer steady_check_timer_;
   ros::SteadyTimer steady_diagnostic_timer_;
-  ros::Publisher diagnostics_pub_;  ///< latched /diagnostics, see setupDiagnostics()
   ros::Subscriber wrench_sub_;
   ros::Subscriber tracker_sub_;
   ros::Subscriber predicted_sub_;

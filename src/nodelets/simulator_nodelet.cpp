@@ -56,6 +56,7 @@
 #include "pedicle_drilling/core/common/wait_deadline.hpp"
 #include "pedicle_drilling/core/sim/closed_loop_engine.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/stream_schedule.hpp"
 #include "pedicle_drilling/ros/lockstep.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 #include "pedicle_drilling/ros/simulator_conversions.hpp"
@@ -108,7 +109,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
       lockstep_every_step_ = params.lockstep_every_step;
       command_transport_ = core::CommandTransport(params.command_delay_s, params.command_jitter_s,
                                                   static_cast<std::uint64_t>(params.seed));
-      tracker_delay_s_ = params.tracker_delay_s;
+      delayed_markers_.setDelay(params.tracker_delay_s);
       tracker_tf_frame_ = params.tracker_tf_frame;
       if (!params.publish_joint_frames) floating_frames_ = floatingChildren(urdf_xml_);
       // Re-read at every reset; checked here too, so that a bad value refuses the start.
@@ -118,20 +119,16 @@ class SimulatorNodelet : public nodelet::Nodelet {
       publish_clock_ = params.publish_clock;
       clock_period_steps_ = params.clock_period_ms;
       command_wait_s_ = params.command_wait_s;
-      const auto period = [](const std::string& name, double hz) {
-        return core::streamPeriodSteps(1000.0, hz, name);
-      };
-      joint_state_period_ = period("joint_state_rate_hz", params.joint_state_rate_hz);
-      tf_period_ = period("tf_rate_hz", params.tf_rate_hz);
-      ground_truth_period_ = period("ground_truth_rate_hz", params.ground_truth_rate_hz);
-      tracker_period_ = period("tracker_rate_hz", params.tracker_rate_hz);
-      controller_state_period_ =
-          period("controller_state_rate_hz", params.controller_state_rate_hz);
+      core::StreamRates rates;  // the engine's schedule
+      rates.joint_state_hz = params.joint_state_rate_hz;
+      rates.tf_hz = params.tf_rate_hz;
+      rates.ground_truth_hz = params.ground_truth_rate_hz;
+      rates.tracker_hz = params.tracker_rate_hz;
+      rates.controller_state_hz = params.controller_state_rate_hz;
       // The simulated ventilator is the device that drives the patient: it publishes what the
       // Ventilator nodelet publishes on hardware-free setups (0 disables it).
-      const double tv_rate = params.tidal_volume_rate_hz;
-      tidal_volume_period_ =
-          tv_rate > 0.0 ? core::streamPeriodSteps(1000.0, tv_rate, "tidal_volume_rate_hz") : 0;
+      rates.tidal_volume_hz = params.tidal_volume_rate_hz;
+      streams_ = core::StreamSchedule(rates);
     } catch (const std::exception& e) {
       // Safe state: nothing is advertised, the error names the parameter or the file.
       failStartup(getName(), e.what());  // throws: the load fails
@@ -174,7 +171,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
     // The bench's planning tool: the plan of the mounted specimen, latched.
     plan_pub_ = nh.advertise<DrillingPlan>("drilling_plan", 1, true);
     publishPlan(sim_->time());
-    if (tidal_volume_period_ > 0) {
+    if (streams_.tidalVolumeOn()) {
       tidal_volume_pub_ = nh.advertise<TidalVolume>("tidal_volume", 200);
       ventilator_settings_pub_ = nh.advertise<VentilatorSettings>("ventilator/settings", 1, true);
       publishInOrder(ventilator_settings_pub_, toMsg(sim_->ventilator().model().settings()));
@@ -343,25 +340,23 @@ class SimulatorNodelet : public nodelet::Nodelet {
           pending_amplitude_.reset();
         }
         // The step's index since the reset: the streams' phases are the engine's.
-        const std::uint64_t n =
-            static_cast<std::uint64_t>(std::llround(t * sim_->params().physics_rate_hz));
+        const std::uint64_t n = core::StreamSchedule::stepIndex(t, sim_->params().physics_rate_hz);
+        const core::StreamsDue due = streams_.at(n, step, *sim_);
         // Under the lockstep, a step that publishes one of the streams is a step every
         // participant sees (any of them may listen to it); /clock is not one.
         bool published = false;
         const auto stream = [&published](bool due) { return published |= due, due; };
-        if (stream(step.force_sampled)) publishWrench(step);
+        if (stream(due.force)) publishWrench(step);
         // The planner handles a tare result at the next step: that one is stepped too.
         const bool forced = sync_next_;
         sync_next_ = step.force_sampled && publishTareResult(step.time_s);
-        if (stream(n % joint_state_period_ == 0)) publishJointStates(t);
-        if (stream(n % tf_period_ == 0)) publishTf(t);
-        if (stream(n % controller_state_period_ == 0)) publishControllerStates(t);
-        if (stream(n % ground_truth_period_ == 0 || step.layer_changed)) publishGroundTruth(t);
-        if (stream(sim_->trackerDue(tracker_period_))) publishMarker(t);
-        if (stream(delayedMarkerDue(t))) publishDelayedMarkers(t);
-        if (stream(tidal_volume_period_ > 0 && n % tidal_volume_period_ == 0)) {
-          publishTidalVolume(t);
-        }
+        if (stream(due.joint_states)) publishJointStates(t);
+        if (stream(due.tf)) publishTf(t);
+        if (stream(due.controller_states)) publishControllerStates(t);
+        if (stream(due.ground_truth)) publishGroundTruth(t);
+        if (stream(due.tracker)) publishMarker(t);
+        if (stream(delayed_markers_.due(t))) publishDelayedMarkers(t);
+        if (stream(due.tidal_volume)) publishTidalVolume(t);
         // Not a lockstep stream: its reader, the Ventilator, is not a participant.
         if (sim_->breathFlowSampled()) publishFlow(t);
         publishDelayedFlow(t);
@@ -371,7 +366,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
         // A delayed tracker sample keeps its old stamp: a participant handles it at the time of
         // the last step it saw, which must be the step before it (as when every step waited).
         const double dt = 1.0 / sim_->params().physics_rate_hz;
-        const bool marker_next = delayedMarkerDue(t + dt);
+        const bool marker_next = delayed_markers_.due(t + dt);
         sync = published || holds_next || marker_next || forced || lockstepStepWanted(stamp);
         if (lockstep_) ++(sync ? lockstep_steps_ : lockstep_skipped_);
         applyDueCommands(t);
@@ -709,14 +704,12 @@ class SimulatorNodelet : public nodelet::Nodelet {
     m.header.stamp = stampOf(t + sim_->params().breath_clock_offset_s);
     m.header.frame_id = "breath_sensor";
     m.flow_ml_s = sim_->ventilatorSample().flow_ml_s;
-    delayed_flow_.emplace_back(t + sim_->params().breath_sensor_latency_s, m);
+    delayed_flow_.setDelay(sim_->params().breath_sensor_latency_s);  // the simulation's
+    delayed_flow_.push(t, m);
   }
 
   void publishDelayedFlow(double t) {
-    while (!delayed_flow_.empty() && delayed_flow_.front().first <= t + 1e-9) {
-      publishInOrder(flow_pub_, delayed_flow_.front().second);
-      delayed_flow_.pop_front();
-    }
+    delayed_flow_.deliverDue(t, [this](const AirwayFlow& m) { publishInOrder(flow_pub_, m); });
   }
 
   /** @brief A tracker sample: now, or ~tracker_delay_s later (its stamp kept). */
@@ -725,23 +718,15 @@ class SimulatorNodelet : public nodelet::Nodelet {
     m.header.stamp = stampOf(t);
     m.header.frame_id = "tracker_camera";
     m.pose = tf2::toMsg(sim_->measureMarkerPose());
-    if (tracker_delay_s_ > 0.0) {
-      delayed_markers_.emplace_back(t + tracker_delay_s_, m);
+    if (delayed_markers_.delays()) {
+      delayed_markers_.push(t, m);
       return;
     }
     sendMarker(m);
   }
 
-  /** @brief A delayed tracker sample is due by `t`. */
-  bool delayedMarkerDue(double t) const {
-    return !delayed_markers_.empty() && delayed_markers_.front().first <= t + 1e-9;
-  }
-
   void publishDelayedMarkers(double t) {
-    while (delayedMarkerDue(t)) {
-      sendMarker(delayed_markers_.front().second);
-      delayed_markers_.pop_front();
-    }
+    delayed_markers_.deliverDue(t, [this](const geometry_msgs::PoseStamped& m) { sendMarker(m); });
   }
 
   /** @brief A tracker sample out: tracker/marker_pose, and tf with ~tracker_tf_frame. */
@@ -1049,7 +1034,7 @@ class SimulatorNodelet : public nodelet::Nodelet {
                                                 distribution.command_jitter_s, req.seed);
     spindle_watchdog_trips_ = 0;
     drive_guard_trips_ = 0;
-    tracker_delay_s_ = distribution.tracker_delay_s;
+    delayed_markers_.setDelay(distribution.tracker_delay_s);
     lockstep_every_step_ = distribution.lockstep_every_step;
     delayed_markers_.clear();
     delayed_flow_.clear();
@@ -1093,9 +1078,9 @@ class SimulatorNodelet : public nodelet::Nodelet {
   std::unique_ptr<TrajectoryActionServer> actions_;  ///< its servers (else null)
   double lockstep_timeout_s_ = 5.0;
   core::CommandTransport command_transport_;  ///< under the lockstep (set at every reset)
-  double tracker_delay_s_ = 0.0;              ///< (re-read at every reset)
-  std::deque<std::pair<double, geometry_msgs::PoseStamped>> delayed_markers_;
-  std::deque<std::pair<double, AirwayFlow>> delayed_flow_;  // breath_sensor/flow, due times
+  /// tracker/marker_pose held back ~tracker_delay_s (re-read at every reset)
+  core::DelayLine<geometry_msgs::PoseStamped> delayed_markers_;
+  core::DelayLine<AirwayFlow> delayed_flow_;         ///< breath_sensor/flow, its latency
   std::vector<PendingCommand> pending_;              ///< under the lockstep, for the next step
   std::atomic<std::uint32_t> lockstep_timeouts_{0};  ///< counted on the stepping thread
   std::mutex ack_mutex_;
@@ -1137,13 +1122,8 @@ class SimulatorNodelet : public nodelet::Nodelet {
   int spindle_watchdog_trips_ = 0;         ///< the driver watchdog's stops reported so far
   int drive_guard_trips_ = 0;              ///< the drill guard's halts reported so far
   int clock_period_steps_ = 1;
-  std::uint64_t joint_state_period_ = 10;
-  std::uint64_t tf_period_ = 10;
-  std::uint64_t ground_truth_period_ = 10;
-  std::uint64_t tracker_period_ = 125;
-  std::uint64_t controller_state_period_ = 20;
+  core::StreamSchedule streams_;  ///< which streams a step publishes (the engine's rule)
   std::vector<ros::Publisher> controller_state_pubs_;  ///< <controller>/state
-  std::uint64_t tidal_volume_period_ = 0;  // 0: the simulated ventilator publishes nothing
   long last_breath_index_ = -1;
   VentilatorSettings last_settings_msg_;
   std::optional<double> pending_amplitude_;  // set_patient_amplitude, from the next breath

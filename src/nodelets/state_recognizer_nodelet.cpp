@@ -30,6 +30,7 @@
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TrialStatus.h"
+#include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
@@ -63,11 +64,12 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     try {
       const ParamLoader loader(pnh);
       const core::RecognizerParams paper = loadParams(loader, &params);
-      axis_index_ = params.axisIndex();
-      axis_sign_ = params.axisSign();
+      core::ForceAxis axis;
+      axis.index = params.axisIndex();
+      axis.sign = params.axisSign();
       // What the class throws while running is a stop naming it, never an escaped exception
-      // (which would end the manager and every nodelet in it).
-      recognizer_ = std::make_unique<core::GuardedRecognizer>(makeRecognizer(loader, params));
+      // (which would end the manager and every nodelet in it): the adapter guards it.
+      recognizer_ = std::make_unique<core::RecognizerAdapter>(makeRecognizer(loader, params), axis);
       core::SampleRateCheckParams rate;
       rate.declared_hz = paper.sensor_rate_hz;
       rate.tolerance = params.rate_tolerance;
@@ -87,8 +89,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     }
     wrench_topic_ = nh.resolveName("ft_sensor/wrench");
     NODELET_INFO("StateRecognizer: axis %s%c, %s; %s declared at %g Hz (~sensor_rate_hz)",
-                 axis_sign_ < 0 ? "-" : "", "xyz"[axis_index_], recognizer_ -> describe().c_str(),
-                 wrench_topic_.c_str(), rate_check_->params().declared_hz);
+                 recognizer_->axis().sign < 0 ? "-" : "", "xyz"[recognizer_->axis().index],
+                 recognizer_ -> describe().c_str(), wrench_topic_.c_str(),
+                 rate_check_->params().declared_hz);
     for (const std::string& off : params.disabledWatchdogs()) {
       NODELET_WARN("StateRecognizer: UNSAFE (~unsafe_allow_disabled_watchdogs): %s", off.c_str());
     }
@@ -144,31 +147,27 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const geometry_msgs::Vector3& f = msg->wrench.force;
-    const double component = axis_index_ == 0 ? f.x : (axis_index_ == 1 ? f.y : f.z);
-    const double thrust = axis_sign_ * component;
     const double t =
         msg->header.stamp.isZero() ? ros::Time::now().toSec() : msg->header.stamp.toSec();
     // The stream's rate counts every message, whatever its force.
     if (rate_check_->observe(t)) onRateMeasured(ros::Time(t));
-    if (!std::isfinite(thrust) || !std::isfinite(t)) {
-      // The core refuses non-finite samples; skipping one keeps the block means honest. The
-      // SafetyMonitor stops the drill on NaN input, so this only has to stay alive.
-      ++non_finite_count_;
+    // The core's glue: the axis, non-finite samples dropped and counted, the latch.
+    const core::RecognizerStep step = recognizer_->onSample(t, Eigen::Vector3d(f.x, f.y, f.z));
+    if (!step.accepted) {
+      // Skipping one keeps the block means honest. The SafetyMonitor stops the drill on NaN
+      // input, so this only has to stay alive.
       NODELET_WARN_THROTTLE(1.0, "StateRecognizer: ignored %lu non-finite force sample(s) so far",
-                            static_cast<unsigned long>(non_finite_count_));
+                            static_cast<unsigned long>(recognizer_->nonFiniteCount()));
       return;
     }
-    // One latch, the core's: the stop is published on the sample that latches it.
-    const bool was_stopped = recognizer_->output().stop;
-    const core::RecognizerOutput& out = recognizer_->push(t, thrust);
-    if (out.new_average) publishState(msg->header.stamp, out);
-    if (out.stop && !was_stopped) {
+    if (step.new_average) publishState(msg->header.stamp, recognizer_->output());
+    if (step.new_stop) {
       StopCommand stop;
       stop.header.stamp = msg->header.stamp;
       stop.header.frame_id = msg->header.frame_id;
       stop.source = getName();
       stop.retreat = false;
-      stop.reason = recognizer_->stopReason();
+      stop.reason = step.stop_reason;
       publishInOrder(stop_pub_, stop);
       lockstep_->noteSent();
       NODELET_WARN("StateRecognizer: STOP: %s", stop.reason.c_str());
@@ -316,14 +315,14 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     // reports a stop).
     publishState(lockstep_->now(), recognizer_->output());
     response.success = true;
-    response.message = "recognizer reset (" + std::to_string(non_finite_count_) +
+    response.message = "recognizer reset (" + std::to_string(recognizer_->nonFiniteCount()) +
                        " non-finite samples ignored since start)";
     return true;
   }
 
   std::mutex mutex_;
   RecognizerLoader loader_;  // before recognizer_: outlives the instance it made
-  std::unique_ptr<core::RecognizerInterface> recognizer_;
+  std::unique_ptr<core::RecognizerAdapter> recognizer_;  ///< force sample in, state and stop out
   std::unique_ptr<LockstepParticipant> lockstep_;
   std::unique_ptr<core::SampleRateCheck> rate_check_;  ///< ft_sensor/wrench against sensor_rate_hz
   std::string wrench_topic_;                           ///< its resolved name, for the messages
@@ -333,9 +332,6 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   bool rate_mismatch_logged_ = false;  ///< the latest verdict logged was a mismatch
   bool trial_running_ = false;         ///< compensation/status running
   bool rate_stop_sent_ = false;        ///< this trial was stopped for its sensor rate
-  int axis_index_ = 2;
-  double axis_sign_ = 1.0;
-  std::size_t non_finite_count_ = 0;
   ros::Publisher state_pub_;
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;

@@ -12,9 +12,11 @@
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
+#include "pedicle_drilling/core/sim/stream_schedule.hpp"
 
 namespace pedicle_drilling::core {
 
@@ -40,11 +42,6 @@ namespace {
 /** @brief The fault's trigger depth as a fraction of the inner layer's start: its own stream. */
 double faultDepthFraction(std::uint64_t seed) {
   return uniformFromSeed(seed + 0x2545f4914f6cdd1dULL);
-}
-
-/** @brief Steps of the 1 kHz physics between two samples of a stream at `rate_hz`. */
-std::uint64_t periodSteps(double rate_hz, const char* name) {
-  return core::streamPeriodSteps(1000.0, rate_hz, name);
 }
 
 /** @brief A message in transit: handled at the first step at or after `t`. */
@@ -116,16 +113,12 @@ TrialProtocol parseTrialProtocol(const std::string& name) {
 struct ClosedLoopEngine::Impl {
   EngineConfig config;
   std::unique_ptr<ArmCompensation> arm;
-  std::uint64_t tracker_period = 125;
-  std::uint64_t controller_state_period = 20;
-  std::uint64_t tidal_period = 16;
-  std::uint64_t truth_period = 50;
-  std::uint64_t check_period = 5;
+  StreamSchedule streams;  ///< the streams of a step: the Simulator nodelet's schedule
 
   // Per trial (all rebuilt by run(), so that no trial depends on another).
   std::unique_ptr<DrillingSimulation> sim;
   std::unique_ptr<TrialSequencer> sequencer;
-  std::unique_ptr<RecognizerInterface> recognizer;
+  std::unique_ptr<RecognizerAdapter> recognizer;  ///< the StateRecognizer nodelet's glue
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
@@ -161,13 +154,12 @@ struct ClosedLoopEngine::Impl {
   // Transport (config.delays): the command path (its jitter drawn from the trial's seed) and
   // the tracker samples in transit.
   CommandTransport command_transport;
-  struct DelayedMarker {
-    double due;
+  struct TrackedMarker {
     double stamp;
     Eigen::Vector3d position;
     Eigen::Quaterniond orientation;
   };
-  std::deque<DelayedMarker> delayed_markers;
+  DelayLine<TrackedMarker> delayed_markers;  ///< tracker_to_pipeline_s
 
   // The protocol and the ground-truth peaks (record.truth_peak_*).
   TrialProtocol protocol = TrialProtocol::kRecognition;
@@ -394,13 +386,13 @@ struct ClosedLoopEngine::Impl {
 
   void onRecognizerSample(double t, double thrust) {
     if (!planner_alive) return;  // the recognizer runs in the planner's process
-    const bool was_stopped = recognizer->output().stop;
     ComponentLaps laps(config.profile);
-    const RecognizerOutput& out = recognizer->push(t, thrust);
+    const RecognizerStep pushed = recognizer->push(t, thrust);
+    const RecognizerOutput& out = recognizer->output();
     laps.mark(Component::kRecognizer);
     // Under kPeakForces the recognizer observes: its stop is recorded, never delivered.
     const bool deliver = protocol == TrialProtocol::kRecognition;
-    if (out.new_average) {
+    if (pushed.new_average) {
       record.states.push_back(
           {t, out.averaged_force, out.feature, toString(out.state), out.last_key_point});
       const int previous = record.key_points.empty() ? 0 : record.key_points.back().first;
@@ -413,9 +405,9 @@ struct ClosedLoopEngine::Impl {
         carryOut();
       });
     }
-    if (out.stop && !was_stopped) record.recognizer_stop_t = t;
-    if (out.stop && !was_stopped && deliver) {
-      const std::string text = recognizer->stopReason();
+    if (pushed.new_stop) record.recognizer_stop_t = t;
+    if (pushed.new_stop && deliver) {
+      const std::string text = pushed.stop_reason;
       record.stops.push_back({t, "/state_recognizer", text, false});
       if (!injector.stop()) return;  // stop_lost: drilling_state's stop flag still reaches it
       send(config.delays.stop_to_planner_s, [this, text]() {
@@ -433,20 +425,16 @@ struct ClosedLoopEngine::Impl {
     Eigen::Quaterniond orientation(pose.linear());
     double stamp = now;
     if (!injector.trackedPose(&marker, &orientation, &stamp)) return;  // silent tracker
-    if (config.delays.tracker_to_pipeline_s <= 0.0) {
+    if (!delayed_markers.delays()) {
       deliverMarker(stamp, marker, orientation);
       return;
     }
-    delayed_markers.push_back(
-        {now + config.delays.tracker_to_pipeline_s, stamp, marker, orientation});
+    delayed_markers.push(now, {stamp, marker, orientation});
   }
 
   void deliverDelayedMarkers() {
-    while (!delayed_markers.empty() && delayed_markers.front().due <= now + 1e-9) {
-      const DelayedMarker m = delayed_markers.front();
-      delayed_markers.pop_front();
-      deliverMarker(m.stamp, m.position, m.orientation);
-    }
+    delayed_markers.deliverDue(
+        now, [this](const TrackedMarker& m) { deliverMarker(m.stamp, m.position, m.orientation); });
   }
 
   void deliverMarker(double stamp, const Eigen::Vector3d& marker,
@@ -594,20 +582,22 @@ struct ClosedLoopEngine::Impl {
     const ScopedComponentTimer timer(config.profile, Component::kEngineStep);
     const SimulationStep s = sim->stepOnce();
     now = s.time_s;
+    const StreamsDue due = streams.at(n, s, *sim);
     updateTruthPeaks(s.force.thrust_N);
     updateProtocol();
     Eigen::Vector3d force = s.measured_wrench.head<3>();
     if (monitor_alive) sequencer->onMonitorAlive(now);  // its /diagnostics, every step
     updateFault();
-    if (s.force_sampled && faultyForce(&force)) {
-      const double thrust = force.z();  // config/recognizer.yaml axis: z
+    if (due.force && faultyForce(&force)) {
+      const double thrust = recognizer->thrust(force);  // config/recognizer.yaml axis: z
       const double t = now;
-      // The StateRecognizer nodelet drops a non-finite sample (counted, warned); the monitor
-      // stops on it.
-      if (std::isfinite(thrust) && config.delays.force_to_recognizer_s > 0.0) {
+      // A non-finite sample is dropped (counted) as the StateRecognizer nodelet drops it; the
+      // monitor stops on it.
+      const bool admitted = recognizer->admit(t, thrust);
+      if (admitted && config.delays.force_to_recognizer_s > 0.0) {
         send(config.delays.force_to_recognizer_s,
              [this, t, thrust]() { onRecognizerSample(t, thrust); });
-      } else if (std::isfinite(thrust)) {
+      } else if (admitted) {
         onRecognizerSample(t, thrust);
       }
       ComponentLaps laps(config.profile);
@@ -621,13 +611,13 @@ struct ClosedLoopEngine::Impl {
       if (s.force.contact) watchDepthEstimate(sim->process().maxDepthCut());
       if (record_samples) recordSample(thrust, s.force.thrust_N);
     }
-    if (s.force_sampled) onTareResult();
-    if (n % truth_period == 0 || s.layer_changed) recordTruth();
-    if (sim->trackerDue(tracker_period)) onMarker();
+    if (due.force) onTareResult();
+    if (due.ground_truth) recordTruth();
+    if (due.tracker) onMarker();
     deliverDelayedMarkers();
-    if (n % tidal_period == 0) onTidalVolume();
-    if (n % controller_state_period == 0) onControllerStates();
-    if (n % check_period == 0 && monitor_alive) {
+    if (due.tidal_volume) onTidalVolume();
+    if (due.controller_states) onControllerStates();
+    if (due.safety_check && monitor_alive) {
       ComponentLaps laps(config.profile);
       monitor->check(now);
       evaluateMonitor();
@@ -654,12 +644,18 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   config.safety.validate();
   config.guard.validate();
   config.faults.validate();
-  s.tracker_period = periodSteps(config.tracker_rate_hz, "tracker_rate_hz");
-  s.controller_state_period =
-      periodSteps(config.controller_state_rate_hz, "controller_state_rate_hz");
-  s.tidal_period = periodSteps(config.tidal_volume_rate_hz, "tidal_volume_rate_hz");
-  s.truth_period = periodSteps(config.ground_truth_rate_hz, "ground_truth_rate_hz");
-  s.check_period = periodSteps(config.safety_check_rate_hz, "safety_check_rate_hz");
+  StreamRates rates;
+  rates.tracker_hz = config.tracker_rate_hz;
+  rates.controller_state_hz = config.controller_state_rate_hz;
+  rates.ground_truth_hz = config.ground_truth_rate_hz;
+  rates.tidal_volume_hz = config.tidal_volume_rate_hz;
+  rates.safety_check_hz = config.safety_check_rate_hz;
+  s.streams = StreamSchedule(rates);
+  // The planner needs the breath, the monitor checks: neither stream may be off here.
+  if (!s.streams.tidalVolumeOn() || !s.streams.safetyCheckOn()) {
+    throw std::invalid_argument(
+        "tidal_volume_rate_hz and safety_check_rate_hz: must be > 0 Hz in the engine");
+  }
   // The recognizer's block: its blockSamples() sensor samples, in physics steps.
   const long decimation =
       std::lround(config.simulation.physics_rate_hz / config.simulation.sensor.output_rate_hz);
@@ -715,11 +711,13 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   if (spec.protocol == TrialProtocol::kRecognition && sequencer_params.depth_limit.require_plan) {
     s.sequencer->setPlan(s.sim->imagingPlan().plan);  // the planning step's, as the bench's
   }
-  s.recognizer = s.config.make_recognizer ? s.config.make_recognizer()
-                                          : std::make_unique<PaperRecognizer>(s.config.recognizer);
-  if (!s.recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
-  // What the class throws while running is its stop, naming the error (as on the nodelet).
-  s.recognizer = std::make_unique<GuardedRecognizer>(std::move(s.recognizer));
+  std::unique_ptr<RecognizerInterface> recognizer =
+      s.config.make_recognizer ? s.config.make_recognizer()
+                               : std::make_unique<PaperRecognizer>(s.config.recognizer);
+  if (!recognizer) throw std::runtime_error("make_recognizer returned no recognizer");
+  // What the class throws while running is its stop, naming the error (as on the nodelet):
+  // the adapter guards it.
+  s.recognizer = std::make_unique<RecognizerAdapter>(std::move(recognizer));
   s.monitor = std::make_unique<SafetySupervisor>(s.config.safety);
   s.events.clear();
   s.event_seq = 0;
@@ -738,6 +736,7 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.command_transport = CommandTransport(s.config.delays.command_to_arm_s,
                                          s.config.delays.command_jitter_s, spec.seed);
   s.delayed_markers.clear();
+  s.delayed_markers.setDelay(s.config.delays.tracker_to_pipeline_s);
   s.injector.arm(spec.fault);
   s.guard = DrillGuard(s.config.guard);
   s.planner_alive = true;

@@ -1,0 +1,82 @@
+// The glue between a force sensor's stream and a drilling-state recognizer, one rule for the
+// StateRecognizer nodelet and the closed-loop engine: the thrust is one axis component of the
+// force, a non-finite sample is dropped and counted, the recognizer's latch says when its stop
+// is new, and the stop's reason comes with it.
+#ifndef PEDICLE_DRILLING_CORE_DRILLING_RECOGNIZER_ADAPTER_HPP_
+#define PEDICLE_DRILLING_CORE_DRILLING_RECOGNIZER_ADAPTER_HPP_
+
+#include <Eigen/Core>
+
+#include <cstddef>
+#include <memory>
+#include <string>
+
+#include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
+#include "pedicle_drilling/core/drilling/state_recognizer.hpp"
+
+namespace pedicle_drilling::core {
+
+/** @brief The thrust's axis of the sensor frame: component `index` (0 x, 1 y, 2 z) times `sign`. */
+struct ForceAxis {
+  int index = 2;      ///< 0, 1 or 2
+  double sign = 1.0;  ///< +1 or -1
+  /** @brief @throws std::invalid_argument when index is not 0, 1, 2 or sign not +-1. */
+  void validate() const;
+  /** @brief The thrust of @p force along this axis. */
+  double thrust(const Eigen::Vector3d& force) const { return sign * force[index]; }
+};
+
+/** @brief What one force sample did to the recognizer (RecognizerAdapter::push). */
+struct RecognizerStep {
+  bool accepted = false;     ///< false: a non-finite sample, dropped (nothing else is set)
+  bool new_average = false;  ///< a block ended: a new state to publish
+  bool new_stop = false;     ///< the latch closed on this sample: the stop to send
+  std::string stop_reason;   ///< the recognizer's reason when new_stop, else ""
+};
+
+/**
+ * @brief "Force sample in, state and stop out": a recognizer (guarded: what its class throws is
+ *        its stop, core::GuardedRecognizer) fed the thrust of one force axis. Non-finite samples
+ *        (force or time) are dropped and counted, as the recognizer refuses them; its one latch
+ *        marks the sample whose stop is new.
+ */
+class RecognizerAdapter {
+ public:
+  /** @throws std::invalid_argument if @p recognizer is null or @p axis invalid. */
+  explicit RecognizerAdapter(std::unique_ptr<RecognizerInterface> recognizer,
+                             ForceAxis axis = ForceAxis());
+
+  /** @brief The thrust of a sensor sample along the configured axis. */
+  double thrust(const Eigen::Vector3d& force) const { return axis_.thrust(force); }
+  /**
+   * @brief Whether a sample of @p thrust at @p t may reach the recognizer: false (counted in
+   *        nonFiniteCount) when either is not finite.
+   */
+  bool admit(double t, double thrust);
+  /** @brief An admitted sample to the recognizer: its new state and new stop. */
+  RecognizerStep push(double t, double thrust);
+  /** @brief admit() then push() of the thrust of @p force; accepted false when dropped. */
+  RecognizerStep onSample(double t, const Eigen::Vector3d& force);
+
+  /** @brief The recognizer starts afresh (its latch cleared); the drop count is kept. */
+  void reset() { recognizer_->reset(); }
+  /** @brief The recognizer's latest output. */
+  const RecognizerOutput& output() const { return recognizer_->output(); }
+  /** @brief The recognizer's reason for its stop ("" while not stopped). */
+  std::string stopReason() const { return recognizer_->stopReason(); }
+  /** @brief The recognizer class's description. */
+  std::string describe() const { return recognizer_->describe(); }
+  /** @brief Non-finite samples dropped since construction. */
+  std::size_t nonFiniteCount() const { return non_finite_count_; }
+  /** @brief The axis in use. */
+  const ForceAxis& axis() const { return axis_; }
+
+ private:
+  std::unique_ptr<RecognizerInterface> recognizer_;
+  ForceAxis axis_;
+  std::size_t non_finite_count_ = 0;
+};
+
+}  // namespace pedicle_drilling::core
+
+#endif  // PEDICLE_DRILLING_CORE_DRILLING_RECOGNIZER_ADAPTER_HPP_
