@@ -8,7 +8,7 @@ markdown (the dataset's column tables come from pd_campaign.dataset's declaratio
 `--check` rewrites nothing and exits 1 naming every block that differs (test_generated_docs.py).
 `--archive RESULTS_DIR` first copies what the blocks read from a `make run` output (default
 results/) into doc/results/: the trial tables trimmed to the columns the tables use, the
-campaigns' summary.json, Table II and the robustness curves' csv.
+campaigns' summary.json, Table II, the robustness curves' csv and the leaderboard's json.
 
 usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
 import argparse
@@ -16,6 +16,7 @@ import csv
 import functools
 import glob
 import io
+import json
 import os
 import re
 import shutil
@@ -26,7 +27,7 @@ ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import compare, dataset, report, stats, trials_csv  # noqa: E402
+from pd_campaign import compare, dataset, leaderboard, report, stats, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import depth_limit_tables  # noqa: E402
@@ -64,6 +65,9 @@ CAMPAIGNS = {
     'depth_limit_amplitude/*': 'rows', 'depth_limit_amplitude_without_plan': 'rows',
     'uncompensated_row/*': 'summary',
 }
+# Files of a `make run` output archived as they are: the robustness curves and the leaderboard.
+WHOLE_FILES = (os.path.join('robustness', 'robustness.csv'),
+               os.path.join('leaderboard', 'leaderboard.json'))
 
 
 def captured(function, *args):
@@ -190,6 +194,23 @@ def uncompensated_row_block(archive):
     return '\n'.join(lines) + '\n'
 
 
+def leaderboard_block(archive):
+    """doc/leaderboard.md's board: the archived leaderboard.json rendered as campaign_leaderboard
+    renders it (the shipped config/leaderboard.yaml's entries, the archived stamp), without its
+    title."""
+    with open(os.path.join(archive, 'leaderboard', 'leaderboard.json')) as handle:
+        data = json.load(handle)
+    config = leaderboard.load_config(leaderboard.DEFAULT_CONFIG)
+    args = argparse.Namespace(trials=data['trials'], cases=config.get('cases'), extras={
+        bench: {'ranks': data['ranks'][bench], 'strata': data['strata'][bench],
+                'hidden': data['hidden'][bench]['board'],
+                'hidden_specimens': data['hidden'][bench]['specimens']}
+        for bench in data['ranks']})
+    text = leaderboard.markdown(data['boards'], data['tuning'], config, data['meta'], args,
+                                marks=data['stamp'])
+    return text.split('\n', 2)[2].rstrip('\n') + '\n'
+
+
 BLOCKS = {
     'adaptive': lambda archive: captured(adaptive_tables.main, ['', archive]),
     'equivalence': equivalence_block,
@@ -207,6 +228,7 @@ BLOCKS = {
     'fault_campaign': lambda archive: report.fault_table(
         results_tables.load(os.path.join(archive, 'campaign_faults'))['faults']) + '\n',
     'uncompensated_row': uncompensated_row_block,
+    'leaderboard': leaderboard_block,
     'depth_limit_design': lambda archive: captured(depth_limit_tables.design_table, archive),
     'depth_limit_faults': lambda archive: captured(depth_limit_tables.faults_table, archive),
     'depth_limit_classes': lambda archive: captured(depth_limit_tables.amplitude_table, archive),
@@ -241,16 +263,17 @@ def archive_results(results):
               if keep != 'summary_only'] + [
         os.path.join(name, 'summary.json') for name, keep in folders
         if keep in ('summary', 'summary_only')] + [
-        os.path.join('campaign', 'table2.csv'), os.path.join('robustness', 'robustness.csv')]
+        os.path.join('campaign', 'table2.csv')] + list(WHOLE_FILES)
     missing = [path for path in needed if not os.path.isfile(os.path.join(results, path))]
     if missing:
         sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'
                  % (results, ', '.join(missing)))
     for name, keep in folders:
         archive_campaign(os.path.join(results, name), os.path.join(ARCHIVE, name), keep)
-    os.makedirs(os.path.join(ARCHIVE, 'robustness'), exist_ok=True)
-    with atomic_path(os.path.join(ARCHIVE, 'robustness', 'robustness.csv')) as tmp:
-        shutil.copyfile(os.path.join(results, 'robustness', 'robustness.csv'), tmp)
+    for path in WHOLE_FILES:
+        os.makedirs(os.path.dirname(os.path.join(ARCHIVE, path)), exist_ok=True)
+        with atomic_path(os.path.join(ARCHIVE, path)) as tmp:
+            shutil.copyfile(os.path.join(results, path), tmp)
 
 
 def archive_campaign(source, target, keep):

@@ -371,8 +371,9 @@ def extras_markdown(bench, extra, args):
             + board_stats.hidden_markdown(extra['hidden'], reasons) + [''])
 
 
-def markdown(boards, tuning, config, meta, args):
-    marks = stamp(meta)
+def markdown(boards, tuning, config, meta, args, marks=None):
+    """leaderboard.md's text; `marks` the stamp (default: stamp(meta), this build's)."""
+    marks = marks or stamp(meta)
     lines = ['# Recognizer leaderboard', '',
              'Dataset version `%s` (made by build `%s`); board made by build `%s` (digest `%s`).'
              % (marks['dataset_version'], marks['dataset_build_id'], marks['board_build_id'],
