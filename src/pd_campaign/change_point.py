@@ -7,7 +7,7 @@ import numpy as np
 
 from pd_campaign.checks import at_least, fraction, positive
 from pd_campaign.offline import KEY_POINTS
-from pd_campaign.recognizers import Recognizer
+from pd_campaign.recognizers import BlockMean, Recognizer
 
 
 # --- Bayesian online change-point detection -------------------------------------------------
@@ -120,8 +120,7 @@ class ChangePointRecognizer(Recognizer):
     def reset(self):
         p = self.params
         self.detector = RunLengthPosterior(p['hazard'], p['sigma'], p['prior_sd'], p['max_run'])
-        self.sum = 0.0
-        self.count = 0
+        self.block_mean = BlockMean(p['pre_average'])
         self.blocks = 0  # blocks since contact
         self.state = 'idle'
         self.outer_level = 0.0
@@ -133,13 +132,9 @@ class ChangePointRecognizer(Recognizer):
         self.stopped_at = None
 
     def push(self, t, raw_force):
-        self.sum += raw_force
-        self.count += 1
-        if self.count < self.params['pre_average']:
+        mean = self.block_mean.add(raw_force)
+        if mean is None:
             return {}
-        mean = self.sum / self.count
-        self.sum = 0.0
-        self.count = 0
         if self.state == 'idle':
             if mean > self.params['contact_n']:
                 self.detector.start(self._log(mean))

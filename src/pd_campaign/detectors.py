@@ -16,7 +16,7 @@ import numpy as np
 
 from pd_campaign.checks import at_least, fraction, positive
 from pd_campaign.offline import KEY_POINTS
-from pd_campaign.recognizers import Recognizer
+from pd_campaign.recognizers import BlockMean, Recognizer
 
 
 def gp_predict(x, y, x_new, length, signal_sd, noise_sd):
@@ -67,7 +67,7 @@ class GaussianProcessRecognizer(Recognizer):
     }
 
     def reset(self):
-        self.sum, self.count = 0.0, 0
+        self.block_mean = BlockMean(self.params['pre_average'])
         self.state = 'idle'
         self.contact_t = None
         self.xs, self.ys = [], []
@@ -77,12 +77,9 @@ class GaussianProcessRecognizer(Recognizer):
         self.stopped_at = None
 
     def push(self, t, raw_force):
-        self.sum += raw_force
-        self.count += 1
-        if self.count < self.params['pre_average']:
+        mean = self.block_mean.add(raw_force)
+        if mean is None:
             return {}
-        mean = self.sum / self.count
-        self.sum, self.count = 0.0, 0
         if self.state == 'idle' and mean > self.params['contact_n']:
             self.state, self.contact_t = 'outer_cortical', t
         if self.state in ('outer_cortical', 'cancellous'):

@@ -15,7 +15,7 @@ from pd_campaign.atomic import atomic_write
 from pd_campaign.checks import at_least, fraction, optional, positive
 from pd_campaign.dataset import INNER_CORTICAL
 from pd_campaign.offline import KEY_POINTS, OfflineTrials, configured, evaluate_offline, rank_key
-from pd_campaign.recognizers import Recognizer
+from pd_campaign.recognizers import BlockMean, Recognizer
 
 # The model file's format (its `format` key), named by the class's documented path.
 MODEL_FORMAT = 'pd_campaign.baselines.LearnedRecognizer/1'
@@ -207,13 +207,12 @@ class LearnedRecognizer(Recognizer):
         self.reset()
 
     def reset(self):
-        self.sum = 0.0
-        self.count = 0
         self.state = 'idle'
         self.above = 0
         self.probability = 0.0
         self.stopped_at = None
         if self.model is not None:
+            self.block_mean = BlockMean(self.model.pre_average)
             self.features = BlockFeatures(self.model.window, self.model.contact_n)
             self.threshold = self.params['threshold']
             if self.threshold is None:
@@ -223,13 +222,9 @@ class LearnedRecognizer(Recognizer):
     def push(self, t, raw_force):
         if self.model is None:
             raise RuntimeError('LearnedRecognizer: configure(model=...) first')
-        self.sum += raw_force
-        self.count += 1
-        if self.count < self.model.pre_average:
+        mean = self.block_mean.add(raw_force)
+        if mean is None:
             return {}
-        mean = self.sum / self.count
-        self.sum = 0.0
-        self.count = 0
         if self.state != 'inner_cortical':
             x = self.features.add(t, mean)
             if x is not None:

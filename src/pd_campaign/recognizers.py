@@ -15,11 +15,31 @@ from the Python path, makes it with no arguments and calls:
   ``last_key_point`` and ``stop`` (the drill stops; latched by the C++ side until reset);
 - optionally ``stop_reason()``, ``describe()`` and ``parameter_names()``.
 
-Recognizer is the base class with that contract and the parameter handling; ThresholdRecognizer
-is a force-threshold baseline written with it."""
+Recognizer is the base class with that contract and the parameter handling, BlockMean the
+pre-average the block-based classes share; ThresholdRecognizer is a force-threshold baseline
+written with them."""
 
 from pd_campaign.checks import positive
 from pd_campaign.plugin_params import Configurable
+
+
+class BlockMean:
+    """The pre-average: the mean of each block of `size` consecutive raw samples."""
+
+    def __init__(self, size):
+        self.size = size
+        self.sum = 0.0
+        self.count = 0
+
+    def add(self, value):
+        """The block's mean when `value` completes a block, else None."""
+        self.sum += value
+        self.count += 1
+        if self.count < self.size:
+            return None
+        mean = self.sum / self.count
+        self.sum, self.count = 0.0, 0
+        return mean
 
 
 class Recognizer(Configurable):
@@ -59,17 +79,15 @@ class ThresholdRecognizer(Recognizer):
     }
 
     def reset(self):
-        self.block = []
+        self.block_mean = BlockMean(self.params['pre_average'])
         self.state = 'idle'
         self.above = 0
         self.stopped_at = None
 
     def push(self, t, raw_force):
-        self.block.append(raw_force)
-        if len(self.block) < self.params['pre_average']:
+        mean = self.block_mean.add(raw_force)
+        if mean is None:
             return {}
-        mean = sum(self.block) / len(self.block)
-        self.block = []
         high = mean > self.params['cortical_n']
         if self.state == 'idle' and high:
             self.state = 'outer_cortical'

@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from pd_campaign.recognizers import Recognizer, ThresholdRecognizer
+from pd_campaign.recognizers import BlockMean, Recognizer, ThresholdRecognizer
 
 CLASS = 'python:pd_campaign.recognizers.ThresholdRecognizer'
 
@@ -108,3 +108,9 @@ def test_the_base_class_describes_its_parameters():
     assert r.parameter_names() == ['a', 'b']
     assert r.describe() == 'Two(a=3, b=0.5)'
     assert os.path.basename(__file__)  # the module imports without ROS
+
+
+def test_the_block_mean_gives_each_full_blocks_mean_and_starts_again():
+    blocks = BlockMean(3)
+    assert [blocks.add(x) for x in (1.0, 2.0, 6.0)] == [None, None, 3.0]
+    assert [blocks.add(x) for x in (0.5, 0.5, 2.0, 7.0)] == [None, None, 1.0, None]
