@@ -133,15 +133,19 @@ def equivalence_summary(archive):
     return equivalence_block(archive).strip().splitlines()[-1] + '\n'
 
 
+def rows_at_12000(archive, name):
+    """The archived campaign `name`'s 12000 rpm trials."""
+    return [r for r in trials_csv.read_trials_csv(os.path.join(archive, name, 'trials.csv'))
+            if r['rpm'] == 12000.0]
+
+
 def sensor_rate_block(archive):
     """doc/experiments.md's table: the paper's bench with a 1 kHz F/T sensor against the 333 Hz
     one (the paper campaign's 12000 rpm trials), paired seed for seed."""
-    def rows(name):
-        return [r for r in trials_csv.read_trials_csv(os.path.join(archive, name, 'trials.csv'))
-                if r['rpm'] == 12000.0]
     lines = ['| case (12000 rpm) | 1 kHz | 333 Hz | both / only 1 kHz / only 333 Hz / neither | '
              'McNemar p | 1 kHz - 333 Hz [95 %] |', '|---|---|---|---|---|---|']
-    for g in compare.compare(rows('campaign_sensor_1khz'), rows('campaign')):
+    for g in compare.compare(rows_at_12000(archive, 'campaign_sensor_1khz'),
+                             rows_at_12000(archive, 'campaign')):
         low, high = g['difference_ci95']
         lines.append('| %s | %d/%d | %d/%d | %d / %d / %d / %d | %.3g | %+.1f points [%+.1f, %+.1f] |'
                      % (g['case'], g['successes_a'], g['pairs'], g['successes_b'], g['pairs'],
@@ -158,36 +162,36 @@ def setting_changed(meta):
     return ', '.join(names.get(k, k + ' %s') % (v,) for k, v in sorted(changed.items()))
 
 
+def outcome_counts(rows):
+    """Successes, breakthroughs and stops before the inner layer among `rows`."""
+    return (sum(r['success'] for r in rows), sum(r['breakthrough'] for r in rows),
+            sum(r['failure_kind'] == 'stopped_before_inner' for r in rows))
+
+
 def uncompensated_row_block(archive):
     """doc/results.md's table: the paper's bench's 12000 rpm trials with one setting changed,
     paired seed for seed with the paper campaign's."""
-    def rows(name):
-        return [r for r in trials_csv.read_trials_csv(os.path.join(archive, name, 'trials.csv'))
-                if r['rpm'] == 12000.0]
-    paper = rows('campaign')
+    paper = rows_at_12000(archive, 'campaign')
     lines = ['| variant | case | successes | breakthroughs | stopped before the inner layer | '
              'paper\'s bench, same seeds: successes | only the variant / only the paper\'s | '
              'McNemar p | Table III | Fisher p vs Table III |',
              '|---|---|---|---|---|---|---|---|---|---|']
     base = [r for r in paper if r['case'] == 'uncompensated']
+    successes, breakthroughs, early = outcome_counts(base)
     row = report.PAPER_TABLE_III['uncompensated']
     lines.append('| none (the paper\'s bench) | uncompensated | %d/%d | %d | %d | - | - | - | %d/%d | '
-                 '%.2g |' % (sum(r['success'] for r in base), len(base),
-                             sum(r['breakthrough'] for r in base),
-                             sum(r['failure_kind'] == 'stopped_before_inner' for r in base),
-                             row[0], row[1], stats.fisher_exact(
-                                 sum(r['success'] for r in base), len(base), *row)))
+                 '%.2g |' % (successes, len(base), breakthroughs, early, row[0], row[1],
+                             stats.fisher_exact(successes, len(base), *row)))
     for folder in sorted(glob.glob(os.path.join(archive, 'uncompensated_row', '*', ''))):
         name = os.path.basename(os.path.dirname(folder))
-        variant = rows(os.path.join('uncompensated_row', name))
+        variant = rows_at_12000(archive, os.path.join('uncompensated_row', name))
         changed = setting_changed(results_tables.load(folder)['meta'])
         for g in compare.compare(variant, paper):
-            group = [r for r in variant if r['case'] == g['case']]
+            _, breakthroughs, early = outcome_counts(
+                [r for r in variant if r['case'] == g['case']])
             paper_row = report.PAPER_TABLE_III[g['case']]
             lines.append('| %s | %s | %d/%d | %d | %d | %d/%d | %d / %d | %.2g | %d/%d | %.2g |' % (
-                changed, g['case'], g['successes_a'], g['pairs'],
-                sum(r['breakthrough'] for r in group),
-                sum(r['failure_kind'] == 'stopped_before_inner' for r in group),
+                changed, g['case'], g['successes_a'], g['pairs'], breakthroughs, early,
                 g['successes_b'], g['pairs'], g['only_a'], g['only_b'], g['mcnemar_p'],
                 paper_row[0], paper_row[1],
                 stats.fisher_exact(g['successes_a'], g['pairs'], *paper_row)))

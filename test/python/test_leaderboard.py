@@ -58,6 +58,20 @@ def test_a_bad_configuration_is_refused_by_name(tmp_path):
     assert len(config['entries']) >= 5
 
 
+def run_board(dataset, config, tmp_path):
+    """campaign_leaderboard on `dataset` with the board configuration `config`; its output
+    folder (the command must succeed)."""
+    config_path = tmp_path / 'leaderboard.yaml'
+    config_path.write_text(yaml.safe_dump(config))
+    out = tmp_path / 'board'
+    result = subprocess.run(
+        ['rosrun', 'pedicle_drilling', 'campaign_leaderboard', '--dataset', str(dataset),
+         '--out', str(out), '--config', str(config_path), '--jobs', '2'],
+        capture_output=True, text=True, timeout=900)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return out
+
+
 def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(small_dataset,
                                                                            tmp_path):
     dataset = small_dataset
@@ -73,14 +87,7 @@ def test_the_board_tunes_on_train_and_runs_the_test_specimens_in_closed_loop(sma
              'recognizer': 'python:pd_campaign.recognizers.ThresholdRecognizer',
              'tune': {'cortical_n': ['2.2'], 'cancellous_n': ['1.0', '1.6']}},
         ]}
-    config_path = tmp_path / 'leaderboard.yaml'
-    config_path.write_text(yaml.safe_dump(config))
-    out = tmp_path / 'board'
-    result = subprocess.run(
-        ['rosrun', 'pedicle_drilling', 'campaign_leaderboard', '--dataset', str(dataset),
-         '--out', str(out), '--config', str(config_path), '--jobs', '2'],
-        capture_output=True, text=True, timeout=900)
-    assert result.returncode == 0, result.stderr[-3000:]
+    out = run_board(dataset, config, tmp_path)
     with open(out / 'tuning.json') as handle:
         tuning = json.load(handle)
     assert tuning['kalman']['params']['stop_at_entry'] == '2'
@@ -138,14 +145,7 @@ def test_the_board_ranks_stratifies_and_shows_the_hidden_conditions_and_new_base
              'recognizer': 'python:pd_campaign.baselines.ForceDropRecognizer',
              'tune': {'stop_on': ['drop', 'recovery'], 'recovery_ratio': ['0.7', '0.85']}},
         ]}
-    config_path = tmp_path / 'leaderboard.yaml'
-    config_path.write_text(yaml.safe_dump(config))
-    out = tmp_path / 'board'
-    result = subprocess.run(
-        ['rosrun', 'pedicle_drilling', 'campaign_leaderboard', '--dataset', str(small_dataset),
-         '--out', str(out), '--config', str(config_path), '--jobs', '2'],
-        capture_output=True, text=True, timeout=900)
-    assert result.returncode == 0, result.stderr[-3000:]
+    out = run_board(small_dataset, config, tmp_path)
     with open(small_dataset / 'split.json') as handle:
         split = json.load(handle)
     with open(out / 'leaderboard.json') as handle:
