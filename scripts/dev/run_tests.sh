@@ -74,7 +74,10 @@ for scenario in "${ROOT}"/test/rostest/*.test "${ROOT}"/test/rostest_gtest/*.tes
     echo "  ok     ${name} ($(( $(date +%s) - start )) s)"
   else
     echo "  FAILED ${name} ($(( $(date +%s) - start )) s), log: ${LOGS}/rostest_${name}.log"
-    grep -E "FAIL|Error|error|Traceback|assert|Assertion|not true" "${LOGS}/rostest_${name}.log" | head -n 20
+    grep -E "FAIL|Error|error|Traceback|assert|Assertion|not true" "${LOGS}/rostest_${name}.log" \
+      | cut -c1-300 | head -n 20
+    # A python test's failure message and the lines it adds, each cut short enough to be printed.
+    grep -E -A4 "^AssertionError" "${LOGS}/rostest_${name}.log" | cut -c1-300 | head -n 10
     if ! ls "${RESULTS}"/*"${name}"*.xml >/dev/null 2>&1; then
       printf '<testsuite name="%s" tests="1" failures="1"><testcase classname="rostest" name="%s"><failure message="rostest exit %s"/></testcase></testsuite>\n' \
         "${name}" "${name}" "${status}" > "${RESULTS}/rostest-${name}-crash.xml"
