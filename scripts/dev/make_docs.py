@@ -1,6 +1,8 @@
 #!/usr/bin/python3
 """The documents' generated blocks, from the archived results in doc/results/.
 
+A generated number in a sentence is `<!-- n: SPEC -->TEXT<!-- /n -->` (doc_numbers.py); the
+figures of FIGURES in doc/images/ are drawn from the archive too.
 A generated block is the text between `<!-- generated: NAME -->` and `<!-- end generated -->` in
 a document; NAME is one of BLOCKS, a function of the archive folder that returns the block's
 markdown (the dataset's column tables come from pd_campaign.dataset's declaration instead).
@@ -21,16 +23,18 @@ import os
 import re
 import shutil
 import sys
+import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, '..', '..'))
 sys.path.insert(0, os.path.join(ROOT, 'src'))
 sys.path.insert(0, HERE)
 
-from pd_campaign import compare, dataset, leaderboard, report, stats, trials_csv  # noqa: E402
+from pd_campaign import compare, dataset, leaderboard, plots, report, stats, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import depth_limit_tables  # noqa: E402
+import doc_numbers  # noqa: E402
 import equivalence_tables  # noqa: E402
 import population_tables  # noqa: E402
 import results_tables  # noqa: E402
@@ -44,18 +48,23 @@ BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -
 # The trial columns the generated tables read (trials_csv.normalise_row needs the first five;
 # aggregate.stop_line the stop's source and reason). The reason is archived as its kind, the
 # text before its first colon ("depth_limit", "implausible force", "inner cortical layer
-# reached"), which is what stop_line reads of it.
+# reached"), which is what stop_line reads of it. The volunteer, the inner layer's thickness,
+# the contact losses and the H1 error are what the generated numbers of campaign_results.md
+# read.
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
-           'fault', 'stop_source', 'stop_reason', 'error')
+           'fault', 'stop_source', 'stop_reason', 'volunteer_id', 'inner_cortical_mm',
+           'contact_loss_count', 'h1_error_mm', 'error')
 # The campaigns of a `make run` output the blocks read, and what of each: 'summary' (every row
 # and summary.json: the paper's design on the three benches), 'summary_only' (summary.json: the
 # fault campaign's per-fault table), 'rows' (every row) or 'compensated' (the compensated
 # 12000 rpm rows). A name ending in /* is every campaign folder
 # inside that folder (one per class pair).
 CAMPAIGNS = {
-    'campaign': 'summary', 'campaign_adaptive': 'compensated',
+    'campaign': 'summary', 'campaign_exact': 'summary', 'campaign_virtual_patient': 'summary',
+    'campaign_hysteresis': 'summary', 'campaign_peak_forces': 'summary',
+    'campaign_adaptive': 'compensated',
     'campaign_adaptive_ros': 'compensated',
     'adaptive_amplitude': 'compensated', 'adaptive_amplitude_paper': 'compensated',
     'campaign_realistic': 'summary', 'campaign_realistic_adaptive': 'compensated',
@@ -242,6 +251,35 @@ BLOCKS = {
 }
 
 
+# The documents' figures drawn from the archive (doc/images/NAME: a function of the archive
+# folder and an output folder that writes the figure there and returns its file name).
+FIGURES = {
+    'campaign_fig15.png': lambda archive, out_dir: plots.fig15(
+        results_tables.load(os.path.join(archive, 'campaign'))['groups'], out_dir),
+}
+
+
+def stale_figures(archive, write):
+    """The figures of FIGURES whose file in doc/images differs from what the archive draws
+    (matplotlib's Agg output is the same bytes for the same data); with `write`, replaced."""
+    stale = []
+    with tempfile.TemporaryDirectory() as out_dir:
+        for name, draw in FIGURES.items():
+            drawn = os.path.join(out_dir, draw(archive, out_dir))
+            target = os.path.join(ROOT, 'doc', 'images', name)
+            with open(drawn, 'rb') as new:
+                fresh = new.read()
+            if os.path.isfile(target):
+                with open(target, 'rb') as old:
+                    if old.read() == fresh:
+                        continue
+            stale.append('doc/images/' + name)
+            if write:
+                with atomic_path(target) as tmp:
+                    shutil.copyfile(drawn, tmp)
+    return stale
+
+
 def campaign_folders(results):
     """(folder relative to `results`, what to keep) for every campaign of CAMPAIGNS found there;
     a pattern's folders are those holding a trials.csv."""
@@ -310,7 +348,8 @@ def archive_campaign(source, target, keep):
 
 
 def regenerate(text, archive):
-    """The document `text` with every generated block rebuilt; and the names of the blocks."""
+    """The document `text` with every generated block and number (doc_numbers.py) rebuilt; and
+    the names of the blocks."""
     names = []
 
     def rebuilt(match):
@@ -319,7 +358,19 @@ def regenerate(text, archive):
             raise KeyError('unknown generated block %r (known: %s)' % (name, ', '.join(BLOCKS)))
         names.append(name)
         return match.group(1) + BLOCKS[name](archive) + match.group(4)
-    return BLOCK.sub(rebuilt, text), names
+    return doc_numbers.regenerate(BLOCK.sub(rebuilt, text), archive)[0], names
+
+
+def stale_parts(document, text, new):
+    """What of `document` differs between its `text` and the `new` one: 'document: block' for a
+    block, 'document: n: SPEC (TEXT, archive NEW)' for a number."""
+    old_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(text))
+    new_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(new))
+    stale = ['%s: %s' % (document, n) for n in new_blocks if old_blocks[n] != new_blocks[n]]
+    numbers = zip(doc_numbers.NUMBER.finditer(text), doc_numbers.NUMBER.finditer(new))
+    return stale + ['%s: n: %s (%s, archive %s)' % (document, old.group(2), old.group(3),
+                                                    fresh.group(3))
+                    for old, fresh in numbers if old.group(3) != fresh.group(3)]
 
 
 def main(argv=None):
@@ -336,18 +387,17 @@ def main(argv=None):
         path = os.path.join(ROOT, document)
         with open(path) as handle:
             text = handle.read()
-        new, names = regenerate(text, ARCHIVE)
+        new, _ = regenerate(text, ARCHIVE)
         if new == text:
             continue
         if args.check:
-            old_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(text))
-            new_blocks = dict((m.group(2), m.group(3)) for m in BLOCK.finditer(new))
-            stale += ['%s: %s' % (document, n) for n in names if old_blocks[n] != new_blocks[n]]
+            stale += stale_parts(document, text, new)
         else:
             with atomic_path(path) as tmp, open(tmp, 'w') as out:
                 out.write(new)
-    if stale:
-        sys.stderr.write('make_docs: blocks that differ from doc/results/ (make docs): %s\n'
+    stale += stale_figures(ARCHIVE, write=not args.check)
+    if stale and args.check:
+        sys.stderr.write('make_docs: blocks, numbers and figures that differ from doc/results/ (make docs): %s\n'
                          % ', '.join(stale))
         return 1
     return 0

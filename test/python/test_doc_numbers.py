@@ -1,0 +1,99 @@
+"""The documents' generated numbers (scripts/dev/doc_numbers.py) on a small archive written
+here, and on the shipped documents: a number changed by hand fails `make_docs.py --check`."""
+import csv
+import json
+import os
+import sys
+
+import pytest
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+sys.path.insert(0, os.path.join(ROOT, 'scripts', 'dev'))
+
+import doc_numbers  # noqa: E402
+import make_docs  # noqa: E402
+
+GROUPS = [
+    {'case': 'stationary', 'rpm': 12000.0, 'successes': 19, 'trials': 20, 'median_f_in_n': 2.0,
+     'failure_kinds': {'success': 19, 'stopped_shallow': 1}, 'quartiles_x': [1.0, 2.5, 4.0]},
+    {'case': 'compensated', 'rpm': 12000.0, 'successes': 17, 'trials': 20, 'median_f_in_n': 1.5,
+     'failure_kinds': {'success': 17, 'breakthrough_before_stop': 3}, 'quartiles_x': [0, 0, 0]},
+]
+# index, case, success, stop_source, max_depth_mm, inner_start_mm
+ROWS = [(0, 'stationary', 'true', '/state_recognizer', 6.0, 4.0),
+        (1, 'stationary', 'true', '/state_recognizer', 6.5, 4.0),
+        (2, 'stationary', 'false', '/state_recognizer', 5.0, 4.0),
+        (0, 'compensated', 'false', '/safety_monitor', 4.5, 4.0),
+        (1, 'compensated', 'true', '/state_recognizer', 7.0, 4.0),
+        (2, 'compensated', 'true', '/compensation_planner', 9.5, 4.0)]
+
+
+@pytest.fixture
+def archive(tmp_path):
+    folder = tmp_path / 'bench'
+    folder.mkdir()
+    (folder / 'summary.json').write_text(json.dumps({'groups': GROUPS}))
+    with open(folder / 'trials.csv', 'w') as handle:
+        writer = csv.writer(handle)
+        writer.writerow(['index', 'case', 'rpm', 'success', 'stop_source', 'max_depth_mm',
+                         'inner_start_mm'])
+        for index, case, success, source, depth, inner in ROWS:
+            writer.writerow([index, case, '12000', success, source, depth, inner])
+    return str(tmp_path)
+
+
+@pytest.mark.parametrize('spec, expected', [
+    ('bench stationary 12000 successes', '19'),
+    ('bench compensated 12000 median_f_in_n .2f', '1.50'),
+    ('bench compensated 12000 failure_kinds.breakthrough_before_stop', '3'),
+    ('bench stationary 12000 failure_kinds.breakthrough_before_stop', '0'),  # did not occur
+    ('bench stationary 12000 quartiles_x.1 .1f', '2.5'),
+    ('bench compensated 12000 count', '3'),
+    ('bench compensated 12000 count stop_source=/safety_monitor', '1'),
+    ('bench stationary 12000 count success=true,stop_source=/state_recognizer', '2'),
+    ('bench compensated 12000 max max_depth_mm-inner_start_mm .1f', '5.5'),
+    ('bench compensated 12000 max max_depth_mm .1f WHERE stop_source=/state_recognizer', '7.0'),
+    ('bench compensated 12000 only stationary', '1'),   # index 2
+    ('bench stationary 12000 only compensated', '1'),   # index 0
+    ('bench compensated 12000 mcnemar stationary .2f', '1.00'),
+    ('bench compensated 12000 change median_f_in_n .0f', '-25'),
+    ('bench compensated 12000 fisher 19/20 .3f', '0.605'),
+])
+def test_a_number_is_read_from_the_archive(archive, spec, expected):
+    assert doc_numbers.value(spec, archive) == expected
+
+
+@pytest.mark.parametrize('spec, error', [
+    ('bench stationary', ValueError),                    # too few words
+    ('bench uncompensated 12000 successes', KeyError),   # no such group
+    ('missing stationary 12000 successes', FileNotFoundError),
+])
+def test_a_bad_spec_is_an_error_naming_it(archive, spec, error):
+    with pytest.raises(error):
+        doc_numbers.value(spec, archive)
+
+
+def test_a_sentence_is_rewritten_and_its_specs_listed(archive):
+    text = ('In <!-- n: bench stationary 12000 successes -->18<!-- /n --> of '
+            '<!-- n: bench stationary 12000 trials -->20<!-- /n --> trials.')
+    new, specs = doc_numbers.regenerate(text, archive)
+    assert new == text.replace('-->18<', '-->19<')
+    assert specs == ['bench stationary 12000 successes', 'bench stationary 12000 trials']
+
+
+def test_a_shipped_number_changed_by_hand_fails_the_check():
+    path = os.path.join(ROOT, 'doc', 'campaign_results.md')
+    with open(path) as handle:
+        text = handle.read()
+    match = next(doc_numbers.NUMBER.finditer(text))
+    tampered = text.replace(match.group(0),
+                            match.group(1) + match.group(3) + '0' + match.group(4), 1)
+    rebuilt, _ = make_docs.regenerate(tampered, make_docs.ARCHIVE)
+    assert rebuilt == text
+    stale = make_docs.stale_parts('doc/campaign_results.md', tampered, rebuilt)
+    assert stale and match.group(2) in stale[0]
+
+
+def test_the_shipped_documents_use_generated_numbers():
+    with open(os.path.join(ROOT, 'doc', 'campaign_results.md')) as handle:
+        assert len(list(doc_numbers.NUMBER.finditer(handle.read()))) >= 50
