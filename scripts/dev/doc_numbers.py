@@ -7,7 +7,8 @@ invisible once rendered); make_docs.py rewrites TEXT from the archive in doc/res
 - `FOLDER CASE RPM KEY [FORMAT]`: the value KEY of the group (CASE, RPM) of FOLDER/summary.json;
   KEY is a dotted path into the group (`median_f_out_n`, `quartiles_f_in_n.1`,
   `failure_kinds.breakthrough_before_stop`; a missing dictionary key is 0, a count that did not
-  occur); FORMAT a format() spec (`.2f`, `.0f`, `d`), by default str();
+  occur); FORMAT a format() spec (`.2f`, `.0f`, `d`; `.0%` writes a rate as `28 %`, with the
+  documents' space), by default str();
 - `FOLDER CASE RPM count COLUMN=VALUE[,COLUMN=VALUE...]`: how many rows of FOLDER/trials.csv of
   that case and speed have every COLUMN equal to VALUE;
 - `FOLDER CASE RPM max COLUMN[-COLUMN] FORMAT WHERE COLUMN=VALUE[,...]`: the largest value
@@ -102,7 +103,10 @@ def value(spec, archive):
                   for r in _rows(archive, folder, case, rpm, where)]
         return format(max(values), spec_format)
     result = _lookup(_group(archive, folder, case, rpm), key)
-    return format(result, words[4]) if len(words) > 4 else str(result)
+    if len(words) == 4:
+        return str(result)
+    text = format(result, words[4])
+    return text[:-1] + ' %' if words[4].endswith('%') else text
 
 
 def regenerate(text, archive):

@@ -45,6 +45,7 @@ def archive(tmp_path):
 @pytest.mark.parametrize('spec, expected', [
     ('bench stationary 12000 successes', '19'),
     ('bench compensated 12000 median_f_in_n .2f', '1.50'),
+    ('bench compensated 12000 median_f_in_n .0%', '150 %'),
     ('bench compensated 12000 failure_kinds.breakthrough_before_stop', '3'),
     ('bench stationary 12000 failure_kinds.breakthrough_before_stop', '0'),  # did not occur
     ('bench stationary 12000 quartiles_x.1 .1f', '2.5'),
