@@ -40,14 +40,20 @@ FLAGS = {'samples': '--samples', 'profile': '--profile', 'resume': '--resume',
 # keyword -> the repeatable NAME=VALUE option its mapping becomes.
 PARAM_OPTIONS = {'recognizer_params': '--recognizer-param',
                  'compensator_params': '--compensator-param'}
-ApiError = submission.SubmissionError  # a bad argument, named: a ValueError
+
+
+class ApiError(submission.SubmissionError):
+    """A bad argument, named by its keyword (a ValueError)."""
 
 
 def add_module(path):
     """Makes the Python file `path` importable by its name (its folder first on sys.path, and
     on PYTHONPATH for the engines and tools this process starts); returns the module's name, so
     that `'python:%s.MyClass' % add_module('my/file.py')` names a recognizer class in it."""
-    return submission.add_module(path)
+    try:
+        return submission.add_module(path)
+    except submission.SubmissionError as error:
+        raise ApiError(str(error)) from None
 
 
 def _text(keyword, value):
@@ -58,7 +64,7 @@ def _text(keyword, value):
         return ','.join(_text(keyword, item) for item in value)
     if isinstance(value, bool) or not isinstance(value, (str, int, float, os.PathLike)):
         raise ApiError('%s: %r is not a number, a text or a list of them' % (keyword, value))
-    return '%g' % value if isinstance(value, float) else str(value)
+    return repr(value) if isinstance(value, float) else str(value)
 
 
 def _scenario_file(scenario, out_dir):
@@ -227,6 +233,20 @@ def load_split(dataset_dir, split='train'):
     return Split(dataset_dir, split)
 
 
+def _texts(params):
+    try:
+        return submission.texts('params', params)
+    except submission.SubmissionError as error:
+        raise ApiError(str(error)) from None
+
+
+def _grid(grid):
+    try:
+        return submission.grid(grid)
+    except submission.SubmissionError as error:
+        raise ApiError(str(error).replace('tune:', 'grid:', 1)) from None
+
+
 def _recognizer_name(recognizer):
     """A class name as the engines take it; a Python class given itself is named by its module
     (which must be importable by that name: add_module)."""
@@ -246,8 +266,8 @@ def score_offline(recognizer, dataset_dir, split='validation', params=None):
     with tempfile.TemporaryDirectory(prefix='pd_score_') as scratch:
         traces = leaderboard.export_traces(split.path, scratch)
         try:
-            return leaderboard.offline_score(_recognizer_name(recognizer), submission.texts(
-                'params', params), traces)
+            return leaderboard.offline_score(_recognizer_name(recognizer), _texts(params),
+                                             traces)
         except leaderboard.LeaderboardError as error:
             raise ApiError('recognizer: %s' % error) from None
 
@@ -257,7 +277,7 @@ def tune_offline(recognizer, dataset_dir, grid, params=None, jobs=2):
     on the training split, the best few re-scored on validation; {params, train, validation,
     grid_size, top}."""
     entry = {'name': 'tuned', 'recognizer': _recognizer_name(recognizer),
-             'params': submission.texts('params', params), 'tune': submission.grid(grid)}
+             'params': _texts(params), 'tune': _grid(grid)}
     with tempfile.TemporaryDirectory(prefix='pd_tune_') as scratch:
         traces = {name: leaderboard.export_traces(load_split(dataset_dir, name).path,
                                                   os.path.join(scratch, name))
@@ -276,7 +296,7 @@ def score_closed_loop(recognizer, dataset_dir, out=None, params=None, name='entr
     the leaderboard's reference, on its benches: a Submission (its board rows). `options` as
     submit's."""
     entry = {'name': name, 'recognizer': _recognizer_name(recognizer),
-             'params': submission.texts('params', params)}
+             'params': _texts(params)}
     return submit(entry, dataset_dir, out, **options)
 
 
@@ -291,9 +311,14 @@ def submit(entry, dataset_dir, out=None, fit=None, bench=None, trials=None, jobs
     if fit is not None and not callable(fit):
         raise ApiError('fit: %r is not callable' % (fit,))
     benches = [bench] if isinstance(bench, str) else bench
-    submission.run(submission.read_entry(entry), str(dataset_dir), out, fit=fit,
-                   benches=benches, trials=trials, jobs=jobs, config_path=config,
-                   log=sys.stderr)
+    try:
+        submission.run(submission.read_entry(entry), str(dataset_dir), out, fit=fit,
+                       benches=benches, trials=trials, jobs=jobs, config_path=config,
+                       log=sys.stderr)
+    except submission.SubmissionError as error:
+        if isinstance(error, ApiError):
+            raise
+        raise ApiError(str(error)) from None
     return Submission(out)
 
 
