@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 import pandas
 
-from . import arguments, cli, dataset, leaderboard, submission, trials_csv
+from . import arguments, cli, leaderboard, splits, submission, trials_csv
 from .scenario import UsageError
 
 # keyword -> the campaign's option; a list or tuple value is joined with commas.
@@ -197,40 +197,16 @@ class Trial:
         self.trace = campaign.trace(self.row['trial_id'])
 
 
-class Split:
-    """A split of a campaign_dataset folder (doc/dataset.md): `samples` (one row per
-    force-sensor sample: dataset.SAMPLE_COLUMNS and `trial`, the trial's row in `trials`),
-    `trials` (the trial table, dataset.TRIAL_FIELDS' columns), `meta` (split.json's), `path`
-    (the .npz, which the offline tools read)."""
-
-    def __init__(self, dataset_dir, name):
-        if name not in dataset.SPLITS:
-            raise ApiError('split: %r is not one of %s' % (name, ', '.join(dataset.SPLITS)))
-        self.dataset, self.name = os.path.abspath(str(dataset_dir)), name
-        self.path = os.path.join(self.dataset, '%s.npz' % name)
-        try:
-            with open(os.path.join(self.dataset, 'split.json')) as handle:
-                self.meta = json.load(handle).get('meta') or {}
-            with np.load(self.path) as z:
-                columns = {key: z[key] for key in z.files}
-        except (OSError, ValueError) as error:
-            raise ApiError('dataset: %s is not a campaign_dataset folder (%s)' % (
-                self.dataset, error)) from None
-        self.samples = pandas.DataFrame({key: columns[key] for key in
-                                         dataset.SAMPLE_COLUMNS + ['trial']})
-        self.trials = pandas.DataFrame({key[len('trial_'):]: value
-                                        for key, value in columns.items()
-                                        if key.startswith('trial_')})
-
-    def trial(self, k):
-        """The samples of the k-th trial of `trials`."""
-        return self.samples[self.samples['trial'] == k]
+Split = splits.Split
 
 
 def load_split(dataset_dir, split='train'):
-    """A Split of a campaign_dataset folder: train, validation or test (look at the test split
-    only to report, never to choose)."""
-    return Split(dataset_dir, split)
+    """A Split of a campaign_dataset folder (pd_campaign.splits): train, validation or test
+    (look at the test split only to report, never to choose)."""
+    try:
+        return splits.Split(dataset_dir, split)
+    except splits.SplitError as error:
+        raise ApiError(str(error)) from None
 
 
 def _texts(params):

@@ -16,7 +16,7 @@ The entry's YAML (ENTRY_KEYS; a path in it is relative to the YAML's folder):
     files: [model]                   # parameters that name a file, relative to the YAML
 
 The steps are the leaderboard's own (pd_campaign.leaderboard): `fit(train, validation, out)`,
-when given, is called with the training and validation splits (pd_campaign.api.Split: never
+when given, is called with the training and validation splits (pd_campaign.splits.Split: never
 the test split) and returns parameters fixed for the entry (e.g. the path of a model it wrote
 into `out`); the grid is scored offline on the training split, the best re-scored on
 validation (tune_all, beside the Table II identification); the entry and the board's
@@ -201,9 +201,12 @@ def _fitted(entry, fit, dataset_dir, out):
     fit = fit or entry['fit']
     if fit is None:
         return dict(entry['params'])
-    from . import api  # pandas: only for an entry that trains
-    given = fit(api.load_split(dataset_dir, 'train'), api.load_split(dataset_dir, 'validation'),
-                out)
+    from . import splits  # pandas: only for an entry that trains
+    try:
+        train, validation = (splits.Split(dataset_dir, name) for name in ('train', 'validation'))
+    except splits.SplitError as error:
+        raise SubmissionError(str(error)) from None
+    given = fit(train, validation, out)
     return dict(entry['params'], **texts('fit (its return value)', given))
 
 
