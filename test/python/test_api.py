@@ -201,6 +201,7 @@ def test_an_entry_from_outside_the_package_reaches_the_board(small_dataset, tmp_
     ({'colour': 'red'}, 'unknown key colour'), ({'class': 'Nope'}, 'class: .* has no class Nope'),
     ({'module': 'missing.py'}, 'module: .*missing.py'), ({'name': 'a b'}, 'name:'),
     ({'fit': 'train_me'}, 'fit:'), ({'tune': {'rise_n': 0.6}}, 'tune: rise_n'),
+    ({'files': ['model']}, 'files: model is not one of the params'),
 ])
 def test_a_bad_entry_is_refused_by_name(tmp_path, changes, named):
     entry = write_entry(tmp_path / 'submitter', **changes)
