@@ -27,9 +27,14 @@ def _context():
     return _CONTEXT
 
 
-def _main(argv, log_path):
-    """The child: its output appended to `log_path` (None: the tool's own), then the
-    campaign."""
+def _main(argv, log_path, python_path):
+    """The child: its output appended to `log_path` (None: the tool's own), its PYTHONPATH the
+    caller's when it started the child (the server's may be older: a submitted recognizer's
+    folder is added to it at run time, pd_campaign.api.add_module), then the campaign."""
+    if python_path is None:
+        os.environ.pop('PYTHONPATH', None)
+    else:
+        os.environ['PYTHONPATH'] = python_path
     if log_path is not None:
         flags = os.O_WRONLY | os.O_CREAT | os.O_APPEND
         handle = os.open(log_path, flags, 0o644)  # not atomic: the live log, appended to
@@ -48,7 +53,8 @@ class CampaignProcess:
     appended to `log_path` (the caller creates or empties it), else the tool's own."""
 
     def __init__(self, argv, log_path=None):
-        self._process = _context().Process(target=_main, args=(list(argv), log_path))
+        self._process = _context().Process(target=_main, args=(
+            list(argv), log_path, os.environ.get('PYTHONPATH')))
         self._process.start()
 
     @property

@@ -451,11 +451,19 @@ def _os_error_text(error):
 
 
 def run_campaign(argv=None):
+    """`campaign ARGV`: its exit status (2: refused, naming the option or the scenario key)."""
     try:
         setup = prepare(argv)
     except UsageError as error:
         sys.stderr.write('campaign: %s\n' % error)
         return 2
+    return run_prepared(setup)
+
+
+def run_prepared(setup):
+    """The campaign of `setup` (arguments.prepare's, checked) in its --out folder: its exit
+    status (0 complete, 1 trials missing or an output not written, 2 refused, 130 Ctrl-C).
+    pd_campaign.api runs its campaigns through it, as the command line does."""
     out_dir = os.path.abspath(setup.args.out)
     try:
         os.makedirs(os.path.join(out_dir, 'traces'), exist_ok=True)

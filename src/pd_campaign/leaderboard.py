@@ -12,19 +12,13 @@
 2. **Closed loop, on the test split's specimens**: each entry drills the same evaluation-seed
    trials (the dataset's base seed, evaluation space: the test split's specimens and patients,
    extended by further evaluation seeds when more trials are asked for) on both benches.
-3. **The board**: per bench and case, each entry's correct stops with the Wilson 95 % interval,
-   no-penetration, early stops, residual, overshoot and detection latency, and McNemar's exact
-   test paired with the reference entry (the paper's recognizer), in DIR/leaderboard.md, .json
-   and a figure. The benches run the paper's system (no drilling plan): the recognizer alone
-   decides. Each entry drills the same trials a second time with the plan's depth limit on
-   (scenario key depth_limit), for the system's no-penetration column: what a recognizer leaves
-   to the last line, and how often that line stopped the drill first.
-4. **Uncertainty and strata** (pd_campaign.board_stats), per bench: each entry's rank with its
-   95 % interval bootstrapped over the specimens (paired across entries and cases), its correct
-   stops per bone-density, inner-cortex-thickness and speed band (edges from the training
-   split), and the hidden-condition board (the specimens under the dataset's hidden
-   conditions, which its training and validation splits never hold). Every board is stamped
-   with the dataset's version and build and the board's own build.
+3. **The board**: per bench and case, each entry's correct stops (Wilson 95 %), no
+   penetration, early stops, residual, overshoot, detection latency and McNemar's exact test
+   paired with the reference entry, in DIR/leaderboard.md, .json and a figure; the same trials
+   again with the plan's depth limit on, for the system's no-penetration column.
+4. **Uncertainty and strata** (pd_campaign.board_stats): ranks bootstrapped over the specimens,
+   strata and the hidden-condition board; every board stamped with the dataset's version and
+   build and the board's own build. An entry submitted from outside: pd_campaign.submission.
 """
 
 import argparse
@@ -507,6 +501,56 @@ def write_board(boards, tuning, config, meta, args):
     figure(boards, config, os.path.join(args.out, 'leaderboard.png'))
 
 
+def board_settings(args, config, meta, test_per_case):
+    """Sets args.cases, rpms, trials (default `test_per_case`), strata_edges and extras."""
+    args.cases = config.get('cases') or list(design.CASES)
+    args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
+    args.trials = args.trials or test_per_case
+    args.strata_edges = board_stats.stratum_edges(
+        os.path.join(args.dataset, 'train.npz'),
+        (meta.get('hidden_conditions') or {}).get('density_reference_n'))
+    args.extras = {}
+
+
+def read_dataset(dataset_dir):
+    """(split.json's meta, test trials per case and speed); LeaderboardError names a gap."""
+    with open(os.path.join(dataset_dir, 'split.json')) as handle:
+        meta = json.load(handle).get('meta')
+    if not isinstance(meta, dict) or 'base_seed' not in meta:
+        raise LeaderboardError('%s/split.json: no meta.base_seed (an older dataset?)'
+                               % dataset_dir)
+    with np.load(os.path.join(dataset_dir, 'test.npz')) as test:
+        ids, cases, rpms = test['trial_trial_id'], test['trial_case'], test['trial_rpm']
+    return meta, len(ids) // max(1, len(set(cases)) * len(set(rpms)))
+
+
+def closed_loop(entries, tuning, benches, config, meta, args, identification):
+    """{bench: board rows}: each entry (its `tuning` params) drills the test specimens on each
+    bench, without and with the depth limit (args: board_settings', jobs, out; fills extras)."""
+    boards = {}
+    for bench in benches:
+        scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])
+        limited_scenario = scenario_with_depth_limit(
+            scenario, os.path.join(args.out, 'closed_loop_depth_limit', bench))
+        rows_by_entry = {}
+        limited_by_entry = {}
+        for entry in entries:
+            sys.stderr.write('leaderboard: %s on the %s bench\n' % (entry['name'], bench))
+            rows_by_entry[entry['name']] = run_campaign(
+                entry, tuning[entry['name']]['params'], scenario, meta, args,
+                os.path.join(args.out, 'closed_loop', bench, entry['name']), identification)
+            sys.stderr.write('leaderboard: %s on the %s bench, depth limit on\n'
+                             % (entry['name'], bench))
+            limited_by_entry[entry['name']] = run_campaign(
+                entry, tuning[entry['name']]['params'], limited_scenario, meta, args,
+                os.path.join(args.out, 'closed_loop_depth_limit', bench, entry['name']),
+                identification)
+        boards[bench] = board_rows(rows_by_entry, config['reference'],
+                                   limited_rows(limited_by_entry))
+        args.extras[bench] = extras(rows_by_entry, args, meta)
+    return boards
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog='campaign_leaderboard',
@@ -526,23 +570,10 @@ def main(argv=None):
     args = parser.parse_args(argv)
     try:
         config = load_config(args.config)
-        with open(os.path.join(args.dataset, 'split.json')) as handle:
-            meta = json.load(handle).get('meta')
-        if not isinstance(meta, dict) or 'base_seed' not in meta:
-            raise LeaderboardError('%s/split.json: no meta.base_seed (an older dataset?)'
-                                   % args.dataset)
-        test = np.load(os.path.join(args.dataset, 'test.npz'))
-        test_per_case = len(test['trial_trial_id']) // max(1, len(set(test['trial_case'])) * len(
-            set(test['trial_rpm'])))
+        meta, test_per_case = read_dataset(args.dataset)
     except (OSError, ValueError) as e:
         parser.error(str(e))
-    args.cases = config.get('cases') or list(design.CASES)
-    args.rpms = [int(r) for r in (config.get('rpms') or [12000])]
-    args.trials = args.trials or test_per_case
-    args.strata_edges = board_stats.stratum_edges(
-        os.path.join(args.dataset, 'train.npz'),
-        (meta.get('hidden_conditions') or {}).get('density_reference_n'))
-    args.extras = {}
+    board_settings(args, config, meta, test_per_case)
     benches = args.bench or list(config['benches'])
     for bench in benches:
         if bench not in config['benches']:
@@ -562,27 +593,7 @@ def main(argv=None):
         json.dump(tuning, handle, indent=1)
     if identification is None:
         return 1
-    boards = {}
-    for bench in benches:
-        scenario = os.path.join(PACKAGE_ROOT, 'config', config['benches'][bench])
-        limited_scenario = scenario_with_depth_limit(
-            scenario, os.path.join(args.out, 'closed_loop_depth_limit', bench))
-        rows_by_entry = {}
-        limited_by_entry = {}
-        for entry in config['entries']:
-            sys.stderr.write('leaderboard: %s on the %s bench\n' % (entry['name'], bench))
-            rows_by_entry[entry['name']] = run_campaign(
-                entry, tuning[entry['name']]['params'], scenario, meta, args,
-                os.path.join(args.out, 'closed_loop', bench, entry['name']), identification)
-            sys.stderr.write('leaderboard: %s on the %s bench, depth limit on\n'
-                             % (entry['name'], bench))
-            limited_by_entry[entry['name']] = run_campaign(
-                entry, tuning[entry['name']]['params'], limited_scenario, meta, args,
-                os.path.join(args.out, 'closed_loop_depth_limit', bench, entry['name']),
-                identification)
-        boards[bench] = board_rows(rows_by_entry, config['reference'],
-                                   limited_rows(limited_by_entry))
-        args.extras[bench] = extras(rows_by_entry, args, meta)
+    boards = closed_loop(config['entries'], tuning, benches, config, meta, args, identification)
     write_board(boards, tuning, config, meta, args)
     sys.stderr.write('leaderboard: %s\n' % os.path.join(args.out, 'leaderboard.md'))
     return 0
