@@ -29,8 +29,10 @@ RUN_TIMEOUT_S = 900  # the campaign: Table II identification, then one trial
 NOT_PACKAGE = ('catkin_ws', 'results', 'out')
 CPP_TOOLS = sorted(name[:-len('.cpp')] for name in os.listdir(os.path.join(ROOT, 'src', 'tools'))
                    if name.endswith('.cpp'))  # src/tools/<name>.cpp: the tool <name>
-SCRIPTS = ['campaign', 'campaign_compare', 'campaign_merge', 'campaign_sensitivity',
-           'campaign_robustness', 'plot_tidal_volume.py', 'static_transform.py', 'table2.py', 'volunteers_to_bag.py']
+# Every user script of scripts/ (scripts/dev is the developers'): one left out of the install
+# rule fails here.
+SCRIPTS = sorted(name for name in os.listdir(os.path.join(ROOT, 'scripts'))
+                 if os.path.isfile(os.path.join(ROOT, 'scripts', name)))
 SHARE = ['config', 'launch_scripts', 'rviz', 'urdf', 'package.xml', 'nodelet_plugins.xml',
          'rviz_plugins.xml', 'recognizer_plugins.xml', 'compensator_plugins.xml']
 
