@@ -76,16 +76,6 @@ void PluginLoader<Base>::ensureLoader() {
 }
 
 template <class Base>
-std::vector<std::string> PluginLoader<Base>::declaredClasses() {
-  std::vector<std::string> out = PluginKind<Base>::builtin();
-  ensureLoader();
-  for (const std::string& c : loader_->getDeclaredClasses()) {
-    if (std::find(out.begin(), out.end(), c) == out.end()) out.push_back(c);
-  }
-  return out;
-}
-
-template <class Base>
 std::unique_ptr<Base> PluginLoader<Base>::create(const std::string& name,
                                                  const Settings& settings) {
   const std::vector<std::string> builtin = PluginKind<Base>::builtin();

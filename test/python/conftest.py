@@ -3,10 +3,15 @@ dataset, written once per run for the tests that read it (test_dataset, test_bas
 test_leaderboard)."""
 import os
 import subprocess
+import sys
 
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
+# pd_campaign is imported as the workspace installs it (devel or install space: source its
+# setup.bash), never from src/. The tests' shared helpers (test/) and the developer scripts some
+# tests check (scripts/dev/) are no package: on the path here, once for every test file.
+sys.path[:0] = [os.path.join(ROOT, 'test'), os.path.join(ROOT, 'scripts', 'dev')]
 
 
 @pytest.fixture(scope='session')

@@ -16,8 +16,7 @@ import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
 SCRIPTS = os.path.join(ROOT, 'scripts')
-PACKAGE_SRC = os.path.join(ROOT, 'src')  # pd_campaign (catkin_python_setup; here without devel)
-sys.path.insert(0, PACKAGE_SRC)
+PACKAGE_SRC = os.path.join(ROOT, 'src')  # pd_campaign's sources, scanned (imported from the workspace)
 from pd_campaign.atomic import atomic_path, atomic_savefig, atomic_write  # noqa: E402
 
 # The helper's temporary files: .<name>.tmp<random> in the destination's folder.

@@ -3,13 +3,9 @@ topic of a campaign bag, names the required topics that have no message and find
 missing from the force stream (gaps against its own median period). Checked on bags written
 here, with known losses. And the worker names a dead process of its launch from roslaunch's log
 (worker.died_processes)."""
-import os
-import sys
 
 import pytest
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 rosbag = pytest.importorskip('rosbag')
 import rospy  # noqa: E402

@@ -10,13 +10,11 @@ import os
 import re
 import statistics
 import subprocess
-import sys
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'test'))
 from shipped_docs import declared_default  # noqa: E402
 
 SIMULATOR = 'pedicle_drilling/Simulator'

@@ -3,12 +3,10 @@ import json
 import os
 import random
 import subprocess
-import sys
 
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import compare, stats  # noqa: E402
 
 TOOL = os.path.join(ROOT, 'scripts', 'campaign_compare')

@@ -8,7 +8,6 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 from pd_campaign import aggregate, cli, design, report, stats, trials_csv  # noqa: E402
 
@@ -273,7 +272,6 @@ def test_bad_scenario_is_an_error_naming_the_key(tmp_path, text, named):
 def test_a_scenario_of_this_version_is_accepted(tmp_path):
     scenario = tmp_path / 'v1.yaml'
     scenario.write_text('version: 1\ncases: [stationary]\nrpms: [12000]\ntrials: 1\n')
-    sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
     from pd_campaign.scenario import load_scenario
     assert load_scenario(str(scenario))['trials'] == 1
 

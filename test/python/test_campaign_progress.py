@@ -1,11 +1,7 @@
 """The campaign's progress display: a bar in place on a terminal, whole lines
 elsewhere (a file, a pipe, Slurm's log), no carriage return there."""
 import io
-import os
-import sys
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 from pd_campaign.progress import Progress  # noqa: E402
 

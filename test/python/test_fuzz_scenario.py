@@ -7,10 +7,8 @@ unchecked value) fails and prints the input. The seed is fixed: the same inputs 
 import glob
 import os
 import random
-import sys
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 
 from pd_campaign.scenario import SCENARIO_KEYS, UsageError, load_scenario  # noqa: E402
 

@@ -5,12 +5,10 @@ here."""
 import glob
 import os
 import shutil
-import sys
 
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'scripts', 'dev'))
 
 import make_docs  # noqa: E402
 

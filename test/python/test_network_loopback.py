@@ -7,7 +7,6 @@ import os
 import signal
 import socket
 import subprocess
-import sys
 import time
 import xml.etree.ElementTree as ET
 import xmlrpc.client
@@ -17,7 +16,6 @@ from roslaunch.config import ROSLaunchConfig
 from roslaunch.xmlloader import XmlLoader
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'test'))
 from shipped_docs import required_launch_args  # noqa: E402
 LAUNCH_FILES = sorted(glob.glob(os.path.join(ROOT, 'launch_scripts', '*.launch')))
 

@@ -10,13 +10,11 @@ range is the rostest parameter_walk."""
 import json
 import os
 import subprocess
-import sys
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'test'))
 from shipped_docs import NODE_REFERENCE, parameter_rows, parameter_tables  # noqa: E402
 CONFIGS = {
     'pedicle_drilling/Ventilator': 'ventilator.yaml',

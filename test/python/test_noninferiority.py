@@ -9,7 +9,6 @@ import sys
 import pytest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))
 from pd_campaign import compare, stats  # noqa: E402
 
 Z95 = 1.959963984540054

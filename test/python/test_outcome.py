@@ -1,12 +1,8 @@
 """Failure kinds and the field's metrics of a trial (pd_campaign.outcome), on hand-made records
 whose answers are worked out by hand."""
-import os
-import sys
 
 import pytest
 
-ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))
 
 from pd_campaign import outcome  # noqa: E402
 

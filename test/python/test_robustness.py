@@ -4,13 +4,11 @@ csv and markdown writers on a fake campaign layout, and one tiny real run."""
 import csv
 import os
 import subprocess
-import sys
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import robustness, stats, trials_csv  # noqa: E402
 from pd_campaign.robustness import ConfigError  # noqa: E402
 

@@ -5,13 +5,11 @@ import csv
 import json
 import os
 import subprocess
-import sys
 
 import pytest
 from scipy.stats import binomtest
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'src'))  # pd_campaign
 from pd_campaign import design, sensitivity, tools  # noqa: E402
 from pd_campaign.sensitivity import SweepError, runner, sweep  # noqa: E402
 import test_atomic_outputs as atomic_checks  # noqa: E402  (its audit hook, not its tests)

@@ -2,14 +2,12 @@
 import glob
 import os
 import subprocess
-import sys
 import xml.etree.ElementTree as ET
 
 import pytest
 import yaml
 
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), '..', '..'))
-sys.path.insert(0, os.path.join(ROOT, 'test'))
 from shipped_docs import required_launch_args  # noqa: E402
 
 
@@ -78,7 +76,6 @@ def test_the_hardware_urdf_is_the_workcell_without_the_trackers_frames():
     """urdf/workcell_hardware.urdf is what scripts/dev/make_hardware_urdf.py writes from
     workcell.urdf today (the two cannot drift apart), and it has every link of the workcell but
     the tracker's two, which a lab's tracker driver and registration publish."""
-    sys.path.insert(0, os.path.join(ROOT, 'scripts', 'dev'))
     from make_hardware_urdf import hardware_urdf  # noqa: E402
     with open(os.path.join(ROOT, 'urdf', 'workcell.urdf')) as handle:
         workcell = handle.read()

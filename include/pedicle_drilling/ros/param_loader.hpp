@@ -10,7 +10,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <set>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -192,24 +191,6 @@ class ParamLoader {
       out.emplace_back(key, text);
     }
     return out;
-  }
-
-  /**
-   * @brief Fails on a key of the mapping `name` that is not in `known` (a typo would otherwise
-   *        be a silent default), or when `name` is set but is not a mapping. Absent: no-op.
-   */
-  void rejectUnknownKeys(const std::string& name, const std::set<std::string>& known) const {
-    if (!nh_.hasParam(name)) return;
-    XmlRpc::XmlRpcValue raw;
-    nh_.getParam(name, raw);
-    if (raw.getType() != XmlRpc::XmlRpcValue::TypeStruct) fail(name, "must be a mapping");
-    for (auto it = raw.begin(); it != raw.end(); ++it) {
-      if (known.count(it->first) == 0) {
-        std::string list;
-        for (const std::string& k : known) list += (list.empty() ? "" : ", ") + k;
-        fail(name + "/" + it->first, "is not a known parameter (known: " + list + ")");
-      }
-    }
   }
 
   /**

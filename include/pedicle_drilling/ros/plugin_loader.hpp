@@ -44,9 +44,6 @@ class PluginLoader {
    */
   std::unique_ptr<Base> create(const std::string& name, const Settings& settings);
 
-  /** @brief Every class name known: the built-in ones and those pluginlib declares. */
-  std::vector<std::string> declaredClasses();
-
  private:
   void ensureLoader();
   std::unique_ptr<pluginlib::ClassLoader<Base>> loader_;

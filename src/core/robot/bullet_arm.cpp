@@ -937,12 +937,6 @@ int BulletArm::numJoints() const { return impl_->n(); }
 
 const std::vector<ArmJointInfo>& BulletArm::jointInfo() const { return impl_->joint_info; }
 
-std::vector<std::string> BulletArm::linkNames() const {
-  std::vector<std::string> out;
-  for (const auto& kv : impl_->links) out.push_back(kv.first);
-  return out;
-}
-
 bool BulletArm::hasLink(const std::string& name) const { return impl_->links.count(name) > 0; }
 
 TargetResult BulletArm::setJointPositionTargets(const Eigen::VectorXd& q) {
@@ -1122,9 +1116,5 @@ bool BulletArm::applyTipForce(const Eigen::Vector3d& world_force) {
 }
 
 Eigen::Vector3d BulletArm::tipForce() const { return impl_->tip_force; }
-
-btMultiBodyDynamicsWorld* BulletArm::world() { return impl_->world.get(); }
-
-btMultiBody* BulletArm::multiBody() { return impl_->mb.get(); }
 
 }  // namespace pedicle_drilling::core

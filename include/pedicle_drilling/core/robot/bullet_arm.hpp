@@ -54,9 +54,6 @@
 
 #include "pedicle_drilling/core/robot/target_result.hpp"
 
-class btMultiBody;
-class btMultiBodyDynamicsWorld;
-
 namespace pedicle_drilling::core {
 
 /// @brief Parameters of the Bullet arm simulation and its joint servos.
@@ -139,8 +136,6 @@ class BulletArm {
   int numJoints() const;
   /// @brief Limits, type and servo stiffness of every simulated joint, base to tip.
   const std::vector<ArmJointInfo>& jointInfo() const;
-  /// @brief Names of all URDF links whose pose linkPose() can report.
-  std::vector<std::string> linkNames() const;
   /// @brief True if linkPose(name) is available.
   bool hasLink(const std::string& name) const;
 
@@ -225,13 +220,6 @@ class BulletArm {
   bool applyTipForce(const Eigen::Vector3d& world_force);
   /// @brief The force currently applied at the tip.
   Eigen::Vector3d tipForce() const;
-
-  /// @brief Underlying Bullet world (owned by this object), for inspection: the link poses
-  /// and the servo's inverse inertia are kept between sub-steps, so a state or mass changed
-  /// through it is not seen until resetJointState().
-  btMultiBodyDynamicsWorld* world();
-  /// @brief Underlying Bullet multibody (owned by this object); the same caveat as world().
-  btMultiBody* multiBody();
 
  private:
   struct Impl;
