@@ -15,6 +15,7 @@
 #include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/robot/kinematics.hpp"
+#include "pedicle_drilling/core/sim/bench_session.hpp"
 #include "pedicle_drilling/core/sim/normal_source.hpp"
 #include "pedicle_drilling/core/sim/stream_schedule.hpp"
 
@@ -125,7 +126,7 @@ struct ClosedLoopEngine::Impl {
   std::string planner_error;  ///< the sequencer's last error-level log line (why it failed)
   SequencerTimers timers;
   EngineTrialRecord record;
-  long last_breath_index = -1;
+  BreathWatch breaths;  ///< the planner hears the ventilator's settings at each breath
   double now = 0.0;
   bool stop_truth_recorded = false;  // the truth sample at the first stop command was taken
   bool record_samples = false;       // the trial has started and its samples are recorded
@@ -135,8 +136,8 @@ struct ClosedLoopEngine::Impl {
   bool fault_armed = false;                   // the drilling has started: the trigger is watched
   TrialPhase last_phase = TrialPhase::kIdle;  // the sequencer's phase, as the monitor hears it
   bool fault_pending = false;                 // triggered, waiting for the next breath or command
-  long fault_breath_index = -1;
-  FaultInjector injector;  // the force, tracker and command faults (as the nodelet applies them)
+  AtNextBreath fault_breath;  // a breathing fault's (amplitude) factor, from the next breath
+  FaultInjector injector;     // the force, tracker and command faults (as the nodelet applies them)
 
   // The drill guard in the monitor's process and the heartbeats between the processes (the
   // pipeline's layout: planner + recognizer, monitor + guard, the drivers); a process-kill fault
@@ -217,7 +218,9 @@ struct ClosedLoopEngine::Impl {
     if (!fault_pending) {
       if (sim->groundTruth().max_depth_cut_m < record.fault.trigger_depth_m) return;
       fault_pending = true;
-      fault_breath_index = sim->ventilator().breathIndex();
+      if (isBreathingFault(kind)) {
+        fault_breath.arm(sim->ventilator().breathIndex(), config.faults.amplitude_factor);
+      }
       if (kind == FaultKind::kBreathingRateUp || kind == FaultKind::kBreathingRateDown) {
         // The ventilator takes new settings at its next breath; its settings stream tells the
         // planner then, as the Ventilator nodelet publishes them. The model is not re-fit.
@@ -231,10 +234,10 @@ struct ClosedLoopEngine::Impl {
       if (!isBreathingFault(kind) && !isCommandFault(kind)) injectFault();
       return;
     }
-    if (isBreathingFault(kind) && sim->ventilator().breathIndex() != fault_breath_index) {
-      if (kind == FaultKind::kBreathingAmplitude) {
-        sim->setPatientAmplitudeFactor(config.faults.amplitude_factor);
-      }
+    if (!isBreathingFault(kind)) return;
+    if (const std::optional<double> factor =
+            fault_breath.takeDue(sim->ventilator().breathIndex())) {
+      if (kind == FaultKind::kBreathingAmplitude) sim->setPatientAmplitudeFactor(*factor);
       injectFault();
     }
   }
@@ -463,10 +466,7 @@ struct ClosedLoopEngine::Impl {
 
   void onTidalVolume() {
     const BreathScheduler& ventilator = sim->ventilator();
-    if (ventilator.breathIndex() != last_breath_index) {
-      last_breath_index = ventilator.breathIndex();
-      sequencer->setVentilator(ventilator.model().settings());
-    }
+    if (breaths.newBreath(ventilator)) sequencer->setVentilator(ventilator.model().settings());
     sequencer->setBreathStart(now - sim->sensedTimeInBreath());
   }
 
@@ -724,14 +724,14 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.planner_error.clear();
   s.timers.clear();
   s.record = EngineTrialRecord();
-  s.last_breath_index = -1;
+  s.breaths.clear();
   s.stop_truth_recorded = false;
   s.record_samples = false;
   s.last_tracker = Eigen::Vector3d::Constant(std::nan(""));
   s.fault_armed = false;
   s.last_phase = TrialPhase::kIdle;
   s.fault_pending = false;
-  s.fault_breath_index = -1;
+  s.fault_breath.clear();
   s.injector = FaultInjector(s.config.faults, spec.seed ^ 0x6661756c74ULL);  // its own stream
   s.command_transport = CommandTransport(s.config.delays.command_to_arm_s,
                                          s.config.delays.command_jitter_s, spec.seed);
