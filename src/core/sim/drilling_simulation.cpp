@@ -1491,9 +1491,6 @@ const TrialConditions& DrillingSimulation::trialConditions() const { return impl
 
 double DrillingSimulation::time() const { return impl_->time; }
 double DrillingSimulation::physicsDt() const { return impl_->dt; }
-const std::vector<std::string>& DrillingSimulation::commandableJoints() const {
-  return impl_->commandable;
-}
 const std::vector<std::string>& DrillingSimulation::armJointNames() const {
   return impl_->arm_joints;
 }
@@ -1524,11 +1521,9 @@ std::vector<std::pair<std::string, double>> DrillingSimulation::spmsJointStates(
 }
 
 Eigen::Vector3d DrillingSimulation::sliderPositions() const { return impl_->sliders; }
-Eigen::Vector3d DrillingSimulation::sliderTargets() const { return impl_->slider_targets; }
 const PlatformFullPose& DrillingSimulation::platformPose() const { return impl_->platform; }
 double DrillingSimulation::desiredHeave() const { return impl_->desired_heave; }
 Eigen::Isometry3d DrillingSimulation::tipPose() const { return impl_->arm->tipPose(); }
-Eigen::Vector3d DrillingSimulation::physicsTipPosition() const { return impl_->physics_tip; }
 double DrillingSimulation::boneTopZ() const { return impl_->bone_world.translation().z(); }
 double DrillingSimulation::spindleRpm() const { return impl_->spindle_rpm; }
 const DrillingProcess& DrillingSimulation::process() const { return *impl_->process; }

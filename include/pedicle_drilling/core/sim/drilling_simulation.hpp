@@ -501,8 +501,6 @@ class DrillingSimulation {
   double time() const;
   /** @brief Physics step [s]. */
   double physicsDt() const;
-  /** @brief Names of the commandable joints (rsssii_joint1..6, feed_joint). */
-  const std::vector<std::string>& commandableJoints() const;
   /** @brief All simulated arm joints (commandable ones plus spindle_joint), base to tip. */
   const std::vector<std::string>& armJointNames() const;
   /** @brief Arm joint positions / velocities (order of armJointNames()). */
@@ -518,16 +516,12 @@ class DrillingSimulation {
   std::vector<std::pair<std::string, double>> spmsJointStates() const;
   /** @brief Actual slider positions along the rails [m] (SpmsKinematics convention). */
   Eigen::Vector3d sliderPositions() const;
-  /** @brief Slider targets from the IK of the desired heave [m]. */
-  Eigen::Vector3d sliderTargets() const;
   /** @brief Platform pose from the FK of the actual sliders. */
   const PlatformFullPose& platformPose() const;
   /** @brief Desired platform heave (patient AP displacement) [m]. */
   double desiredHeave() const;
   /** @brief Pose of the drill tip in the base frame (last arm state). */
   Eigen::Isometry3d tipPose() const;
-  /** @brief Tip position used by the drilling physics in the last step (interpolated). */
-  Eigen::Vector3d physicsTipPosition() const;
   /** @brief Pose of any URDF link in the base frame (world). @throws std::out_of_range. */
   Eigen::Isometry3d linkPose(const std::string& link) const;
   /** @brief World z of the bone top surface (bone frame origin). */
