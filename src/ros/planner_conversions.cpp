@@ -6,8 +6,12 @@
 #include <urdf_parser/urdf_parser.h>
 
 #include <cmath>
+#include <iomanip>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace pedicle_drilling {
 
@@ -78,6 +82,51 @@ std::unique_ptr<core::TrialSequencer> makeSequencer(const CompensationPlannerNod
   return nullptr;  // not reached: fail() throws
 }
 
+std::unique_ptr<core::PlannerRuntime> makePlannerRuntime(
+    const CompensationPlannerNodeParams& params, const ParamLoader& loader,
+    const ros::NodeHandle& nh, CompensatorLoader* compensators) {
+  core::ForceAxis thrust;
+  thrust.index = params.thrustAxisIndex();
+  thrust.sign = params.thrustAxisSign();
+  auto runtime = std::make_unique<core::PlannerRuntime>(makeSequencer(params, loader, nh),
+                                                        params.heartbeat_period_s, thrust);
+  runtime->setTidalVolumeSource(nh.resolveName("tidal_volume"), params.breath_timeout_periods);
+  const std::string name = params.compensator_class;
+  const core::TextPairs config = params.compensator_params;
+  try {
+    compensators->create(name, config);
+  } catch (const std::exception& e) {
+    loader.fail("compensator", "= '" + name + "': " + e.what());
+  }
+  if (name == "pedicle_drilling/PaperCompensator") return runtime;  // the default
+  runtime->sequencer().setCompensatorFactory(
+      [compensators, name, config]() { return compensators->create(name, config); });
+  return runtime;
+}
+
+void checkTrajectoryInterface(const CompensationPlannerNodeParams& params,
+                              const ros::NodeHandle& pnh, bool lockstep) {
+  if (!params.useAction() || !lockstep) return;
+  throw std::invalid_argument("parameter '" + pnh.resolveName("trajectory_interface") +
+                              "' = 'action' is not available under the lockstep "
+                              "(/use_sim_lockstep): its goals and results are not steps; use "
+                              "'topic'");
+}
+
+std::string startSummary(const CompensationPlannerNodeParams& params,
+                         const core::TrialSequencer& sequencer, const std::string& patient_id,
+                         const std::string& first_route) {
+  const core::CompensationParams& c = sequencer.params().compensation;
+  std::ostringstream os;
+  os << std::fixed << std::setprecision(3) << "patient '" << patient_id << "', drill axis ("
+     << c.drill_axis.x() << " " << c.drill_axis.y() << " " << c.drill_axis.z() << "), latency "
+     << c.latency_s << " s, compensator " << params.compensator_class
+     << ", depth limit from the drill tip '" << params.tip_link << "' and the thrust on "
+     << params.thrust_axis << ", trajectories to " << first_route
+     << (sequencer.controllers().size() > 1 ? " ..." : "");
+  return os.str();
+}
+
 std::optional<core::DrillingPlan> fromMsg(const DrillingPlan& msg, std::string* why) {
   core::DrillingPlan plan;
   plan.frame = msg.header.frame_id;
@@ -90,6 +139,63 @@ std::optional<core::DrillingPlan> fromMsg(const DrillingPlan& msg, std::string* 
              : plan.check();
   if (!why->empty()) return std::nullopt;
   return plan;
+}
+
+core::PatientModel loadPatientModel(const ros::NodeHandle& pnh, const std::string& default_path) {
+  std::string path = default_path;
+  XmlRpc::XmlRpcValue value;
+  if (pnh.getParam("patient_model_path", value)) {
+    if (value.getType() != XmlRpc::XmlRpcValue::TypeString) {
+      throw std::invalid_argument("parameter '" + pnh.resolveName("patient_model_path") +
+                                  "' must be a string (a file path)");
+    }
+    path = static_cast<std::string>(value);
+  }
+  try {
+    return core::readModelYaml(path);
+  } catch (const std::exception& e) {
+    throw std::runtime_error("patient model file '" + path + "' (parameter '" +
+                             pnh.resolveName("patient_model_path") + "'): " + e.what());
+  }
+}
+
+core::FrameLookup tfFrameLookup(const tf2_ros::Buffer& buffer, const std::string& world_frame) {
+  return [&buffer, world_frame](const std::string& frame, Eigen::Isometry3d* x) {
+    if (!buffer.canTransform(frame, world_frame, ros::Time(0))) return false;
+    const geometry_msgs::Transform& tr =
+        buffer.lookupTransform(frame, world_frame, ros::Time(0)).transform;
+    const auto& q = tr.rotation;
+    x->linear() = Eigen::Quaterniond(q.w, q.x, q.y, q.z).normalized().toRotationMatrix();
+    x->translation() = Eigen::Vector3d(tr.translation.x, tr.translation.y, tr.translation.z);
+    return true;
+  };
+}
+
+core::TrialRequest fromMsg(const StartTrial::Request& req) {
+  core::TrialRequest request;
+  request.mode = req.mode;
+  request.spindle_rpm = req.spindle_rpm;
+  request.feed_rate_mm_s = req.feed_rate_mm_s;
+  request.max_duration_s = req.max_duration_s;
+  request.segment_profile = req.segment_profile;
+  return request;
+}
+
+core::SequencerLog setPlan(const DrillingPlan& msg, core::TrialSequencer* sequencer) {
+  std::string why;
+  std::optional<core::DrillingPlan> plan = fromMsg(msg, &why);
+  core::SequencerLog line;
+  if (!plan) {
+    line.level = core::SequencerLog::Level::kError;
+    line.text = "drilling plan refused: " + why +
+                "; the planner has no plan now (fail closed): the next trials are refused until "
+                "a usable plan comes";
+    sequencer->setPlan(std::nullopt);
+    return line;
+  }
+  line.text = "drilling plan: " + describe(*plan);
+  sequencer->setPlan(std::move(plan));
+  return line;
 }
 
 std::string describe(const core::DrillingPlan& plan) {

@@ -6,6 +6,10 @@
 
 namespace pedicle_drilling::core {
 
+std::string monitorStopMessage(const SafetyVerdict& v) {
+  return "stop and retreat: " + describe(v);
+}
+
 MonitorRuntime::MonitorRuntime(const SupervisorParams& supervisor, const DrillGuardParams& guard)
     : supervisor_(supervisor), guard_(guard) {}
 
@@ -59,7 +63,7 @@ MonitorStatus MonitorRuntime::status() const {
   const SafetyVerdict& v = supervisor_.verdict();
   if (v.stop) {
     s.level = MonitorStatus::Level::kError;
-    s.message = "stop and retreat: " + describe(v);
+    s.message = monitorStopMessage(v);
   } else if (last_retare_ && last_retare_->drift) {
     // Stays until reset (the next trial's start): the last trial's force is not trusted.
     s.level = MonitorStatus::Level::kWarn;

@@ -11,6 +11,8 @@
 
 #include "pedicle_drilling/core/control/compensation_planner.hpp"
 #include "pedicle_drilling/core/control/drill_guard.hpp"
+#include "pedicle_drilling/core/control/monitor_runtime.hpp"
+#include "pedicle_drilling/core/control/planner_runtime.hpp"
 #include "pedicle_drilling/core/drilling/bone_specimen.hpp"
 #include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
@@ -118,13 +120,14 @@ struct ClosedLoopEngine::Impl {
 
   // Per trial (all rebuilt by run(), so that no trial depends on another).
   std::unique_ptr<DrillingSimulation> sim;
-  std::unique_ptr<TrialSequencer> sequencer;
+  /// The planner's runtime (its timers, its heartbeat), as the CompensationPlanner nodelet's.
+  std::unique_ptr<PlannerRuntime> planner;
+  TrialSequencer* sequencer = nullptr;            ///< planner's sequencer
   std::unique_ptr<RecognizerAdapter> recognizer;  ///< the StateRecognizer nodelet's glue
   std::unique_ptr<SafetySupervisor> monitor;
   std::vector<Event> events;
   std::uint64_t event_seq = 0;
   std::string planner_error;  ///< the sequencer's last error-level log line (why it failed)
-  SequencerTimers timers;
   EngineTrialRecord record;
   BreathWatch breaths;  ///< the planner hears the ventilator's settings at each breath
   double now = 0.0;
@@ -145,10 +148,8 @@ struct ClosedLoopEngine::Impl {
   DrillGuard guard;
   bool planner_alive = true;
   bool monitor_alive = true;
-  double killed_at = -1.0;         // when a process was killed (-1: none)
-  bool planner_running = false;    // the planner's latest phase is a running trial
-  double next_planner_beat = 0.0;  // the planner's heartbeat (its ~heartbeat_period_s)
-  double next_guard_beat = 0.0;    // the guard's drill_guard/enable
+  double killed_at = -1.0;       // when a process was killed (-1: none)
+  double next_guard_beat = 0.0;  // the guard's drill_guard/enable
   bool last_enable = true;
   bool drives_halted = false;  // as of the last step (a halt is recorded as a stop)
 
@@ -281,10 +282,7 @@ struct ClosedLoopEngine::Impl {
    *        is below the 20 ms periods and is not modelled).
    */
   void beatGuard() {
-    if (planner_alive && planner_running && now + 1e-9 >= next_planner_beat) {
-      guard.onPlannerHeartbeat(now);
-      next_planner_beat = now + kPlannerHeartbeatPeriodS;
-    }
+    if (planner_alive && planner->beatDue(now)) guard.onPlannerHeartbeat(now);
     if (monitor_alive) {
       const bool enable = guard.enabled(now);
       if (enable != last_enable || now + 1e-9 >= next_guard_beat) {
@@ -312,10 +310,7 @@ struct ClosedLoopEngine::Impl {
 
   void fireTimers() {
     if (!planner_alive) return;  // its timers died with it
-    while (const std::optional<TimerRequest::Kind> kind = timers.popDue(now)) {
-      sequencer->onTimer(*kind, now);
-      carryOut();
-    }
+    planner->fireDueTimers(now, [this]() { carryOut(); });
   }
 
   /** @brief Carries out what the sequencer produced, as the nodelet publishes it. */
@@ -355,15 +350,14 @@ struct ClosedLoopEngine::Impl {
       monitor->setDrilling(now, p == TrialPhase::kDrilling || p == TrialPhase::kStopped);
       guard.onPlannerPhase(now, isRunning(p),
                            p == TrialPhase::kDrilling || p == TrialPhase::kStopped);
-      if (isRunning(p) && !planner_running) next_planner_beat = now;
-      planner_running = isRunning(p);
+      planner->onPhase(p, now);  // its heartbeat
       // The retreat ended: the drill is out, the spindle off; the sensor should read its tare.
       if (p == TrialPhase::kDone && last_phase == TrialPhase::kRetreating) {
         record.retare = monitor->retareCheck(now);
       }
       last_phase = p;
     }
-    timers.apply(out, now);
+    planner->applyTimers(out, now);
   }
 
   void evaluateMonitor() {
@@ -381,8 +375,9 @@ struct ClosedLoopEngine::Impl {
     }
     // Its ERROR on /diagnostics, published right after the stop: the planner stops on it too
     // (the nodelet's rule), so a lost stop is still heard; after the stop itself, a no-op.
-    send(config.delays.stop_to_planner_s, [this, reason]() {
-      sequencer->onStop(now, true, "safety monitor ERROR: stop and retreat: " + reason);
+    const std::string error = PlannerRuntime::monitorErrorReason(monitorStopMessage(*v));
+    send(config.delays.stop_to_planner_s, [this, error]() {
+      sequencer->onStop(now, true, error);
       carryOut();
     });
   }
@@ -467,7 +462,7 @@ struct ClosedLoopEngine::Impl {
   void onTidalVolume() {
     const BreathScheduler& ventilator = sim->ventilator();
     if (breaths.newBreath(ventilator)) sequencer->setVentilator(ventilator.model().settings());
-    sequencer->setBreathStart(now - sim->sensedTimeInBreath());
+    planner->onTidalVolume(now, sim->sensedTimeInBreath());
   }
 
   /** @brief One row of the dataset (EngineSample), at a force-sensor sample. */
@@ -706,7 +701,9 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
     sequencer_params.cancellous_max_mm = 0.0;
     sequencer_params.depth_limit.require_plan = false;  // nor the plan's depth limit
   }
-  s.sequencer = std::make_unique<TrialSequencer>(sequencer_params, *s.arm);
+  s.planner = std::make_unique<PlannerRuntime>(
+      std::make_unique<TrialSequencer>(sequencer_params, *s.arm), kPlannerHeartbeatPeriodS);
+  s.sequencer = &s.planner->sequencer();
   s.sequencer->setCompensatorFactory(s.config.make_compensator);
   if (spec.protocol == TrialProtocol::kRecognition && sequencer_params.depth_limit.require_plan) {
     s.sequencer->setPlan(s.sim->imagingPlan().plan);  // the planning step's, as the bench's
@@ -722,7 +719,6 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.events.clear();
   s.event_seq = 0;
   s.planner_error.clear();
-  s.timers.clear();
   s.record = EngineTrialRecord();
   s.breaths.clear();
   s.stop_truth_recorded = false;
@@ -742,8 +738,6 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.planner_alive = true;
   s.monitor_alive = true;
   s.killed_at = -1.0;
-  s.planner_running = false;
-  s.next_planner_beat = 0.0;
   s.next_guard_beat = 0.0;
   s.last_enable = true;
   s.drives_halted = false;
@@ -781,8 +775,8 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   request.spindle_rpm = spec.spindle_rpm;
   request.feed_rate_mm_s = spec.feed_rate_mm_s;
   request.max_duration_s = spec.max_duration_s;
-  const std::string refused = s.sequencer->start(request, spec.model, s.now);
-  if (!refused.empty()) throw std::runtime_error("start_trial refused: " + refused);
+  const TrialStartAnswer started = s.planner->start(request, spec.model, s.now, s.now);
+  if (!started.success) throw std::runtime_error("start_trial refused: " + started.message);
   s.carryOut();
   const double deadline = s.now + s.config.trial_timeout_s;
   while (s.sequencer->phase() != TrialPhase::kDone) {

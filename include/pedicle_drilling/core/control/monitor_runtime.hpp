@@ -40,6 +40,10 @@ struct MonitorStatus {
   std::vector<std::pair<std::string, std::string>> values;  ///< key, value, in order
 };
 
+/** @brief The message of the monitor's ERROR status after the stop @p v: "stop and retreat: "
+ *         and the stop's description (what the planner quotes when it stops on it). */
+std::string monitorStopMessage(const SafetyVerdict& v);
+
 /**
  * @brief The SafetyMonitor's state around its supervisor (H1, H2, the timeouts, NaN) and its
  *        drill guard: what the nodelet does between a message in and a message out.
