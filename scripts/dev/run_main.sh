@@ -15,10 +15,13 @@
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
 #      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md);
 #      the population bench (population.md); the AdaptiveModelCompensator beside the paper's
-#      compensator (adaptive.md) and both against the model's error (robustness/)
+#      compensator (adaptive.md) and both against the model's error (robustness/); the
+#      baselines (the tracker-feedback compensator, the breakthrough detector) on the paper
+#      campaign's seeds
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, doc/running.md "Lockstep"), twice, each trial beside the core engine's, and 10 per case
-#      of the realistic bench (engine_agreement.md)
+#      of the realistic bench (engine_agreement.md); the latency budget
+#      (scripts/dev/run_latency_budget.sh 100 20: latency_budget/)
 # Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
@@ -147,6 +150,19 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
+section "2d' baselines"
+# 2d'. The paper's classes against the baselines on the paper's bench, 12000 rpm, the paper
+#     campaign's 200 seeds (its own trials are the paper's side; campaign_results.md,
+#     "Recognizers and compensators against baselines"): the tracker-feedback compensator
+#     (compensated) and the breakthrough detector (stationary and compensated).
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --case compensated --rpm 12000 --trials 200 \
+  --compensator pedicle_drilling/TrackedMarkerCompensator --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/baseline_tracked_marker"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --case stationary,compensated --rpm 12000 --trials 200 \
+  --recognizer pedicle_drilling/ForceDifferenceRecognizer --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/baseline_force_difference"
 section "2d-1 population bench"
 # 2d-1. The population bench (scenario_population.yaml): a patient per seed who is not their
 #     model, the paper's design with the paper's compensator, and the adaptive one compensated
@@ -261,6 +277,13 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit
     --label-a ros --label-b core
 } > "${OUT}/engine_agreement.md.tmp"
 mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
+section "3a latency budget"
+# 3a. The latency budget (scripts/dev/run_latency_budget.sh): one transport delay raised at a
+#     time, compensated at 12000 rpm on the paper's bench, 100 trials per cell on the core
+#     engine and the command and tracker cells' first 20 again on the ROS pipeline
+#     (latency_budget/latency_table.md, ros_agreement.md).
+PEDICLE_DRILLING_OUT="${OUT}" JOBS="${JOBS}" "${ROOT}/scripts/dev/run_latency_budget.sh" 100 20 \
+  > /dev/null
 section ""
 echo "main job: done in $(( $(date +%s) - start )) s; where the time went:"
 {
@@ -281,6 +304,6 @@ echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.m
 echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/sensitivity.md,"
 echo "  ${OUT}/sensitivity_speed/sensitivity.md, ${OUT}/sensitivity_population/sensitivity.md"
 echo "  ${OUT}/dataset/DATASHEET.md and ${OUT}/leaderboard/leaderboard.md"
-echo "  ${OUT}/engine_agreement.md"
+echo "  ${OUT}/engine_agreement.md, ${OUT}/latency_budget/latency_table.md"
 echo "  ${OUT}/adaptive.md, ${OUT}/population.md, ${OUT}/robustness/robustness.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"
