@@ -10,11 +10,9 @@ doc/results/ (make_docs.py's BLOCKS; the same folders in a `make run` output, de
      campaign_realistic_ros/ beside the core campaigns);
   4. the paper's classes against the baselines (campaign/ beside baseline_tracked_marker/ and
      baseline_force_difference/);
-  5. the latency budget (latency_budget/: scripts/dev/latency_table.py's table, and its ROS
-     cells beside the core engine's).
+
 usage: campaign_results_tables.py [RESULTS_DIR]"""
 import csv
-import io
 import json
 import os
 import sys
@@ -126,7 +124,7 @@ AGREEMENT = (('the paper\'s design', 'campaign_ros', 'campaign', 'ROS against th
 # The trial columns compared for "every column equal" (the archived ones; not the wall time).
 SAME_COLUMNS = ('success', 'breakthrough', 'failure_kind', 'tracking_rms_mm', 'residual_mm',
                 'max_depth_mm', 'inner_start_mm', 'stop_source', 'stop_reason',
-                'contact_loss_count', 'h1_error_mm')
+                'contact_loss_count', 'h1_error_mm', 'lockstep_timeouts')
 
 
 def _raw(archive, name):
@@ -138,8 +136,8 @@ def agreement_table(archive):
     """Per comparison: pairs, the same outcome, the same success, every archived column equal,
     the largest residual difference."""
     lines = ['| bench (12000 rpm) | comparison | pairs | the same outcome | every archived column '
-             'equal (two ROS runs) | largest residual difference [mm] |',
-             '|---|---|---|---|---|---|']
+             'equal (two ROS runs) | largest residual difference [mm] | lockstep timeouts |',
+             '|---|---|---|---|---|---|---|']
     for bench, ros, other, label in AGREEMENT:
         read = (lambda name: trials_csv.read_trials_csv(os.path.join(archive, name,
                                                                      'trials.csv')))
@@ -150,9 +148,11 @@ def agreement_table(archive):
                  if other.startswith('campaign_ros') else '-')
         differences = [abs(a['residual_mm'] - b['residual_mm']) for a, b in pairs
                        if a.get('residual_mm') is not None and b.get('residual_mm') is not None]
-        lines.append('| %s | %s | %d | %d | %s | %.4f |' % (
+        timeouts = sum(int(raw_a[a['trial_id']].get('lockstep_timeouts') or 0)
+                       + int(raw_b[a['trial_id']].get('lockstep_timeouts') or 0) for a, _ in pairs)
+        lines.append('| %s | %s | %d | %d | %s | %.2g | %d |' % (
             bench, label, figures['paired'], figures['same_outcome'], equal,
-            max(differences) if differences else float('nan')))
+            max(differences) if differences else float('nan'), timeouts))
     return '\n'.join(lines) + '\n'
 
 
@@ -173,58 +173,11 @@ def baselines_table(archive):
                                    ('paper', 'baseline'), ('stationary', 'compensated')))
 
 
-# The latency budget's cells (scripts/dev/run_latency_budget.sh), in its order; the first is the
-# reference; and the cells run again on the ROS pipeline.
-LATENCY_CELLS = ('command_to_arm_s_0.001', 'command_to_arm_s_0.05', 'command_to_arm_s_0.1',
-                 'command_to_arm_s_0.15', 'command_to_arm_s_0.25', 'command_jitter_s_0.05',
-                 'command_jitter_s_0.1', 'command_jitter_s_0.2', 'tracker_to_pipeline_s_0.05',
-                 'tracker_to_pipeline_s_0.1', 'tracker_to_pipeline_s_0.25',
-                 'stop_to_planner_s_0.05', 'stop_to_planner_s_0.1', 'stop_to_planner_s_0.25',
-                 'force_to_recognizer_s_0.05', 'force_to_recognizer_s_0.1',
-                 'force_to_recognizer_s_0.25')
-LATENCY_ROS_CELLS = ('command_to_arm_s_0.05', 'command_to_arm_s_0.15', 'command_to_arm_s_0.25',
-                     'command_jitter_s_0.1', 'tracker_to_pipeline_s_0.1')
-
-
-def _cell_label(cell):
-    name, value = cell.rsplit('_', 1)
-    return '%s = %s s' % (name, value)
-
-
-def latency_budget_table(archive):
-    """scripts/dev/latency_table.py's table of the archived cells."""
-    sys.path.insert(0, HERE)
-    import latency_table
-    saved, sys.stdout = sys.stdout, io.StringIO()
-    try:
-        latency_table.main(['%s=%s' % (_cell_label(cell), os.path.join(archive, 'latency_budget',
-                                                                        cell))
-                            for cell in LATENCY_CELLS])
-        return sys.stdout.getvalue()
-    finally:
-        sys.stdout = saved
-
-
-def latency_ros_table(archive):
-    """The ROS pipeline's trials of the latency cells beside the core engine's."""
-    lines = ['| delay | pairs | the same outcome | largest residual difference [mm] |',
-             '|---|---|---|---|']
-    for cell in LATENCY_ROS_CELLS:
-        read = (lambda name: trials_csv.read_trials_csv(
-            os.path.join(archive, 'latency_budget', name, 'trials.csv')))
-        pairs, figures = agreement.compare(read('ros_' + cell), read(cell))
-        differences = [abs(a['residual_mm'] - b['residual_mm']) for a, b in pairs
-                       if a.get('residual_mm') is not None and b.get('residual_mm') is not None]
-        lines.append('| %s | %d | %d | %.4f |' % (_cell_label(cell), figures['paired'],
-                                                  figures['same_outcome'], max(differences)))
-    return '\n'.join(lines) + '\n'
-
-
 def main(argv=None):
     argv = sys.argv if argv is None else argv
     results = argv[1] if len(argv) > 1 else os.path.join(ROOT, 'results')
     for table in (profiles_table, profile_pairs_table, benches_table, imperfections_table,
-                  agreement_table, baselines_table, latency_budget_table, latency_ros_table):
+                  agreement_table, baselines_table):
         print(table(results))
     return 0
 

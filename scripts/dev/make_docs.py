@@ -53,12 +53,12 @@ BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -
 # text before its first colon ("depth_limit", "implausible force", "inner cortical layer
 # reached"), which is what stop_line reads of it. The volunteer, the inner layer's thickness,
 # the contact losses and the H1 error are what the generated numbers of campaign_results.md
-# read.
+# read, the lockstep's timeouts what its ROS agreement table reads.
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
            'fault', 'stop_source', 'stop_reason', 'volunteer_id', 'inner_cortical_mm',
-           'contact_loss_count', 'h1_error_mm', 'error')
+           'contact_loss_count', 'h1_error_mm', 'lockstep_timeouts', 'error')
 # The campaigns of a `make run` output the blocks read, and what of each: 'summary' (every row
 # and summary.json: the paper's design on the three benches), 'summary_only' (summary.json: the
 # fault campaign's per-fault table), 'rows' (every row) or 'compensated' (the compensated
@@ -78,7 +78,6 @@ CAMPAIGNS = {
     'uncompensated_row/*': 'summary',
     'campaign_ros': 'rows', 'campaign_ros_repeat': 'rows', 'campaign_realistic_ros': 'rows',
     'baseline_tracked_marker': 'summary', 'baseline_force_difference': 'summary',
-    'latency_budget/*': 'rows',
 }
 # Files of a `make run` output archived as they are: the robustness curves and the leaderboard.
 WHOLE_FILES = (os.path.join('robustness', 'robustness.csv'),
@@ -259,8 +258,6 @@ BLOCKS = {
     'imperfections': campaign_results_tables.imperfections_table,
     'engine_agreement': campaign_results_tables.agreement_table,
     'baselines': campaign_results_tables.baselines_table,
-    'latency_budget': campaign_results_tables.latency_budget_table,
-    'latency_ros': campaign_results_tables.latency_ros_table,
     'sensitivity_paper': lambda archive: sensitivity_tables.screen_table(archive,
                                                                           'sensitivity_paper'),
     'sensitivity_paper_conclusions': lambda archive: sensitivity_tables.conclusions_table(
@@ -332,8 +329,7 @@ def archive_results(results):
         os.path.join(name, 'summary.json') for name, keep in folders
         if keep in ('summary', 'summary_only')] + [
         os.path.join('campaign', 'table2.csv')] + list(WHOLE_FILES) + [
-        os.path.join(sweep, name) for sweep in sensitivity_tables.SWEEPS
-        for name in ('sensitivity.csv', 'sensitivity.json')]
+        os.path.join(sweep, 'sensitivity.csv') for sweep in sensitivity_tables.SWEEPS]
     missing = [path for path in needed if not os.path.isfile(os.path.join(results, path))]
     if missing:
         sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'

@@ -20,8 +20,7 @@
 #      campaign's seeds
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, doc/running.md "Lockstep"), twice, each trial beside the core engine's, and 10 per case
-#      of the realistic bench (engine_agreement.md); the latency budget
-#      (scripts/dev/run_latency_budget.sh 100 20: latency_budget/)
+#      of the realistic bench (engine_agreement.md)
 # Every campaign draws EVALUATION seeds (the scenarios' seed_space; doc/experiments.md, "Seed
 # spaces"): no constant was chosen on them. The calibrations are scripts/dev/run_calibration.sh.
 # Reports in results/campaign*/report.md.
@@ -277,13 +276,6 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_depth_limit
     --label-a ros --label-b core
 } > "${OUT}/engine_agreement.md.tmp"
 mv "${OUT}/engine_agreement.md.tmp" "${OUT}/engine_agreement.md"
-section "3a latency budget"
-# 3a. The latency budget (scripts/dev/run_latency_budget.sh): one transport delay raised at a
-#     time, compensated at 12000 rpm on the paper's bench, 100 trials per cell on the core
-#     engine and the command and tracker cells' first 20 again on the ROS pipeline
-#     (latency_budget/latency_table.md, ros_agreement.md).
-PEDICLE_DRILLING_OUT="${OUT}" JOBS="${JOBS}" "${ROOT}/scripts/dev/run_latency_budget.sh" 100 20 \
-  > /dev/null
 section ""
 echo "main job: done in $(( $(date +%s) - start )) s; where the time went:"
 {
@@ -304,6 +296,6 @@ echo "  ${OUT}/campaign_realistic/report.md and ${OUT}/compare_benches/compare.m
 echo "  ${OUT}/sensitivity_paper/sensitivity.md, ${OUT}/sensitivity_realistic/sensitivity.md,"
 echo "  ${OUT}/sensitivity_speed/sensitivity.md, ${OUT}/sensitivity_population/sensitivity.md"
 echo "  ${OUT}/dataset/DATASHEET.md and ${OUT}/leaderboard/leaderboard.md"
-echo "  ${OUT}/engine_agreement.md, ${OUT}/latency_budget/latency_table.md"
+echo "  ${OUT}/engine_agreement.md"
 echo "  ${OUT}/adaptive.md, ${OUT}/population.md, ${OUT}/robustness/robustness.md"
 sed -n '/^## Results/,/^## Figures/p' "${OUT}/campaign/report.md"

@@ -96,15 +96,19 @@ def conclusions_table(archive, folder):
 
 def archive_sweep(source, target):
     """A sweep's sensitivity.csv, and its conclusions (sensitivity.json's, without the groups that
-    sensitivity.csv holds) as conclusions.json."""
+    sensitivity.csv holds; or an archived sweep's conclusions.json) as conclusions.json."""
     sys.path.insert(0, os.path.join(ROOT, 'src'))
     from pd_campaign.atomic import atomic_path
     import shutil
     os.makedirs(target, exist_ok=True)
     with atomic_path(os.path.join(target, 'sensitivity.csv')) as tmp:
         shutil.copyfile(os.path.join(source, 'sensitivity.csv'), tmp)
-    with open(os.path.join(source, 'sensitivity.json')) as handle:
-        found = json.load(handle)['conclusions']
+    full = os.path.join(source, 'sensitivity.json')
+    if not os.path.isfile(full):
+        full = os.path.join(source, 'conclusions.json')
+    with open(full) as handle:
+        found = json.load(handle)
+    found = found['conclusions'] if isinstance(found, dict) else found
     kept = [{'id': c['id'], 'title': c['title'], 'nominal': c['nominal'],
              'ends': [{k: e[k] for k in ('key', 'end', 'value', 'holds', 'detail')}
                       for e in c['ends']],
