@@ -19,7 +19,8 @@ TIER="${TEST_TIER:-all}"
 FAST_PYTHON=(test_format.py test_function_length.py test_no_issue_numbers.py test_doc_links.py
   test_node_reference.py test_generated_docs.py test_no_machine_paths.py test_readme.py
   test_hardware_guide.py test_atomic_outputs.py test_commit_msg_hook.py test_outcome.py
-  test_summarize_test_results.py test_noninferiority.py test_doc_numbers.py)
+  test_summarize_test_results.py test_noninferiority.py test_doc_numbers.py
+  test_sensitivity_tables.py)
 if [ "${TIER}" != all ] && [ "${TIER}" != fast ]; then
   echo "run_tests: TEST_TIER=${TIER}: not all or fast" >&2
   exit 2

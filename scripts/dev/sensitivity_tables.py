@@ -76,8 +76,7 @@ def speed_table(archive):
 def conclusions_table(archive, folder):
     """Per conclusion of the paper the sweep tests: the verdict at the nominal bench, the swept
     ends where it holds, and those where it fails."""
-    with open(os.path.join(archive, folder, 'conclusions.json')) as handle:
-        found = json.load(handle)
+    found = read_conclusions(os.path.join(archive, folder))
     lines = ['| conclusion | at the nominal bench | holds at (of the swept ends) | fails at |',
              '|---|---|---|---|']
     verdicts = {True: 'holds', False: 'fails', None: 'not evaluated'}
@@ -94,28 +93,33 @@ def conclusions_table(archive, folder):
     return '\n'.join(lines) + '\n'
 
 
+END_KEYS = ('key', 'end', 'value', 'holds', 'detail')
+
+
+def read_conclusions(directory):
+    """A sweep's conclusions, as archived: sensitivity.json's (a make run output) or the
+    archive's conclusions.json, each end kept with END_KEYS."""
+    full = os.path.join(directory, 'sensitivity.json')
+    if not os.path.isfile(full):
+        full = os.path.join(directory, 'conclusions.json')
+    with open(full) as handle:
+        found = json.load(handle)
+    found = found['conclusions'] if isinstance(found, dict) else found
+    return [{'id': c['id'], 'title': c['title'], 'nominal': c['nominal'],
+             'ends': [{k: e[k] for k in END_KEYS} for e in c['ends']],
+             'fails_at': [{k: e[k] for k in END_KEYS} for e in c['fails_at']]} for c in found]
+
+
 def archive_sweep(source, target):
-    """A sweep's sensitivity.csv, and its conclusions (sensitivity.json's, without the groups that
-    sensitivity.csv holds; or an archived sweep's conclusions.json) as conclusions.json."""
+    """A sweep's sensitivity.csv, and its conclusions (read_conclusions) as conclusions.json."""
     sys.path.insert(0, os.path.join(ROOT, 'src'))
     from pd_campaign.atomic import atomic_path
     import shutil
     os.makedirs(target, exist_ok=True)
     with atomic_path(os.path.join(target, 'sensitivity.csv')) as tmp:
         shutil.copyfile(os.path.join(source, 'sensitivity.csv'), tmp)
-    full = os.path.join(source, 'sensitivity.json')
-    if not os.path.isfile(full):
-        full = os.path.join(source, 'conclusions.json')
-    with open(full) as handle:
-        found = json.load(handle)
-    found = found['conclusions'] if isinstance(found, dict) else found
-    kept = [{'id': c['id'], 'title': c['title'], 'nominal': c['nominal'],
-             'ends': [{k: e[k] for k in ('key', 'end', 'value', 'holds', 'detail')}
-                      for e in c['ends']],
-             'fails_at': [{k: e[k] for k in ('key', 'end', 'value', 'holds', 'detail')}
-                          for e in c['fails_at']]} for c in found]
     with atomic_path(os.path.join(target, 'conclusions.json')) as tmp, open(tmp, 'w') as out:
-        json.dump(kept, out, indent=1, sort_keys=True)
+        json.dump(read_conclusions(source), out, indent=1, sort_keys=True)
         out.write('\n')
 
 
