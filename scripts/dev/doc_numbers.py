@@ -16,10 +16,18 @@ invisible once rendered); make_docs.py rewrites TEXT from the archive in doc/res
 - `FOLDER CASE RPM fisher K/N FORMAT`: Fisher's exact test (two-sided) of the group's successes
   against K of N (the paper's count);
 - `FOLDER CASE RPM mcnemar OTHER_CASE FORMAT`: McNemar's exact test of the case against
-  OTHER_CASE paired by seed index (trials.csv's success);
-- `FOLDER CASE RPM only OTHER_CASE`: how many seeds succeed in CASE and not in OTHER_CASE;
+  OTHER_CASE paired by seed index (trials.csv's success); OTHER_CASE may be
+  `OTHER_FOLDER:OTHER_CASE`, the case of another campaign on the same seeds;
+- `FOLDER CASE RPM only OTHER_CASE`: how many seeds succeed in CASE and not in OTHER_CASE (or
+  `OTHER_FOLDER:OTHER_CASE`);
 - `FOLDER CASE RPM change KEY FORMAT`: the group's KEY against the stationary group's at the same
-  speed, in per cent (-43 for a value 43 % lower).
+  speed, in per cent (-43 for a value 43 % lower);
+- `FOLDER CASE RPM sweep CONSTANT COLUMN [FORMAT]`: the column COLUMN (`successes_high`,
+  `mcnemar_p_low`, ...) of the row of FOLDER/sensitivity.csv (campaign_sensitivity's) for that
+  case, speed and swept constant.
+
+CASE may be `CASE/FAULT`: the group of that case and fault in summary.json's `faults` (the fault
+campaign's per-fault summary) instead of its `groups`.
 """
 import csv
 import json
@@ -37,7 +45,9 @@ NUMBER = re.compile(r'(<!-- n: ([^>\n]*?) -->)([^<>`\n]*?)(<!-- /n -->)')
 
 def _group(archive, folder, case, rpm):
     with open(os.path.join(archive, folder, 'summary.json')) as handle:
-        groups = json.load(handle)['groups']
+        summary = json.load(handle)
+    case, _, fault = case.partition('/')
+    groups = [g for g in summary['faults'] if g['fault'] == fault] if fault else summary['groups']
     found = [g for g in groups if g['case'] == case and float(g['rpm']) == float(rpm)]
     if len(found) != 1:
         raise KeyError('%s/summary.json: no group %s at %s rpm' % (folder, case, rpm))
@@ -56,10 +66,28 @@ def _rows(archive, folder, case, rpm, conditions):
 
 def _discordant(archive, folder, case, other, rpm):
     """(seeds that succeed in `case` only, in `other` only), paired by seed index."""
+    other_folder, _, other_case = other.rpartition(':')
     mine = {r['index']: r['success'] == 'true' for r in _rows(archive, folder, case, rpm, '')}
-    theirs = {r['index']: r['success'] == 'true' for r in _rows(archive, folder, other, rpm, '')}
+    theirs = {r['index']: r['success'] == 'true'
+              for r in _rows(archive, other_folder or folder, other_case, rpm, '')}
     pairs = [(mine[i], theirs[i]) for i in mine if i in theirs]
     return sum(a and not b for a, b in pairs), sum(b and not a for a, b in pairs)
+
+
+def _sweep(archive, folder, case, rpm, constant, column):
+    with open(os.path.join(archive, folder, 'sensitivity.csv')) as handle:
+        found = [r for r in csv.DictReader(handle) if r['case'] == case
+                 and float(r['rpm']) == float(rpm) and r['constant'] == constant]
+    if len(found) != 1:
+        raise KeyError('%s/sensitivity.csv: no row %s at %s rpm for %s' % (folder, case, rpm,
+                                                                          constant))
+    return found[0][column]
+
+
+def _formatted(result, spec_format):
+    """`result` formatted by `spec_format` (a rate as `28 %` for `.0%`)."""
+    text = format(result, spec_format)
+    return text[:-1] + ' %' if spec_format.endswith('%') else text
 
 
 def _lookup(group, key):
@@ -102,11 +130,11 @@ def value(spec, archive):
         values = [float(r[first]) - (float(r[second]) if second else 0.0)
                   for r in _rows(archive, folder, case, rpm, where)]
         return format(max(values), spec_format)
+    if key == 'sweep':
+        text = _sweep(archive, folder, case, rpm, words[4], words[5])
+        return _formatted(float(text), words[6]) if len(words) > 6 else text
     result = _lookup(_group(archive, folder, case, rpm), key)
-    if len(words) == 4:
-        return str(result)
-    text = format(result, words[4])
-    return text[:-1] + ' %' if words[4].endswith('%') else text
+    return str(result) if len(words) == 4 else _formatted(result, words[4])
 
 
 def regenerate(text, archive):

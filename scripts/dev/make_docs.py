@@ -10,7 +10,8 @@ markdown (the dataset's column tables come from pd_campaign.dataset's declaratio
 `--check` rewrites nothing and exits 1 naming every block that differs (test_generated_docs.py).
 `--archive RESULTS_DIR` first copies what the blocks read from a `make run` output (default
 results/) into doc/results/: the trial tables trimmed to the columns the tables use, the
-campaigns' summary.json, Table II, the robustness curves' csv and the leaderboard's json.
+campaigns' summary.json, Table II, the robustness curves' csv, the leaderboard's json and the
+sensitivity sweeps' csv and conclusions.
 
 usage: make_docs.py [--check] [--archive [RESULTS_DIR]]"""
 import argparse
@@ -33,11 +34,13 @@ sys.path.insert(0, HERE)
 from pd_campaign import compare, dataset, leaderboard, plots, report, stats, trials_csv  # noqa: E402
 from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
+import campaign_results_tables  # noqa: E402
 import depth_limit_tables  # noqa: E402
 import doc_numbers  # noqa: E402
 import equivalence_tables  # noqa: E402
 import population_tables  # noqa: E402
 import results_tables  # noqa: E402
+import sensitivity_tables  # noqa: E402
 
 ARCHIVE = os.path.join(ROOT, 'doc', 'results')
 # Every document that may hold a generated block: the README and the pages of doc/ (the blocks
@@ -50,12 +53,12 @@ BLOCK = re.compile(r'(<!-- generated: ([a-z_]+) -->\n)(.*?)(<!-- end generated -
 # text before its first colon ("depth_limit", "implausible force", "inner cortical layer
 # reached"), which is what stop_line reads of it. The volunteer, the inner layer's thickness,
 # the contact losses and the H1 error are what the generated numbers of campaign_results.md
-# read.
+# read, the lockstep's timeouts what its ROS agreement table reads.
 COLUMNS = ('trial_id', 'case', 'rpm', 'index', 'seed', 'success', 'breakthrough', 'failure_kind',
            'tracking_rms_mm', 'residual_mm', 'max_depth_mm', 'inner_start_mm',
            'model_ap_slope_mm_per_ml', 'identification_r2_ap', 'patient_ap_slope_mm_per_ml',
            'fault', 'stop_source', 'stop_reason', 'volunteer_id', 'inner_cortical_mm',
-           'contact_loss_count', 'h1_error_mm', 'error')
+           'contact_loss_count', 'h1_error_mm', 'lockstep_timeouts', 'error')
 # The campaigns of a `make run` output the blocks read, and what of each: 'summary' (every row
 # and summary.json: the paper's design on the three benches), 'summary_only' (summary.json: the
 # fault campaign's per-fault table), 'rows' (every row) or 'compensated' (the compensated
@@ -73,6 +76,8 @@ CAMPAIGNS = {
     'campaign_depth_limit': 'rows', 'depth_limit_faults/*': 'rows',
     'depth_limit_amplitude/*': 'rows', 'depth_limit_amplitude_without_plan': 'rows',
     'uncompensated_row/*': 'summary',
+    'campaign_ros': 'rows', 'campaign_ros_repeat': 'rows', 'campaign_realistic_ros': 'rows',
+    'baseline_tracked_marker': 'summary', 'baseline_force_difference': 'summary',
 }
 # Files of a `make run` output archived as they are: the robustness curves and the leaderboard.
 WHOLE_FILES = (os.path.join('robustness', 'robustness.csv'),
@@ -246,6 +251,24 @@ BLOCKS = {
     'depth_limit_faults': lambda archive: captured(depth_limit_tables.faults_table, archive),
     'depth_limit_classes': lambda archive: captured(depth_limit_tables.amplitude_table, archive),
     'depth_limit_control': lambda archive: captured(depth_limit_tables.control_table, archive),
+    # doc/campaign_results.md's tables (campaign_results_tables.py).
+    'profiles': campaign_results_tables.profiles_table,
+    'profile_pairs': campaign_results_tables.profile_pairs_table,
+    'benches': campaign_results_tables.benches_table,
+    'imperfections': campaign_results_tables.imperfections_table,
+    'engine_agreement': campaign_results_tables.agreement_table,
+    'baselines': campaign_results_tables.baselines_table,
+    'sensitivity_paper': lambda archive: sensitivity_tables.screen_table(archive,
+                                                                          'sensitivity_paper'),
+    'sensitivity_paper_conclusions': lambda archive: sensitivity_tables.conclusions_table(
+        archive, 'sensitivity_paper'),
+    'sensitivity_realistic': lambda archive: sensitivity_tables.screen_table(
+        archive, 'sensitivity_realistic'),
+    'sensitivity_realistic_conclusions': lambda archive: sensitivity_tables.conclusions_table(
+        archive, 'sensitivity_realistic'),
+    'sensitivity_speed': sensitivity_tables.speed_table,
+    'sensitivity_speed_conclusions': lambda archive: sensitivity_tables.conclusions_table(
+        archive, 'sensitivity_speed'),
     # doc/dataset.md's column tables: from the dataset's declaration, not the archive.
     'dataset_columns': lambda archive: dataset.columns_markdown(),
 }
@@ -305,13 +328,17 @@ def archive_results(results):
               if keep != 'summary_only'] + [
         os.path.join(name, 'summary.json') for name, keep in folders
         if keep in ('summary', 'summary_only')] + [
-        os.path.join('campaign', 'table2.csv')] + list(WHOLE_FILES)
+        os.path.join('campaign', 'table2.csv')] + list(WHOLE_FILES) + [
+        os.path.join(sweep, 'sensitivity.csv') for sweep in sensitivity_tables.SWEEPS]
     missing = [path for path in needed if not os.path.isfile(os.path.join(results, path))]
     if missing:
         sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'
                  % (results, ', '.join(missing)))
     for name, keep in folders:
         archive_campaign(os.path.join(results, name), os.path.join(ARCHIVE, name), keep)
+    for sweep in sensitivity_tables.SWEEPS:
+        sensitivity_tables.archive_sweep(os.path.join(results, sweep),
+                                         os.path.join(ARCHIVE, sweep))
     for path in WHOLE_FILES:
         os.makedirs(os.path.dirname(os.path.join(ARCHIVE, path)), exist_ok=True)
         with atomic_path(os.path.join(ARCHIVE, path)) as tmp:

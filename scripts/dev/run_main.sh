@@ -15,7 +15,9 @@
 #      and the sensitivity of the conclusions to every uncertain constant, on both benches
 #      the labelled dataset and the recognizer leaderboard (doc/dataset.md, doc/leaderboard.md);
 #      the population bench (population.md); the AdaptiveModelCompensator beside the paper's
-#      compensator (adaptive.md) and both against the model's error (robustness/)
+#      compensator (adaptive.md) and both against the model's error (robustness/); the
+#      baselines (the tracker-feedback compensator, the breakthrough detector) on the paper
+#      campaign's seeds
 #   3. the integration check: 30 trials per case of design 1 through the full ROS pipeline
 #      (lockstep, doc/running.md "Lockstep"), twice, each trial beside the core engine's, and 10 per case
 #      of the realistic bench (engine_agreement.md)
@@ -147,6 +149,19 @@ rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_realistic.y
   --jobs "${JOBS}" "${IDENT[@]}" "${REUSE[@]}" --out "${OUT}/campaign_realistic"
 rosrun pedicle_drilling campaign_compare "${OUT}/campaign" "${OUT}/campaign_realistic" --benches \
   --label-a "paper bench" --label-b "realistic bench" --out "${OUT}/compare_benches" > /dev/null
+section "2d' baselines"
+# 2d'. The paper's classes against the baselines on the paper's bench, 12000 rpm, the paper
+#     campaign's 200 seeds (its own trials are the paper's side; campaign_results.md,
+#     "Recognizers and compensators against baselines"): the tracker-feedback compensator
+#     (compensated) and the breakthrough detector (stationary and compensated).
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --case compensated --rpm 12000 --trials 200 \
+  --compensator pedicle_drilling/TrackedMarkerCompensator --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/baseline_tracked_marker"
+rosrun pedicle_drilling campaign --scenario "${ROOT}/config/scenario_paper.yaml" \
+  --case stationary,compensated --rpm 12000 --trials 200 \
+  --recognizer pedicle_drilling/ForceDifferenceRecognizer --jobs "${JOBS}" "${IDENT[@]}" \
+  "${REUSE[@]}" --no-figures --out "${OUT}/baseline_force_difference"
 section "2d-1 population bench"
 # 2d-1. The population bench (scenario_population.yaml): a patient per seed who is not their
 #     model, the paper's design with the paper's compensator, and the adaptive one compensated

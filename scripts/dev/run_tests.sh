@@ -20,7 +20,7 @@ FAST_PYTHON=(test_format.py test_function_length.py test_no_issue_numbers.py tes
   test_node_reference.py test_generated_docs.py test_no_machine_paths.py test_readme.py
   test_hardware_guide.py test_atomic_outputs.py test_commit_msg_hook.py test_outcome.py
   test_summarize_test_results.py test_noninferiority.py test_doc_numbers.py
-  test_package_imports.py)
+  test_package_imports.py test_sensitivity_tables.py)
 if [ "${TIER}" != all ] && [ "${TIER}" != fast ]; then
   echo "run_tests: TEST_TIER=${TIER}: not all or fast" >&2
   exit 2

@@ -26,17 +26,40 @@ ROWS = [(0, 'stationary', 'true', '/state_recognizer', 6.0, 4.0),
         (2, 'compensated', 'true', '/compensation_planner', 9.5, 4.0)]
 
 
-@pytest.fixture
-def archive(tmp_path):
-    folder = tmp_path / 'bench'
-    folder.mkdir()
-    (folder / 'summary.json').write_text(json.dumps({'groups': GROUPS}))
+FAULTS = [dict(GROUPS[1], fault='none'),
+          dict(GROUPS[1], fault='force_drift', successes=5, drift_detected=20)]
+# A second campaign on the same seeds: compensated succeeds at indices 0 and 2.
+OTHER_ROWS = [(0, 'compensated', 'true', '/state_recognizer', 6.0, 4.0),
+              (1, 'compensated', 'false', '/safety_monitor', 4.5, 4.0),
+              (2, 'compensated', 'true', '/state_recognizer', 6.0, 4.0)]
+# campaign_sensitivity's sensitivity.csv, the columns a number reads.
+SWEEP = [{'case': 'compensated', 'rpm': '12000', 'constant': 'simulator_params.k',
+          'successes_low': '18', 'successes_high': '15', 'mcnemar_p_high': '0.0625'},
+         {'case': 'stationary', 'rpm': '12000', 'constant': 'simulator_params.k',
+          'successes_low': '19', 'successes_high': '14', 'mcnemar_p_high': '0.0313'}]
+
+
+def write_trials(folder, rows):
     with open(folder / 'trials.csv', 'w') as handle:
         writer = csv.writer(handle)
         writer.writerow(['index', 'case', 'rpm', 'success', 'stop_source', 'max_depth_mm',
                          'inner_start_mm'])
-        for index, case, success, source, depth, inner in ROWS:
+        for index, case, success, source, depth, inner in rows:
             writer.writerow([index, case, '12000', success, source, depth, inner])
+
+
+@pytest.fixture
+def archive(tmp_path):
+    for name, rows in (('bench', ROWS), ('other', OTHER_ROWS)):
+        folder = tmp_path / name
+        folder.mkdir()
+        (folder / 'summary.json').write_text(json.dumps({'groups': GROUPS, 'faults': FAULTS}))
+        write_trials(folder, rows)
+    (tmp_path / 'sweep').mkdir()
+    with open(tmp_path / 'sweep' / 'sensitivity.csv', 'w') as handle:
+        writer = csv.DictWriter(handle, fieldnames=list(SWEEP[0]))
+        writer.writeheader()
+        writer.writerows(SWEEP)
     return str(tmp_path)
 
 
@@ -57,6 +80,14 @@ def archive(tmp_path):
     ('bench compensated 12000 mcnemar stationary .2f', '1.00'),
     ('bench compensated 12000 change median_f_in_n .0f', '-25'),
     ('bench compensated 12000 fisher 19/20 .3f', '0.605'),
+    ('bench compensated/force_drift 12000 successes', '5'),
+    ('bench compensated/force_drift 12000 drift_detected', '20'),
+    ('bench compensated/none 12000 drift_detected', '0'),
+    ('bench compensated 12000 only other:compensated', '1'),   # index 1
+    ('other compensated 12000 only bench:compensated', '1'),   # index 0
+    ('bench compensated 12000 mcnemar other:compensated .2f', '1.00'),
+    ('sweep compensated 12000 sweep simulator_params.k successes_high', '15'),
+    ('sweep stationary 12000 sweep simulator_params.k mcnemar_p_high .2g', '0.031'),
 ])
 def test_a_number_is_read_from_the_archive(archive, spec, expected):
     assert doc_numbers.value(spec, archive) == expected
@@ -66,6 +97,8 @@ def test_a_number_is_read_from_the_archive(archive, spec, expected):
     ('bench stationary', ValueError),                    # too few words
     ('bench uncompensated 12000 successes', KeyError),   # no such group
     ('missing stationary 12000 successes', FileNotFoundError),
+    ('bench compensated/force_nan 12000 successes', KeyError),   # no such fault
+    ('sweep compensated 12000 sweep simulator_params.x successes_low', KeyError),
 ])
 def test_a_bad_spec_is_an_error_naming_it(archive, spec, error):
     with pytest.raises(error):
