@@ -36,6 +36,7 @@ from pd_campaign.atomic import atomic_path  # noqa: E402
 import adaptive_tables  # noqa: E402
 import campaign_results_tables  # noqa: E402
 import depth_limit_tables  # noqa: E402
+import latency_table  # noqa: E402
 import doc_numbers  # noqa: E402
 import equivalence_tables  # noqa: E402
 import population_tables  # noqa: E402
@@ -79,6 +80,10 @@ CAMPAIGNS = {
     'campaign_ros': 'rows', 'campaign_ros_repeat': 'rows', 'campaign_realistic_ros': 'rows',
     'baseline_tracked_marker': 'summary', 'baseline_force_difference': 'summary',
 }
+# Measurements of the developer scripts outside `make run`, in the same results folder when they
+# ran (run_latency_budget.sh writes results/latency_budget/): archived by --archive when present,
+# kept as archived otherwise.
+OPTIONAL_CAMPAIGNS = {'latency_budget/*': 'rows'}
 # Files of a `make run` output archived as they are: the robustness curves and the leaderboard.
 WHOLE_FILES = (os.path.join('robustness', 'robustness.csv'),
                os.path.join('leaderboard', 'leaderboard.json'))
@@ -212,6 +217,22 @@ def uncompensated_row_block(archive):
     return '\n'.join(lines) + '\n'
 
 
+def latency_block(archive):
+    """doc/campaign_results.md's latency budget: latency_table.py over the archived core-engine
+    cells (run_latency_budget.sh's <delay>_<seconds> folders), the 1 ms command delay (the
+    defaults) first, then by delay and value."""
+    base = os.path.join(archive, 'latency_budget')
+    cells = []
+    for folder in os.listdir(base):
+        if folder.startswith('ros_'):
+            continue  # the ROS pipeline's cells (ros_agreement.md), not in the table
+        name, _, value = folder.rpartition('_')
+        cells.append((folder != 'command_to_arm_s_0.001', name, float(value), folder))
+    return captured(latency_table.main, ['%s = %s s=%s' % (name, folder.rpartition('_')[2],
+                                                           os.path.join(base, folder))
+                                         for _, name, _, folder in sorted(cells)])
+
+
 def leaderboard_block(archive):
     """doc/leaderboard.md's board: the archived leaderboard.json rendered as campaign_leaderboard
     renders it (the shipped config/leaderboard.yaml's entries, the archived stamp), without its
@@ -247,6 +268,7 @@ BLOCKS = {
         results_tables.load(os.path.join(archive, 'campaign_faults'))['faults']) + '\n',
     'uncompensated_row': uncompensated_row_block,
     'leaderboard': leaderboard_block,
+    'latency_budget': latency_block,
     'depth_limit_design': lambda archive: captured(depth_limit_tables.design_table, archive),
     'depth_limit_faults': lambda archive: captured(depth_limit_tables.faults_table, archive),
     'depth_limit_classes': lambda archive: captured(depth_limit_tables.amplitude_table, archive),
@@ -303,11 +325,11 @@ def stale_figures(archive, write):
     return stale
 
 
-def campaign_folders(results):
-    """(folder relative to `results`, what to keep) for every campaign of CAMPAIGNS found there;
-    a pattern's folders are those holding a trials.csv."""
+def campaign_folders(results, campaigns=None):
+    """(folder relative to `results`, what to keep) for every campaign of `campaigns` (default
+    CAMPAIGNS) found there; a pattern's folders are those holding a trials.csv."""
     folders = []
-    for name, keep in CAMPAIGNS.items():
+    for name, keep in (CAMPAIGNS if campaigns is None else campaigns).items():
         if name.endswith('/*'):
             base = os.path.join(results, name[:-2])
             inner = sorted(d for d in os.listdir(base)) if os.path.isdir(base) else []
@@ -334,7 +356,9 @@ def archive_results(results):
     if missing:
         sys.exit('make_docs: --archive %s: not a complete make run output, missing %s'
                  % (results, ', '.join(missing)))
-    for name, keep in folders:
+    for name, keep in folders + [(name, keep) for name, keep in
+                                 campaign_folders(results, OPTIONAL_CAMPAIGNS)
+                                 if os.path.isfile(os.path.join(results, name, 'trials.csv'))]:
         archive_campaign(os.path.join(results, name), os.path.join(ARCHIVE, name), keep)
     for sweep in sensitivity_tables.SWEEPS:
         sensitivity_tables.archive_sweep(os.path.join(results, sweep),
