@@ -113,23 +113,23 @@ def value(spec, archive):
     if key == 'fisher':
         group = _group(archive, folder, case, rpm)
         paper_successes, paper_trials = (int(x) for x in words[4].split('/'))
-        return format(stats.fisher_exact(group['successes'], group['trials'], paper_successes,
-                                         paper_trials), words[5])
+        return _formatted(stats.fisher_exact(group['successes'], group['trials'],
+                                             paper_successes, paper_trials), words[5])
     if key in ('mcnemar', 'only'):
         only_a, only_b = _discordant(archive, folder, case, words[4], rpm)
-        return (format(stats.mcnemar_exact(only_a, only_b), words[5]) if key == 'mcnemar'
+        return (_formatted(stats.mcnemar_exact(only_a, only_b), words[5]) if key == 'mcnemar'
                 else str(only_a))
     if key == 'change':
         reference = _lookup(_group(archive, folder, 'stationary', rpm), words[4])
         mine = _lookup(_group(archive, folder, case, rpm), words[4])
-        return format(100.0 * (mine / reference - 1.0), words[5])
+        return _formatted(100.0 * (mine / reference - 1.0), words[5])
     if key == 'max':
         columns, spec_format = words[4], words[5]
         where = words[7] if len(words) > 7 and words[6] == 'WHERE' else ''
         first, _, second = columns.partition('-')
         values = [float(r[first]) - (float(r[second]) if second else 0.0)
                   for r in _rows(archive, folder, case, rpm, where)]
-        return format(max(values), spec_format)
+        return _formatted(max(values), spec_format)
     if key == 'sweep':
         text = _sweep(archive, folder, case, rpm, words[4], words[5])
         return _formatted(float(text), words[6]) if len(words) > 6 else text

@@ -227,10 +227,9 @@ def latency_block(archive):
         if folder.startswith('ros_'):
             continue  # the ROS pipeline's cells (ros_agreement.md), not in the table
         name, _, value = folder.rpartition('_')
-        cells.append((folder != 'command_to_arm_s_0.001', name, float(value), folder))
-    return captured(latency_table.main, ['%s = %s s=%s' % (name, folder.rpartition('_')[2],
-                                                           os.path.join(base, folder))
-                                         for _, name, _, folder in sorted(cells)])
+        cells.append((folder != 'command_to_arm_s_0.001', name, float(value),
+                      '%s = %s s=%s' % (name, value, os.path.join(base, folder))))
+    return captured(latency_table.main, [cell[-1] for cell in sorted(cells)])
 
 
 def leaderboard_block(archive):

@@ -37,10 +37,14 @@ for cell in "${cells[@]}"; do
   # with a quarter more (the desired position trails the commanded by about the feed's speed
   # times the delay, 7.1 mm at 250 ms: the scaled tolerance alone sits on it). Without it the
   # watch refuses the move to the drilling pose from about 100 ms.
-  if [[ "${name}" == command_* ]] && python3 -c "import sys; sys.exit(not ${value} > 0.035)"; then
-    printf 'planner_params: {controller_watch/arm_desired_tolerance_rad: %s, controller_watch/feed_desired_tolerance_m: %s}\n' \
-      "$(python3 -c "print(round(1.25 * 0.01 * ${value} / 0.035, 4))")" \
-      "$(python3 -c "print(round(1.25 * 0.001 * ${value} / 0.035, 5))")" >> "${scenario}"
+  if [[ "${name}" == command_* ]]; then
+    python3 -c "
+scale = 1.25 * ${value} / 0.035
+if ${value} > 0.035:
+    print('planner_params: {controller_watch/arm_desired_tolerance_rad: %s, '
+          'controller_watch/feed_desired_tolerance_m: %s}' % (round(0.01 * scale, 4),
+                                                              round(0.001 * scale, 5)))
+" >> "${scenario}"
   fi
   rosrun pedicle_drilling campaign --scenario "${scenario}" --trials "${TRIALS}" \
     --jobs "${JOBS}" --out "${OUT}/${name}_${value}"
