@@ -10,6 +10,21 @@
 
 namespace pedicle_drilling {
 
+core::StreamRates streamRates(const SimulatorNodeParams& params) {
+  core::StreamRates rates;
+  rates.joint_state_hz = params.joint_state_rate_hz;
+  rates.tf_hz = params.tf_rate_hz;
+  rates.ground_truth_hz = params.ground_truth_rate_hz;
+  rates.tracker_hz = params.tracker_rate_hz;
+  rates.controller_state_hz = params.controller_state_rate_hz;
+  rates.tidal_volume_hz = params.tidal_volume_rate_hz;
+  return rates;
+}
+
+core::BenchTransport benchTransport(const SimulatorNodeParams& params, std::uint64_t seed) {
+  return {params.command_delay_s, params.command_jitter_s, seed};
+}
+
 SimulatorNodeParams loadSimulatorParams(const ros::NodeHandle& private_nh) {
   const ParamLoader loader(private_nh);
   const auto& table = SimulatorNodeParams::table();

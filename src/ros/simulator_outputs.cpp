@@ -208,4 +208,23 @@ void SimulatorOutputs::sendMarker(const geometry_msgs::PoseStamped& m) {
   tf_broadcaster_->sendTransform(t);
 }
 
+void publishGroundTruth(const SimulatorShared& shared, double t) {
+  const core::DrillingSimulation& sim = shared.bench.sim();
+  const core::NewTrips trips = shared.bench.newTrips();
+  if (trips.spindle_watchdog) {
+    ROS_WARN_NAMED(
+        shared.name,
+        "Simulator: the spindle driver heard no spindle/command for %.3f s: spindle stopped",
+        sim.params().spindle_watchdog_s);
+  }
+  if (trips.drive_guard) {
+    ROS_ERROR_NAMED(
+        shared.name,
+        "Simulator: no enable from the drill guard (drill_guard/enable false, or none for "
+        "%.3f s): the drivers hold and the spindle stops",
+        sim.params().drive_guard_timeout_s);
+  }
+  shared.out.publishGroundTruth(sim, shared.bench.counters(), t);
+}
+
 }  // namespace pedicle_drilling

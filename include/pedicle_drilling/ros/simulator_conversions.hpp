@@ -13,6 +13,7 @@
 #include <sensor_msgs/JointState.h>
 #include <trajectory_msgs/JointTrajectory.h>
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -27,6 +28,8 @@
 #include "pedicle_drilling/TidalVolume.h"
 #include "pedicle_drilling/core/drilling/force_tare.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/simulated_bench.hpp"
+#include "pedicle_drilling/core/sim/stream_schedule.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 #include "pedicle_drilling/ros/param_loader.hpp"
 
@@ -45,6 +48,13 @@ SimulatorNodeParams loadSimulatorParams(const ros::NodeHandle& private_nh);
  */
 std::unique_ptr<core::DrillingSimulation> makeSimulation(const SimulatorNodeParams& params,
                                                          const ParamLoader& loader);
+
+/** @brief The streams' rates (the engine's schedule); the simulated ventilator publishes what
+ *         the Ventilator nodelet publishes on hardware-free setups (0 disables it). */
+core::StreamRates streamRates(const SimulatorNodeParams& params);
+
+/** @brief The command path's transport of the trial of @p seed (under the lockstep). */
+core::BenchTransport benchTransport(const SimulatorNodeParams& params, std::uint64_t seed);
 
 /**
  * @brief A JointTrajectory as the simulated controller's command: it takes over at its header

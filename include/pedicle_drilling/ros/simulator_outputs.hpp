@@ -2,8 +2,9 @@
  * @file simulator_outputs.hpp
  * @brief The Simulator's outputs (doc/nodes.md, "pedicle_drilling/Simulator"): its publishers
  *        and tf broadcasters, and a step's streams (core::StreamSchedule's choice) as messages,
- *        with the tracker's and the breath sensor's latencies (core::DelayLine). The nodelet
- *        keeps the threads, the services and the command path.
+ *        with the tracker's and the breath sensor's latencies (core::DelayLine); the state the
+ *        nodelet's callbacks share with its stepping thread (SimulatorShared). The nodelet keeps
+ *        the threads; the services are SimulatorServices', the command path SimulatorCommands'.
  */
 #pragma once
 
@@ -14,6 +15,7 @@
 
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <optional>
 #include <set>
 #include <string>
@@ -25,6 +27,7 @@
 #include "pedicle_drilling/core/sim/bench_commands.hpp"
 #include "pedicle_drilling/core/sim/bench_session.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
+#include "pedicle_drilling/core/sim/simulated_bench.hpp"
 #include "pedicle_drilling/core/sim/stream_schedule.hpp"
 #include "pedicle_drilling/ros/node_params.hpp"
 
@@ -111,5 +114,21 @@ class SimulatorOutputs {
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
   std::unique_ptr<tf2_ros::StaticTransformBroadcaster> static_broadcaster_;
 };
+
+/**
+ * @brief What the Simulator nodelet's callbacks (SimulatorServices, SimulatorCommands) share with
+ *        its stepping thread; the nodelet owns each of them.
+ */
+struct SimulatorShared {
+  std::string name;               ///< the nodelet's name: the logger of their messages
+  std::mutex& mutex;              ///< guards the bench and the outputs
+  core::SimulatedBench& bench;    ///< the simulation and its trial
+  SimulatorOutputs& out;          ///< the publishers and the time offset
+  std::function<bool()> running;  ///< false: the nodelet shuts down (waits end)
+};
+
+/** @brief simulator/ground_truth at @p t, and a warning at each new trip of the drivers; under
+ *         @p shared's mutex. */
+void publishGroundTruth(const SimulatorShared& shared, double t);
 
 }  // namespace pedicle_drilling
