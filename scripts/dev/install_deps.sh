@@ -21,6 +21,7 @@ PACKAGES=(
   libeigen3-dev libceres-dev libbullet-dev pybind11-dev python3-dev
   libgtest-dev libgmock-dev libbenchmark-dev nlohmann-json3-dev libcli11-dev
   python3-numpy python3-scipy python3-sklearn python3-yaml python3-pywt python3-matplotlib python3-pytest
+  python3-pytest-xdist
   python3-h5py python3-pandas python3-nbconvert python3-ipykernel jupyter-nbconvert
   xvfb xauth x11-utils imagemagick liburdfdom-tools libgl1-mesa-dri mesa-utils
   clang-14 libfuzzer-14-dev libclang-rt-14-dev clang-format-14

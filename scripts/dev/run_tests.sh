@@ -2,9 +2,11 @@
 # Runs every test tier and prints one summary line "N passed, N failed".
 #   1. gtest suites of the core (test/gtest -> devel/lib/pedicle_drilling/test_*)
 #   2. rostest scenarios (test/rostest/*.test, and test/rostest_gtest/*.test with a C++ test
-#      node), one at a time, the rviz offscreen check included
-#   3. python tests (test/python), pytest
-# Needs a DISPLAY for the rviz scenario: `make test` runs this under xvfb-run.
+#      node), the rviz offscreen checks included: ROSTEST_JOBS lanes at once (default 2), each
+#      lane's scenarios one after another on an X display of its own, the wall-clock scenarios
+#      alone at the end (run_rostests.py)
+#   3. python tests (test/python), pytest on PYTEST_JOBS workers (default 2)
+# Needs a DISPLAY for the python tests that draw: `make test` runs this under xvfb-run.
 # Optional: TEST_FILTER=<substring> runs only the gtests/rostests/python files whose name has it.
 # TEST_TIER=fast (`make test-fast`): the gtest suites and the python files of FAST_PYTHON (unit
 # tests and the documents' checks), no rostest: a developer's loop of about a minute.
@@ -61,40 +63,35 @@ for source in "${ROOT}"/test/gtest/test_*.cpp; do
   fi
 done
 
-echo "== rostest scenarios"
-[ "${TIER}" = fast ] && echo "  (none in the fast tier)"
-for scenario in "${ROOT}"/test/rostest/*.test "${ROOT}"/test/rostest_gtest/*.test; do
-  name="$(basename "${scenario}" .test)"
-  [ "${TIER}" = all ] || continue
-  [[ -z "${FILTER}" || "${name}" == *"${FILTER}"* ]] || continue
-  start=$(date +%s)
-  timeout 900 rostest --results-filename "rostest_${name}.xml" --results-base-dir "${WS}/build/test_results" \
-    pedicle_drilling "${name}.test" > "${LOGS}/rostest_${name}.log" 2>&1
-  status=$?
-  if [ ${status} -eq 0 ]; then
-    echo "  ok     ${name} ($(( $(date +%s) - start )) s)"
-  else
-    echo "  FAILED ${name} ($(( $(date +%s) - start )) s), log: ${LOGS}/rostest_${name}.log"
-    grep -E "FAIL|Error|error|Traceback|assert|Assertion|not true" "${LOGS}/rostest_${name}.log" \
-      | cut -c1-300 | head -n 20
-    # A python test's failure message and the lines it adds, each cut short enough to be printed.
-    grep -E -A4 "^AssertionError" "${LOGS}/rostest_${name}.log" | cut -c1-300 | head -n 10
-    if ! ls "${RESULTS}"/*"${name}"*.xml >/dev/null 2>&1; then
-      printf '<testsuite name="%s" tests="1" failures="1"><testcase classname="rostest" name="%s"><failure message="rostest exit %s"/></testcase></testsuite>\n' \
-        "${name}" "${name}" "${status}" > "${RESULTS}/rostest-${name}-crash.xml"
-    fi
+# The python tests: PYTEST_JOBS workers (pytest-xdist, default 2), a test file to one worker, so
+# that a file's module fixtures are built once.
+python_tier() {
+  local tests=("${ROOT}/test/python")
+  if [ "${TIER}" = fast ]; then
+    tests=("${FAST_PYTHON[@]/#/${ROOT}/test/python/}")
   fi
-done
+  /usr/bin/python3 -m pytest -q -p no:cacheprovider -n "${PYTEST_JOBS:-2}" --dist loadfile \
+    ${FILTER:+-k "${FILTER}"} "${tests[@]}" --junitxml="${RESULTS}/pytest-python.xml" 2>&1
+}
 
-echo "== python tests"
-PYTHON_TESTS=("${ROOT}/test/python")
+# The rostest scenarios: ROSTEST_JOBS lanes at once (default 2), each on a private X display;
+# ROSTEST_JOBS=1 runs them one at a time.
+run_rostests() {
+  /usr/bin/python3 "${ROOT}/scripts/dev/run_rostests.py" --root "${ROOT}" \
+    --results-base-dir "${WS}/build/test_results" --logs "${LOGS}" \
+    --jobs "${ROSTEST_JOBS:-2}" ${FILTER:+--filter "${FILTER}"}
+}
+
+# One tier after the other: the python tests beside the rostest lanes loaded the machine (load
+# average above 10 on 2 cores) until the lockstep scenarios' wall-time watchdogs tripped.
+echo "== rostest scenarios"
 if [ "${TIER}" = fast ]; then
-  PYTHON_TESTS=("${FAST_PYTHON[@]/#/${ROOT}/test/python/}")
+  echo "  (none in the fast tier)"
+else
+  run_rostests
 fi
-if ls "${ROOT}"/test/python/test_*.py >/dev/null 2>&1; then
-  /usr/bin/python3 -m pytest -q -p no:cacheprovider ${FILTER:+-k "${FILTER}"} "${PYTHON_TESTS[@]}" \
-    --junitxml="${RESULTS}/pytest-python.xml" 2>&1 | tail -n 25
-fi
+echo "== python tests"
+python_tier | tail -n 25
 
 echo "== summary"
 /usr/bin/python3 "${ROOT}/scripts/dev/summarize_test_results.py" "${RESULTS}"

@@ -5,6 +5,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import threading
@@ -173,6 +174,21 @@ def planner_settings(scenario):
     return settings
 
 
+def _master_port(base_port, k):
+    """The k-th ROS worker's master port: a block of 8 ports per campaign process above
+    base_port (by its pid, so that campaigns running at once, as in a parallel test run, start
+    apart), the first of them from k on that no process listens on."""
+    port = base_port + (os.getpid() % 400) * 8 + k
+    for candidate in range(port, port + 64):
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
+            try:
+                probe.bind(('127.0.0.1', candidate))
+            except OSError:
+                continue
+            return candidate
+    return port
+
+
 def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
     """The k-th --engine ros worker, started on its trials `part`."""
     args, scenario, params = setup.args, setup.settings, setup.params
@@ -180,7 +196,7 @@ def _ros_worker(setup, out_dir, k, part, models_dir, cpu):
     with atomic_write(trial_file) as handle:
         json.dump(part, handle)
     command = ['/usr/bin/python3', '-m', 'pd_campaign.worker',
-               '--port', str(args.base_port + k + (os.getpid() % 50) * 64),
+               '--port', str(_master_port(args.base_port, k)),
                '--trials', trial_file, '--out', out_dir,
                '--feed-rate', str(scenario.feed_rate_mm_s),
                '--max-duration', str(scenario.max_duration_s),

@@ -267,6 +267,9 @@ def test_a_second_campaign_in_a_running_ones_folder_exits_at_once_naming_it(tmp_
     out = tmp_path / 'out'
     process = _start(out)
     _wait_for_rows(process, out, 1)
+    # Held where it is (its whole process group stopped): however slow the machine, it cannot
+    # finish, and so give up its folder, while the second campaigns try.
+    os.killpg(process.pid, signal.SIGSTOP)
     for extra in ([], ['--resume']):
         began = time.monotonic()
         result = _run(out, *extra)
@@ -277,7 +280,7 @@ def test_a_second_campaign_in_a_running_ones_folder_exits_at_once_naming_it(tmp_
         assert took < 30.0, 'not at once: %.1f s' % took
         assert 'trials (full design)' not in result.stderr, 'it started its trials'
     assert process.poll() is None, 'the first campaign was disturbed'
-    process.kill()
+    os.killpg(process.pid, signal.SIGKILL)
     assert process.wait(timeout=60) == -9
     result = _run(out, '--resume')
     assert result.returncode == 0, result.stderr[-3000:]

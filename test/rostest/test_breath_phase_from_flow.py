@@ -31,6 +31,8 @@ class BreathPhaseFromFlowTest(unittest.TestCase):
         self.flow_samples = 0
         self.sources = []
         self.done = threading.Event()
+        self.drives_enabled = threading.Event()
+        self.breaths_detected = threading.Event()
         rospy.Subscriber('/simulator/ground_truth', GroundTruth, self.on_truth, queue_size=1000)
         rospy.Subscriber('/drill/stop', StopCommand, self.keep(self.stops), queue_size=10)
         rospy.Subscriber('/compensation/status', TrialStatus, self.on_status, queue_size=100)
@@ -38,8 +40,6 @@ class BreathPhaseFromFlowTest(unittest.TestCase):
         rospy.Subscriber('/breath_sensor/flow', AirwayFlow, self.on_flow, queue_size=1000)
         rospy.Subscriber('/ventilator/breath_source_status', BreathSourceStatus,
                          self.keep(self.sources), queue_size=10)
-        self.drives_enabled = threading.Event()
-        self.breaths_detected = threading.Event()
 
     def keep(self, store):
         def callback(msg):
