@@ -33,6 +33,22 @@ LISTENER = textwrap.dedent('''
 ''')
 
 
+def _wait_for_master(launch, uri, deadline_s=120.0):
+    """Waits until the launch's master answers at `uri` (the launch still running)."""
+    import time
+    import rosgraph
+    master = rosgraph.Master('/replay_test', master_uri=uri)
+    deadline = time.monotonic() + deadline_s  # a bound on a broken run, not a pacing
+    while True:
+        assert launch.poll() is None, 'roslaunch ended with %s' % launch.returncode
+        try:
+            master.getPid()
+            return
+        except Exception:  # noqa: BLE001 (refused until the master listens)
+            assert time.monotonic() < deadline, 'no master at %s' % uri
+            time.sleep(0.05)
+
+
 def test_a_bag_replays_on_its_own_clock(tmp_path):
     bag_path = tmp_path / 'trial.bag'
     n = 1500
@@ -48,6 +64,7 @@ def test_a_bag_replays_on_its_own_clock(tmp_path):
          'wait_for_subscribers:=true'],
         env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
     try:
+        _wait_for_master(launch, env['ROS_MASTER_URI'])
         # Nothing is played before the listener subscribed (wait_for_subscribers): all samples.
         out = subprocess.run(['/usr/bin/python3', '-c', LISTENER, str(n)], env=env,
                              capture_output=True, text=True, timeout=120)
