@@ -59,8 +59,8 @@ class Scenarios:
 
     def take(self):
         """The next scenario for a free lane: (name, whether it runs on the wall clock), or None
-        when none is left. A lane that finds only wall-clock scenarios left while another runs
-        waits for it."""
+        when none is left. A lane that finds only wall-clock scenarios left waits until no other
+        scenario runs."""
         with self._changed:
             while True:
                 if self._other:
@@ -173,7 +173,9 @@ def run_lane(jobs, args, printer, durations):
             lines = ['  FAILED %s (%d s), log: %s' % (name, seconds, log_path)]
             lines.extend(failure_excerpt(log_path))
             printer('\n'.join(lines))
-            if not glob.glob(os.path.join(results_dir, '*%s*.xml' % name)):
+            # rostest's own result file (rostest-<results-filename>); a glob on the name would
+            # also find another scenario's (ft_zero_service in ft_zero_service_missing).
+            if not os.path.exists(os.path.join(results_dir, 'rostest-rostest_%s.xml' % name)):
                 crash_result(results_dir, name, status)
     finally:
         server.terminate()

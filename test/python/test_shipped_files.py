@@ -150,3 +150,31 @@ def test_follow_joint_trajectory_is_wire_compatible_with_control_msgs():
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 0, out.stderr
         assert out.stdout.strip() == md5, name
+
+
+def test_wall_clock_scenarios_run_alone_after_the_others():
+    """run_rostests.Scenarios: lockstep scenarios go to free lanes first; a wall-clock one
+    starts only when no other scenario runs, and none starts beside it."""
+    import threading
+    import run_rostests
+    jobs = run_rostests.Scenarios(['wall_a', 'wall_b'], ['step_a', 'step_b'])
+    assert jobs.take() == ('step_a', False)
+    assert jobs.take() == ('step_b', False)
+    jobs.done(False)
+    taken = []
+    lane = threading.Thread(target=lambda: taken.append(jobs.take()))
+    lane.start()
+    lane.join(timeout=0.5)
+    assert lane.is_alive() and not taken, 'a wall-clock scenario started beside step_b'
+    jobs.done(False)
+    lane.join(timeout=60.0)
+    assert taken == [('wall_a', True)]
+    waiting = threading.Thread(target=lambda: taken.append(jobs.take()))
+    waiting.start()
+    waiting.join(timeout=0.5)
+    assert waiting.is_alive(), 'wall_b started beside wall_a'
+    jobs.done(True)
+    waiting.join(timeout=60.0)
+    assert taken[-1] == ('wall_b', True)
+    jobs.done(True)
+    assert jobs.take() is None
