@@ -675,6 +675,29 @@ TEST(DrillingSimulation, MovingPlatformFollowsTheRateLimitedSliders) {
   }
 }
 
+TEST(DrillingSimulation, APatientLateOnItsVentilatorTakesNewSettingsWithTheSameBreath) {
+  // Volunteer 3 (seed 7) lags its ventilator: a request in the first lag_s of a breath found the
+  // ventilator in the new breath and the patient still in the old one, and the patient took the
+  // new rate a whole breath before the ventilator and its settings stream did.
+  DrillingSimulation sim(workcell(), unwatched(), 7);
+  ASSERT_GT(sim.patient().lag_s, 0.002);
+  while (sim.ventilator().breathIndex() < 1) sim.stepOnce();
+  ASSERT_EQ(sim.patientBreathing().breathIndex(), 0) << "the request must fall in the lag";
+  const double old_period = sim.ventilator().model().period();
+  VentilatorSettings slower = sim.ventilator().model().settings();
+  slower.rate_bpm -= 4.0;
+  sim.requestVentilatorSettings(slower);
+  const double new_period = 60.0 / slower.rate_bpm;
+  while (sim.patientBreathing().breathIndex() < 1) sim.stepOnce();
+  EXPECT_NEAR(sim.patientBreathing().model().period(), old_period, 1e-12);
+  while (sim.ventilator().breathIndex() < 2) sim.stepOnce();
+  EXPECT_NEAR(sim.ventilator().model().period(), new_period, 1e-12);
+  while (sim.patientBreathing().breathIndex() < 2) sim.stepOnce();
+  EXPECT_NEAR(sim.patientBreathing().model().period(), new_period, 1e-12);
+  // The same breath, each on its own clock: the patient lag_s behind, never a breath apart.
+  EXPECT_NEAR(sim.patientBreathing().breathStart(), sim.ventilator().breathStart(), 1e-9);
+}
+
 TEST(DrillingSimulation, BonePlaysADisplacementModelOnThePaperBench) {
   // Volunteer 1 + 7 % 5 = 3 has a lag, drift and movements; a played model has none of them.
   DrillingSimulation sim(workcell(), unwatched(), 7);

@@ -204,6 +204,28 @@ TEST(BreathScheduler, SettingsChangeAtNextBreathOnly) {
   EXPECT_EQ(scheduler.breathIndex(), 2);
 }
 
+TEST(BreathScheduler, SettingsForALaterBreathWaitForIt) {
+  BreathScheduler scheduler(paperSettings());
+  VentilatorSettings slower = paperSettings();
+  slower.rate_bpm = 8.0;  // T = 7.5 s
+  scheduler.requestSettings(slower, 2);
+  scheduler.sample(5.5);  // breath 1: not yet
+  EXPECT_EQ(scheduler.breathIndex(), 1);
+  EXPECT_TRUE(scheduler.hasPendingSettings());
+  EXPECT_NEAR(scheduler.model().period(), 5.0, 1e-12);
+  scheduler.sample(10.5);  // breath 2 starts at 10 s with them
+  EXPECT_EQ(scheduler.breathIndex(), 2);
+  EXPECT_FALSE(scheduler.hasPendingSettings());
+  EXPECT_NEAR(scheduler.model().period(), 7.5, 1e-12);
+  // A breath already begun is never changed: an index not ahead is the next breath.
+  scheduler.requestSettings(paperSettings(), 0);
+  scheduler.sample(17.0);
+  EXPECT_NEAR(scheduler.model().period(), 7.5, 1e-12);
+  scheduler.sample(17.6);
+  EXPECT_EQ(scheduler.breathIndex(), 3);
+  EXPECT_NEAR(scheduler.model().period(), 5.0, 1e-12);
+}
+
 TEST(BreathScheduler, BadSettingsRejectedAndOldOnesKept) {
   BreathScheduler scheduler(paperSettings());
   VentilatorSettings bad = paperSettings();

@@ -363,21 +363,30 @@ BreathScheduler::BreathScheduler(const VentilatorSettings& settings, double star
     : model_(settings), pending_(settings), breath_start_(start_time), last_t_(start_time) {}
 
 void BreathScheduler::requestSettings(const VentilatorSettings& settings) {
+  requestSettings(settings, breath_index_ + 1);
+}
+
+void BreathScheduler::requestSettings(const VentilatorSettings& settings, long from_breath) {
   pending_ = VentilatorModel(settings);
   pending_valid_ = true;
+  pending_from_ = std::max(from_breath, breath_index_ + 1);  // never mid-breath
+}
+
+void BreathScheduler::beginBreath() {
+  ++breath_index_;
+  if (pending_valid_ && breath_index_ >= pending_from_) {
+    model_ = pending_;
+    pending_valid_ = false;
+  }
 }
 
 void BreathScheduler::restart(double start_time) {
   if (!std::isfinite(start_time)) {
     throw std::invalid_argument("BreathScheduler::restart: start_time must be finite");
   }
-  if (pending_valid_) {
-    model_ = pending_;
-    pending_valid_ = false;
-  }
   breath_start_ = start_time;
   last_t_ = start_time;
-  ++breath_index_;
+  beginBreath();
 }
 
 void BreathScheduler::rephase(double start_time) {
@@ -393,11 +402,7 @@ VentilatorSample BreathScheduler::sample(double t) {
   last_t_ = t;
   while (t >= breath_start_ + model_.period()) {
     breath_start_ += model_.period();
-    ++breath_index_;
-    if (pending_valid_) {
-      model_ = pending_;
-      pending_valid_ = false;
-    }
+    beginBreath();
   }
   VentilatorSample out;
   out.t = t;

@@ -399,6 +399,19 @@ struct DrillingSimulation::Impl {
   SpmsKinematics spms;
   BreathScheduler ventilator;
   BreathScheduler lagged_ventilator;  // same settings, sampled at t - lag (patient hysteresis)
+
+  /**
+   * New settings from the ventilator's next breath, for the patient with the same breath: the
+   * patient's breathing is the ventilator's sampled lag_s late, so a request in the first lag_s
+   * of a breath must not reach the patient a breath before the ventilator (and its settings
+   * stream) has them.
+   */
+  void requestBreathing(const VentilatorSettings& settings) {
+    const long from_breath = ventilator.breathIndex() + 1;
+    ventilator.requestSettings(settings, from_breath);
+    lagged_ventilator.requestSettings(settings, from_breath);
+  }
+
   VirtualPatient patient;
   std::unique_ptr<DrillingProcess> process;
   std::unique_ptr<ForceSensor> sensor;
@@ -1055,8 +1068,7 @@ struct DrillingSimulation::Impl {
     // The trial's breathing takes effect at the next breath (a ventilator never cuts one).
     const VentilatorSettings& current = ventilator.model().settings();
     if (breathing.rate_bpm != current.rate_bpm || breathing.tv_max_ml != current.tv_max_ml) {
-      ventilator.requestSettings(breathing);
-      lagged_ventilator.requestSettings(breathing);
+      requestBreathing(breathing);
     }
     if (params.sensor_tared_at_reset) sensor->tare();  // the benches: tared before the trial
     tare.reset();
@@ -1455,8 +1467,7 @@ double DrillingSimulation::controllerTrajectoryEnd(std::size_t index) const {
 int DrillingSimulation::controllerAborts() const { return impl_->controller_aborts; }
 
 void DrillingSimulation::requestVentilatorSettings(const VentilatorSettings& settings) {
-  impl_->ventilator.requestSettings(settings);
-  impl_->lagged_ventilator.requestSettings(settings);
+  impl_->requestBreathing(settings);
   impl_->params.ventilator = settings;  // the base the next trials' breathing is drawn around
 }
 
@@ -1541,6 +1552,10 @@ double DrillingSimulation::sensedTimeInBreath() const {
 bool DrillingSimulation::breathFlowSampled() const { return impl_->breath_flow_sampled; }
 
 const BreathScheduler& DrillingSimulation::ventilator() const { return impl_->ventilator; }
+
+const BreathScheduler& DrillingSimulation::patientBreathing() const {
+  return impl_->lagged_ventilator;
+}
 
 bool DrillingSimulation::startTrial() {
   const bool remount = impl_->process->maxDepthCut() > 0.0;

@@ -154,8 +154,18 @@ ConstraintResiduals paperConstantsResiduals();
 class BreathScheduler {
  public:
   explicit BreathScheduler(const VentilatorSettings& settings, double start_time = 0.0);
-  /** @brief Queues new settings (validated and solved now; throws on bad settings). */
+  /**
+   * @brief Queues new settings for the next breath (validated and solved now; throws on bad
+   *        settings).
+   */
   void requestSettings(const VentilatorSettings& settings);
+  /**
+   * @brief Queues new settings for the breath numbered @p from_breath, at the earliest the next
+   *        one: a second scheduler that follows this one a little late (the patient's breathing,
+   *        sampled at t - lag) takes a change with the same breath as its ventilator, even when
+   *        the request falls between the two schedulers' breath starts.
+   */
+  void requestSettings(const VentilatorSettings& settings, long from_breath);
   /** @brief Output at time t; t earlier than the last call is clamped to it. */
   VentilatorSample sample(double t);
   /**
@@ -182,9 +192,13 @@ class BreathScheduler {
   bool hasPendingSettings() const { return pending_valid_; }
 
  private:
+  /** @brief Counts a new breath; the pending settings take effect if they are due with it. */
+  void beginBreath();
+
   VentilatorModel model_;
   VentilatorModel pending_;
   bool pending_valid_ = false;
+  long pending_from_ = 0;  ///< the breath index the pending settings take effect with
   double breath_start_ = 0.0;
   double last_t_ = 0.0;
   long breath_index_ = 0;

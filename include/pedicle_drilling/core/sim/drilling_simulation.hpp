@@ -567,6 +567,11 @@ class DrillingSimulation {
   bool breathFlowSampled() const;
   /** @brief The internal ventilator (breath index and start, current settings). */
   const BreathScheduler& ventilator() const;
+  /**
+   * @brief The patient's breathing, which moves the bone: the ventilator's, sampled the
+   *        patient's lag_s late (its breath index and settings follow the ventilator's).
+   */
+  const BreathScheduler& patientBreathing() const;
   /** @brief Whether the bone follows the patient. */
   bool movingBone() const;
   /** @brief Seed of the current trial. */
