@@ -190,6 +190,8 @@ def main():
     parser.add_argument('--filter', default='', help='only scenarios whose name has this')
     parser.add_argument('--jobs', type=int, default=2, help='lanes run at once (at least 1)')
     args = parser.parse_args()
+    os.makedirs(args.logs, exist_ok=True)
+    os.makedirs(os.path.join(args.results_base_dir, 'pedicle_drilling'), exist_ok=True)
     if args.jobs < 1:
         parser.error('--jobs must be at least 1, got %d' % args.jobs)
     scenarios = sorted(path for folder in SCENARIO_FOLDERS
@@ -218,8 +220,8 @@ def main():
         lane.join()
     results_dir = os.path.join(args.results_base_dir, 'pedicle_drilling')
     for name in order:
-        if name not in durations:  # every lane failed to start its display
-            print('  FAILED %s: not run (no lane could start Xvfb)' % name, flush=True)
+        if name not in durations:  # no lane started its display, or a lane failed (above)
+            print('  FAILED %s: not run (no lane could run it; see above)' % name, flush=True)
             crash_result(results_dir, name, 'not run')
     previous.update(durations)
     with atomic_write(seconds_path) as handle:

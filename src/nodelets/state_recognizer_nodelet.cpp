@@ -16,6 +16,7 @@
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
+#include <sensor_msgs/JointState.h>
 #include <std_srvs/Trigger.h>
 #include <pluginlib/class_list_macros.hpp>
 
@@ -106,6 +107,10 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     reset_srv_ = pnh.advertiseService("reset", &StateRecognizerNodelet::onReset, this);
     // A new tare: the samples before it were untared; the recognizer starts afresh.
     tare_sub_ = nh.subscribe("ft_sensor/tare_result", 10, &StateRecognizerNodelet::onTare, this);
+    // The drill's context for a class that reads it (its feed and spindle joints).
+    joints_ = params.joints;
+    joint_state_sub_ =
+        nh.subscribe("joint_states", 10, &StateRecognizerNodelet::onJointStates, this);
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
                      ros::TransportHints().tcpNoDelay());
@@ -144,6 +149,11 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     }
   }
 
+  void onJointStates(const sensor_msgs::JointState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    recognizer_->setContextFromJoints(msg->name, msg->position, msg->velocity, joints_);
+  }
+
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     const geometry_msgs::Vector3& f = msg->wrench.force;
@@ -152,7 +162,9 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     // The stream's rate counts every message, whatever its force.
     if (rate_check_->observe(t)) onRateMeasured(ros::Time(t));
     // The core's glue: the axis, non-finite samples dropped and counted, the latch.
-    const core::RecognizerStep step = recognizer_->onSample(t, Eigen::Vector3d(f.x, f.y, f.z));
+    const geometry_msgs::Vector3& m = msg->wrench.torque;
+    const core::RecognizerStep step =
+        recognizer_->onSample(t, Eigen::Vector3d(f.x, f.y, f.z), Eigen::Vector3d(m.x, m.y, m.z));
     if (!step.accepted) {
       // Skipping one keeps the block means honest. The SafetyMonitor stops the drill on NaN
       // input, so this only has to stay alive.
@@ -326,6 +338,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   std::unique_ptr<LockstepParticipant> lockstep_;
   std::unique_ptr<core::SampleRateCheck> rate_check_;  ///< ft_sensor/wrench against sensor_rate_hz
   std::string wrench_topic_;                           ///< its resolved name, for the messages
+  core::DrillJointNames joints_;                       ///< ~feed_joint, ~spindle_joint
   int block_samples_ = 0;                              ///< the paper recognizer's block
   double pre_average_s_ = 0.0;
   bool rate_logged_ = false;           ///< a verdict was logged
@@ -336,6 +349,7 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   ros::Publisher stop_pub_;
   ros::Publisher diagnostics_pub_;
   ros::Subscriber wrench_sub_;
+  ros::Subscriber joint_state_sub_;
   ros::ServiceServer reset_srv_;
   ros::Subscriber tare_sub_;
   ros::Subscriber status_sub_;

@@ -13,6 +13,12 @@ from the Python path, makes it with no arguments and calls:
   cancellous, inner_cortical, breakthrough), ``new_average`` (true when the averaged value is
   new: the nodelet then publishes drilling_state), ``averaged_force``, ``feature``,
   ``last_key_point`` and ``stop`` (the drill stops; latched by the C++ side until reset);
+- optionally ``push_sample(sample)`` instead of ``push`` for each sample, when the class
+  defines it: ``sample`` is a dict with ``t`` [s], ``thrust`` [N] (what ``push`` gets),
+  ``force`` [N] and ``torque`` [N m] (the whole wrench, (x, y, z) tuples in the sensor's frame,
+  tared), ``feed_depth_m`` (the feed joint's position) and ``spindle_rpm`` (the spindle joint's
+  speed), the last two as the joint states last gave them (NaN until then); it returns what
+  ``push`` returns. Only ``t`` and ``thrust`` are checked finite before the class sees them;
 - optionally ``stop_reason()``, ``describe()`` and ``parameter_names()``.
 
 Recognizer is the base class with that contract and the parameter handling, BlockMean the

@@ -39,6 +39,7 @@ bool isPythonClassName(const std::string& name) { return name.rfind(kPythonClass
 /** @brief The Python object, touched only with the GIL held. */
 struct PythonRecognizer::Impl {
   py::object object;
+  bool reads_sample = false;  ///< the class defines push_sample: it gets the whole sample
 };
 
 PythonRecognizer::PythonRecognizer(const std::string& class_name)
@@ -48,6 +49,7 @@ PythonRecognizer::PythonRecognizer(const std::string& class_name)
                                                 {"configure", "reset", "push"});
   py::gil_scoped_acquire gil;
   impl_->object = std::move(object);
+  impl_->reads_sample = py::hasattr(impl_->object, "push_sample");
 }
 
 PythonRecognizer::~PythonRecognizer() {
@@ -73,22 +75,45 @@ const core::RecognizerOutput& PythonRecognizer::push(double t, double raw_force)
   if (!std::isfinite(t) || !std::isfinite(raw_force)) {
     throw std::invalid_argument("push: t and raw_force must be finite");
   }
-  const std::size_t index = index_++;
   py::gil_scoped_acquire gil;
+  return take("push", t, [&]() { return impl_->object.attr("push")(t, raw_force); });
+}
+
+const core::RecognizerOutput& PythonRecognizer::pushSample(const core::RecognizerSample& sample) {
+  if (!impl_->reads_sample) return push(sample.t, sample.thrust_n);
+  if (!std::isfinite(sample.t) || !std::isfinite(sample.thrust_n)) {
+    throw std::invalid_argument("push_sample: t and thrust must be finite");
+  }
+  py::gil_scoped_acquire gil;
+  return take("push_sample", sample.t, [&]() {
+    py::dict d;
+    d["t"] = sample.t;
+    d["thrust"] = sample.thrust_n;
+    d["force"] = py::make_tuple(sample.force_n[0], sample.force_n[1], sample.force_n[2]);
+    d["torque"] = py::make_tuple(sample.torque_nm[0], sample.torque_nm[1], sample.torque_nm[2]);
+    d["feed_depth_m"] = sample.feed_depth_m;
+    d["spindle_rpm"] = sample.spindle_rpm;
+    return impl_->object.attr("push_sample")(d);
+  });
+}
+
+template <typename Call>
+const core::RecognizerOutput& PythonRecognizer::take(const char* method, double t, Call call) {
+  const std::size_t index = index_++;
   py::dict out;
   try {
-    out = impl_->object.attr("push")(t, raw_force);
+    out = call();
   } catch (const py::error_already_set& e) {
-    throw std::runtime_error(class_name_ + ".push: " + e.what());
+    throw std::runtime_error(class_name_ + "." + method + ": " + e.what());
   } catch (const py::cast_error&) {
-    throw std::runtime_error(class_name_ + ".push: must return a dict");
+    throw std::runtime_error(class_name_ + "." + method + ": must return a dict");
   }
   const bool was_stopped = output_.stop;
   output_.new_average = false;
   for (const auto& item : out) {
     const std::string key = py::str(item.first);
     if (outputKeys().count(key) == 0) {
-      throw std::invalid_argument(class_name_ + ".push: unknown key '" + key + "'");
+      throw std::invalid_argument(class_name_ + "." + method + ": unknown key '" + key + "'");
     }
     const py::handle v = item.second;
     if (key == "state" || key == "layer_state") {

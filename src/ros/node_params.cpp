@@ -200,6 +200,12 @@ const ParamTable<StateRecognizerNodeParams>& StateRecognizerNodeParams::table() 
         .number("rate_tolerance", &P::rate_tolerance, Range::open(0, 1))
         .number("rate_window_s", &P::rate_window_s, Range::aboveUpTo(0, 60), "s")
         .integer("queue_size", &P::queue_size, Range::closed(1, 100000))
+        .parsed(
+            "feed_joint", {}, "", [](const P& v) { return v.joints.feed; },
+            [](P& v, const std::string& x) { v.joints.feed = x; })
+        .parsed(
+            "spindle_joint", {}, "", [](const P& v) { return v.joints.spindle; },
+            [](P& v, const std::string& x) { v.joints.spindle = x; })
         .text("recognizer", &P::recognizer_class)
         .pairs("recognizer_params", &P::recognizer_params)
         .flag("unsafe_allow_disabled_watchdogs", &P::unsafe_allow_disabled_watchdogs);
@@ -245,6 +251,8 @@ std::vector<std::string> StateRecognizerNodeParams::disabledWatchdogs() const {
 
 void StateRecognizerNodeParams::validate() const {
   table().validate(*this);
+  if (joints.feed.empty()) throw std::invalid_argument("feed_joint: must name a joint");
+  if (joints.spindle.empty()) throw std::invalid_argument("spindle_joint: must name a joint");
   const core::RecognizerParams in_use = recognizerInUse();
   refuseDisabledWatchdogs(disabledWatchdogs(), unsafe_allow_disabled_watchdogs);
   try {

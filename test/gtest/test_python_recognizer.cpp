@@ -69,6 +69,17 @@ class NoPush:
     def configure(self, settings): pass
     def reset(self): pass
 
+class ReadsTheWrench(StopAfter):
+    """push_sample: keeps each sample; stops when the torque about z passes 5 N mm."""
+    def reset(self):
+        super().reset()
+        self.samples = []
+    def push(self, t, f):
+        raise AssertionError('push_sample is defined: push is not called')
+    def push_sample(self, sample):
+        self.samples.append(sample)
+        return {'stop': sample['torque'][2] > 0.005, 'averaged_force': sample['force'][0]}
+
 class RaisesAt(StopAfter):
     """A bug from `after_s` on: push raises."""
     def push(self, t, f):
@@ -179,4 +190,30 @@ TEST(PythonRecognizer, APythonExceptionBehindTheGuardIsAStopNamingIt) {
   EXPECT_TRUE(r.push(0.7, 2.0).stop);  // latched
   r.reset();
   EXPECT_FALSE(r.push(0.1, 2.0).stop);
+}
+
+TEST(PythonRecognizer, AClassWithPushSampleGetsTheWholeSample) {
+  pd::PythonRecognizer r("pd_test_recognizers.ReadsTheWrench");
+  r.configure({});
+  pd::core::RecognizerSample sample;
+  sample.t = 0.25;
+  sample.thrust_n = 3.0;
+  sample.force_n = {0.5, -0.25, 3.0};
+  sample.torque_nm = {0.0, 0.0, 0.004};
+  sample.feed_depth_m = 0.006;
+  EXPECT_FALSE(r.pushSample(sample).stop);
+  EXPECT_DOUBLE_EQ(r.output().averaged_force, 0.5);  // the lateral force, as the class read it
+  sample.t = 0.5;
+  sample.torque_nm[2] = 0.006;
+  EXPECT_TRUE(r.pushSample(sample).stop);
+  EXPECT_DOUBLE_EQ(r.output().stop_t, 0.5);
+  // A thrust-only class behind the same call gets push(t, thrust).
+  pd::PythonRecognizer thrust_only("pd_test_recognizers.StopAfter");
+  thrust_only.configure({{"after_s", "0.3"}});
+  sample.t = 0.1;
+  EXPECT_FALSE(thrust_only.pushSample(sample).stop);
+  sample.t = 0.4;
+  EXPECT_TRUE(thrust_only.pushSample(sample).stop);
+  sample.thrust_n = std::nan("");
+  EXPECT_THROW(r.pushSample(sample), std::invalid_argument);
 }

@@ -34,7 +34,9 @@ PEDICLE_DRILLING_PYTHON_API bool isPythonClassName(const std::string& name);
  *        object may be used from any one thread at a time (as every recognizer).
  *
  * The Python object must have `configure(settings: dict[str, str])`, `reset()` and
- * `push(t: float, raw_force: float) -> dict`; `push`'s dict may set `state` (a state name:
+ * `push(t: float, raw_force: float) -> dict` (or `push_sample(sample: dict) -> dict`, which
+ * receives the whole wrench and the drill's context instead when the class defines it); the
+ * dict may set `state` (a state name:
  * idle, outer_cortical, outer_punctured, cancellous, inner_cortical, stopped), `layer_state`,
  * `new_average`, `averaged_force`, `feature`, `stop`, `last_key_point` (other keys are an
  * error, naming them). `stop_reason()`, `describe()` and `parameter_names()` are optional. The
@@ -54,12 +56,22 @@ class PEDICLE_DRILLING_PYTHON_API PythonRecognizer : public core::RecognizerInte
   void configure(const core::RecognizerSettings& settings) override;
   void reset() override;
   const core::RecognizerOutput& push(double t, double raw_force) override;
+  /**
+   * @brief The object's `push_sample(sample: dict)` when its class defines one (the dict: `t`,
+   *        `thrust`, `force` and `torque` as (x, y, z) tuples, `feed_depth_m`, `spindle_rpm`;
+   *        NaN for what is unknown), else push() of the thrust.
+   */
+  const core::RecognizerOutput& pushSample(const core::RecognizerSample& sample) override;
   const core::RecognizerOutput& output() const override { return output_; }
   std::string stopReason() const override;
   std::string describe() const override;
   std::vector<std::string> parameterNames() const override;
 
  private:
+  /** @brief The dict that @p call (a Python call of @p method, GIL held) returns, as output. */
+  template <typename Call>
+  const core::RecognizerOutput& take(const char* method, double t, Call call);
+
   struct Impl;
   std::unique_ptr<Impl> impl_;
   std::string class_name_;

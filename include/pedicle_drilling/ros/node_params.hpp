@@ -19,6 +19,7 @@
 #include "pedicle_drilling/core/control/drill_guard.hpp"
 #include "pedicle_drilling/core/control/safety_supervisor.hpp"
 #include "pedicle_drilling/core/control/trial_sequencer.hpp"
+#include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 #include "pedicle_drilling/core/drilling/sample_rate_check.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
 #include "pedicle_drilling/core/sim/drilling_simulation.hpp"
@@ -189,6 +190,9 @@ struct StateRecognizerNodeParams {
   double rate_tolerance = core::kDefaultRateTolerance;
   double rate_window_s = 1.0;  ///< the window the rate is measured over [s]
   int queue_size = 1000;       ///< ft_sensor/wrench subscriber queue
+  /// The drill's joints in joint_states: the context a recognizer class may read (feed depth,
+  /// spindle speed; core::RecognizerSample)
+  core::DrillJointNames joints;
   std::string recognizer_class = "pedicle_drilling/PaperRecognizer";  ///< plugin class
   /// The class's parameters as text, checked by it: another class's own, or the paper
   /// recognizer's (RecognizerParams by name, set over `recognizer`: recognizerInUse()).

@@ -1,6 +1,7 @@
 #include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -19,7 +20,9 @@ void ForceAxis::validate() const {
 
 RecognizerAdapter::RecognizerAdapter(std::unique_ptr<RecognizerInterface> recognizer,
                                      ForceAxis axis)
-    : axis_(axis) {
+    : axis_(axis),
+      feed_depth_m_(std::numeric_limits<double>::quiet_NaN()),
+      spindle_rpm_(std::numeric_limits<double>::quiet_NaN()) {
   if (!recognizer) throw std::invalid_argument("RecognizerAdapter: no recognizer");
   axis_.validate();
   recognizer_ = std::make_unique<GuardedRecognizer>(std::move(recognizer));
@@ -31,22 +34,62 @@ bool RecognizerAdapter::admit(double t, double thrust) {
   return false;
 }
 
-RecognizerStep RecognizerAdapter::push(double t, double thrust) {
+template <typename Push>
+RecognizerStep RecognizerAdapter::step(Push push_one) {
   RecognizerStep step;
   step.accepted = true;
   // One latch, the recognizer's: the stop is new on the sample that latches it.
   const bool was_stopped = recognizer_->output().stop;
-  const RecognizerOutput& out = recognizer_->push(t, thrust);
+  const RecognizerOutput& out = push_one();
   step.new_average = out.new_average;
   step.new_stop = out.stop && !was_stopped;
   if (step.new_stop) step.stop_reason = recognizer_->stopReason();
   return step;
 }
 
-RecognizerStep RecognizerAdapter::onSample(double t, const Eigen::Vector3d& force) {
-  const double thrust = axis_.thrust(force);
-  if (!admit(t, thrust)) return RecognizerStep();
-  return push(t, thrust);
+RecognizerStep RecognizerAdapter::push(double t, double thrust) {
+  return step([&]() -> const RecognizerOutput& { return recognizer_->push(t, thrust); });
+}
+
+RecognizerStep RecognizerAdapter::push(const RecognizerSample& sample) {
+  return step([&]() -> const RecognizerOutput& { return recognizer_->pushSample(sample); });
+}
+
+void RecognizerAdapter::setContext(double feed_depth_m, double spindle_rpm) {
+  feed_depth_m_ = feed_depth_m;
+  spindle_rpm_ = spindle_rpm;
+}
+
+void RecognizerAdapter::setContextFromJoints(const std::vector<std::string>& names,
+                                             const std::vector<double>& positions,
+                                             const std::vector<double>& velocities,
+                                             const DrillJointNames& joints) {
+  constexpr double kRpmPerRadPerS = 60.0 / (2.0 * M_PI);
+  for (std::size_t i = 0; i < names.size(); ++i) {
+    if (names[i] == joints.feed && i < positions.size()) feed_depth_m_ = positions[i];
+    if (names[i] == joints.spindle && i < velocities.size()) {
+      spindle_rpm_ = velocities[i] * kRpmPerRadPerS;
+    }
+  }
+}
+
+RecognizerSample RecognizerAdapter::sample(double t, const Eigen::Vector3d& force,
+                                           const Eigen::Vector3d& torque) const {
+  RecognizerSample s;
+  s.t = t;
+  s.thrust_n = axis_.thrust(force);
+  s.force_n = {force.x(), force.y(), force.z()};
+  s.torque_nm = {torque.x(), torque.y(), torque.z()};
+  s.feed_depth_m = feed_depth_m_;
+  s.spindle_rpm = spindle_rpm_;
+  return s;
+}
+
+RecognizerStep RecognizerAdapter::onSample(double t, const Eigen::Vector3d& force,
+                                           const Eigen::Vector3d& torque) {
+  const RecognizerSample s = sample(t, force, torque);
+  if (!admit(s.t, s.thrust_n)) return RecognizerStep();
+  return push(s);
 }
 
 }  // namespace pedicle_drilling::core

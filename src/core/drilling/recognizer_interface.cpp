@@ -226,13 +226,22 @@ void GuardedRecognizer::reset() {
 }
 
 const RecognizerOutput& GuardedRecognizer::push(double t, double raw_force) {
+  return guarded(t, [&]() -> const RecognizerOutput& { return inner_->push(t, raw_force); });
+}
+
+const RecognizerOutput& GuardedRecognizer::pushSample(const RecognizerSample& sample) {
+  return guarded(sample.t, [&]() -> const RecognizerOutput& { return inner_->pushSample(sample); });
+}
+
+template <typename Push>
+const RecognizerOutput& GuardedRecognizer::guarded(double t, Push push_one) {
   if (!error_.empty()) {
     ++samples_;
     failed_.new_average = false;
     return failed_;
   }
   try {
-    const RecognizerOutput& out = inner_->push(t, raw_force);
+    const RecognizerOutput& out = push_one();
     ++samples_;
     return out;
   } catch (const std::exception& e) {

@@ -382,10 +382,23 @@ struct ClosedLoopEngine::Impl {
     });
   }
 
-  void onRecognizerSample(double t, double thrust) {
+  /**
+   * @brief The drill's context for the recognizer from the joint states, as the
+   *        StateRecognizer nodelet hears them on joint_states.
+   */
+  void onJointStates() {
+    const Eigen::VectorXd q = sim->armJointPositions();
+    const Eigen::VectorXd qd = sim->armJointVelocities();
+    recognizer->setContextFromJoints(sim->armJointNames(),
+                                     std::vector<double>(q.data(), q.data() + q.size()),
+                                     std::vector<double>(qd.data(), qd.data() + qd.size()));
+  }
+
+  void onRecognizerSample(const RecognizerSample& sample) {
     if (!planner_alive) return;  // the recognizer runs in the planner's process
+    const double t = sample.t;
     ComponentLaps laps(config.profile);
-    const RecognizerStep pushed = recognizer->push(t, thrust);
+    const RecognizerStep pushed = recognizer->push(sample);
     const RecognizerOutput& out = recognizer->output();
     laps.mark(Component::kRecognizer);
     // Under kPeakForces the recognizer observes: its stop is recorded, never delivered.
@@ -583,17 +596,20 @@ struct ClosedLoopEngine::Impl {
     Eigen::Vector3d force = s.measured_wrench.head<3>();
     if (monitor_alive) sequencer->onMonitorAlive(now);  // its /diagnostics, every step
     updateFault();
+    if (due.joint_states) onJointStates();
     if (due.force && faultyForce(&force)) {
-      const double thrust = recognizer->thrust(force);  // config/recognizer.yaml axis: z
+      // The whole sample: the thrust along config/recognizer.yaml's axis (z), the wrench, the
+      // drill's context as the joint states last gave it.
+      const RecognizerSample sample = recognizer->sample(now, force, s.measured_wrench.tail<3>());
+      const double thrust = sample.thrust_n;
       const double t = now;
       // A non-finite sample is dropped (counted) as the StateRecognizer nodelet drops it; the
       // monitor stops on it.
       const bool admitted = recognizer->admit(t, thrust);
       if (admitted && config.delays.force_to_recognizer_s > 0.0) {
-        send(config.delays.force_to_recognizer_s,
-             [this, t, thrust]() { onRecognizerSample(t, thrust); });
+        send(config.delays.force_to_recognizer_s, [this, sample]() { onRecognizerSample(sample); });
       } else if (admitted) {
-        onRecognizerSample(t, thrust);
+        onRecognizerSample(sample);
       }
       ComponentLaps laps(config.profile);
       if (monitor_alive) {

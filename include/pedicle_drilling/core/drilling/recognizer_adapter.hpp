@@ -1,7 +1,8 @@
 // The glue between a force sensor's stream and a drilling-state recognizer, one rule for the
 // StateRecognizer nodelet and the closed-loop engine: the thrust is one axis component of the
-// force, a non-finite sample is dropped and counted, the recognizer's latch says when its stop
-// is new, and the stop's reason comes with it.
+// force (the whole wrench and the drill's context go with it, RecognizerSample), a non-finite
+// sample is dropped and counted, the recognizer's latch says when its stop is new, and the stop's
+// reason comes with it.
 #ifndef PEDICLE_DRILLING_CORE_DRILLING_RECOGNIZER_ADAPTER_HPP_
 #define PEDICLE_DRILLING_CORE_DRILLING_RECOGNIZER_ADAPTER_HPP_
 
@@ -10,6 +11,7 @@
 #include <cstddef>
 #include <memory>
 #include <string>
+#include <vector>
 
 #include "pedicle_drilling/core/drilling/recognizer_interface.hpp"
 #include "pedicle_drilling/core/drilling/state_recognizer.hpp"
@@ -24,6 +26,12 @@ struct ForceAxis {
   void validate() const;
   /** @brief The thrust of @p force along this axis. */
   double thrust(const Eigen::Vector3d& force) const { return sign * force[index]; }
+};
+
+/** @brief The drill's joints by name in a joint-state sample (the URDF's names by default). */
+struct DrillJointNames {
+  std::string feed = "feed_joint";        ///< prismatic: the drill's advance along its axis [m]
+  std::string spindle = "spindle_joint";  ///< continuous: the spindle [rad/s]
 };
 
 /** @brief What one force sample did to the recognizer (RecognizerAdapter::push). */
@@ -53,10 +61,37 @@ class RecognizerAdapter {
    *        nonFiniteCount) when either is not finite.
    */
   bool admit(double t, double thrust);
-  /** @brief An admitted sample to the recognizer: its new state and new stop. */
+  /** @brief An admitted thrust sample to the recognizer: its new state and new stop. */
   RecognizerStep push(double t, double thrust);
-  /** @brief admit() then push() of the thrust of @p force; accepted false when dropped. */
-  RecognizerStep onSample(double t, const Eigen::Vector3d& force);
+  /** @brief An admitted whole sample (sample()) to the recognizer: its new state and stop. */
+  RecognizerStep push(const RecognizerSample& sample);
+  /**
+   * @brief The drill's context as last heard (NaN: unknown); it goes with every sample() after.
+   * @param feed_depth_m  the feed joint's position [m]
+   * @param spindle_rpm   the spindle's speed [rpm]
+   */
+  void setContext(double feed_depth_m, double spindle_rpm);
+  /**
+   * @brief setContext() from one joint-state sample (as sensor_msgs/JointState: names, and
+   *        positions and velocities in their order): the feed joint's position and the spindle
+   *        joint's velocity in rpm. A joint the sample lacks (or a value it lacks) keeps what
+   *        was heard before.
+   */
+  void setContextFromJoints(const std::vector<std::string>& names,
+                            const std::vector<double>& positions,
+                            const std::vector<double>& velocities,
+                            const DrillJointNames& joints = DrillJointNames());
+  /**
+   * @brief A sensor sample for the recognizer: the thrust along the configured axis, the whole
+   *        wrench and the context of setContext().
+   */
+  RecognizerSample sample(double t, const Eigen::Vector3d& force,
+                          const Eigen::Vector3d& torque) const;
+  /**
+   * @brief admit() then push() of the whole sample of @p force and @p torque; accepted false
+   *        when dropped (a non-finite time or thrust).
+   */
+  RecognizerStep onSample(double t, const Eigen::Vector3d& force, const Eigen::Vector3d& torque);
 
   /** @brief The recognizer starts afresh (its latch cleared); the drop count is kept. */
   void reset() { recognizer_->reset(); }
@@ -73,8 +108,14 @@ class RecognizerAdapter {
 
  private:
   std::unique_ptr<RecognizerInterface> recognizer_;
+  /** @brief The step of one admitted sample, pushed by @p push_one. */
+  template <typename Push>
+  RecognizerStep step(Push push_one);
+
   ForceAxis axis_;
   std::size_t non_finite_count_ = 0;
+  double feed_depth_m_;  ///< setContext(); NaN until heard
+  double spindle_rpm_;   ///< setContext(); NaN until heard
 };
 
 }  // namespace pedicle_drilling::core

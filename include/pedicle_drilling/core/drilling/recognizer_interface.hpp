@@ -7,6 +7,8 @@
 #ifndef PEDICLE_DRILLING_CORE_RECOGNIZER_INTERFACE_HPP_
 #define PEDICLE_DRILLING_CORE_RECOGNIZER_INTERFACE_HPP_
 
+#include <array>
+#include <limits>
 #include <memory>
 #include <string>
 #include <utility>
@@ -21,7 +23,26 @@ namespace pedicle_drilling::core {
 using RecognizerSettings = std::vector<std::pair<std::string, std::string>>;
 
 /**
- * @brief A drilling-state recognizer fed one raw thrust sample at a time.
+ * @brief One sample of the F/T sensor with what the drill was doing then, for a recognizer that
+ *        reads more than the thrust (RecognizerInterface::pushSample). Forces and torques are
+ *        the sensor's, in its frame, as it reports them (tared with the thrust). Only `t` and
+ *        `thrust_n` are checked before a class sees the sample; a class that reads another
+ *        field checks it (NaN: unknown, or a faulty axis).
+ */
+struct RecognizerSample {
+  double t = 0.0;                     ///< sample time [s]
+  double thrust_n = 0.0;              ///< the thrust along the configured axis: push()'s [N]
+  std::array<double, 3> force_n{};    ///< the whole force (x, y, z) [N]
+  std::array<double, 3> torque_nm{};  ///< the whole torque (x, y, z) [N m]
+  /// The feed joint's position, latest heard (the drill's advance along its axis) [m]
+  double feed_depth_m = std::numeric_limits<double>::quiet_NaN();
+  /// The spindle's speed, latest heard [rpm]
+  double spindle_rpm = std::numeric_limits<double>::quiet_NaN();
+};
+
+/**
+ * @brief A drilling-state recognizer fed one raw thrust sample at a time (push), or one whole
+ *        wrench sample with its context (pushSample: by default the thrust to push).
  *
  * Life cycle: default construction (pluginlib), configure() once, then push() samples; reset()
  * starts a new trial with the same parameters. The output is RecognizerOutput: a plugin fills at
@@ -45,6 +66,16 @@ class RecognizerInterface {
    * @throws std::invalid_argument if t or raw_force is not finite.
    */
   virtual const RecognizerOutput& push(double t, double raw_force) = 0;
+  /**
+   * @brief One sample with the whole wrench and the drill's context. Every caller of a
+   *        recognizer (the StateRecognizer nodelet, the core engine) calls this; the default
+   *        passes the thrust to push(), so that a class reading only the thrust overrides
+   *        push() alone. A class that reads the wrench or the context overrides this.
+   * @throws std::invalid_argument as push().
+   */
+  virtual const RecognizerOutput& pushSample(const RecognizerSample& sample) {
+    return push(sample.t, sample.thrust_n);
+  }
   /** @brief Latest output. */
   virtual const RecognizerOutput& output() const = 0;
   /** @brief The reason of the latched stop, for the StopCommand ("" if none). */
@@ -165,6 +196,7 @@ class GuardedRecognizer : public RecognizerInterface {
   void configure(const RecognizerSettings& settings) override { inner_->configure(settings); }
   void reset() override;
   const RecognizerOutput& push(double t, double raw_force) override;
+  const RecognizerOutput& pushSample(const RecognizerSample& sample) override;
   const RecognizerOutput& output() const override;
   std::string stopReason() const override;
   std::string describe() const override { return inner_->describe(); }
@@ -174,6 +206,9 @@ class GuardedRecognizer : public RecognizerInterface {
 
  private:
   void latchError(double t, const std::string& what);
+  /** @brief @p push_one (a push to the inner class) behind the guard, for a sample at @p t. */
+  template <typename Push>
+  const RecognizerOutput& guarded(double t, Push push_one);
 
   std::unique_ptr<RecognizerInterface> inner_;
   std::string error_;
