@@ -26,6 +26,9 @@ DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
       !std::isfinite(params_.speed_exponent)) {
     throw std::invalid_argument("DrillingProcess: invalid drill parameters");
   }
+  if (!std::isfinite(params_.torque_thrust_ratio) || !(params_.torque_thrust_ratio >= 0.0)) {
+    throw std::invalid_argument("DrillingProcess: torque_thrust_ratio must be finite and >= 0");
+  }
   const double half_angle = 0.5 * params_.point_angle_deg * kPi / 180.0;
   cone_length_m_ = 0.5 * params_.bit_diameter_m / std::tan(half_angle);
 }
@@ -33,6 +36,12 @@ DrillingProcess::DrillingProcess(BoneSpecimen specimen, DrillParameters params)
 void DrillingProcess::reset() {
   max_depth_cut_m_ = 0.0;
   thrust_N_ = 0.0;
+  torque_Nm_ = 0.0;
+}
+
+double DrillingProcess::cuttingTorque(double thrust_n, double spindle_rpm) const {
+  if (!(thrust_n > 0.0) || !(spindle_rpm > 0.0)) return 0.0;  // no rotation or no contact
+  return params_.torque_thrust_ratio * 0.5 * params_.bit_diameter_m * thrust_n;
 }
 
 double DrillingProcess::steadyThrust(double engaged_fraction, double feed_per_rev_m,
@@ -54,6 +63,14 @@ double DrillingProcess::engagedFraction(double tip_depth_m) const {
 }
 
 ForceSample DrillingProcess::step(double dt, double tip_depth_m, double spindle_rpm) {
+  // The torque follows the thrust, which it never changes.
+  ForceSample out = stepThrust(dt, tip_depth_m, spindle_rpm);
+  torque_Nm_ = cuttingTorque(out.thrust_N, spindle_rpm);
+  out.torque_Nm = torque_Nm_;
+  return out;
+}
+
+ForceSample DrillingProcess::stepThrust(double dt, double tip_depth_m, double spindle_rpm) {
   if (!(dt > 0.0)) throw std::invalid_argument("DrillingProcess::step: dt must be > 0");
   if (!std::isfinite(tip_depth_m) || !std::isfinite(spindle_rpm)) {
     throw std::invalid_argument(

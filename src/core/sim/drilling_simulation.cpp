@@ -1284,8 +1284,15 @@ SimulationStep DrillingSimulation::stepOnce() {
   out.force = s.last_force;
   out.tip_depth_m = s.tip_depth;
   out.layer_changed = s.cutLayer() != before;
+  // The true wrench on the sensor, in its frame (z the drill axis, towards the bone), with the
+  // sign the sensor reports: the drill side's load on the bone, so the bone's resistance reads
+  // positive. Fz: the thrust. Tz: the cutting torque, which resists the spindle's rotation
+  // (+z, the joint's positive direction): the bone turns the bit by -T about +z, and the sensor
+  // reads +T (the thrust's line is the axis through the sensor's origin: no Tx, Ty). No lateral
+  // force: the two lips' tangential forces are a couple (doc/simulator_physics.md §2c).
   Wrench truth = Wrench::Zero();
   truth[2] = s.last_force.thrust_N;
+  truth[5] = s.last_force.torque_Nm;
   out.force_sampled =
       s.sensor->sample(truth, s.spindle_rpm, s.last_force.contact, &out.measured_wrench);
   if (out.force_sampled) {

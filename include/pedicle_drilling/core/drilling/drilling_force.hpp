@@ -29,6 +29,15 @@
  * thrust is bounded by k_c times the approach, and a stopped drill (n = 0) that the bone presses
  * against feels k_c * delta (no cutting at all).
  *
+ * Cutting torque about the drill axis (the bone's resistance to the spindle's rotation):
+ *
+ *   T = kappa * (D / 2) * F      while the spindle turns (n > 0), else 0,
+ *
+ * with F the thrust above. The lips' tangential forces form a couple about the axis; their net
+ * lateral force is zero for the symmetric two-lip bit, so the model adds no lateral force (the
+ * sensor's spindle-synchronous lateral tone stands for the run-out). kappa is the measured ratio
+ * of torque to thrust times bit radius (Orelaja et al. 2020, doc/simulator_physics.md §2c).
+ *
  * No ROS headers; C++17 and Eigen only.
  */
 #ifndef PEDICLE_DRILLING_CORE_DRILLING_FORCE_HPP
@@ -61,6 +70,11 @@ struct DrillParameters {
   /// cutting [N/m]; +inf is the rigid contact (the tip's whole advance is cut at once). Only the
   /// compliance not simulated elsewhere belongs here (the arm's is the Bullet arm's).
   double contact_stiffness_n_per_m = 1.0e6;  ///< doc/simulator_physics.md, section 2
+  /// kappa: cutting torque about the drill axis per unit thrust and bit radius, T = kappa (D/2) F
+  /// (dimensionless, finite, >= 0; 0 switches the torque off). 1.6: a 2.5 mm bit in bovine femur,
+  /// 41.2 N mm at 20.07 N and 24.2 N mm at 12.34 N (Orelaja et al. 2020, J Healthc Eng
+  /// 2020:8817422); doc/simulator_physics.md, section 2c.
+  double torque_thrust_ratio = 1.6;
 };
 
 /** @brief One output sample of the drilling process. */
@@ -74,6 +88,9 @@ struct ForceSample {
   double feed_per_rev_m = 0.0;    ///< actual feed per revolution this step
   double engaged_fraction = 0.0;  ///< phi_eff, radial mean solid fraction under the lips
   double overlap_m = 0.0;  ///< elastic overlap of the tip beyond the cut surface (elastic contact)
+  /// Cutting torque about the drill axis [N m], >= 0: the bone resists the spindle's rotation
+  /// (kappa (D/2) thrust while the spindle turns, 0 when it stands or nothing touches).
+  double torque_Nm = 0.0;
 };
 
 /**
@@ -97,6 +114,12 @@ class DrillingProcess {
    *        gives zero thrust, the elastic one the spring force of the overlap)
    */
   ForceSample step(double dt, double tip_depth_m, double spindle_rpm);
+
+  /**
+   * @brief Cutting torque about the drill axis [N m] that goes with a thrust: kappa (D/2) F for
+   *        a thrust F > 0 and a turning spindle (n > 0), else 0 (see the file brief).
+   */
+  double cuttingTorque(double thrust_n, double spindle_rpm) const;
 
   /** @brief Returns to the undrilled state (same specimen). */
   void reset();
@@ -138,6 +161,8 @@ class DrillingProcess {
   Material currentLayer() const { return specimen_.materialAt(max_depth_cut_m_); }
   /** @brief Thrust of the last step [N]. */
   double lastThrust() const { return thrust_N_; }
+  /** @brief Cutting torque about the drill axis of the last step [N m]. */
+  double lastTorque() const { return torque_Nm_; }
   /** @brief The specimen being drilled. */
   const BoneSpecimen& specimen() const { return specimen_; }
   /** @brief The drill parameters. */
@@ -147,12 +172,15 @@ class DrillingProcess {
   /// @brief The elastic contact's step (finite contact_stiffness_n_per_m), see the file brief;
   ///        completes `out` (its material already set by step()).
   ForceSample stepElastic(double dt, double advance, double phi, double rpm, ForceSample out);
+  /// @brief The thrust of a step (step() without the torque).
+  ForceSample stepThrust(double dt, double tip_depth_m, double spindle_rpm);
 
   BoneSpecimen specimen_;
   DrillParameters params_;
   double cone_length_m_;
   double max_depth_cut_m_ = 0.0;
   double thrust_N_ = 0.0;
+  double torque_Nm_ = 0.0;
 };
 
 }  // namespace pedicle_drilling::core
