@@ -23,9 +23,11 @@ from the Python path, makes it with no arguments and calls:
 
 Recognizer is the base class with that contract and the parameter handling, BlockMean the
 pre-average the block-based classes share; ThresholdRecognizer is a force-threshold baseline
-written with them."""
+written with them, WrenchThresholdRecognizer the same on the whole wrench (push_sample)."""
 
-from pd_campaign.checks import positive
+import math
+
+from pd_campaign.checks import fraction, positive
 from pd_campaign.plugin_params import Configurable
 
 
@@ -110,6 +112,82 @@ class ThresholdRecognizer(Recognizer):
                 'stop': self.state == 'inner_cortical'}
 
     def stop_reason(self):
-        return ('inner cortical layer reached (ThresholdRecognizer): %d block means above %.3g N '
-                'after the cancellous layer, at t=%.3f s' % (
-                    self.params['confirm'], self.params['cortical_n'], self.stopped_at or 0.0))
+        return ('inner cortical layer reached (%s): %d block means above %.3g N after the '
+                'cancellous layer, at t=%.3f s' % (
+                    type(self).__name__, self.params['confirm'], self.params['cortical_n'],
+                    self.stopped_at or 0.0))
+
+
+# The lever of the drilling torque about the drill axis: kappa * D / 2 = 1.6 * 1.25 mm
+# (doc/simulator_physics.md, section 2c: Orelaja et al. 2020, a 2.5 mm bit in bovine femur).
+TORQUE_LEVER_M = 1.6 * 1.25e-3
+# The torque channel's thrust equivalent weighed against the thrust by their noise: the sensor's
+# white noise SDs (force 0.03 N, torque 0.5 N mm: doc/simulator_physics.md) give the torque's
+# thrust 0.5e-3 / TORQUE_LEVER_M = 0.25 N, so inverse-variance weights 0.03^2 : 0.25^2.
+TORQUE_WEIGHT = 0.03 ** 2 / (0.03 ** 2 + (0.5e-3 / TORQUE_LEVER_M) ** 2)
+
+
+class WrenchThresholdRecognizer(ThresholdRecognizer):
+    """ThresholdRecognizer on the whole wrench (push_sample). Its block means are of the thrust
+    fused with the thrust the drilling torque implies (the torque about the drill axis over
+    `torque_lever_m`), weighted `torque_weight` (inverse-variance weights of the sensor's
+    noise), and two checks the thrust alone cannot make, each a stop that names it:
+
+    - skiving: a block's mean lateral force (the magnitude of its x and y) above
+      `lateral_max_n`: the bit is pushed sideways, as when it slips on an inclined cortex;
+    - clogging: in bone (the block's thrust above `cancellous_n`), a block's torque per thrust
+      above `torque_ratio_max` times the lever: torque without the thrust to cause it, as from
+      flutes packed with chips.
+
+    A non-finite torque or lateral force leaves that sample's channel out (the thrust alone). On
+    the simulator the torque follows the thrust with one lever and the lateral force is the
+    sensor's noise and spindle tone, so neither check stops a trial there; they are for a bench
+    whose bit can slip or clog. The defaults are not tuned on trials."""
+
+    PARAMETERS = dict(ThresholdRecognizer.PARAMETERS,
+                      torque_lever_m=(float, TORQUE_LEVER_M, positive),
+                      torque_weight=(float, TORQUE_WEIGHT, fraction),
+                      lateral_max_n=(float, 1.0, positive),
+                      torque_ratio_max=(float, 2.0, positive))
+
+    def reset(self):
+        super().reset()
+        self.lateral = BlockMean(self.params['pre_average'])
+        self.thrust = BlockMean(self.params['pre_average'])
+        self.torque = BlockMean(self.params['pre_average'])
+        self.check_reason = None
+
+    def push_sample(self, sample):
+        thrust = sample['thrust']
+        torque = sample['torque'][2]
+        fx, fy = sample['force'][0], sample['force'][1]
+        fused = thrust
+        if math.isfinite(torque):
+            w = self.params['torque_weight']
+            fused = (1.0 - w) * thrust + w * torque / self.params['torque_lever_m']
+        lateral = math.hypot(fx, fy) if math.isfinite(fx) and math.isfinite(fy) else 0.0
+        lateral_mean = self.lateral.add(lateral)
+        thrust_mean = self.thrust.add(thrust)
+        torque_mean = self.torque.add(torque if math.isfinite(torque) else thrust *
+                                      self.params['torque_lever_m'])
+        out = self.push(sample['t'], fused)
+        if lateral_mean is None or self.check_reason or self.stopped_at is not None:
+            return dict(out, stop=True) if self.check_reason else out
+        if lateral_mean > self.params['lateral_max_n']:
+            self.check_reason = ('skiving (WrenchThresholdRecognizer): mean lateral force %.3g N '
+                                 '> %.3g N at t=%.3f s' % (lateral_mean,
+                                                           self.params['lateral_max_n'],
+                                                           sample['t']))
+        elif thrust_mean > self.params['cancellous_n']:
+            ratio = torque_mean / thrust_mean / self.params['torque_lever_m']
+            if ratio > self.params['torque_ratio_max']:
+                self.check_reason = ('clogging (WrenchThresholdRecognizer): torque %.3g N mm at '
+                                     '%.3g N thrust, %.3g times the lever, > %.3g at t=%.3f s' % (
+                                         torque_mean * 1e3, thrust_mean, ratio,
+                                         self.params['torque_ratio_max'], sample['t']))
+        if self.check_reason:
+            out = dict(out, stop=True)
+        return out
+
+    def stop_reason(self):
+        return self.check_reason or super().stop_reason()

@@ -459,7 +459,49 @@ class CancellousForever : public pd::PaperRecognizer {
   bool seen_ = false;
 };
 
+/// The paper's recognizer that keeps every whole sample it is given (the wrench and context).
+class RecordingRecognizer : public pd::PaperRecognizer {
+ public:
+  explicit RecordingRecognizer(std::vector<pd::RecognizerSample>* seen) : seen_(seen) {}
+  const pd::RecognizerOutput& pushSample(const pd::RecognizerSample& sample) override {
+    seen_->push_back(sample);
+    return pd::PaperRecognizer::pushSample(sample);
+  }
+
+ private:
+  std::vector<pd::RecognizerSample>* seen_;
+};
+
 }  // namespace
+
+// The recognizer gets the whole sample: the drilling torque about the drill axis (kappa * D/2 *
+// thrust, doc/simulator_physics.md), lateral forces of the sensor's noise and tone only, the
+// feed joint advancing and the spindle at the trial's speed; its stop is the paper's.
+TEST(ClosedLoopEngine, TheRecognizerGetsTheWholeWrenchAndTheDrillsContext) {
+  pd::EngineConfig c = config();
+  std::vector<pd::RecognizerSample> seen;
+  c.make_recognizer = [&seen] { return std::make_unique<RecordingRecognizer>(&seen); };
+  pd::ClosedLoopEngine engine(c);
+  const pd::EngineTrialRecord r = engine.run(spec("stationary", 5));
+  ASSERT_FALSE(r.stops.empty());
+  EXPECT_EQ(r.stops[0].source, "/state_recognizer");
+  double torque = 0.0, thrust = 0.0, lateral = 0.0, first_feed = 0.0, last_feed = 0.0;
+  int in_bone = 0;
+  for (const pd::RecognizerSample& s : seen) {
+    if (s.thrust_n < 1.5) continue;  // cutting: well above the noise
+    if (in_bone == 0) first_feed = s.feed_depth_m;
+    last_feed = s.feed_depth_m;
+    ++in_bone;
+    torque += s.torque_nm[2];
+    thrust += s.thrust_n;
+    lateral = std::max(lateral, std::hypot(s.force_n[0], s.force_n[1]));
+    EXPECT_NEAR(s.spindle_rpm, 12000.0, 120.0) << "at t=" << s.t;
+  }
+  ASSERT_GT(in_bone, 500);
+  EXPECT_NEAR(torque / thrust, 1.6 * 1.25e-3, 0.1 * 1.6 * 1.25e-3) << "torque per thrust [m]";
+  EXPECT_LT(lateral, 0.5);
+  EXPECT_GT(last_feed - first_feed, 3e-3) << "the feed joint advances through the bone";
+}
 
 // The plan's depth limit, whatever the recognizer: one that never leaves the cancellous layer,
 // with the planner's plausibility bound on that layer off, is stopped by the limit inside the

@@ -659,6 +659,7 @@ ClosedLoopEngine::ClosedLoopEngine(const EngineConfig& config) : impl_(std::make
   rates.tracker_hz = config.tracker_rate_hz;
   rates.controller_state_hz = config.controller_state_rate_hz;
   rates.ground_truth_hz = config.ground_truth_rate_hz;
+  rates.joint_state_hz = config.joint_state_rate_hz;
   rates.tidal_volume_hz = config.tidal_volume_rate_hz;
   rates.safety_check_hz = config.safety_check_rate_hz;
   s.streams = StreamSchedule(rates);

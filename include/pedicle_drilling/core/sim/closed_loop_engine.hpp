@@ -111,6 +111,9 @@ struct EngineConfig {
   double controller_state_rate_hz = 50.0;
   double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume stream
   double ground_truth_rate_hz = 20.0;  ///< recorded ground truth (plus every layer change)
+  /// joint_states: the drill's context for the recognizer (config/simulator.yaml's
+  /// joint_state_rate_hz; 0: no context, NaN)
+  double joint_state_rate_hz = 100.0;
   /**
    * @brief config/recognizer.yaml (thrust = +z of the sensor). Its `sensor_rate_hz` must be the
    *        simulated sensor's `simulation.sensor.output_rate_hz` within 10 % (checkSensorRate;
