@@ -52,6 +52,9 @@ FRAMES = {
             'pose is perpendicular to the surface)',
     'world': 'the workcell (URDF link `world`): its z axis is the prone patient\'s '
              'anterior-posterior (AP) axis, the SPMS platform\'s heave',
+    'feed_joint': 'the drilling device\'s feed axis (URDF joint `feed_joint`, prismatic along '
+                  'the drill axis): its joint position, 0 to 0.06 m of travel, positive towards '
+                  'the bone',
     'tracker_camera': 'the tracking camera as registered (URDF link `tracker_camera`, the pose the '
                       'pipeline uses; a registration error moves the true camera from it)',
 }
@@ -79,7 +82,25 @@ SAMPLE_FIELDS = [
     ('tracker_z_m', 'm', 'tracker_camera', 'the same marker position, z'),
     ('breath_phase', '-', '-', 'fraction of the current ventilator breath elapsed, [0, 1]'),
     ('tidal_volume_ml', 'ml', '-', 'patient tidal volume'),
+    # Since 1.1.0: the rest of the whole sample the recognizer was given (its push_sample /
+    # core::RecognizerSample), the thrust being raw_force_n.
+    ('force_x_n', 'N', 'ft_sensor', 'the F/T sensor\'s x force as the recognizer was given it '
+     '(tared, faults applied)'),
+    ('force_y_n', 'N', 'ft_sensor', 'the F/T sensor\'s y force, the same'),
+    ('torque_x_nm', 'N m', 'ft_sensor', 'the F/T sensor\'s torque about x as the recognizer was '
+     'given it'),
+    ('torque_y_nm', 'N m', 'ft_sensor', 'the F/T sensor\'s torque about y, the same'),
+    ('torque_z_nm', 'N m', 'ft_sensor', 'the F/T sensor\'s torque about z, the drill axis (the '
+     'cutting torque while the spindle turns), the same'),
+    ('feed_depth_m', 'm', 'feed_joint', 'the feed joint\'s position as the recognizer last heard '
+     'it on the joint states (NaN: not yet heard)'),
+    ('spindle_rpm', 'rpm', '-', 'the spindle\'s speed as the recognizer last heard it on the '
+     'joint states (NaN: not yet heard)'),
 ]
+# The sample columns a recognizer's whole sample (push_sample) is built from; a format 1.0.0
+# dataset has none of them (pd_campaign.offline replays thrust-only recognizers on it).
+WRENCH_COLUMNS = ('force_x_n', 'force_y_n', 'torque_x_nm', 'torque_y_nm', 'torque_z_nm',
+                  'feed_depth_m', 'spindle_rpm')
 SAMPLE_COLUMNS = [name for name, _, _, _ in SAMPLE_FIELDS]
 # The column that ties a sample to its trial, after the sample fields.
 TRIAL_COLUMN = ('trial', '-', '-', 'index of the sample\'s trial in the trial table of its split')
@@ -130,11 +151,14 @@ TRIAL_INDEX_FIELDS = [
 # so that a reader breaks; MINOR when a column, an attribute or a file is added; PATCH when a
 # description is reworded without a change of meaning. The dataset's version is this version and
 # the content hash of its values (dataset_files.dataset_version): it changes with any sample.
-FORMAT_VERSION = '1.0.0'
+FORMAT_VERSION = '1.1.0'
 # FORMAT_VERSION -> declaration_sha256() of the declaration above at that version: a change of the
 # declaration without a new version fails test_dataset.py.
 FORMAT_HISTORY = {
     '1.0.0': '81c9097c56787ad0a97dee733b36d2a61babe87b168d8c795437dd72ffb943c1',
+    # 1.1.0: the whole sample the recognizer was given (force_x_n ... spindle_rpm, WRENCH_COLUMNS)
+    # and the frame feed_joint.
+    '1.1.0': '1789200178dc96bd51c7c4a69c7f91c5cbdebe3955668b9d3736f30bc04c4080',
 }
 SPLITS = ('train', 'validation', 'test')
 VALIDATION_MODULUS = 4  # calibration trials with index % 4 == 3 are the validation split

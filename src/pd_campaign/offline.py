@@ -4,7 +4,13 @@ the labelled force dataset (doc/dataset.md) with the very objects the closed loo
 - ``offline_stop`` / ``evaluate_offline``: push a trial's raw samples, in order, through a
   recognizer (reset first, one Python call per sample, exactly as the C++ side does) and read the
   dataset's label at the first sample whose output says ``stop``: correct (inner cortical),
-  early (air, outer cortical, cancellous), late (canal: broken through) or none.
+  early (air, outer cortical, cancellous), late (canal: broken through) or none. A recognizer
+  that defines ``push_sample(sample)`` is given the whole sample as the closed loop gives it
+  (src/python/python_recognizer.cpp): the dict {'t', 'thrust', 'force': (x, y, z), 'torque':
+  (x, y, z), 'feed_depth_m', 'spindle_rpm'}, built from the dataset's columns (WRENCH_COLUMNS,
+  format 1.1.0 on; the force's z is the thrust, config/recognizer.yaml's axis z); any other
+  recognizer ``push(t, thrust)``. A format 1.0.0 dataset has the thrust only: a ``push_sample``
+  recognizer on it is a MissingColumnsError naming the missing columns.
 - ``tune``: a grid search on the training split, the best few re-scored on the validation
   split, the best of those chosen."""
 import itertools
@@ -13,7 +19,7 @@ import os
 
 import numpy as np
 
-from pd_campaign.dataset import CANAL, INNER_CORTICAL
+from pd_campaign.dataset import CANAL, INNER_CORTICAL, WRENCH_COLUMNS
 from pd_campaign.outcome import MAX_RESIDUAL_M
 
 # The paper's success band: at most this much of the inner cortex left at the stop [mm].
@@ -32,15 +38,60 @@ def _as_list(values):
     return values.tolist() if hasattr(values, 'tolist') else list(values)
 
 
-def replay(recognizer, t, raw_force):
+class MissingColumnsError(ValueError):
+    """A recognizer that reads the whole sample (push_sample) on a dataset without its columns
+    (format 1.0.0: the thrust only)."""
+
+
+def reads_sample(recognizer):
+    """True when `recognizer` defines push_sample (it is given the whole sample, as the closed
+    loop's PythonRecognizer gives it)."""
+    return callable(getattr(recognizer, 'push_sample', None))
+
+
+def missing_wrench_columns(columns):
+    """The WRENCH_COLUMNS that `columns` (a mapping, or None) lacks, in their order."""
+    return [name for name in WRENCH_COLUMNS if columns is None or name not in columns]
+
+
+def missing_message(missing):
+    """The error of a push_sample recognizer on a dataset without the columns `missing`."""
+    return ('the recognizer defines push_sample (it reads the whole sample) but the dataset has '
+            'no column %s: a format 1.0.0 dataset holds the thrust only (raw_force_n); rebuild '
+            'it with campaign_dataset (format 1.1.0 on), or replay a thrust-only recognizer'
+            % ', '.join(missing))
+
+
+def whole_samples(t, raw_force, wrench):
+    """The push_sample dicts of a trace: `t`, `raw_force` (the thrust) and `wrench` {column:
+    values} of the WRENCH_COLUMNS (MissingColumnsError if one is missing), as Python floats."""
+    missing = missing_wrench_columns(wrench)
+    if missing:
+        raise MissingColumnsError(missing_message(missing))
+    fx, fy, tx, ty, tz, feed, rpm = (_as_list(wrench[name]) for name in WRENCH_COLUMNS)
+    return [{'t': ti, 'thrust': fi, 'force': (fx[i], fy[i], fi),
+             'torque': (tx[i], ty[i], tz[i]), 'feed_depth_m': feed[i], 'spindle_rpm': rpm[i]}
+            for i, (ti, fi) in enumerate(zip(_as_list(t), _as_list(raw_force)))]
+
+
+def replay(recognizer, t, raw_force, wrench=None):
     """Resets `recognizer` and pushes the samples (t[i], raw_force[i]) in order, as Python
-    floats (as the C++ side passes them), until the first output with a true ``stop``. Returns
-    (index of that sample or None, [(index, state)] at every change of the reported state)."""
-    recognizer.reset()
-    push = recognizer.push
+    floats (as the C++ side passes them), until the first output with a true ``stop``: to
+    ``push(t, thrust)``, or, when the recognizer defines push_sample, as whole sample dicts
+    (whole_samples) built with `wrench` ({column: values} of WRENCH_COLUMNS; a missing one is a
+    MissingColumnsError). Returns (index of that sample or None, [(index, state)] at every
+    change of the reported state)."""
+    if reads_sample(recognizer):
+        samples = whole_samples(t, raw_force, wrench)
+        recognizer.reset()
+        push_sample = recognizer.push_sample
+        outputs = (push_sample(sample) for sample in samples)
+    else:
+        recognizer.reset()
+        push = recognizer.push
+        outputs = (push(ti, fi) for ti, fi in zip(_as_list(t), _as_list(raw_force)))
     changes, state = [], 'idle'
-    for i, (ti, fi) in enumerate(zip(_as_list(t), _as_list(raw_force))):
-        out = push(ti, fi)
+    for i, out in enumerate(outputs):
         if out:
             if out.get('state', state) != state:
                 state = out['state']
@@ -50,10 +101,11 @@ def replay(recognizer, t, raw_force):
     return None, changes
 
 
-def offline_stop(recognizer, t, raw_force):
-    """Resets `recognizer`, pushes the samples (t[i], raw_force[i]) in order and returns the index
-    of the first sample whose output has a true ``stop`` (None if none does)."""
-    return replay(recognizer, t, raw_force)[0]
+def offline_stop(recognizer, t, raw_force, wrench=None):
+    """Resets `recognizer`, pushes the samples (t[i], raw_force[i]; the whole samples with
+    `wrench` to a push_sample recognizer, see replay) in order and returns the index of the
+    first sample whose output has a true ``stop`` (None if none does)."""
+    return replay(recognizer, t, raw_force, wrench)[0]
 
 
 def plausibility_stop(changes, t, depth_mm):
@@ -72,6 +124,8 @@ def plausibility_stop(changes, t, depth_mm):
         if not starts:
             continue
         begin = changes[starts[0]][0]
+        if begin >= len(depth_mm):  # first reported at the stop itself: nothing to bound
+            continue
         end = next((i for i, state in changes[starts[0]:] if state != name), len(t))
         deeper = np.flatnonzero(depth_mm[begin:end] - depth_mm[begin] >= bound_mm)
         if len(deeper):
@@ -84,19 +138,21 @@ def plausibility_stop(changes, t, depth_mm):
 
 def _columns(npz):
     """The columns of a split that the offline evaluation reads, read once."""
-    wanted = ('t', 'raw_force_n', 'layer', 'trial', 'max_depth_cut_m')
+    wanted = ('t', 'raw_force_n', 'layer', 'trial', 'max_depth_cut_m') + WRENCH_COLUMNS
     return {name: npz[name] for name in npz.files
             if name in wanted or name.startswith('trial_')}
 
 
 class OfflineTrials:
     """A dataset split (a ``.npz`` path, a loaded npz or a dict of its arrays) cut into trials
-    once, so that many recognizers can be scored on it: per trial the samples as Python lists,
-    the labels, and the residual inner cortex [mm] at every sample when the columns allow it."""
+    once, so that many recognizers can be scored on it: per trial the samples as Python lists
+    (the WRENCH_COLUMNS too, under 'wrench', when the split has them), the labels, and the
+    residual inner cortex [mm] at every sample when the columns allow it. `missing`: the
+    WRENCH_COLUMNS the split lacks (all of them in a format 1.0.0 dataset)."""
 
     def __init__(self, data):
         if isinstance(data, OfflineTrials):
-            self.trials = data.trials
+            self.trials, self.missing = data.trials, data.missing
             return
         if isinstance(data, (str, bytes, os.PathLike)):
             with np.load(data) as z:
@@ -107,12 +163,15 @@ class OfflineTrials:
         order = np.argsort(trial, kind='stable')
         bounds = np.flatnonzero(np.diff(trial[order])) + 1
         ids = data.get('trial_trial_id')
+        self.missing = missing_wrench_columns(data)
         self.trials = []
         for rows in np.split(order, bounds) if len(order) else []:
             k = int(trial[rows[0]])
             item = {'trial': k, 't': data['t'][rows].tolist(),
                     'raw_force_n': data['raw_force_n'][rows].tolist(),
                     'layer': np.asarray(data['layer'][rows]).astype(int)}
+            if not self.missing:
+                item['wrench'] = {name: data[name][rows].tolist() for name in WRENCH_COLUMNS}
             if ids is not None and k < len(ids):
                 item['trial_id'] = str(ids[k])
                 item['case'] = str(data['trial_case'][k]) if 'trial_case' in data else ''
@@ -153,13 +212,15 @@ def evaluate_offline(make_recognizer, data, trials=None):
     data = OfflineTrials(data)
     wanted = None if trials is None else {int(k) for k in trials}
     recognizer = make_recognizer()
+    if reads_sample(recognizer) and data.missing:
+        raise MissingColumnsError(missing_message(data.missing))
     counts = {'correct': 0, 'early': 0, 'late': 0, 'none': 0, 'trials': 0, 'shallow': 0,
               'implausible': 0}
     per_trial = []
     for item in data.trials:
         if wanted is not None and item['trial'] not in wanted:
             continue
-        stop, changes = replay(recognizer, item['t'], item['raw_force_n'])
+        stop, changes = replay(recognizer, item['t'], item['raw_force_n'], item.get('wrench'))
         label = None if stop is None else int(item['layer'][stop])
         outcome = outcome_of(label)
         residual = trip = None

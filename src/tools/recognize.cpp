@@ -4,9 +4,13 @@
 //   recognize --json --input a.csv --input b.csv ...   (one JSON line per trace)
 //   recognize --json --param-sets sets.txt --input a.csv ...   (every set over every trace)
 //
-// force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate). Prints the
-// key points and the stop. Command-line parsing: CLI11 with the tools' conventions
-// (tool_cli.hpp). Exit codes: 0 ok, 2 bad input or parameters.
+// force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate), or, for the
+// whole sample (kWholeHeader: the dataset's columns, format 1.1.0 on), "t,force,force_x,force_y,
+// torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm" (N, N m, m, rpm; the force's z is the
+// thrust; feed_depth_m and spindle_rpm may be nan: unknown), each sample then given to the
+// recognizer's pushSample (a Python class's push_sample). Prints the key points and the stop.
+// Command-line parsing: CLI11 with the tools' conventions (tool_cli.hpp). Exit codes: 0 ok, 2 bad
+// input or parameters.
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -70,7 +74,40 @@ std::string num(double v) {
 struct Sample {
   double t;
   double f;
+  bool whole = false;  ///< a kWholeHeader line: `sample` holds it all, for pushSample
+  pedicle_drilling::core::RecognizerSample sample;
 };
+
+/** @brief The header of a whole-sample trace (the dataset's columns, format 1.1.0 on). */
+constexpr const char* kWholeHeader =
+    "t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm";
+constexpr std::size_t kWholeFields = 9;
+
+/** @brief A context field: a number, or nan (unknown); never infinite. */
+double parseContext(const std::string& text, const std::string& what, std::size_t line) {
+  const std::string f = trim(text);
+  char* end = nullptr;
+  const double v = std::strtod(f.c_str(), &end);
+  if (f.empty() || end == f.c_str() || *end != '\0') {
+    throw InputError("line " + std::to_string(line) + ": cannot parse " + what + " '" + f + "'");
+  }
+  if (std::isinf(v)) {
+    throw InputError("line " + std::to_string(line) + ": " + what + " is infinite (" + f + ")");
+  }
+  return v;
+}
+
+/** @brief The comma-separated fields of a line. */
+std::vector<std::string> splitFields(const std::string& line) {
+  std::vector<std::string> fields;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = line.find(',', start);
+    fields.push_back(line.substr(start, comma == std::string::npos ? comma : comma - start));
+    if (comma == std::string::npos) return fields;
+    start = comma + 1;
+  }
+}
 
 /** @brief The raw force of a recording (a campaign bag): `topic`'s WrenchStamped, the `axis`
  *         component (x, y, z, -x, -y, -z), at the header stamps. */
@@ -106,7 +143,10 @@ std::vector<Sample> readBag(const std::string& path, const std::string& topic,
         throw InputError("time " + num(t) + " does not increase (previous " +
                          num(samples.back().t) + ")");
       }
-      samples.push_back({t, v});
+      Sample s;
+      s.t = t;
+      s.f = v;
+      samples.push_back(s);
     }
   } catch (const rosbag::BagException& e) {
     throw InputError("bag '" + path + "': " + e.what());
@@ -126,21 +166,38 @@ std::vector<Sample> readCsv(const std::string& path) {
   for (char c : header) {
     if (c != ' ' && c != '\t') compact += c;
   }
-  if (compact != "t,force") {
-    throw InputError("bad header '" + header + "' (expected 't,force')");
+  const bool whole = compact == kWholeHeader;
+  if (compact != "t,force" && !whole) {
+    throw InputError("bad header '" + header + "' (expected 't,force' or '" + kWholeHeader + "')");
   }
   std::vector<Sample> out;
   std::size_t lineno = 1;
   while (std::getline(in, line)) {
     ++lineno;
     if (trim(line).empty()) continue;
-    const auto comma = line.find(',');
-    if (comma == std::string::npos || line.find(',', comma + 1) != std::string::npos) {
+    const std::vector<std::string> fields = splitFields(line);
+    if (!whole && fields.size() != 2) {
       throw InputError("line " + std::to_string(lineno) + ": expected 2 fields 't,force'");
     }
+    if (whole && fields.size() != kWholeFields) {
+      throw InputError("line " + std::to_string(lineno) + ": expected " +
+                       std::to_string(kWholeFields) + " fields '" + kWholeHeader + "'");
+    }
     Sample s;
-    s.t = parseField(line.substr(0, comma), "time", lineno);
-    s.f = parseField(line.substr(comma + 1), "force", lineno);
+    s.t = parseField(fields[0], "time", lineno);
+    s.f = parseField(fields[1], "force", lineno);
+    if (whole) {
+      s.whole = true;
+      s.sample.t = s.t;
+      s.sample.thrust_n = s.f;
+      s.sample.force_n = {parseField(fields[2], "force_x", lineno),
+                          parseField(fields[3], "force_y", lineno), s.f};
+      s.sample.torque_nm = {parseField(fields[4], "torque_x", lineno),
+                            parseField(fields[5], "torque_y", lineno),
+                            parseField(fields[6], "torque_z", lineno)};
+      s.sample.feed_depth_m = parseContext(fields[7], "feed_depth_m", lineno);
+      s.sample.spindle_rpm = parseContext(fields[8], "spindle_rpm", lineno);
+    }
     if (!out.empty() && !(s.t > out.back().t)) {
       throw InputError("line " + std::to_string(lineno) + ": time is not increasing (" + num(s.t) +
                        " after " + num(out.back().t) + ")");
@@ -354,7 +411,13 @@ int main(int argc, char** argv) {
     pedicle_drilling::core::RecognizerInterface& rec = *recognizers[set];
     for (std::size_t k = 0; k < traces.size(); ++k) {
       rec.reset();
-      for (const Sample& s : traces[k]) rec.push(s.t, s.f);
+      for (const Sample& s : traces[k]) {
+        if (s.whole) {
+          rec.pushSample(s.sample);
+        } else {
+          rec.push(s.t, s.f);
+        }
+      }
       if (options.json) {
         std::cout << jsonLine(rec.output(),
                               options.inputs.size() > 1 ? &options.inputs[k] : nullptr,

@@ -232,6 +232,13 @@ constexpr SampleField kSampleFields[] = {
     {"tracker_z_m", "<f8", [](const pd::EngineSample& x) { return x.tracker_m.z(); }},
     {"breath_phase", "<f8", [](const pd::EngineSample& x) { return x.breath_phase; }},
     {"tidal_volume_ml", "<f8", [](const pd::EngineSample& x) { return x.tidal_volume_ml; }},
+    {"force_x_n", "<f8", [](const pd::EngineSample& x) { return x.force_x_n; }},
+    {"force_y_n", "<f8", [](const pd::EngineSample& x) { return x.force_y_n; }},
+    {"torque_x_nm", "<f8", [](const pd::EngineSample& x) { return x.torque_x_nm; }},
+    {"torque_y_nm", "<f8", [](const pd::EngineSample& x) { return x.torque_y_nm; }},
+    {"torque_z_nm", "<f8", [](const pd::EngineSample& x) { return x.torque_z_nm; }},
+    {"feed_depth_m", "<f8", [](const pd::EngineSample& x) { return x.feed_depth_m; }},
+    {"spindle_rpm", "<f8", [](const pd::EngineSample& x) { return x.spindle_rpm; }},
 };
 
 template <typename T>

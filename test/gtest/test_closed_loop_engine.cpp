@@ -655,3 +655,34 @@ TEST(EngineDelays, TheTableDeclaresEveryDelayWithItsDefaultAndRange) {
   EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&d] { d.validate(); }),
             "command_jitter_s = 2 is out of range [0, 1] s");
 }
+
+// A recorded sample holds the whole sample the recognizer was given: the wrench (the cutting
+// torque on Tz, 1.6 * 1.25 mm * thrust while the spindle turns) and the context from the joint
+// states (feed joint, spindle), which the engine now publishes; the trial is the one without
+// the recording, bit for bit.
+TEST(ClosedLoopEngine, RecordedSamplesHoldTheWholeSampleTheRecognizerWasGiven) {
+  pd::ClosedLoopEngine engine(config());
+  pd::EngineTrialSpec recorded = spec("stationary", 5);
+  recorded.record_samples = true;
+  const pd::EngineTrialRecord r = engine.run(recorded);
+  ASSERT_GT(r.samples.size(), 1000u);
+  std::vector<double> ratios;
+  double feed_first = std::nan(""), feed_last = std::nan("");
+  for (const pd::EngineSample& x : r.samples) {
+    ASSERT_TRUE(std::isfinite(x.force_x_n) && std::isfinite(x.force_y_n));
+    ASSERT_TRUE(std::isfinite(x.torque_x_nm) && std::isfinite(x.torque_y_nm));
+    if (!x.contact || x.layer != 1 || !(x.raw_force_n > 1.0)) continue;
+    ASSERT_TRUE(std::isfinite(x.feed_depth_m) && std::isfinite(x.spindle_rpm)) << x.t;
+    EXPECT_NEAR(x.spindle_rpm, 12000.0, 120.0) << x.t;
+    ratios.push_back(x.torque_z_nm / x.raw_force_n);
+    if (std::isnan(feed_first)) feed_first = x.feed_depth_m;
+    feed_last = x.feed_depth_m;
+  }
+  ASSERT_GT(ratios.size(), 100u);
+  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
+  EXPECT_NEAR(ratios[ratios.size() / 2], 1.6 * 1.25e-3, 0.4e-3);  // doc/simulator_physics.md §2c
+  EXPECT_GT(feed_last, feed_first);  // the feed advances through the outer cortex
+  const pd::EngineTrialRecord plain = engine.run(spec("stationary", 5));
+  EXPECT_TRUE(plain.samples.empty());
+  expectSameRecord(r, plain);
+}

@@ -479,11 +479,11 @@ struct ClosedLoopEngine::Impl {
   }
 
   /** @brief One row of the dataset (EngineSample), at a force-sensor sample. */
-  void recordSample(double raw_force, double true_force) {
+  void recordSample(const RecognizerSample& sample, double true_force) {
     const SimulationGroundTruth g = sim->groundTruth();
     EngineSample x;
     x.t = now;
-    x.raw_force_n = raw_force;
+    x.raw_force_n = sample.thrust_n;
     x.true_force_n = true_force;
     x.averaged_force_n = record.states.empty() ? 0.0 : record.states.back().averaged_force;
     x.tip_depth_m = g.tip_depth_m;
@@ -498,6 +498,13 @@ struct ClosedLoopEngine::Impl {
     const double breath_s = 60.0 / v.model().settings().rate_bpm;
     x.breath_phase = std::clamp((now - v.breathStart()) / breath_s, 0.0, 1.0);
     x.tidal_volume_ml = g.tidal_volume_ml;
+    x.force_x_n = sample.force_n[0];
+    x.force_y_n = sample.force_n[1];
+    x.torque_x_nm = sample.torque_nm[0];
+    x.torque_y_nm = sample.torque_nm[1];
+    x.torque_z_nm = sample.torque_nm[2];
+    x.feed_depth_m = sample.feed_depth_m;
+    x.spindle_rpm = sample.spindle_rpm;
     record.samples.push_back(x);
   }
 
@@ -620,7 +627,7 @@ struct ClosedLoopEngine::Impl {
       // The planner hears ft_sensor/wrench too: the contact its depth limit counts from.
       if (planner_alive) sequencer->onForce(now, t, thrust);
       if (s.force.contact) watchDepthEstimate(sim->process().maxDepthCut());
-      if (record_samples) recordSample(thrust, s.force.thrust_N);
+      if (record_samples) recordSample(sample, s.force.thrust_N);
     }
     if (due.force) onTareResult();
     if (due.ground_truth) recordTruth();

@@ -111,8 +111,9 @@ struct EngineConfig {
   double controller_state_rate_hz = 50.0;
   double tidal_volume_rate_hz = 64.0;  ///< the simulated ventilator's tidal_volume stream
   double ground_truth_rate_hz = 20.0;  ///< recorded ground truth (plus every layer change)
-  /// joint_states: the drill's context for the recognizer (config/simulator.yaml's
-  /// joint_state_rate_hz; 0: no context, NaN)
+  /// The joint states the recognizer's context (feed joint, spindle) comes from, as the
+  /// StateRecognizer nodelet hears them (config/simulator.yaml's joint_state_rate_hz; 0: off,
+  /// the context unknown).
   double joint_state_rate_hz = 100.0;
   /**
    * @brief config/recognizer.yaml (thrust = +z of the sensor). Its `sensor_rate_hz` must be the
@@ -260,6 +261,14 @@ struct EngineSample {
   Eigen::Vector3d tracker_m{0, 0, 0};  ///< last tracked marker position, camera frame (NaN: none)
   double breath_phase = 0.0;           ///< fraction of the current breath elapsed, [0, 1)
   double tidal_volume_ml = 0.0;        ///< patient tidal volume [ml]
+  // The rest of the sample the recognizer was given (RecognizerSample), the thrust aside.
+  double force_x_n = 0.0;    ///< sensor force, x (tared, faults applied) [N]
+  double force_y_n = 0.0;    ///< sensor force, y [N]
+  double torque_x_nm = 0.0;  ///< sensor torque, x [N m]
+  double torque_y_nm = 0.0;  ///< sensor torque, y [N m]
+  double torque_z_nm = 0.0;  ///< sensor torque, z: about the drill axis [N m]
+  double feed_depth_m = std::numeric_limits<double>::quiet_NaN();  ///< feed joint (NaN: unknown)
+  double spindle_rpm = std::numeric_limits<double>::quiet_NaN();   ///< spindle (NaN: unknown)
 };
 
 /** @brief A stop command (StopCommand). */
