@@ -13,6 +13,7 @@
  *        refused (the planner's trial is refused) and a running trial stopped with retreat.
  */
 #include <diagnostic_msgs/DiagnosticArray.h>
+#include <geometry_msgs/PoseStamped.h>
 #include <geometry_msgs/WrenchStamped.h>
 #include <nodelet/nodelet.h>
 #include <ros/ros.h>
@@ -28,6 +29,7 @@
 #include <string>
 
 #include "pedicle_drilling/DrillingState.h"
+#include "pedicle_drilling/JointTrajectoryControllerState.h"
 #include "pedicle_drilling/StopCommand.h"
 #include "pedicle_drilling/TareResult.h"
 #include "pedicle_drilling/TrialStatus.h"
@@ -111,6 +113,10 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
     joints_ = params.joints;
     joint_state_sub_ =
         nh.subscribe("joint_states", 10, &StateRecognizerNodelet::onJointStates, this);
+    feed_state_sub_ = nh.subscribe("feed_controller/state", 10,
+                                   &StateRecognizerNodelet::onFeedControllerState, this);
+    tracker_sub_ =
+        nh.subscribe("tracker/marker_pose", 50, &StateRecognizerNodelet::onTracked, this);
     wrench_sub_ =
         nh.subscribe("ft_sensor/wrench", params.queue_size, &StateRecognizerNodelet::onWrench, this,
                      ros::TransportHints().tcpNoDelay());
@@ -152,6 +158,17 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   void onJointStates(const sensor_msgs::JointState::ConstPtr& msg) {
     std::lock_guard<std::mutex> lock(mutex_);
     recognizer_->setContextFromJoints(msg->name, msg->position, msg->velocity, joints_);
+  }
+
+  void onFeedControllerState(const JointTrajectoryControllerState::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    recognizer_->setFeedCommandFromController(msg->joint_names, msg->desired.positions, joints_);
+  }
+
+  void onTracked(const geometry_msgs::PoseStamped::ConstPtr& msg) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    const geometry_msgs::Point& p = msg->pose.position;
+    recognizer_->setTracker(msg->header.stamp.toSec(), Eigen::Vector3d(p.x, p.y, p.z));
   }
 
   void onWrench(const geometry_msgs::WrenchStamped::ConstPtr& msg) {
@@ -350,6 +367,8 @@ class StateRecognizerNodelet : public nodelet::Nodelet {
   ros::Publisher diagnostics_pub_;
   ros::Subscriber wrench_sub_;
   ros::Subscriber joint_state_sub_;
+  ros::Subscriber feed_state_sub_;
+  ros::Subscriber tracker_sub_;
   ros::ServiceServer reset_srv_;
   ros::Subscriber tare_sub_;
   ros::Subscriber status_sub_;

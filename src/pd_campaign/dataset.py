@@ -96,11 +96,17 @@ SAMPLE_FIELDS = [
      'it on the joint states (NaN: not yet heard)'),
     ('spindle_rpm', 'rpm', '-', 'the spindle\'s speed as the recognizer last heard it on the '
      'joint states (NaN: not yet heard)'),
+    ('feed_command_m', 'm', 'feed_joint', 'the feed joint\'s commanded position (its '
+     'controller\'s desired) as the recognizer last heard it on the feed controller\'s state '
+     '(NaN: not yet heard)'),
+    ('tracker_stamp_s', 's', '-', 'the stamp of the tracker sample in tracker_x_m .. tracker_z_m, '
+     'the one the recognizer last heard (NaN before the first)'),
 ]
 # The sample columns a recognizer's whole sample (push_sample) is built from; a format 1.0.0
 # dataset has none of them (pd_campaign.offline replays thrust-only recognizers on it).
 WRENCH_COLUMNS = ('force_x_n', 'force_y_n', 'torque_x_nm', 'torque_y_nm', 'torque_z_nm',
-                  'feed_depth_m', 'spindle_rpm')
+                  'feed_depth_m', 'spindle_rpm', 'feed_command_m', 'tracker_x_m', 'tracker_y_m',
+                  'tracker_z_m', 'tracker_stamp_s')
 SAMPLE_COLUMNS = [name for name, _, _, _ in SAMPLE_FIELDS]
 # The column that ties a sample to its trial, after the sample fields.
 TRIAL_COLUMN = ('trial', '-', '-', 'index of the sample\'s trial in the trial table of its split')
@@ -156,9 +162,9 @@ FORMAT_VERSION = '1.1.0'
 # declaration without a new version fails test_dataset.py.
 FORMAT_HISTORY = {
     '1.0.0': '81c9097c56787ad0a97dee733b36d2a61babe87b168d8c795437dd72ffb943c1',
-    # 1.1.0: the whole sample the recognizer was given (force_x_n ... spindle_rpm, WRENCH_COLUMNS)
-    # and the frame feed_joint.
-    '1.1.0': '1789200178dc96bd51c7c4a69c7f91c5cbdebe3955668b9d3736f30bc04c4080',
+    # 1.1.0: the whole sample the recognizer was given (force_x_n ... tracker_stamp_s,
+    # WRENCH_COLUMNS) and the frame feed_joint.
+    '1.1.0': 'af821055eee2b719021a9e4fdab3a6fde89f5ac36a37f9b304afe7254c9723b6',
 }
 SPLITS = ('train', 'validation', 'test')
 VALIDATION_MODULUS = 4  # calibration trials with index % 4 == 3 are the validation split

@@ -44,7 +44,7 @@ TOP_ON_TRAIN = 3
 # `recognize`'s header of a whole-sample trace (src/tools/recognize.cpp's kWholeHeader): the
 # thrust, then dataset.WRENCH_COLUMNS in their order.
 WHOLE_SAMPLE_HEADER = ('t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,'
-                       'spindle_rpm')
+                       'spindle_rpm,feed_command_m,tracker_x,tracker_y,tracker_z,tracker_stamp')
 
 
 class LeaderboardError(ValueError):

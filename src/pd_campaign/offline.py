@@ -7,7 +7,8 @@ the labelled force dataset (doc/dataset.md) with the very objects the closed loo
   early (air, outer cortical, cancellous), late (canal: broken through) or none. A recognizer
   that defines ``push_sample(sample)`` is given the whole sample as the closed loop gives it
   (src/python/python_recognizer.cpp): the dict {'t', 'thrust', 'force': (x, y, z), 'torque':
-  (x, y, z), 'feed_depth_m', 'spindle_rpm'}, built from the dataset's columns (WRENCH_COLUMNS,
+  (x, y, z), 'feed_depth_m', 'spindle_rpm', 'feed_command_m', 'tracker': (x, y, z),
+  'tracker_stamp'}, built from the dataset's columns (WRENCH_COLUMNS,
   format 1.1.0 on; the force's z is the thrust, config/recognizer.yaml's axis z); any other
   recognizer ``push(t, thrust)``. A format 1.0.0 dataset has the thrust only: a ``push_sample``
   recognizer on it is a MissingColumnsError naming the missing columns.
@@ -68,9 +69,12 @@ def whole_samples(t, raw_force, wrench):
     missing = missing_wrench_columns(wrench)
     if missing:
         raise MissingColumnsError(missing_message(missing))
-    fx, fy, tx, ty, tz, feed, rpm = (_as_list(wrench[name]) for name in WRENCH_COLUMNS)
+    (fx, fy, tx, ty, tz, feed, rpm, command, kx, ky, kz,
+     stamp) = (_as_list(wrench[name]) for name in WRENCH_COLUMNS)
     return [{'t': ti, 'thrust': fi, 'force': (fx[i], fy[i], fi),
-             'torque': (tx[i], ty[i], tz[i]), 'feed_depth_m': feed[i], 'spindle_rpm': rpm[i]}
+             'torque': (tx[i], ty[i], tz[i]), 'feed_depth_m': feed[i], 'spindle_rpm': rpm[i],
+             'feed_command_m': command[i], 'tracker': (kx[i], ky[i], kz[i]),
+             'tracker_stamp': stamp[i]}
             for i, (ti, fi) in enumerate(zip(_as_list(t), _as_list(raw_force)))]
 
 

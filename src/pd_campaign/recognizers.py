@@ -17,8 +17,10 @@ from the Python path, makes it with no arguments and calls:
   defines it: ``sample`` is a dict with ``t`` [s], ``thrust`` [N] (what ``push`` gets),
   ``force`` [N] and ``torque`` [N m] (the whole wrench, (x, y, z) tuples in the sensor's frame,
   tared), ``feed_depth_m`` (the feed joint's position) and ``spindle_rpm`` (the spindle joint's
-  speed), the last two as the joint states last gave them (NaN until then); it returns what
-  ``push`` returns. Only ``t`` and ``thrust`` are checked finite before the class sees them;
+  speed) as the joint states last gave them, ``feed_command_m`` (the feed joint's commanded
+  position, from the feed controller's state), ``tracker`` ((x, y, z), the latest tracked
+  marker position in the tracker's frame) and ``tracker_stamp`` (NaN until heard); it returns
+  what ``push`` returns. Only ``t`` and ``thrust`` are checked finite before the class sees them;
 - optionally ``stop_reason()``, ``describe()`` and ``parameter_names()``.
 
 Recognizer is the base class with that contract and the parameter handling, BlockMean the

@@ -93,6 +93,9 @@ const core::RecognizerOutput& PythonRecognizer::pushSample(const core::Recognize
     d["torque"] = py::make_tuple(sample.torque_nm[0], sample.torque_nm[1], sample.torque_nm[2]);
     d["feed_depth_m"] = sample.feed_depth_m;
     d["spindle_rpm"] = sample.spindle_rpm;
+    d["feed_command_m"] = sample.feed_command_m;
+    d["tracker"] = py::make_tuple(sample.tracker_m[0], sample.tracker_m[1], sample.tracker_m[2]);
+    d["tracker_stamp"] = sample.tracker_stamp;
     return impl_->object.attr("push_sample")(d);
   });
 }

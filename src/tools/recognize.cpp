@@ -6,8 +6,9 @@
 //
 // force.csv has the header "t,force" (time in s, thrust in N at the sensor's rate), or, for the
 // whole sample (kWholeHeader: the dataset's columns, format 1.1.0 on), "t,force,force_x,force_y,
-// torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm" (N, N m, m, rpm; the force's z is the
-// thrust; feed_depth_m and spindle_rpm may be nan: unknown), each sample then given to the
+// torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm,feed_command_m,tracker_x,tracker_y,
+// tracker_z,tracker_stamp" (N, N m, m, rpm, m, m, s; the force's z is the thrust; the context
+// after the torques may be nan: unknown), each sample then given to the
 // recognizer's pushSample (a Python class's push_sample). Prints the key points and the stop.
 // Command-line parsing: CLI11 with the tools' conventions (tool_cli.hpp). Exit codes: 0 ok, 2 bad
 // input or parameters.
@@ -80,8 +81,9 @@ struct Sample {
 
 /** @brief The header of a whole-sample trace (the dataset's columns, format 1.1.0 on). */
 constexpr const char* kWholeHeader =
-    "t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm";
-constexpr std::size_t kWholeFields = 9;
+    "t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,spindle_rpm,"
+    "feed_command_m,tracker_x,tracker_y,tracker_z,tracker_stamp";
+constexpr std::size_t kWholeFields = 14;
 
 /** @brief A context field: a number, or nan (unknown); never infinite. */
 double parseContext(const std::string& text, const std::string& what, std::size_t line) {
@@ -197,6 +199,11 @@ std::vector<Sample> readCsv(const std::string& path) {
                             parseField(fields[6], "torque_z", lineno)};
       s.sample.feed_depth_m = parseContext(fields[7], "feed_depth_m", lineno);
       s.sample.spindle_rpm = parseContext(fields[8], "spindle_rpm", lineno);
+      s.sample.feed_command_m = parseContext(fields[9], "feed_command_m", lineno);
+      s.sample.tracker_m = {parseContext(fields[10], "tracker_x", lineno),
+                            parseContext(fields[11], "tracker_y", lineno),
+                            parseContext(fields[12], "tracker_z", lineno)};
+      s.sample.tracker_stamp = parseContext(fields[13], "tracker_stamp", lineno);
     }
     if (!out.empty() && !(s.t > out.back().t)) {
       throw InputError("line " + std::to_string(lineno) + ": time is not increasing (" + num(s.t) +

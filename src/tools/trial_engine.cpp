@@ -239,6 +239,8 @@ constexpr SampleField kSampleFields[] = {
     {"torque_z_nm", "<f8", [](const pd::EngineSample& x) { return x.torque_z_nm; }},
     {"feed_depth_m", "<f8", [](const pd::EngineSample& x) { return x.feed_depth_m; }},
     {"spindle_rpm", "<f8", [](const pd::EngineSample& x) { return x.spindle_rpm; }},
+    {"feed_command_m", "<f8", [](const pd::EngineSample& x) { return x.feed_command_m; }},
+    {"tracker_stamp_s", "<f8", [](const pd::EngineSample& x) { return x.tracker_stamp_s; }},
 };
 
 template <typename T>

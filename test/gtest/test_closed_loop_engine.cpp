@@ -498,6 +498,12 @@ TEST(ClosedLoopEngine, TheRecognizerGetsTheWholeWrenchAndTheDrillsContext) {
     EXPECT_NEAR(s.spindle_rpm, 12000.0, 120.0) << "at t=" << s.t;
   }
   ASSERT_GT(in_bone, 500);
+  // The commanded feed leads the feed joint by its following error; the tracker at 8 Hz.
+  const pd::RecognizerSample& last = seen.back();
+  EXPECT_NEAR(last.feed_command_m, last.feed_depth_m, 1e-3);
+  EXPECT_TRUE(std::isfinite(last.tracker_m[0]) && std::isfinite(last.tracker_m[2]));
+  EXPECT_GT(last.tracker_stamp, last.t - 0.2);
+  EXPECT_LE(last.tracker_stamp, last.t);
   EXPECT_NEAR(torque / thrust, 1.6 * 1.25e-3, 0.1 * 1.6 * 1.25e-3) << "torque per thrust [m]";
   EXPECT_LT(lateral, 0.5);
   EXPECT_GT(last_feed - first_feed, 3e-3) << "the feed joint advances through the bone";

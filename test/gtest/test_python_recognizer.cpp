@@ -77,6 +77,9 @@ class ReadsTheWrench(StopAfter):
     def push(self, t, f):
         raise AssertionError('push_sample is defined: push is not called')
     def push_sample(self, sample):
+        if sample['tracker_stamp'] == sample['tracker_stamp']:  # not NaN
+            assert sample['tracker'] == (0.3, -0.1, 1.2), sample
+            assert sample['feed_command_m'] == 0.0065, sample
         self.samples.append(sample)
         return {'stop': sample['torque'][2] > 0.005, 'averaged_force': sample['force'][0]}
 
@@ -205,6 +208,9 @@ TEST(PythonRecognizer, AClassWithPushSampleGetsTheWholeSample) {
   EXPECT_DOUBLE_EQ(r.output().averaged_force, 0.5);  // the lateral force, as the class read it
   sample.t = 0.5;
   sample.torque_nm[2] = 0.006;
+  sample.feed_command_m = 0.0065;
+  sample.tracker_m = {0.3, -0.1, 1.2};
+  sample.tracker_stamp = 0.375;
   EXPECT_TRUE(r.pushSample(sample).stop);
   EXPECT_DOUBLE_EQ(r.output().stop_t, 0.5);
   // A thrust-only class behind the same call gets push(t, thrust).

@@ -214,3 +214,21 @@ TEST(RecognizerAdapter, TheContextComesFromTheDrillsJointsInAJointStateSample) {
   EXPECT_EQ(recognizer->seen.back().feed_depth_m, 0.007);
   EXPECT_NEAR(recognizer->seen.back().spindle_rpm, -6000.0, 1e-9);
 }
+
+TEST(RecognizerAdapter, TheCommandedFeedAndTheTrackerSampleGoWithEverySampleAfter) {
+  auto owned = std::make_unique<WrenchRecognizer>();
+  WrenchRecognizer* recognizer = owned.get();
+  pc::RecognizerAdapter a(std::move(owned));
+  a.onSample(0.001, Eigen::Vector3d(0.0, 0.0, 1.0), kNoTorque);
+  EXPECT_TRUE(std::isnan(recognizer->seen.back().feed_command_m));
+  EXPECT_TRUE(std::isnan(recognizer->seen.back().tracker_m[0]));
+  EXPECT_TRUE(std::isnan(recognizer->seen.back().tracker_stamp));
+  // A controller without the feed joint says nothing of it.
+  a.setFeedCommandFromController({"rsssii_joint1"}, {0.5});
+  a.setFeedCommandFromController({"feed_joint"}, {0.012});
+  a.setTracker(2.875, Eigen::Vector3d(0.3, -0.1, 1.2));
+  a.onSample(0.002, Eigen::Vector3d(0.0, 0.0, 1.0), kNoTorque);
+  EXPECT_EQ(recognizer->seen.back().feed_command_m, 0.012);
+  EXPECT_EQ(recognizer->seen.back().tracker_m, (std::array<double, 3>{0.3, -0.1, 1.2}));
+  EXPECT_EQ(recognizer->seen.back().tracker_stamp, 2.875);
+}

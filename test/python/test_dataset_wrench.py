@@ -13,7 +13,8 @@ import pytest
 from pd_campaign import api, dataset, offline
 
 UNITS = {'force_x_n': 'N', 'force_y_n': 'N', 'torque_x_nm': 'N m', 'torque_y_nm': 'N m',
-         'torque_z_nm': 'N m', 'feed_depth_m': 'm', 'spindle_rpm': 'rpm'}
+         'torque_z_nm': 'N m', 'feed_depth_m': 'm', 'spindle_rpm': 'rpm', 'feed_command_m': 'm',
+         'tracker_stamp_s': 's'}
 
 
 def test_the_declaration_holds_the_whole_sample():
@@ -138,7 +139,10 @@ def _tiny(with_wrench=True):
                     torque_x_nm=np.full(n, 0.01), torque_y_nm=np.full(n, 0.02),
                     torque_z_nm=np.tile([0.0, 0.001, 0.002, 0.005, 0.009], 2),
                     feed_depth_m=np.linspace(0.01, 0.02, n),
-                    spindle_rpm=np.array([np.nan] + [12000.0] * (n - 1)))
+                    spindle_rpm=np.array([np.nan] + [12000.0] * (n - 1)),
+                    feed_command_m=np.linspace(0.0105, 0.0205, n),
+                    tracker_x_m=np.full(n, 0.3), tracker_y_m=np.full(n, -0.1),
+                    tracker_z_m=np.full(n, 1.2), tracker_stamp_s=np.full(n, 2.875))
     return data
 
 
@@ -149,7 +153,10 @@ def test_the_offline_replay_gives_a_push_sample_recognizer_the_whole_sample():
                                 {name: data[name][:5] for name in dataset.WRENCH_COLUMNS})
     assert stop == 3
     first = reader.seen[1]
-    assert set(first) == {'t', 'thrust', 'force', 'torque', 'feed_depth_m', 'spindle_rpm'}
+    assert set(first) == {'t', 'thrust', 'force', 'torque', 'feed_depth_m', 'spindle_rpm',
+                          'feed_command_m', 'tracker', 'tracker_stamp'}
+    assert first['feed_command_m'] == data['feed_command_m'][1]
+    assert first['tracker'] == (0.3, -0.1, 1.2) and first['tracker_stamp'] == 2.875
     assert first['t'] == data['t'][1] and first['thrust'] == data['raw_force_n'][1]
     assert first['force'] == (0.1, -0.2, data['raw_force_n'][1])
     assert first['torque'] == (0.01, 0.02, 0.001)

@@ -58,8 +58,9 @@ class PEDICLE_DRILLING_PYTHON_API PythonRecognizer : public core::RecognizerInte
   const core::RecognizerOutput& push(double t, double raw_force) override;
   /**
    * @brief The object's `push_sample(sample: dict)` when its class defines one (the dict: `t`,
-   *        `thrust`, `force` and `torque` as (x, y, z) tuples, `feed_depth_m`, `spindle_rpm`;
-   *        NaN for what is unknown), else push() of the thrust.
+   *        `thrust`, `force` and `torque` as (x, y, z) tuples, `feed_depth_m`, `spindle_rpm`,
+   *        `feed_command_m`, `tracker` (x, y, z) and `tracker_stamp`; NaN for what is unknown),
+   * else push() of the thrust.
    */
   const core::RecognizerOutput& pushSample(const core::RecognizerSample& sample) override;
   const core::RecognizerOutput& output() const override { return output_; }

@@ -73,9 +73,22 @@ void RecognizerAdapter::setContextFromJoints(const std::vector<std::string>& nam
   }
 }
 
+void RecognizerAdapter::setFeedCommandFromController(const std::vector<std::string>& names,
+                                                     const std::vector<double>& desired_positions,
+                                                     const DrillJointNames& joints) {
+  for (std::size_t i = 0; i < names.size() && i < desired_positions.size(); ++i) {
+    if (names[i] == joints.feed) context_.feed_command_m = desired_positions[i];
+  }
+}
+
+void RecognizerAdapter::setTracker(double stamp, const Eigen::Vector3d& position) {
+  context_.tracker_stamp = stamp;
+  context_.tracker_m = {position.x(), position.y(), position.z()};
+}
+
 RecognizerSample RecognizerAdapter::sample(double t, const Eigen::Vector3d& force,
                                            const Eigen::Vector3d& torque) const {
-  RecognizerSample s;
+  RecognizerSample s = context_;
   s.t = t;
   s.thrust_n = axis_.thrust(force);
   s.force_n = {force.x(), force.y(), force.z()};

@@ -451,6 +451,7 @@ struct ClosedLoopEngine::Impl {
   void deliverMarker(double stamp, const Eigen::Vector3d& marker,
                      const Eigen::Quaterniond& orientation) {
     last_tracker = marker;
+    recognizer->setTracker(stamp, marker);  // as its nodelet hears tracker/marker_pose
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
     // The registered camera pose (the URDF's), not the true one (registration_error_mm).
@@ -467,7 +468,11 @@ struct ClosedLoopEngine::Impl {
   /** @brief Each controller's state to the planner (its closed loop), as <name>/state. */
   void onControllerStates() {
     for (std::size_t i = 0; i < sim->controllers().size(); ++i) {
-      sequencer->onControllerState(now, sim->controllers()[i].name, sim->controllerState(i));
+      const ControllerStateSample state = sim->controllerState(i);
+      sequencer->onControllerState(now, sim->controllers()[i].name, state);
+      // The recognizer's commanded feed, as its nodelet hears feed_controller/state (only the
+      // controller of the feed joint has it).
+      recognizer->setFeedCommandFromController(state.joint_names, state.desired_positions);
     }
     carryOut();
   }
@@ -505,6 +510,8 @@ struct ClosedLoopEngine::Impl {
     x.torque_z_nm = sample.torque_nm[2];
     x.feed_depth_m = sample.feed_depth_m;
     x.spindle_rpm = sample.spindle_rpm;
+    x.feed_command_m = sample.feed_command_m;
+    x.tracker_stamp_s = sample.tracker_stamp;
     record.samples.push_back(x);
   }
 

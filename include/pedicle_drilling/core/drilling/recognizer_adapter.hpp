@@ -82,8 +82,19 @@ class RecognizerAdapter {
                             const std::vector<double>& velocities,
                             const DrillJointNames& joints = DrillJointNames());
   /**
+   * @brief The feed joint's commanded position from one controller state (its joint names and
+   *        desired positions, as JointTrajectoryControllerState): the desired position of
+   *        @p joints' feed joint; a state without it keeps what was heard before.
+   */
+  void setFeedCommandFromController(const std::vector<std::string>& names,
+                                    const std::vector<double>& desired_positions,
+                                    const DrillJointNames& joints = DrillJointNames());
+  /** @brief The latest tracker sample (the marker's position in the tracker's frame). */
+  void setTracker(double stamp, const Eigen::Vector3d& position);
+  /**
    * @brief A sensor sample for the recognizer: the thrust along the configured axis, the whole
-   *        wrench and the context of setContext().
+   *        wrench and the context as last heard (setContext(), setFeedCommandFromController(),
+   *        setTracker()).
    */
   RecognizerSample sample(double t, const Eigen::Vector3d& force,
                           const Eigen::Vector3d& torque) const;
@@ -114,8 +125,9 @@ class RecognizerAdapter {
 
   ForceAxis axis_;
   std::size_t non_finite_count_ = 0;
-  double feed_depth_m_;  ///< setContext(); NaN until heard
-  double spindle_rpm_;   ///< setContext(); NaN until heard
+  double feed_depth_m_;       ///< setContext(); NaN until heard
+  double spindle_rpm_;        ///< setContext(); NaN until heard
+  RecognizerSample context_;  ///< the feed command and the tracker sample as last heard
 };
 
 }  // namespace pedicle_drilling::core

@@ -38,6 +38,14 @@ struct RecognizerSample {
   double feed_depth_m = std::numeric_limits<double>::quiet_NaN();
   /// The spindle's speed, latest heard [rpm]
   double spindle_rpm = std::numeric_limits<double>::quiet_NaN();
+  /// The feed joint's commanded position (its controller's desired), latest heard [m]
+  double feed_command_m = std::numeric_limits<double>::quiet_NaN();
+  /// The latest tracked marker position, in the tracker's frame [m]
+  std::array<double, 3> tracker_m{std::numeric_limits<double>::quiet_NaN(),
+                                  std::numeric_limits<double>::quiet_NaN(),
+                                  std::numeric_limits<double>::quiet_NaN()};
+  /// That tracker sample's stamp [s]
+  double tracker_stamp = std::numeric_limits<double>::quiet_NaN();
 };
 
 /**

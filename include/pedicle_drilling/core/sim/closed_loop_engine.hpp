@@ -269,6 +269,9 @@ struct EngineSample {
   double torque_z_nm = 0.0;  ///< sensor torque, z: about the drill axis [N m]
   double feed_depth_m = std::numeric_limits<double>::quiet_NaN();  ///< feed joint (NaN: unknown)
   double spindle_rpm = std::numeric_limits<double>::quiet_NaN();   ///< spindle (NaN: unknown)
+  /// The feed joint's commanded position, its controller's desired (NaN: unknown)
+  double feed_command_m = std::numeric_limits<double>::quiet_NaN();
+  double tracker_stamp_s = std::numeric_limits<double>::quiet_NaN();  ///< tracker_m's stamp
 };
 
 /** @brief A stop command (StopCommand). */
