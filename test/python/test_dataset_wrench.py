@@ -19,7 +19,10 @@ UNITS = {'force_x_n': 'N', 'force_y_n': 'N', 'torque_x_nm': 'N m', 'torque_y_nm'
 
 def test_the_declaration_holds_the_whole_sample():
     assert dataset.FORMAT_VERSION == '1.1.0'
-    assert tuple(UNITS) == dataset.WRENCH_COLUMNS
+    # The columns 1.1.0 adds, after the 1.0.0 ones; the whole sample also reads the tracker's.
+    assert dataset.SAMPLE_COLUMNS[15:] == list(UNITS)
+    assert set(dataset.WRENCH_COLUMNS) == set(UNITS) | {'tracker_x_m', 'tracker_y_m',
+                                                       'tracker_z_m'}
     declared = {name: (unit, frame) for name, unit, frame, _ in dataset.SAMPLE_FIELDS}
     for name, unit in UNITS.items():
         assert declared[name][0] == unit, name
