@@ -297,9 +297,19 @@ BLOCKS = {
 
 # The documents' figures drawn from the archive (doc/images/NAME: a function of the archive
 # folder and an output folder that writes the figure there and returns its file name).
+def leaderboard_figure(archive, out_dir):
+    """The leaderboard's figure from its archived boards and the shipped entries."""
+    with open(os.path.join(archive, 'leaderboard', 'leaderboard.json')) as handle:
+        boards = json.load(handle)['boards']
+    config = leaderboard.load_config(leaderboard.DEFAULT_CONFIG)
+    leaderboard.figure(boards, config, os.path.join(out_dir, 'leaderboard.png'))
+    return 'leaderboard.png'
+
+
 FIGURES = {
     'campaign_fig15.png': lambda archive, out_dir: plots.fig15(
         results_tables.load(os.path.join(archive, 'campaign'))['groups'], out_dir),
+    'leaderboard.png': leaderboard_figure,
 }
 
 
