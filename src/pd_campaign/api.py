@@ -25,7 +25,7 @@ import warnings
 import numpy as np
 import pandas
 
-from . import arguments, cli, leaderboard, splits, submission, trials_csv
+from . import arguments, cli, leaderboard, offline, splits, submission, trials_csv
 from .scenario import UsageError
 
 # keyword -> the campaign's option; a list or tuple value is joined with commas.
@@ -240,7 +240,7 @@ def score_offline(recognizer, dataset_dir, split='validation', params=None):
     none} (doc/leaderboard.md)."""
     split = load_split(dataset_dir, split)
     with tempfile.TemporaryDirectory(prefix='pd_score_') as scratch:
-        traces = leaderboard.export_traces(split.path, scratch)
+        traces = offline.export_traces(split.path, scratch)
         try:
             return leaderboard.offline_score(_recognizer_name(recognizer), _texts(params),
                                              traces)
@@ -255,7 +255,7 @@ def tune_offline(recognizer, dataset_dir, grid, params=None, jobs=2):
     entry = {'name': 'tuned', 'recognizer': _recognizer_name(recognizer),
              'params': _texts(params), 'tune': _grid(grid)}
     with tempfile.TemporaryDirectory(prefix='pd_tune_') as scratch:
-        traces = {name: leaderboard.export_traces(load_split(dataset_dir, name).path,
+        traces = {name: offline.export_traces(load_split(dataset_dir, name).path,
                                                   os.path.join(scratch, name))
                   for name in ('train', 'validation')}
         return leaderboard.tune_entry(entry, traces['train'], traces['validation'],

@@ -32,7 +32,7 @@ import tempfile
 import numpy as np
 import yaml
 
-from . import (board_stats, campaign_process, compare, dataset, dataset_files, design, offline,
+from . import (board_stats, campaign_process, compare, dataset_files, design, offline,
                stats, tools, trials_csv)
 from .atomic import atomic_savefig, atomic_write
 from .identification import IdentificationError, identify
@@ -41,12 +41,6 @@ from .learned import train_learned
 PACKAGE_ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 DEFAULT_CONFIG = os.path.join(PACKAGE_ROOT, 'config', 'leaderboard.yaml')
 TOP_ON_TRAIN = 3
-# `recognize`'s header of a whole-sample trace (src/tools/recognize.cpp's kWholeHeader): the
-# thrust, then dataset.WRENCH_COLUMNS in their order.
-WHOLE_SAMPLE_HEADER = ('t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,'
-                       'spindle_rpm,feed_command_m,tracker_x,tracker_y,tracker_z,tracker_stamp')
-
-
 class LeaderboardError(ValueError):
     """A bad configuration or dataset, named."""
 
@@ -78,37 +72,6 @@ def load_config(path):
     if not isinstance(config.get('benches'), dict) or not config['benches']:
         raise LeaderboardError('%s: no map "benches"' % path)
     return config
-
-
-def export_traces(npz_path, out_dir):
-    """Writes one CSV per trial of a split for `recognize`: `t,force`, or, when the split has
-    the whole sample's columns (dataset.WRENCH_COLUMNS, format 1.1.0 on), `recognize`'s
-    whole-sample header (WHOLE_SAMPLE_HEADER: a push_sample recognizer gets the whole sample, a
-    thrust-only one the thrust as before); returns [(path, labels, residual_mm)]: the trial's
-    per-sample layer labels and the inner cortex left below the deepest cut [mm] at each
-    sample."""
-    with np.load(npz_path) as z:
-        columns = {name: z[name] for name in ('trial', 't', 'raw_force_n', 'layer',
-                                              'max_depth_cut_m', 'trial_trial_id',
-                                              'trial_inner_start_mm', 'trial_inner_cortical_mm')}
-        whole = all(name in z.files for name in dataset.WRENCH_COLUMNS)
-        if whole:
-            columns.update({name: z[name] for name in dataset.WRENCH_COLUMNS})
-    os.makedirs(out_dir, exist_ok=True)
-    traces = []
-    trial = columns['trial']
-    for k in range(len(columns['trial_trial_id'])):
-        rows = trial == k
-        path = os.path.join(out_dir, '%04d.csv' % k)
-        data = np.column_stack([columns['t'][rows], columns['raw_force_n'][rows]] + (
-            [columns[name][rows] for name in dataset.WRENCH_COLUMNS] if whole else []))
-        with atomic_write(path) as handle:
-            handle.write((WHOLE_SAMPLE_HEADER if whole else 't,force') + '\n')
-            np.savetxt(handle, data, fmt='%.17g', delimiter=',')
-        end_mm = columns['trial_inner_start_mm'][k] + columns['trial_inner_cortical_mm'][k]
-        traces.append((path, columns['layer'][rows],
-                       end_mm - 1e3 * columns['max_depth_cut_m'][rows]))
-    return traces
 
 
 def outcome_of(stop_index, labels, residual_mm=None):
@@ -596,7 +559,7 @@ def main(argv=None):
         config['entries'] = [e for e in config['entries']
                              if e['name'] in args.entry or e['name'] == config['reference']]
     os.makedirs(args.out, exist_ok=True)
-    traces = {split: export_traces(os.path.join(args.dataset, split + '.npz'),
+    traces = {split: offline.export_traces(os.path.join(args.dataset, split + '.npz'),
                                    os.path.join(args.out, 'traces', split))
               for split in ('train', 'validation')}
     tuning, identification = tune_all(config['entries'], traces, args)

@@ -20,6 +20,8 @@ import os
 
 import numpy as np
 
+from pd_campaign import dataset
+from pd_campaign.atomic import atomic_write
 from pd_campaign.dataset import CANAL, INNER_CORTICAL, WRENCH_COLUMNS
 from pd_campaign.outcome import MAX_RESIDUAL_M
 
@@ -31,6 +33,44 @@ KEY_POINTS = {'idle': 0, 'outer_cortical': 1, 'cancellous': 3, 'inner_cortical':
 # dataset's peak-force protocol, on in the closed loop (see plausibility_stop).
 PLAUSIBILITY_BOUNDS_MM = (('outer_cortical', 3.5), ('cancellous', 8.3))
 RECOGNIZER_DELAY_S = 1.5
+
+
+# `recognize`'s header of a whole-sample trace (src/tools/recognize.cpp's kWholeHeader): the
+# thrust, then dataset.WRENCH_COLUMNS in their order.
+WHOLE_SAMPLE_HEADER = ('t,force,force_x,force_y,torque_x,torque_y,torque_z,feed_depth_m,'
+                       'spindle_rpm,feed_command_m,tracker_x,tracker_y,tracker_z,tracker_stamp')
+
+
+
+def export_traces(npz_path, out_dir):
+    """Writes one CSV per trial of a split for `recognize`: `t,force`, or, when the split has
+    the whole sample's columns (dataset.WRENCH_COLUMNS, format 1.1.0 on), `recognize`'s
+    whole-sample header (WHOLE_SAMPLE_HEADER: a push_sample recognizer gets the whole sample, a
+    thrust-only one the thrust as before); returns [(path, labels, residual_mm)]: the trial's
+    per-sample layer labels and the inner cortex left below the deepest cut [mm] at each
+    sample."""
+    with np.load(npz_path) as z:
+        columns = {name: z[name] for name in ('trial', 't', 'raw_force_n', 'layer',
+                                              'max_depth_cut_m', 'trial_trial_id',
+                                              'trial_inner_start_mm', 'trial_inner_cortical_mm')}
+        whole = all(name in z.files for name in dataset.WRENCH_COLUMNS)
+        if whole:
+            columns.update({name: z[name] for name in dataset.WRENCH_COLUMNS})
+    os.makedirs(out_dir, exist_ok=True)
+    traces = []
+    trial = columns['trial']
+    for k in range(len(columns['trial_trial_id'])):
+        rows = trial == k
+        path = os.path.join(out_dir, '%04d.csv' % k)
+        data = np.column_stack([columns['t'][rows], columns['raw_force_n'][rows]] + (
+            [columns[name][rows] for name in dataset.WRENCH_COLUMNS] if whole else []))
+        with atomic_write(path) as handle:
+            handle.write((WHOLE_SAMPLE_HEADER if whole else 't,force') + '\n')
+            np.savetxt(handle, data, fmt='%.17g', delimiter=',')
+        end_mm = columns['trial_inner_start_mm'][k] + columns['trial_inner_cortical_mm'][k]
+        traces.append((path, columns['layer'][rows],
+                       end_mm - 1e3 * columns['max_depth_cut_m'][rows]))
+    return traces
 
 
 # --- offline evaluation ---------------------------------------------------------------------

@@ -36,7 +36,7 @@ import sys
 
 import yaml
 
-from . import leaderboard
+from . import leaderboard, offline
 from .atomic import atomic_write
 
 RESULT_NAME = 'result.json'
@@ -229,7 +229,7 @@ def run(entry, dataset_dir, out, fit=None, benches=None, trials=None, jobs=2,
     board_entry = {'name': entry['name'], 'recognizer': entry['recognizer'],
                    'source': entry['source'], 'tune': entry['tune'],
                    'params': _fitted(entry, fit, args.dataset, out)}
-    traces = {split: leaderboard.export_traces(os.path.join(args.dataset, split + '.npz'),
+    traces = {split: offline.export_traces(os.path.join(args.dataset, split + '.npz'),
                                                os.path.join(out, 'traces', split))
               for split in ('train', 'validation')}
     entries = [reference, board_entry]

@@ -224,7 +224,7 @@ def test_the_dataset_replays_the_torque_offline_and_through_recognize(small_data
             torque = z['torque_z_nm'][rows]
             assert torque[item['stop_index']] > 0.004
             assert np.all(torque[:item['stop_index']] <= 0.004)
-    # The leaderboard's tuning path: `recognize` over the traces leaderboard.export_traces
+    # The leaderboard's tuning path: `recognize` over the traces offline.export_traces
     # writes (the whole sample), the class's push_sample run by the closed loop's
     # PythonRecognizer. It stops where the Python replay stops.
     path = tmp_path / 'torque_stop.py'
