@@ -53,13 +53,23 @@ std::string trim(const std::string& s) {
   return s.substr(b, e - b + 1);
 }
 
-double parseField(const std::string& text, const std::string& what, std::size_t line) {
-  const std::string f = trim(text);
+/** @brief The number a field holds (nan and inf included), its text trimmed into @p trimmed. */
+double parseNumber(const std::string& text, const std::string& what, std::size_t line,
+                   std::string* trimmed) {
+  *trimmed = trim(text);
+  const std::string& f = *trimmed;
   char* end = nullptr;
   const double v = std::strtod(f.c_str(), &end);
   if (f.empty() || end == f.c_str() || *end != '\0') {
     throw InputError("line " + std::to_string(line) + ": cannot parse " + what + " '" + f + "'");
   }
+  return v;
+}
+
+/** @brief A measured field: a finite number. */
+double parseField(const std::string& text, const std::string& what, std::size_t line) {
+  std::string f;
+  const double v = parseNumber(text, what, line, &f);
   if (!std::isfinite(v)) {
     throw InputError("line " + std::to_string(line) + ": " + what + " is not finite (" + f + ")");
   }
@@ -87,12 +97,8 @@ constexpr std::size_t kWholeFields = 14;
 
 /** @brief A context field: a number, or nan (unknown); never infinite. */
 double parseContext(const std::string& text, const std::string& what, std::size_t line) {
-  const std::string f = trim(text);
-  char* end = nullptr;
-  const double v = std::strtod(f.c_str(), &end);
-  if (f.empty() || end == f.c_str() || *end != '\0') {
-    throw InputError("line " + std::to_string(line) + ": cannot parse " + what + " '" + f + "'");
-  }
+  std::string f;
+  const double v = parseNumber(text, what, line, &f);
   if (std::isinf(v)) {
     throw InputError("line " + std::to_string(line) + ": " + what + " is infinite (" + f + ")");
   }

@@ -476,13 +476,17 @@ class RecordingRecognizer : public pd::PaperRecognizer {
 
 // The recognizer gets the whole sample: the drilling torque about the drill axis (kappa * D/2 *
 // thrust, doc/simulator_physics.md), lateral forces of the sensor's noise and tone only, the
-// feed joint advancing and the spindle at the trial's speed; its stop is the paper's.
+// feed joint advancing and the spindle at the trial's speed; its stop is the paper's. A recorded
+// sample (the dataset's row) holds exactly the sample the recognizer was given, and the trial is
+// the one without the recording, bit for bit.
 TEST(ClosedLoopEngine, TheRecognizerGetsTheWholeWrenchAndTheDrillsContext) {
   pd::EngineConfig c = config();
   std::vector<pd::RecognizerSample> seen;
   c.make_recognizer = [&seen] { return std::make_unique<RecordingRecognizer>(&seen); };
   pd::ClosedLoopEngine engine(c);
-  const pd::EngineTrialRecord r = engine.run(spec("stationary", 5));
+  pd::EngineTrialSpec recorded = spec("stationary", 5);
+  recorded.record_samples = true;
+  const pd::EngineTrialRecord r = engine.run(recorded);
   ASSERT_FALSE(r.stops.empty());
   EXPECT_EQ(r.stops[0].source, "/state_recognizer");
   double torque = 0.0, thrust = 0.0, lateral = 0.0, first_feed = 0.0, last_feed = 0.0;
@@ -507,6 +511,28 @@ TEST(ClosedLoopEngine, TheRecognizerGetsTheWholeWrenchAndTheDrillsContext) {
   EXPECT_NEAR(torque / thrust, 1.6 * 1.25e-3, 0.1 * 1.6 * 1.25e-3) << "torque per thrust [m]";
   EXPECT_LT(lateral, 0.5);
   EXPECT_GT(last_feed - first_feed, 3e-3) << "the feed joint advances through the bone";
+  // The record, from the trial's start (the recognizer hears the samples before it too): every
+  // sample as given (NaN where the context was not yet heard).
+  const auto same = [](double a, double b) { return a == b || (std::isnan(a) && std::isnan(b)); };
+  ASSERT_GT(r.samples.size(), 1000u);
+  ASSERT_LE(r.samples.size(), seen.size());
+  const std::size_t before = seen.size() - r.samples.size();
+  for (std::size_t i = 0; i < r.samples.size(); ++i) {
+    const pd::RecognizerSample& g = r.samples[i].given;
+    const pd::RecognizerSample& s = seen[before + i];
+    ASSERT_TRUE(g.t == s.t && g.thrust_n == s.thrust_n && g.force_n == s.force_n &&
+                g.torque_nm == s.torque_nm)
+        << "sample " << i;
+    ASSERT_TRUE(std::isfinite(g.force_n[0]) && std::isfinite(g.torque_nm[2])) << "sample " << i;
+    ASSERT_TRUE(same(g.feed_depth_m, s.feed_depth_m) && same(g.spindle_rpm, s.spindle_rpm) &&
+                same(g.feed_command_m, s.feed_command_m) &&
+                same(g.tracker_stamp, s.tracker_stamp) && same(g.tracker_m[0], s.tracker_m[0]))
+        << "sample " << i;
+  }
+  seen.clear();
+  const pd::EngineTrialRecord plain = engine.run(spec("stationary", 5));
+  EXPECT_TRUE(plain.samples.empty());
+  expectSameRecord(r, plain);
 }
 
 // The plan's depth limit, whatever the recognizer: one that never leaves the cancellous layer,
@@ -660,35 +686,4 @@ TEST(EngineDelays, TheTableDeclaresEveryDelayWithItsDefaultAndRange) {
   d.command_jitter_s = 2.0;
   EXPECT_EQ(pedicle_drilling::test::invalidArgumentOf([&d] { d.validate(); }),
             "command_jitter_s = 2 is out of range [0, 1] s");
-}
-
-// A recorded sample holds the whole sample the recognizer was given: the wrench (the cutting
-// torque on Tz, 1.6 * 1.25 mm * thrust while the spindle turns) and the context from the joint
-// states (feed joint, spindle), which the engine now publishes; the trial is the one without
-// the recording, bit for bit.
-TEST(ClosedLoopEngine, RecordedSamplesHoldTheWholeSampleTheRecognizerWasGiven) {
-  pd::ClosedLoopEngine engine(config());
-  pd::EngineTrialSpec recorded = spec("stationary", 5);
-  recorded.record_samples = true;
-  const pd::EngineTrialRecord r = engine.run(recorded);
-  ASSERT_GT(r.samples.size(), 1000u);
-  std::vector<double> ratios;
-  double feed_first = std::nan(""), feed_last = std::nan("");
-  for (const pd::EngineSample& x : r.samples) {
-    ASSERT_TRUE(std::isfinite(x.force_x_n) && std::isfinite(x.force_y_n));
-    ASSERT_TRUE(std::isfinite(x.torque_x_nm) && std::isfinite(x.torque_y_nm));
-    if (!x.contact || x.layer != 1 || !(x.raw_force_n > 1.0)) continue;
-    ASSERT_TRUE(std::isfinite(x.feed_depth_m) && std::isfinite(x.spindle_rpm)) << x.t;
-    EXPECT_NEAR(x.spindle_rpm, 12000.0, 120.0) << x.t;
-    ratios.push_back(x.torque_z_nm / x.raw_force_n);
-    if (std::isnan(feed_first)) feed_first = x.feed_depth_m;
-    feed_last = x.feed_depth_m;
-  }
-  ASSERT_GT(ratios.size(), 100u);
-  std::nth_element(ratios.begin(), ratios.begin() + ratios.size() / 2, ratios.end());
-  EXPECT_NEAR(ratios[ratios.size() / 2], 1.6 * 1.25e-3, 0.4e-3);  // doc/simulator_physics.md §2c
-  EXPECT_GT(feed_last, feed_first);  // the feed advances through the outer cortex
-  const pd::EngineTrialRecord plain = engine.run(spec("stationary", 5));
-  EXPECT_TRUE(plain.samples.empty());
-  expectSameRecord(r, plain);
 }

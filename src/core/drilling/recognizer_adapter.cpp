@@ -1,7 +1,6 @@
 #include "pedicle_drilling/core/drilling/recognizer_adapter.hpp"
 
 #include <cmath>
-#include <limits>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -20,9 +19,7 @@ void ForceAxis::validate() const {
 
 RecognizerAdapter::RecognizerAdapter(std::unique_ptr<RecognizerInterface> recognizer,
                                      ForceAxis axis)
-    : axis_(axis),
-      feed_depth_m_(std::numeric_limits<double>::quiet_NaN()),
-      spindle_rpm_(std::numeric_limits<double>::quiet_NaN()) {
+    : axis_(axis) {
   if (!recognizer) throw std::invalid_argument("RecognizerAdapter: no recognizer");
   axis_.validate();
   recognizer_ = std::make_unique<GuardedRecognizer>(std::move(recognizer));
@@ -56,8 +53,8 @@ RecognizerStep RecognizerAdapter::push(const RecognizerSample& sample) {
 }
 
 void RecognizerAdapter::setContext(double feed_depth_m, double spindle_rpm) {
-  feed_depth_m_ = feed_depth_m;
-  spindle_rpm_ = spindle_rpm;
+  context_.feed_depth_m = feed_depth_m;
+  context_.spindle_rpm = spindle_rpm;
 }
 
 void RecognizerAdapter::setContextFromJoints(const std::vector<std::string>& names,
@@ -66,9 +63,9 @@ void RecognizerAdapter::setContextFromJoints(const std::vector<std::string>& nam
                                              const DrillJointNames& joints) {
   constexpr double kRpmPerRadPerS = 60.0 / (2.0 * M_PI);
   for (std::size_t i = 0; i < names.size(); ++i) {
-    if (names[i] == joints.feed && i < positions.size()) feed_depth_m_ = positions[i];
+    if (names[i] == joints.feed && i < positions.size()) context_.feed_depth_m = positions[i];
     if (names[i] == joints.spindle && i < velocities.size()) {
-      spindle_rpm_ = velocities[i] * kRpmPerRadPerS;
+      context_.spindle_rpm = velocities[i] * kRpmPerRadPerS;
     }
   }
 }
@@ -93,8 +90,6 @@ RecognizerSample RecognizerAdapter::sample(double t, const Eigen::Vector3d& forc
   s.thrust_n = axis_.thrust(force);
   s.force_n = {force.x(), force.y(), force.z()};
   s.torque_nm = {torque.x(), torque.y(), torque.z()};
-  s.feed_depth_m = feed_depth_m_;
-  s.spindle_rpm = spindle_rpm_;
   return s;
 }
 

@@ -133,7 +133,6 @@ struct ClosedLoopEngine::Impl {
   double now = 0.0;
   bool stop_truth_recorded = false;  // the truth sample at the first stop command was taken
   bool record_samples = false;       // the trial has started and its samples are recorded
-  Eigen::Vector3d last_tracker = Eigen::Vector3d::Constant(std::nan(""));  // as delivered
 
   // Fault injection (record.fault holds the kind, trigger depth, and when it took effect).
   bool fault_armed = false;                   // the drilling has started: the trigger is watched
@@ -450,7 +449,6 @@ struct ClosedLoopEngine::Impl {
 
   void deliverMarker(double stamp, const Eigen::Vector3d& marker,
                      const Eigen::Quaterniond& orientation) {
-    last_tracker = marker;
     recognizer->setTracker(stamp, marker);  // as its nodelet hears tracker/marker_pose
     monitor->onTracked(now, {stamp, "tracker_camera", marker});
     evaluateMonitor();
@@ -488,7 +486,7 @@ struct ClosedLoopEngine::Impl {
     const SimulationGroundTruth g = sim->groundTruth();
     EngineSample x;
     x.t = now;
-    x.raw_force_n = sample.thrust_n;
+    x.given = sample;
     x.true_force_n = true_force;
     x.averaged_force_n = record.states.empty() ? 0.0 : record.states.back().averaged_force;
     x.tip_depth_m = g.tip_depth_m;
@@ -498,20 +496,10 @@ struct ClosedLoopEngine::Impl {
     x.bone_ap_m = g.bone_displacement_m.z();
     const CompensationPlanner* planner = sequencer->planner();
     x.predicted_ap_m = planner ? planner->boneDisplacementSinceStart(now).z() : std::nan("");
-    x.tracker_m = last_tracker;
     const BreathScheduler& v = sim->ventilator();
     const double breath_s = 60.0 / v.model().settings().rate_bpm;
     x.breath_phase = std::clamp((now - v.breathStart()) / breath_s, 0.0, 1.0);
     x.tidal_volume_ml = g.tidal_volume_ml;
-    x.force_x_n = sample.force_n[0];
-    x.force_y_n = sample.force_n[1];
-    x.torque_x_nm = sample.torque_nm[0];
-    x.torque_y_nm = sample.torque_nm[1];
-    x.torque_z_nm = sample.torque_nm[2];
-    x.feed_depth_m = sample.feed_depth_m;
-    x.spindle_rpm = sample.spindle_rpm;
-    x.feed_command_m = sample.feed_command_m;
-    x.tracker_stamp_s = sample.tracker_stamp;
     record.samples.push_back(x);
   }
 
@@ -754,7 +742,6 @@ EngineTrialRecord ClosedLoopEngine::run(const EngineTrialSpec& spec) {
   s.breaths.clear();
   s.stop_truth_recorded = false;
   s.record_samples = false;
-  s.last_tracker = Eigen::Vector3d::Constant(std::nan(""));
   s.fault_armed = false;
   s.last_phase = TrialPhase::kIdle;
   s.fault_pending = false;

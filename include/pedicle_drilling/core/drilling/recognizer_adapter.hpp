@@ -125,9 +125,7 @@ class RecognizerAdapter {
 
   ForceAxis axis_;
   std::size_t non_finite_count_ = 0;
-  double feed_depth_m_;       ///< setContext(); NaN until heard
-  double spindle_rpm_;        ///< setContext(); NaN until heard
-  RecognizerSample context_;  ///< the feed command and the tracker sample as last heard
+  RecognizerSample context_;  ///< the drill's context as last heard (its other fields unused)
 };
 
 }  // namespace pedicle_drilling::core

@@ -248,8 +248,10 @@ struct EngineTruthSample {
  *        (EngineTrialSpec::record_samples): a row of the labelled dataset (doc/dataset.md).
  */
 struct EngineSample {
-  double t = 0.0;                 ///< sim time [s]
-  double raw_force_n = 0.0;       ///< thrust the recognizer is given (tared, faults applied) [N]
+  double t = 0.0;  ///< sim time [s]
+  /// The whole sample the recognizer was given: the thrust (tared, faults applied), the
+  /// wrench and the drill's context, the last delivered tracker sample among it
+  RecognizerSample given;
   double true_force_n = 0.0;      ///< the simulator's true thrust, no sensor [N]
   double averaged_force_n = 0.0;  ///< the recognizer's latest averaged force (held) [N]
   double tip_depth_m = 0.0;       ///< tip depth below the bone's top surface [m]
@@ -258,20 +260,8 @@ struct EngineSample {
   bool contact = false;           ///< lips cutting
   double bone_ap_m = 0.0;         ///< true vertebra AP displacement from its home [m]
   double predicted_ap_m = 0.0;    ///< planner's predicted AP displacement since start (NaN: none)
-  Eigen::Vector3d tracker_m{0, 0, 0};  ///< last tracked marker position, camera frame (NaN: none)
-  double breath_phase = 0.0;           ///< fraction of the current breath elapsed, [0, 1)
-  double tidal_volume_ml = 0.0;        ///< patient tidal volume [ml]
-  // The rest of the sample the recognizer was given (RecognizerSample), the thrust aside.
-  double force_x_n = 0.0;    ///< sensor force, x (tared, faults applied) [N]
-  double force_y_n = 0.0;    ///< sensor force, y [N]
-  double torque_x_nm = 0.0;  ///< sensor torque, x [N m]
-  double torque_y_nm = 0.0;  ///< sensor torque, y [N m]
-  double torque_z_nm = 0.0;  ///< sensor torque, z: about the drill axis [N m]
-  double feed_depth_m = std::numeric_limits<double>::quiet_NaN();  ///< feed joint (NaN: unknown)
-  double spindle_rpm = std::numeric_limits<double>::quiet_NaN();   ///< spindle (NaN: unknown)
-  /// The feed joint's commanded position, its controller's desired (NaN: unknown)
-  double feed_command_m = std::numeric_limits<double>::quiet_NaN();
-  double tracker_stamp_s = std::numeric_limits<double>::quiet_NaN();  ///< tracker_m's stamp
+  double breath_phase = 0.0;      ///< fraction of the current breath elapsed, [0, 1)
+  double tidal_volume_ml = 0.0;   ///< patient tidal volume [ml]
 };
 
 /** @brief A stop command (StopCommand). */
